@@ -1,0 +1,491 @@
+//! The GPU backend: the CPU backend's two passes as wgpu compute kernels.
+//!
+//! Split: a visibility pass (wgsl/visibility.wgsl, one invocation per vertex–sample pair, so an
+//! invocation traces exactly one ray and stays far below llvmpipe's 65,535-iteration loop cap)
+//! writes one bit per ray; a projection pass (wgsl/project.wgsl, one invocation per
+//! vertex–coefficient pair) sums cosine-weighted SH over the set bits. The bits are also what
+//! tests compare with the CPU ray for ray.
+//!
+//! Work is cut into chunks of vertices and of samples so that every binding fits the adapter's
+//! limits and no submission runs long (real GPUs reset after about two seconds of one dispatch).
+
+use bytemuck::{Pod, Zeroable};
+use rayon::prelude::*;
+
+use super::{DirectInputs, Mode, Progress};
+use crate::error::{Error, Result};
+use crate::gpu::GpuContext;
+use crate::sh::coeff_count;
+use crate::shaders::{self, WORKGROUP_SIZE};
+
+/// Uniforms of the visibility kernel, 32 bytes; WGSL twin in wgsl/visibility.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct VisibilityParams {
+    pub vertex_offset: u32,
+    pub vertex_count: u32,
+    pub sample_offset: u32,
+    pub sample_count: u32,
+    pub words_per_vertex: u32,
+    /// Traversal steps one ray may take before it reports itself exhausted.
+    pub max_steps: u32,
+    /// 1: trace rays; 0: every sample above the horizon is visible.
+    pub shadowed: u32,
+    pub pad0: u32,
+}
+
+/// Uniforms of the projection kernel, 32 bytes; WGSL twin in wgsl/project.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ProjectParams {
+    pub vertex_offset: u32,
+    pub vertex_count: u32,
+    pub sample_offset: u32,
+    pub sample_count: u32,
+    pub words_per_vertex: u32,
+    pub coeff_count: u32,
+    pub accumulate: u32,
+    pub pad0: u32,
+}
+
+/// Traversal steps allowed per ray: under llvmpipe's silent cap of 65,535 loop iterations per
+/// invocation with room to spare. A real mesh needs a few hundred; a ray that needs more is
+/// reported as an error, never returned as a wrong answer.
+pub const MAX_TRAVERSAL_STEPS: u32 = 60_000;
+
+/// Vertex–sample pairs per submission: a few milliseconds on a desktop GPU, well inside any
+/// driver watchdog even on slow hardware.
+const PAIRS_PER_SUBMISSION: u64 = 1 << 22;
+
+/// Samples per chunk. A projection invocation loops over a chunk's samples (plus one
+/// iteration per word), so this bounds its loop count far below the cap too. Multiple of 32.
+const MAX_SAMPLES_PER_CHUNK: u32 = 16_384;
+
+/// Limits on chunk sizes, for tests that force many small chunks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Chunking {
+    pub max_vertices: Option<u32>,
+    /// Rounded up to a multiple of 32.
+    pub max_samples: Option<u32>,
+    /// Overrides MAX_TRAVERSAL_STEPS (tests prove the overflow is reported).
+    pub max_steps: Option<u32>,
+}
+
+/// What a GPU bake returns besides the transfer.
+#[derive(Clone, Debug, Default)]
+pub struct GpuRun {
+    pub rays_cast: u64,
+    pub submissions: u32,
+    pub vertex_chunks: u32,
+    pub sample_chunks: u32,
+}
+
+/// An open device with the bake's kernels compiled (once; compiling is slow on lavapipe).
+pub struct GpuBaker {
+    pub context: GpuContext,
+    visibility: wgpu::ComputePipeline,
+    visibility_layout: wgpu::BindGroupLayout,
+    project: wgpu::ComputePipeline,
+    project_layout: wgpu::BindGroupLayout,
+}
+
+impl GpuBaker {
+    pub fn new(context: GpuContext) -> Result<Self> {
+        let ctx = &context;
+        let ((visibility, visibility_layout), (project, project_layout)) =
+            ctx.checked("compiling the kernels", || {
+                let visibility = pipeline(
+                    ctx,
+                    "visibility",
+                    shaders::visibility_kernel(),
+                    &[
+                        uniform_entry(0),
+                        storage_entry(1, true),
+                        storage_entry(2, true),
+                        storage_entry(3, true),
+                        storage_entry(4, true),
+                        storage_entry(5, true),
+                        storage_entry(6, false),
+                        storage_entry(7, false),
+                    ],
+                );
+                let project = pipeline(
+                    ctx,
+                    "project",
+                    shaders::project_kernel(),
+                    &[
+                        uniform_entry(0),
+                        storage_entry(1, true),
+                        storage_entry(2, true),
+                        storage_entry(3, true),
+                        storage_entry(4, true),
+                        storage_entry(5, false),
+                    ],
+                );
+                (visibility, project)
+            })?;
+        Ok(GpuBaker {
+            context,
+            visibility,
+            visibility_layout,
+            project,
+            project_layout,
+        })
+    }
+}
+
+fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn pipeline(
+    ctx: &GpuContext,
+    label: &str,
+    source: String,
+    entries: &[wgpu::BindGroupLayoutEntry],
+) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
+    let device = &ctx.device;
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries,
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: wgpu::PipelineCompilationOptions::default(),
+        cache: None,
+    });
+    (pipeline, layout)
+}
+
+/// Chunk sizes that respect the adapter's limits and the per-submission budget.
+fn plan_chunks(
+    ctx: &GpuContext,
+    vertices: u32,
+    samples: u32,
+    coeffs: u32,
+    chunking: Chunking,
+) -> (u32, u32) {
+    let max_binding = ctx
+        .limits
+        .max_storage_buffer_binding_size
+        .min(ctx.limits.max_buffer_size);
+    let max_groups = ctx.limits.max_compute_workgroups_per_dimension as u64;
+
+    let sample_limit = chunking
+        .max_samples
+        .unwrap_or(MAX_SAMPLES_PER_CHUNK)
+        .min(MAX_SAMPLES_PER_CHUNK)
+        .min(max_groups as u32)
+        .max(1);
+    // Whole words per chunk, so chunk bits land on word boundaries of the full bit array.
+    let sample_chunk = (samples.min(sample_limit).div_ceil(32) * 32).min(samples.div_ceil(32) * 32);
+    let words = sample_chunk.div_ceil(32) as u64;
+
+    let by_budget = (PAIRS_PER_SUBMISSION / sample_chunk as u64).max(1);
+    let by_bits = max_binding / (words * 4);
+    let by_transfer = max_binding / (coeffs as u64 * 4);
+    let by_visibility_dispatch = max_groups * WORKGROUP_SIZE as u64;
+    let by_project_dispatch = max_groups * WORKGROUP_SIZE as u64 / coeffs as u64;
+    let vertex_chunk = [
+        by_budget,
+        by_bits,
+        by_transfer,
+        by_visibility_dispatch,
+        by_project_dispatch,
+    ]
+    .into_iter()
+    .min()
+    .unwrap()
+    .min(chunking.max_vertices.unwrap_or(u32::MAX) as u64)
+    .min(vertices as u64)
+    .max(1) as u32;
+    (vertex_chunk, sample_chunk.max(32))
+}
+
+fn as_vec4(values: &[glam::Vec3]) -> Vec<[f32; 4]> {
+    values.iter().map(|v| [v.x, v.y, v.z, 0.0]).collect()
+}
+
+/// Runs both passes over every chunk. Returns the raw projected sums `[vertex][k]` (not yet
+/// scaled by the sample weight), optionally the visibility bits `[vertex][word]`, and counts.
+fn run(
+    baker: &GpuBaker,
+    inputs: &DirectInputs,
+    mode: Mode,
+    chunking: Chunking,
+    keep_bits: bool,
+    progress: &dyn Progress,
+) -> Result<(Vec<f32>, Vec<u32>, GpuRun)> {
+    let ctx = &baker.context;
+    let vertex_count = inputs.origins.len() as u32;
+    let sample_count = inputs.samples.len() as u32;
+    let coeffs = coeff_count(inputs.table.bands) as u32;
+    let total_words = sample_count.div_ceil(32) as usize;
+    let (vertex_chunk, sample_chunk) =
+        plan_chunks(ctx, vertex_count, sample_count, coeffs, chunking);
+    let chunk_words = sample_chunk / 32;
+
+    let needs_binding = |name: &str, bytes: u64| -> Result<()> {
+        if bytes > ctx.limits.max_storage_buffer_binding_size {
+            return Err(Error::Gpu(format!(
+                "{name} needs {bytes} bytes, more than {}'s storage binding limit of {} bytes",
+                ctx.adapter.name, ctx.limits.max_storage_buffer_binding_size
+            )));
+        }
+        Ok(())
+    };
+    needs_binding(
+        "the BVH triangles",
+        std::mem::size_of_val(inputs.bvh.triangles.as_slice()) as u64,
+    )?;
+    needs_binding(
+        "the BVH nodes",
+        std::mem::size_of_val(inputs.bvh.nodes.as_slice()) as u64,
+    )?;
+    needs_binding("the SH table", (inputs.table.values.len() * 4) as u64)?;
+
+    let nodes = ctx.storage("bvh nodes", &inputs.bvh.nodes);
+    let triangles = ctx.storage("bvh triangles", &inputs.bvh.triangles);
+    let origins = ctx.storage("origins", &as_vec4(inputs.origins));
+    let normals = ctx.storage("normals", &as_vec4(inputs.normals));
+    let directions = ctx.storage("directions", &as_vec4(&inputs.samples.directions));
+    let sh_table = ctx.storage("sh table", &inputs.table.values);
+    let bits_bytes = vertex_chunk as u64 * chunk_words as u64 * 4;
+    let transfer_bytes = vertex_chunk as u64 * coeffs as u64 * 4;
+    let bits = ctx.output("visibility bits", bits_bytes);
+    let transfer = ctx.output("transfer", transfer_bytes);
+    let exhausted = ctx.output("exhausted rays", 4);
+    let visibility_params = ctx.uniform("visibility params", &VisibilityParams::default());
+    let project_params = ctx.uniform("project params", &ProjectParams::default());
+
+    let (visibility_group, project_group) = ctx.checked("binding the buffers", || {
+        let bind = |layout: &wgpu::BindGroupLayout, buffers: &[&wgpu::Buffer]| {
+            let entries: Vec<wgpu::BindGroupEntry> = buffers
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout,
+                entries: &entries,
+            })
+        };
+        (
+            bind(
+                &baker.visibility_layout,
+                &[
+                    &visibility_params,
+                    &nodes,
+                    &triangles,
+                    &origins,
+                    &normals,
+                    &directions,
+                    &bits,
+                    &exhausted,
+                ],
+            ),
+            bind(
+                &baker.project_layout,
+                &[
+                    &project_params,
+                    &normals,
+                    &directions,
+                    &sh_table,
+                    &bits,
+                    &transfer,
+                ],
+            ),
+        )
+    })?;
+
+    let mut sums = vec![0.0f32; vertex_count as usize * coeffs as usize];
+    let mut all_bits = if keep_bits {
+        vec![0u32; vertex_count as usize * total_words]
+    } else {
+        Vec::new()
+    };
+    let mut stats = GpuRun::default();
+    let max_steps = chunking.max_steps.unwrap_or(MAX_TRAVERSAL_STEPS);
+
+    for vertex_offset in (0..vertex_count).step_by(vertex_chunk as usize) {
+        let vertices = vertex_chunk.min(vertex_count - vertex_offset);
+        stats.vertex_chunks += 1;
+        for (chunk_index, sample_offset) in
+            (0..sample_count).step_by(sample_chunk as usize).enumerate()
+        {
+            let samples = sample_chunk.min(sample_count - sample_offset);
+            stats.sample_chunks += (vertex_offset == 0) as u32;
+            ctx.queue.write_buffer(
+                &visibility_params,
+                0,
+                bytemuck::bytes_of(&VisibilityParams {
+                    vertex_offset,
+                    vertex_count: vertices,
+                    sample_offset,
+                    sample_count: samples,
+                    words_per_vertex: chunk_words,
+                    max_steps,
+                    shadowed: (mode == Mode::Shadowed) as u32,
+                    pad0: 0,
+                }),
+            );
+            ctx.queue.write_buffer(
+                &project_params,
+                0,
+                bytemuck::bytes_of(&ProjectParams {
+                    vertex_offset,
+                    vertex_count: vertices,
+                    sample_offset,
+                    sample_count: samples,
+                    // The row stride of the bits; words past the chunk's samples are zero.
+                    words_per_vertex: chunk_words,
+                    coeff_count: coeffs,
+                    accumulate: (chunk_index > 0) as u32,
+                    pad0: 0,
+                }),
+            );
+            ctx.checked("running the kernels", || {
+                let mut encoder =
+                    ctx.device
+                        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                            label: Some("bake chunk"),
+                        });
+                encoder.clear_buffer(&bits, 0, None);
+                {
+                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("visibility"),
+                        timestamp_writes: None,
+                    });
+                    pass.set_pipeline(&baker.visibility);
+                    pass.set_bind_group(0, &visibility_group, &[]);
+                    pass.dispatch_workgroups(vertices.div_ceil(WORKGROUP_SIZE), samples, 1);
+                }
+                {
+                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("project"),
+                        timestamp_writes: None,
+                    });
+                    pass.set_pipeline(&baker.project);
+                    pass.set_bind_group(0, &project_group, &[]);
+                    pass.dispatch_workgroups((vertices * coeffs).div_ceil(WORKGROUP_SIZE), 1, 1);
+                }
+                ctx.queue.submit([encoder.finish()]);
+            })?;
+            ctx.wait()?;
+            stats.submissions += 1;
+            if keep_bits {
+                let chunk_bits: Vec<u32> =
+                    ctx.read_back(&bits, vertices as u64 * chunk_words as u64 * 4)?;
+                let first_word = (sample_offset / 32) as usize;
+                let words = samples.div_ceil(32) as usize;
+                for v in 0..vertices as usize {
+                    let row = (vertex_offset as usize + v) * total_words + first_word;
+                    all_bits[row..row + words]
+                        .copy_from_slice(&chunk_bits[v * chunk_words as usize..][..words]);
+                }
+            }
+        }
+        let chunk_sums: Vec<f32> = ctx.read_back(&transfer, vertices as u64 * coeffs as u64 * 4)?;
+        sums[(vertex_offset * coeffs) as usize..][..chunk_sums.len()].copy_from_slice(&chunk_sums);
+        progress.advance(vertices as u64);
+    }
+
+    let exhausted_rays: Vec<u32> = ctx.read_back(&exhausted, 4)?;
+    if exhausted_rays[0] > 0 {
+        return Err(Error::Gpu(format!(
+            "{} rays needed more than {max_steps} traversal steps; the GPU result would be wrong \
+             (use --device cpu)",
+            exhausted_rays[0]
+        )));
+    }
+    stats.rays_cast = if mode == Mode::Shadowed {
+        rays_above_horizon(inputs)
+    } else {
+        0
+    };
+    Ok((sums, all_bits, stats))
+}
+
+/// Rays a shadowed bake casts: vertex–sample pairs above the horizon (as the CPU counts them).
+fn rays_above_horizon(inputs: &DirectInputs) -> u64 {
+    inputs
+        .normals
+        .par_iter()
+        .map(|n| {
+            inputs
+                .samples
+                .directions
+                .iter()
+                .filter(|d| n.dot(**d) > 0.0)
+                .count() as u64
+        })
+        .sum()
+}
+
+/// Albedo-free direct transfer of every vertex, `[vertex][k]`, computed on the GPU.
+pub fn direct_transfer(
+    baker: &GpuBaker,
+    inputs: &DirectInputs,
+    mode: Mode,
+    chunking: Chunking,
+    progress: &dyn Progress,
+) -> Result<(Vec<f32>, GpuRun)> {
+    let (mut sums, _, stats) = run(baker, inputs, mode, chunking, false, progress)?;
+    let scale = super::cpu::transfer_scale(inputs);
+    sums.iter_mut()
+        .for_each(|t| *t = (*t as f64 * scale) as f32);
+    Ok((sums, stats))
+}
+
+/// The GPU's visibility bits `[vertex][word]` and its transfer, for comparison with
+/// `cpu::visibility_bits` ray for ray.
+pub fn visibility_bits_and_transfer(
+    baker: &GpuBaker,
+    inputs: &DirectInputs,
+    mode: Mode,
+    chunking: Chunking,
+) -> Result<(Vec<u32>, Vec<f32>)> {
+    let (mut sums, bits, _) = run(baker, inputs, mode, chunking, true, &super::NoProgress)?;
+    let scale = super::cpu::transfer_scale(inputs);
+    sums.iter_mut()
+        .for_each(|t| *t = (*t as f64 * scale) as f32);
+    Ok((bits, sums))
+}

@@ -1,0 +1,496 @@
+//! Bounding volume hierarchy: a binned-SAH build, flattened into the exact bytes the GPU reads,
+//! and the CPU traversal over those same bytes.
+//!
+//! Layout (both arrays are uploaded as they are):
+//! - `nodes[0]` is the root. An interior node's children are `nodes[left_or_first]` and
+//!   `nodes[left_or_first + 1]`; each child carries its own box, so a traversal step tests both
+//!   children of the node it stands on. A leaf (`triangle_count > 0`) owns
+//!   `triangles[left_or_first .. left_or_first + triangle_count]`.
+//! - Triangles are stored in leaf order with their vertex positions inline, so a leaf test
+//!   touches one contiguous run of memory and needs no index indirection.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+
+use crate::ray::{intersect_box, intersect_triangle, Ray, TriangleHit};
+
+/// One BVH node, 32 bytes. WGSL twin (`wgsl/bvh.wgsl`):
+/// `struct BvhNode { min: vec3<f32>, left_or_first: u32, max: vec3<f32>, triangle_count: u32 }`
+/// (each `vec3<f32>` is 16-byte aligned and the `u32` fills its fourth lane).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct BvhNode {
+    pub min: [f32; 3],
+    /// Interior: index of the first child. Leaf: index of the first triangle.
+    pub left_or_first: u32,
+    pub max: [f32; 3],
+    /// 0 for an interior node.
+    pub triangle_count: u32,
+}
+const _: () = assert!(std::mem::size_of::<BvhNode>() == 32);
+
+impl BvhNode {
+    pub fn is_leaf(&self) -> bool {
+        self.triangle_count > 0
+    }
+
+    pub fn min(&self) -> Vec3 {
+        Vec3::from_array(self.min)
+    }
+
+    pub fn max(&self) -> Vec3 {
+        Vec3::from_array(self.max)
+    }
+}
+
+/// One triangle in leaf order, 48 bytes. WGSL twin:
+/// `struct BvhTriangle { v0: vec3<f32>, source_index: u32, v1: vec3<f32>, pad1: u32, v2: vec3<f32>, pad2: u32 }`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct BvhTriangle {
+    pub v0: [f32; 3],
+    /// Index of this triangle in the scene's triangle list.
+    pub source_index: u32,
+    pub v1: [f32; 3],
+    pub pad1: u32,
+    pub v2: [f32; 3],
+    pub pad2: u32,
+}
+const _: () = assert!(std::mem::size_of::<BvhTriangle>() == 48);
+
+impl BvhTriangle {
+    pub fn vertices(&self) -> [Vec3; 3] {
+        [
+            Vec3::from_array(self.v0),
+            Vec3::from_array(self.v1),
+            Vec3::from_array(self.v2),
+        ]
+    }
+}
+
+/// Deepest traversal stack any tree from [`Bvh::build`] needs (the build stops splitting before).
+pub const STACK_SIZE: usize = 64;
+/// SAH bins per axis.
+const BINS: usize = 16;
+/// Leaves never hold more triangles than this unless the triangles cannot be separated.
+const MAX_LEAF_TRIANGLES: u32 = 4;
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Bvh {
+    pub nodes: Vec<BvhNode>,
+    pub triangles: Vec<BvhTriangle>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Aabb {
+    min: Vec3,
+    max: Vec3,
+}
+
+impl Aabb {
+    const EMPTY: Aabb = Aabb {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    fn grow(&mut self, other: &Aabb) {
+        self.min = self.min.min(other.min);
+        self.max = self.max.max(other.max);
+    }
+
+    fn grow_point(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    fn half_area(&self) -> f32 {
+        let e = (self.max - self.min).max(Vec3::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
+}
+
+struct BuildTask {
+    node: usize,
+    first: usize,
+    count: usize,
+    depth: usize,
+}
+
+impl Bvh {
+    /// Builds the tree over `triangles` (indices into `positions`) with the surface area
+    /// heuristic evaluated on `BINS` centroid bins per axis.
+    pub fn build(positions: &[Vec3], triangles: &[[u32; 3]]) -> Bvh {
+        if triangles.is_empty() {
+            return Bvh::default();
+        }
+        let bounds: Vec<Aabb> = triangles
+            .iter()
+            .map(|t| {
+                let mut b = Aabb::EMPTY;
+                for &i in t {
+                    b.grow_point(positions[i as usize]);
+                }
+                b
+            })
+            .collect();
+        let centroids: Vec<Vec3> = bounds.iter().map(|b| (b.min + b.max) * 0.5).collect();
+        let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
+
+        let mut nodes = vec![BvhNode::default()];
+        let mut tasks = vec![BuildTask {
+            node: 0,
+            first: 0,
+            count: triangles.len(),
+            depth: 0,
+        }];
+        while let Some(task) = tasks.pop() {
+            let range = task.first..task.first + task.count;
+            let mut node_bounds = Aabb::EMPTY;
+            let mut centroid_bounds = Aabb::EMPTY;
+            for &t in &order[range.clone()] {
+                node_bounds.grow(&bounds[t as usize]);
+                centroid_bounds.grow_point(centroids[t as usize]);
+            }
+            let node = &mut nodes[task.node];
+            node.min = node_bounds.min.to_array();
+            node.max = node_bounds.max.to_array();
+
+            let split = if task.depth + 1 >= STACK_SIZE {
+                None
+            } else {
+                choose_split(&order[range.clone()], &bounds, &centroids, &centroid_bounds).filter(
+                    |s| {
+                        task.count > MAX_LEAF_TRIANGLES as usize
+                            || s.cost < node_bounds.half_area() * task.count as f32
+                    },
+                )
+            };
+            let left_count = match split {
+                Some(s) => partition(&mut order[range.clone()], |t| {
+                    bin_of(centroids[t as usize], &centroid_bounds, s.axis) < s.bin
+                }),
+                // Unsplittable by centroid but too big: halve by order so leaves stay small.
+                None if task.count > MAX_LEAF_TRIANGLES as usize && task.depth + 1 < STACK_SIZE => {
+                    task.count / 2
+                }
+                None => 0,
+            };
+            if left_count == 0 || left_count == task.count {
+                node.left_or_first = task.first as u32;
+                node.triangle_count = task.count as u32;
+                continue;
+            }
+            let left = nodes.len();
+            nodes[task.node].left_or_first = left as u32;
+            nodes.push(BvhNode::default());
+            nodes.push(BvhNode::default());
+            tasks.push(BuildTask {
+                node: left,
+                first: task.first,
+                count: left_count,
+                depth: task.depth + 1,
+            });
+            tasks.push(BuildTask {
+                node: left + 1,
+                first: task.first + left_count,
+                count: task.count - left_count,
+                depth: task.depth + 1,
+            });
+        }
+
+        let triangles = order
+            .iter()
+            .map(|&t| {
+                let [a, b, c] = triangles[t as usize];
+                BvhTriangle {
+                    v0: positions[a as usize].to_array(),
+                    source_index: t,
+                    v1: positions[b as usize].to_array(),
+                    pad1: 0,
+                    v2: positions[c as usize].to_array(),
+                    pad2: 0,
+                }
+            })
+            .collect();
+        Bvh { nodes, triangles }
+    }
+
+    /// Extent of the whole scene: the largest side of the root box.
+    pub fn extent(&self) -> f32 {
+        self.nodes
+            .first()
+            .map(|root| (root.max() - root.min()).max_element())
+            .unwrap_or(0.0)
+    }
+
+    /// Any-hit query: does anything block the ray on `(0, t_max)`?
+    pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+        let mut hit = false;
+        self.traverse(ray, t_max, |_, _| {
+            hit = true;
+            (true, 0.0)
+        });
+        hit
+    }
+
+    /// Closest-hit query: the nearest triangle (scene index) on `(0, t_max)` and where it is hit.
+    pub fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<(u32, TriangleHit)> {
+        let mut best = None;
+        self.traverse(ray, t_max, |triangle, hit| {
+            best = Some((triangle, hit));
+            (false, hit.t)
+        });
+        best
+    }
+
+    /// Stack traversal shared by both queries. `on_hit` returns (stop, new t_max).
+    fn traverse(
+        &self,
+        ray: &Ray,
+        mut t_max: f32,
+        mut on_hit: impl FnMut(u32, TriangleHit) -> (bool, f32),
+    ) {
+        let Some(root) = self.nodes.first() else {
+            return;
+        };
+        if intersect_box(ray, root.min(), root.max(), 0.0, t_max).is_none() {
+            return;
+        }
+        let mut stack = [0u32; STACK_SIZE];
+        let mut stack_len = 0;
+        let mut node = root;
+        loop {
+            if node.is_leaf() {
+                let first = node.left_or_first as usize;
+                for tri in &self.triangles[first..first + node.triangle_count as usize] {
+                    let [v0, v1, v2] = tri.vertices();
+                    if let Some(hit) = intersect_triangle(ray, v0, v1, v2, 0.0, t_max) {
+                        let (stop, new_t_max) = on_hit(tri.source_index, hit);
+                        if stop {
+                            return;
+                        }
+                        t_max = new_t_max;
+                    }
+                }
+            } else {
+                let left = &self.nodes[node.left_or_first as usize];
+                let right = &self.nodes[node.left_or_first as usize + 1];
+                let t_left = intersect_box(ray, left.min(), left.max(), 0.0, t_max);
+                let t_right = intersect_box(ray, right.min(), right.max(), 0.0, t_max);
+                match (t_left, t_right) {
+                    (Some(a), Some(b)) => {
+                        let (near, far) = if a <= b {
+                            (left, node.left_or_first + 1)
+                        } else {
+                            (right, node.left_or_first)
+                        };
+                        stack[stack_len] = far;
+                        stack_len += 1;
+                        node = near;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = left;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = right;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            if stack_len == 0 {
+                return;
+            }
+            stack_len -= 1;
+            node = &self.nodes[stack[stack_len] as usize];
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Split {
+    axis: usize,
+    /// Triangles in bins `< bin` go left.
+    bin: usize,
+    cost: f32,
+}
+
+fn bin_of(centroid: Vec3, centroid_bounds: &Aabb, axis: usize) -> usize {
+    let lo = centroid_bounds.min[axis];
+    let extent = centroid_bounds.max[axis] - lo;
+    let b = ((centroid[axis] - lo) / extent * BINS as f32) as usize;
+    b.min(BINS - 1)
+}
+
+/// The cheapest bin boundary over all axes by the SAH, `None` if the centroids coincide.
+fn choose_split(
+    triangles: &[u32],
+    bounds: &[Aabb],
+    centroids: &[Vec3],
+    centroid_bounds: &Aabb,
+) -> Option<Split> {
+    let mut best: Option<Split> = None;
+    for axis in 0..3 {
+        if centroid_bounds.max[axis] <= centroid_bounds.min[axis] {
+            continue;
+        }
+        let mut bin_bounds = [Aabb::EMPTY; BINS];
+        let mut bin_counts = [0u32; BINS];
+        for &t in triangles {
+            let b = bin_of(centroids[t as usize], centroid_bounds, axis);
+            bin_bounds[b].grow(&bounds[t as usize]);
+            bin_counts[b] += 1;
+        }
+        // Sweep from the right to get the cost of every right side, then from the left.
+        let mut right_cost = [0.0f32; BINS];
+        let mut acc = Aabb::EMPTY;
+        let mut count = 0;
+        for b in (1..BINS).rev() {
+            acc.grow(&bin_bounds[b]);
+            count += bin_counts[b];
+            right_cost[b] = if count > 0 {
+                acc.half_area() * count as f32
+            } else {
+                0.0
+            };
+        }
+        let mut acc = Aabb::EMPTY;
+        let mut count = 0;
+        for b in 1..BINS {
+            acc.grow(&bin_bounds[b - 1]);
+            count += bin_counts[b - 1];
+            if count == 0 || count as usize == triangles.len() {
+                continue;
+            }
+            let cost = acc.half_area() * count as f32 + right_cost[b];
+            if best.is_none_or(|s| cost < s.cost) {
+                best = Some(Split { axis, bin: b, cost });
+            }
+        }
+    }
+    best
+}
+
+/// Moves the items for which `goes_left` holds to the front; returns how many there are.
+fn partition(items: &mut [u32], goes_left: impl Fn(u32) -> bool) -> usize {
+    let mut left = 0;
+    for i in 0..items.len() {
+        if goes_left(items[i]) {
+            items.swap(i, left);
+            left += 1;
+        }
+    }
+    left
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Pcg32;
+
+    fn random_soup(count: usize, seed: u64) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let mut rng = Pcg32::new(seed);
+        let mut r = || rng.next_f32() * 2.0 - 1.0;
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for i in 0..count as u32 {
+            let c = Vec3::new(r(), r(), r()) * 10.0;
+            for _ in 0..3 {
+                positions.push(c + Vec3::new(r(), r(), r()) * 0.5);
+            }
+            triangles.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        (positions, triangles)
+    }
+
+    fn brute_closest(positions: &[Vec3], triangles: &[[u32; 3]], ray: &Ray) -> Option<(u32, f32)> {
+        let mut best: Option<(u32, f32)> = None;
+        for (i, t) in triangles.iter().enumerate() {
+            let [a, b, c] = t.map(|v| positions[v as usize]);
+            if let Some(hit) = intersect_triangle(ray, a, b, c, 0.0, f32::INFINITY) {
+                if best.is_none_or(|(_, t)| hit.t < t) {
+                    best = Some((i as u32, hit.t));
+                }
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn every_triangle_sits_in_exactly_one_leaf_inside_its_boxes() {
+        let (positions, triangles) = random_soup(3000, 1);
+        let bvh = Bvh::build(&positions, &triangles);
+        let mut seen = vec![0u32; triangles.len()];
+        // Walk the tree, checking that children lie inside parents and leaves cover triangles.
+        let mut stack = vec![(0usize, 0usize)];
+        let mut max_depth = 0;
+        while let Some((n, depth)) = stack.pop() {
+            max_depth = max_depth.max(depth);
+            let node = bvh.nodes[n];
+            if node.is_leaf() {
+                assert!(node.triangle_count <= MAX_LEAF_TRIANGLES);
+                let first = node.left_or_first as usize;
+                for tri in &bvh.triangles[first..first + node.triangle_count as usize] {
+                    seen[tri.source_index as usize] += 1;
+                    for v in tri.vertices() {
+                        assert!(v.cmpge(node.min()).all() && v.cmple(node.max()).all());
+                    }
+                }
+            } else {
+                for child in [node.left_or_first as usize, node.left_or_first as usize + 1] {
+                    let c = bvh.nodes[child];
+                    assert!(c.min().cmpge(node.min()).all() && c.max().cmple(node.max()).all());
+                    stack.push((child, depth + 1));
+                }
+            }
+        }
+        assert!(
+            seen.iter().all(|&c| c == 1),
+            "a triangle is missing or repeated"
+        );
+        assert!(max_depth < STACK_SIZE);
+    }
+
+    #[test]
+    fn queries_agree_with_brute_force() {
+        let (positions, triangles) = random_soup(2000, 2);
+        let bvh = Bvh::build(&positions, &triangles);
+        let mut rng = Pcg32::new(3);
+        let mut hits = 0;
+        for _ in 0..5000 {
+            let mut r = || rng.next_f32() * 2.0 - 1.0;
+            let origin = Vec3::new(r(), r(), r()) * 12.0;
+            let dir = Vec3::new(r(), r(), r()).normalize_or(Vec3::X);
+            let ray = Ray::new(origin, dir);
+            let expected = brute_closest(&positions, &triangles, &ray);
+            let got = bvh.closest_hit(&ray, f32::INFINITY);
+            assert_eq!(got.map(|(t, h)| (t, h.t)), expected);
+            assert_eq!(bvh.occluded(&ray, f32::INFINITY), expected.is_some());
+            hits += expected.is_some() as u32;
+        }
+        assert!(hits > 500, "too few hits ({hits}) to test anything");
+    }
+
+    #[test]
+    fn coincident_centroids_still_give_small_leaves() {
+        // 100 identical triangles: no SAH split exists, the build must still terminate.
+        let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        let triangles = vec![[0, 1, 2]; 100];
+        let bvh = Bvh::build(&positions, &triangles);
+        assert_eq!(bvh.triangles.len(), 100);
+        assert!(bvh
+            .nodes
+            .iter()
+            .all(|n| n.triangle_count <= MAX_LEAF_TRIANGLES));
+        let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z);
+        assert!(bvh.occluded(&ray, f32::INFINITY));
+    }
+
+    #[test]
+    fn empty_tree_blocks_nothing() {
+        let bvh = Bvh::build(&[], &[]);
+        assert!(!bvh.occluded(&Ray::new(Vec3::ZERO, Vec3::X), f32::INFINITY));
+    }
+}

@@ -1,0 +1,53 @@
+//! One error type for the whole library. Every message is a single line that names the
+//! offending input, so the CLI can print it as is.
+
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// A mesh file that could not be parsed or that describes no usable geometry.
+    #[error("{path}: {message}")]
+    Mesh { path: PathBuf, message: String },
+    /// Geometry that is structurally wrong whatever file it came from (NaN, bad indices, empty).
+    #[error("invalid mesh: {0}")]
+    Geometry(String),
+    /// Options outside the range the baker supports.
+    #[error("invalid option: {0}")]
+    Options(String),
+    /// No usable adapter, or the GPU failed (validation, device loss, limits).
+    #[error("gpu: {0}")]
+    Gpu(String),
+    /// A baked file that is not one of ours, or is damaged.
+    #[error("{path}: {message}")]
+    Baked { path: PathBuf, message: String },
+}
+
+impl Error {
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    pub fn mesh(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Error::Mesh {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+
+    pub fn baked(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Error::Baked {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+}
+
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,17 @@
+//! prt-gpu: precomputed radiance transfer baking.
+//!
+//! The data flows one way, one module per step:
+//! `scene` (load, prepare) → `bvh` → `sampling` + `sh` → `bake` (cpu backend) → `output`.
+
+pub mod bake;
+pub mod bvh;
+pub mod error;
+pub mod gpu;
+pub mod output;
+pub mod ray;
+pub mod sampling;
+pub mod scene;
+pub mod sh;
+pub mod shaders;
+
+pub use error::{Error, Result};

@@ -1,0 +1,1327 @@
+//! The baked file: one self-contained glTF 2.0 binary (`.glb`).
+//!
+//! Why glTF: engines load it as is (the transfer travels as standard custom vertex attributes),
+//! and a reader needs nothing but a JSON parser and a way to view little-endian floats
+//! (see [`PYTHON_READER`]).
+//!
+//! Layout (byte for byte deterministic: no timestamps, struct-ordered JSON keys):
+//! - one buffer, the BIN chunk, holding five 4-byte aligned buffer views:
+//!   0 positions, 1 normals, 2 albedo (`COLOR_0`), all `VEC3` float; 3 indices (`u32`);
+//!   4 the transfer coefficients.
+//! - the transfer view is planar, in groups of four coefficients:
+//!   `[channel][group][vertex][lane]` float32, coefficient `k = 4 * group + lane`, lanes past
+//!   `bands^2` zero. Each `(channel, group)` block is the `VEC4` custom attribute
+//!   `_PRT_<R|G|B>_<group>` (`_PRT_<group>` for one channel), so a shader reads one `vec4`
+//!   per group and channel.
+//! - mesh `extras.prt` holds every [`BakeMetadata`] field, plus `vertices`,
+//!   `transfer_buffer_view` and `transfer_layout` ([`TRANSFER_LAYOUT`]).
+
+use std::collections::BTreeMap;
+use std::fs::{self, File};
+use std::io::{self, Read, Write};
+use std::path::Path;
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::bake::{BakeMetadata, Transfer};
+use crate::error::{Error, Result};
+use crate::scene::Scene;
+
+/// A baked mesh: the prepared scene (normals `Some`), its transfer and how it was made.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakedMesh {
+    pub scene: Scene,
+    pub transfer: Transfer,
+    pub metadata: BakeMetadata,
+}
+
+/// How the transfer buffer view is laid out; written into `extras.prt.transfer_layout` and
+/// checked on reading, so a future layout change cannot be misread silently.
+pub const TRANSFER_LAYOUT: &str = "planar [channel][group][vertex][4] float32 little-endian, \
+coefficient k = 4*group + lane, lanes past bands^2 are zero";
+
+/// Reads a baked file with Python and numpy alone: `python3 reader.py file.glb`.
+///
+/// Gives `positions` (V, 3), `indices` (T, 3) and `transfer` (V, channels, bands^2), and prints
+/// their shapes and the last vertex's transfer as JSON.
+pub const PYTHON_READER: &str = r#"import json, struct, sys, numpy as np
+data = open(sys.argv[1], "rb").read()
+n = struct.unpack_from("<I", data, 12)[0]  # JSON chunk length; BIN chunk data starts at 28 + n
+gltf, binary = json.loads(data[20:20 + n]), data[28 + n:]
+bv, acc = gltf["bufferViews"], gltf["accessors"]
+view = lambda i, dtype: np.frombuffer(binary, dtype, bv[i]["byteLength"] // 4, bv[i].get("byteOffset", 0))
+prim, prt = gltf["meshes"][0]["primitives"][0], gltf["meshes"][0]["extras"]["prt"]
+positions = view(acc[prim["attributes"]["POSITION"]]["bufferView"], "<f4").reshape(-1, 3)
+indices = view(acc[prim["indices"]]["bufferView"], "<u4").reshape(-1, 3)
+V, C, K = prt["vertices"], prt["channels"], prt["bands"] ** 2
+transfer = view(prt["transfer_buffer_view"], "<f4").reshape(C, -1, V, 4).transpose(2, 0, 1, 3).reshape(V, C, -1)[:, :, :K]
+print(json.dumps({"positions": positions.shape, "indices": indices.shape, "transfer": transfer.shape, "last_vertex": transfer[-1].tolist()}))
+"#;
+
+/// Name of the custom vertex attribute holding coefficients `4 * group .. 4 * group + 3` of
+/// `channel`.
+pub fn transfer_attribute_name(channels: u32, channel: u32, group: usize) -> String {
+    if channels == 1 {
+        format!("_PRT_{group}")
+    } else {
+        let name = ["R", "G", "B"]
+            .get(channel as usize)
+            .copied()
+            .unwrap_or("X");
+        format!("_PRT_{name}_{group}")
+    }
+}
+
+/// Writes `baked` to `path` atomically: a temporary file in the same directory, synced, then
+/// renamed over the target, so readers never see a half-written file.
+pub fn write_glb(path: &Path, baked: &BakedMesh) -> Result<()> {
+    validate(baked)?;
+    let dir = check_destination(path)?;
+    let Some(file_name) = path.file_name() else {
+        return Err(Error::io(
+            path,
+            io::Error::new(io::ErrorKind::InvalidInput, "output path names no file"),
+        ));
+    };
+    let bytes = encode_valid(baked)?;
+    let mut tmp_name = file_name.to_os_string();
+    tmp_name.push(format!(".tmp-{}", std::process::id()));
+    let tmp = dir.join(tmp_name);
+    let result = write_then_rename(&tmp, path, &bytes);
+    if result.is_err() {
+        // Best effort: the error being reported matters more than a failure to clean up.
+        let _ = fs::remove_file(&tmp);
+    } else {
+        sync_dir(dir);
+    }
+    result
+}
+
+/// Checks that `path` can be written to: its directory exists. Returns that directory.
+///
+/// Called by `write_glb`, and by the CLI before a long bake so a typo fails in a second.
+pub fn check_destination(path: &Path) -> Result<&Path> {
+    let dir = match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    if dir.is_dir() {
+        return Ok(dir);
+    }
+    let problem = if dir.exists() {
+        "is not a directory"
+    } else {
+        "does not exist"
+    };
+    Err(Error::io(
+        path,
+        io::Error::new(
+            io::ErrorKind::NotFound,
+            format!("output directory {} {problem}", dir.display()),
+        ),
+    ))
+}
+
+fn write_then_rename(tmp: &Path, path: &Path, bytes: &[u8]) -> Result<()> {
+    let mut file = File::create(tmp).map_err(|e| Error::io(tmp, e))?;
+    file.write_all(bytes).map_err(|e| Error::io(tmp, e))?;
+    file.flush().map_err(|e| Error::io(tmp, e))?;
+    // Without the sync a crash right after the rename could leave a renamed but empty file.
+    file.sync_all().map_err(|e| Error::io(tmp, e))?;
+    drop(file);
+    fs::rename(tmp, path).map_err(|e| Error::io(path, e))
+}
+
+/// Makes the rename itself durable where the platform allows syncing a directory.
+fn sync_dir(dir: &Path) {
+    #[cfg(unix)]
+    if let Ok(d) = File::open(dir) {
+        let _ = d.sync_all();
+    }
+    #[cfg(not(unix))]
+    let _ = dir;
+}
+
+/// Reads and fully validates a baked file.
+pub fn read_glb(path: &Path) -> Result<BakedMesh> {
+    let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
+    decode_glb(&bytes, path)
+}
+
+/// Reads only the header and JSON of a baked file: metadata, vertex count, triangle count.
+///
+/// The layout is validated against the BIN chunk's length, but its contents are not read, so
+/// this stays fast on large bakes.
+pub fn read_metadata(path: &Path) -> Result<(BakeMetadata, usize, usize)> {
+    let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let file_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut read = |buf: &mut [u8], what: &str| -> Result<()> {
+        file.read_exact(buf).map_err(|e| match e.kind() {
+            io::ErrorKind::UnexpectedEof => Error::baked(path, format!("file ends inside {what}")),
+            _ => Error::io(path, e),
+        })
+    };
+    let mut head = [0u8; 20];
+    read(&mut head, "the glTF binary header")?;
+    let json_len = check_head(&head, file_len, path)?;
+    let mut json = vec![0u8; json_len];
+    read(&mut json, "the JSON chunk")?;
+    let mut bin_head = [0u8; 8];
+    read(&mut bin_head, "the BIN chunk header")?;
+    let bin_len = check_bin_head(&bin_head, 20 + json_len as u64, file_len, path)?;
+    let doc = parse_document(&json, path)?;
+    let plan = plan(&doc, bin_len, path)?;
+    Ok((plan.metadata, plan.vertices, plan.triangles))
+}
+
+/// Encodes `baked` as a `.glb` in memory, after checking that its parts agree.
+pub fn encode_glb(baked: &BakedMesh) -> Result<Vec<u8>> {
+    validate(baked)?;
+    encode_valid(baked)
+}
+
+/// Decodes and validates a `.glb`; `path` only names the file in error messages.
+pub fn decode_glb(bytes: &[u8], path: &Path) -> Result<BakedMesh> {
+    let head = bytes
+        .get(..20)
+        .ok_or_else(|| Error::baked(path, "too short to be a glTF binary (.glb) file"))?;
+    let json_len = check_head(head, bytes.len() as u64, path)?;
+    let json = &bytes[20..20 + json_len];
+    let bin_start = 20 + json_len;
+    let bin_head = bytes
+        .get(bin_start..bin_start + 8)
+        .ok_or_else(|| Error::baked(path, "no BIN chunk after the JSON chunk"))?;
+    let bin_len = check_bin_head(bin_head, bin_start as u64, bytes.len() as u64, path)?;
+    let bin = &bytes[bin_start + 8..bin_start + 8 + bin_len];
+
+    let doc = parse_document(json, path)?;
+    let plan = plan(&doc, bin_len, path)?;
+    let v = plan.vertices;
+    let damaged = |what: &str, i: usize| Error::baked(path, format!("non-finite {what} at {i}"));
+
+    let read_vec3s = |span: &Span, what: &str| -> Result<Vec<Vec3>> {
+        let data = span_bytes(bin, span, 12, path)?;
+        (0..span.count)
+            .map(|i| {
+                let at = i * span.stride;
+                let p = Vec3::new(f32_at(data, at), f32_at(data, at + 4), f32_at(data, at + 8));
+                if p.is_finite() {
+                    Ok(p)
+                } else {
+                    Err(damaged(what, i))
+                }
+            })
+            .collect()
+    };
+    let positions = read_vec3s(&plan.positions, "position")?;
+    let normals = read_vec3s(&plan.normals, "normal")?;
+    let albedo = read_vec3s(&plan.albedo, "albedo")?;
+
+    let data = span_bytes(bin, &plan.indices, 4, path)?;
+    let mut triangles = Vec::with_capacity(plan.triangles);
+    for t in 0..plan.triangles {
+        let mut tri = [0u32; 3];
+        for (j, index) in tri.iter_mut().enumerate() {
+            *index = u32_at(data, (3 * t + j) * plan.indices.stride);
+            if *index as usize >= v {
+                return Err(Error::baked(
+                    path,
+                    format!("triangle {t} uses vertex {index} but there are only {v} vertices"),
+                ));
+            }
+        }
+        triangles.push(tri);
+    }
+
+    let channels = plan.metadata.channels as usize;
+    let n = plan.coeffs_per_channel;
+    let mut coeffs = vec![0f32; v * channels * n];
+    for (block, span) in plan.transfer.iter().enumerate() {
+        let (channel, group) = (block / plan.groups, block % plan.groups);
+        let data = span_bytes(bin, span, 16, path)?;
+        for vertex in 0..v {
+            for lane in 0..4 {
+                let k = 4 * group + lane;
+                if k < n {
+                    let x = f32_at(data, vertex * span.stride + 4 * lane);
+                    if !x.is_finite() {
+                        return Err(damaged("transfer coefficient of vertex", vertex));
+                    }
+                    coeffs[(vertex * channels + channel) * n + k] = x;
+                }
+            }
+        }
+    }
+
+    Ok(BakedMesh {
+        scene: Scene {
+            positions,
+            normals: Some(normals),
+            albedo,
+            triangles,
+        },
+        transfer: Transfer {
+            bands: plan.metadata.bands,
+            channels: plan.metadata.channels,
+            vertex_count: v,
+            coeffs,
+        },
+        metadata: plan.metadata,
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// Container constants (glTF 2.0 spec, "GLB File Format Specification").
+
+const GLB_MAGIC: u32 = 0x4654_6C67;
+const GLB_VERSION: u32 = 2;
+const CHUNK_JSON: u32 = 0x4E4F_534A;
+const CHUNK_BIN: u32 = 0x004E_4942;
+const FLOAT: u32 = 5126;
+const UNSIGNED_INT: u32 = 5125;
+const TRIANGLES: u32 = 4;
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const TRANSFER_VIEW: usize = 4;
+
+// ---------------------------------------------------------------------------------------------
+// JSON. Structs rather than maps so the key order, and with it the bytes, never change; unknown
+// fields are ignored on reading, as glTF asks of readers.
+
+#[derive(Serialize, Deserialize)]
+struct Document<X> {
+    asset: AssetJson,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    scene: Option<usize>,
+    #[serde(default)]
+    scenes: Vec<SceneJson>,
+    #[serde(default)]
+    nodes: Vec<NodeJson>,
+    #[serde(default)]
+    meshes: Vec<MeshJson<X>>,
+    #[serde(default)]
+    accessors: Vec<AccessorJson>,
+    #[serde(default, rename = "bufferViews")]
+    buffer_views: Vec<BufferViewJson>,
+    #[serde(default)]
+    buffers: Vec<BufferJson>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct AssetJson {
+    version: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    generator: Option<String>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct SceneJson {
+    #[serde(default)]
+    nodes: Vec<usize>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct NodeJson {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    mesh: Option<usize>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct MeshJson<X> {
+    primitives: Vec<PrimitiveJson>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    extras: Option<X>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct PrimitiveJson {
+    attributes: BTreeMap<String, usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    indices: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    mode: Option<u32>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct AccessorJson {
+    #[serde(
+        default,
+        rename = "bufferView",
+        skip_serializing_if = "Option::is_none"
+    )]
+    buffer_view: Option<usize>,
+    #[serde(default, rename = "byteOffset")]
+    byte_offset: u64,
+    #[serde(rename = "componentType")]
+    component_type: u32,
+    count: u64,
+    #[serde(rename = "type")]
+    kind: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    min: Option<Vec<f32>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    max: Option<Vec<f32>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    sparse: Option<serde_json::Value>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct BufferViewJson {
+    buffer: usize,
+    #[serde(default, rename = "byteOffset")]
+    byte_offset: u64,
+    #[serde(rename = "byteLength")]
+    byte_length: u64,
+    #[serde(
+        default,
+        rename = "byteStride",
+        skip_serializing_if = "Option::is_none"
+    )]
+    byte_stride: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    target: Option<u32>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct BufferJson {
+    #[serde(rename = "byteLength")]
+    byte_length: u64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    uri: Option<String>,
+}
+
+#[derive(Serialize)]
+struct MeshExtras<'a> {
+    prt: PrtExtras<'a>,
+}
+
+#[derive(Serialize)]
+struct PrtExtras<'a> {
+    #[serde(flatten)]
+    metadata: &'a BakeMetadata,
+    vertices: usize,
+    transfer_buffer_view: usize,
+    transfer_layout: &'a str,
+}
+
+#[derive(Deserialize)]
+struct PrtExtrasIn {
+    #[serde(flatten)]
+    metadata: BakeMetadata,
+    vertices: usize,
+    transfer_buffer_view: usize,
+    transfer_layout: String,
+}
+
+// ---------------------------------------------------------------------------------------------
+// Encoding.
+
+/// Checks everything `encode_valid` relies on, so encoding itself cannot fail halfway.
+fn validate(baked: &BakedMesh) -> Result<()> {
+    let bad = |message: String| Err(Error::Geometry(message));
+    let (scene, transfer, meta) = (&baked.scene, &baked.transfer, &baked.metadata);
+    let v = scene.positions.len();
+    if v == 0 || scene.triangles.is_empty() {
+        return bad(format!(
+            "cannot write a mesh with {v} vertices and {} triangles (glTF needs at least one of each)",
+            scene.triangles.len()
+        ));
+    }
+    if v > u32::MAX as usize {
+        return bad(format!("{v} vertices do not fit 32-bit indices"));
+    }
+    let Some(normals) = &scene.normals else {
+        return bad("the mesh has no normals (prepare it before writing)".into());
+    };
+    if normals.len() != v || scene.albedo.len() != v {
+        return bad(format!(
+            "{v} positions but {} normals and {} albedo values",
+            normals.len(),
+            scene.albedo.len()
+        ));
+    }
+    for (name, values) in [
+        ("position", &scene.positions),
+        ("normal", normals),
+        ("albedo", &scene.albedo),
+    ] {
+        if let Some(i) = values.iter().position(|p| !p.is_finite()) {
+            return bad(format!("non-finite {name} at vertex {i}"));
+        }
+    }
+    for (t, tri) in scene.triangles.iter().enumerate() {
+        if let Some(&i) = tri.iter().find(|&&i| i as usize >= v) {
+            return bad(format!(
+                "triangle {t} uses vertex {i} but there are only {v} vertices"
+            ));
+        }
+    }
+    if transfer.vertex_count != v {
+        return bad(format!(
+            "the transfer covers {} vertices but the mesh has {v}",
+            transfer.vertex_count
+        ));
+    }
+    if transfer.bands == 0 || transfer.bands > crate::sh::MAX_BANDS {
+        return bad(format!(
+            "transfer has {} bands (1 to {} supported)",
+            transfer.bands,
+            crate::sh::MAX_BANDS
+        ));
+    }
+    if transfer.channels != 1 && transfer.channels != 3 {
+        return bad(format!(
+            "transfer has {} channels (1 or 3 supported)",
+            transfer.channels
+        ));
+    }
+    if meta.bands != transfer.bands || meta.channels != transfer.channels {
+        return bad(format!(
+            "metadata says {} bands and {} channels but the transfer has {} and {}",
+            meta.bands, meta.channels, transfer.bands, transfer.channels
+        ));
+    }
+    let expected = transfer_len(v, transfer.channels, transfer.bands);
+    if expected != Some(transfer.coeffs.len()) {
+        return bad(format!(
+            "the transfer holds {} coefficients, expected {v} vertices x {} channels x {} = {}",
+            transfer.coeffs.len(),
+            transfer.channels,
+            transfer.bands * transfer.bands,
+            expected.map_or_else(|| "too many".to_string(), |n| n.to_string())
+        ));
+    }
+    if let Some(i) = transfer.coeffs.iter().position(|x| !x.is_finite()) {
+        let per_vertex = (transfer.channels * transfer.bands * transfer.bands) as usize;
+        return bad(format!(
+            "non-finite transfer coefficient at vertex {}",
+            i / per_vertex
+        ));
+    }
+    let bin = bin_len(v, scene.triangles.len(), transfer.channels, transfer.bands);
+    // A GLB records its total length in 32 bits; keep a margin for the header and the JSON.
+    if bin.is_none_or(|b| b > u32::MAX as usize - (64 << 20)) {
+        return bad(format!(
+            "{v} vertices with {} bands and {} channels exceed the 4 GiB limit of a .glb file",
+            transfer.bands, transfer.channels
+        ));
+    }
+    Ok(())
+}
+
+fn transfer_len(v: usize, channels: u32, bands: u32) -> Option<usize> {
+    v.checked_mul(channels as usize)?
+        .checked_mul((bands as usize).checked_mul(bands as usize)?)
+}
+
+fn groups(bands: u32) -> usize {
+    (bands as usize * bands as usize).div_ceil(4)
+}
+
+fn transfer_bytes(v: usize, channels: u32, bands: u32) -> Option<usize> {
+    v.checked_mul(channels as usize)?
+        .checked_mul(groups(bands))?
+        .checked_mul(16)
+}
+
+fn bin_len(v: usize, t: usize, channels: u32, bands: u32) -> Option<usize> {
+    v.checked_mul(36)?
+        .checked_add(t.checked_mul(12)?)?
+        .checked_add(transfer_bytes(v, channels, bands)?)
+}
+
+fn put_f32s(bin: &mut Vec<u8>, values: impl IntoIterator<Item = f32>) {
+    for x in values {
+        bin.extend_from_slice(&x.to_le_bytes());
+    }
+}
+
+fn encode_valid(baked: &BakedMesh) -> Result<Vec<u8>> {
+    let (scene, transfer) = (&baked.scene, &baked.transfer);
+    let normals = scene.normals.as_deref().unwrap_or_default();
+    let v = scene.positions.len();
+    let t = scene.triangles.len();
+    let channels = transfer.channels as usize;
+    let groups = groups(transfer.bands);
+    let mut bin = Vec::with_capacity(bin_len(v, t, transfer.channels, transfer.bands).unwrap_or(0));
+    let mut views = Vec::new();
+    let mut view = |bin: &Vec<u8>, start: usize, stride: Option<u64>, target: u32| {
+        views.push(BufferViewJson {
+            buffer: 0,
+            byte_offset: start as u64,
+            byte_length: (bin.len() - start) as u64,
+            byte_stride: stride,
+            target: Some(target),
+        });
+    };
+
+    for vectors in [&scene.positions[..], normals, &scene.albedo[..]] {
+        let start = bin.len();
+        put_f32s(&mut bin, vectors.iter().flat_map(|p| p.to_array()));
+        view(&bin, start, None, ARRAY_BUFFER);
+    }
+    let start = bin.len();
+    for &i in scene.triangles.iter().flatten() {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    view(&bin, start, None, ELEMENT_ARRAY_BUFFER);
+    let start = bin.len();
+    for channel in 0..channels {
+        for group in 0..groups {
+            for vertex in 0..v {
+                let coeffs = transfer.vertex_channel(vertex, channel);
+                put_f32s(
+                    &mut bin,
+                    (4 * group..4 * group + 4).map(|k| coeffs.get(k).copied().unwrap_or(0.0)),
+                );
+            }
+        }
+    }
+    // Several accessors share this view, so the spec requires an explicit stride.
+    view(&bin, start, Some(16), ARRAY_BUFFER);
+    debug_assert_eq!(views.len(), TRANSFER_VIEW + 1);
+
+    let (min, max) = scene.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let accessor = |view: usize, offset: usize, component, count, kind: &str| AccessorJson {
+        buffer_view: Some(view),
+        byte_offset: offset as u64,
+        component_type: component,
+        count: count as u64,
+        kind: kind.to_string(),
+        min: None,
+        max: None,
+        sparse: None,
+    };
+    let mut accessors = vec![
+        AccessorJson {
+            min: Some(min.to_array().to_vec()),
+            max: Some(max.to_array().to_vec()),
+            ..accessor(0, 0, FLOAT, v, "VEC3")
+        },
+        accessor(1, 0, FLOAT, v, "VEC3"),
+        accessor(2, 0, FLOAT, v, "VEC3"),
+        accessor(3, 0, UNSIGNED_INT, 3 * t, "SCALAR"),
+    ];
+    let mut attributes: BTreeMap<String, usize> = [("POSITION", 0), ("NORMAL", 1), ("COLOR_0", 2)]
+        .into_iter()
+        .map(|(name, index)| (name.to_string(), index))
+        .collect();
+    for channel in 0..channels {
+        for group in 0..groups {
+            let block = channel * groups + group;
+            let name = transfer_attribute_name(transfer.channels, channel as u32, group);
+            attributes.insert(name, accessors.len());
+            accessors.push(accessor(TRANSFER_VIEW, block * v * 16, FLOAT, v, "VEC4"));
+        }
+    }
+
+    let doc = Document {
+        asset: AssetJson {
+            version: "2.0".into(),
+            generator: Some(format!("prt-gpu {}", env!("CARGO_PKG_VERSION"))),
+        },
+        scene: Some(0),
+        scenes: vec![SceneJson { nodes: vec![0] }],
+        nodes: vec![NodeJson { mesh: Some(0) }],
+        meshes: vec![MeshJson {
+            primitives: vec![PrimitiveJson {
+                attributes,
+                indices: Some(3),
+                mode: Some(TRIANGLES),
+            }],
+            extras: Some(MeshExtras {
+                prt: PrtExtras {
+                    metadata: &baked.metadata,
+                    vertices: v,
+                    transfer_buffer_view: TRANSFER_VIEW,
+                    transfer_layout: TRANSFER_LAYOUT,
+                },
+            }),
+        }],
+        accessors,
+        buffer_views: views,
+        buffers: vec![BufferJson {
+            byte_length: bin.len() as u64,
+            uri: None,
+        }],
+    };
+    let mut json = serde_json::to_vec(&doc)
+        .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))?;
+    json.resize(json.len().next_multiple_of(4), b' ');
+    bin.resize(bin.len().next_multiple_of(4), 0);
+
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let total32 = u32::try_from(total)
+        .map_err(|_| Error::Geometry("the baked file would exceed the 4 GiB .glb limit".into()))?;
+    let mut out = Vec::with_capacity(total);
+    for word in [
+        GLB_MAGIC,
+        GLB_VERSION,
+        total32,
+        json.len() as u32,
+        CHUNK_JSON,
+    ] {
+        out.extend_from_slice(&word.to_le_bytes());
+    }
+    out.extend_from_slice(&json);
+    for word in [bin.len() as u32, CHUNK_BIN] {
+        out.extend_from_slice(&word.to_le_bytes());
+    }
+    out.extend_from_slice(&bin);
+    Ok(out)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Decoding. Every offset and count comes from untrusted bytes: all arithmetic is checked and
+// every range is proven inside the BIN chunk before anything is allocated or read.
+
+fn u32_at(bytes: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]])
+}
+
+fn f32_at(bytes: &[u8], at: usize) -> f32 {
+    f32::from_bits(u32_at(bytes, at))
+}
+
+/// Checks the 12-byte header and the JSON chunk header; returns the JSON chunk length.
+fn check_head(head: &[u8], file_len: u64, path: &Path) -> Result<usize> {
+    let bad = |message: String| Err(Error::baked(path, message));
+    if u32_at(head, 0) != GLB_MAGIC {
+        return bad("not a glTF binary (.glb) file: bad magic".into());
+    }
+    let version = u32_at(head, 4);
+    if version != GLB_VERSION {
+        return bad(format!(
+            "glTF binary version {version}, only version 2 is supported"
+        ));
+    }
+    let declared = u64::from(u32_at(head, 8));
+    if declared != file_len {
+        return bad(format!(
+            "header declares {declared} bytes but the file has {file_len} (truncated or damaged)"
+        ));
+    }
+    let json_len = u32_at(head, 12);
+    if u32_at(head, 16) != CHUNK_JSON {
+        return bad("the first chunk is not the JSON chunk".into());
+    }
+    if json_len % 4 != 0 {
+        return bad(format!(
+            "JSON chunk length {json_len} is not a multiple of 4"
+        ));
+    }
+    if 20 + u64::from(json_len) + 8 > file_len {
+        return bad("the JSON chunk runs past the end of the file, or no BIN chunk follows".into());
+    }
+    Ok(json_len as usize)
+}
+
+/// Checks the BIN chunk header found at `start`; returns the BIN chunk length.
+fn check_bin_head(head: &[u8], start: u64, file_len: u64, path: &Path) -> Result<usize> {
+    let bad = |message: String| Err(Error::baked(path, message));
+    let len = u32_at(head, 0);
+    if u32_at(head, 4) != CHUNK_BIN {
+        return bad("the second chunk is not the BIN chunk".into());
+    }
+    if len % 4 != 0 {
+        return bad(format!("BIN chunk length {len} is not a multiple of 4"));
+    }
+    if start + 8 + u64::from(len) > file_len {
+        return bad("the BIN chunk runs past the end of the file".into());
+    }
+    Ok(len as usize)
+}
+
+fn parse_document(json: &[u8], path: &Path) -> Result<Document<serde_json::Value>> {
+    serde_json::from_slice(json).map_err(|e| Error::baked(path, format!("invalid glTF JSON: {e}")))
+}
+
+/// Where one accessor's elements lie in the BIN chunk.
+struct Span {
+    offset: usize,
+    stride: usize,
+    count: usize,
+}
+
+/// Everything `decode_glb` needs to read the BIN chunk, already checked against its length.
+struct Plan {
+    metadata: BakeMetadata,
+    vertices: usize,
+    triangles: usize,
+    coeffs_per_channel: usize,
+    groups: usize,
+    positions: Span,
+    normals: Span,
+    albedo: Span,
+    indices: Span,
+    /// One per `(channel, group)`, channel-major.
+    transfer: Vec<Span>,
+}
+
+fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Result<Plan> {
+    let bad = |message: String| Error::baked(path, message);
+    if doc.asset.version.split('.').next() != Some("2") {
+        return Err(bad(format!(
+            "glTF version {} is not 2.x",
+            doc.asset.version
+        )));
+    }
+    let [buffer] = &doc.buffers[..] else {
+        return Err(bad(format!(
+            "{} buffers, expected exactly one (the BIN chunk)",
+            doc.buffers.len()
+        )));
+    };
+    if buffer.uri.is_some() {
+        return Err(bad("the buffer refers to an external file".into()));
+    }
+    if buffer.byte_length > bin_len as u64 {
+        return Err(bad(format!(
+            "the buffer declares {} bytes but the BIN chunk has {bin_len}",
+            buffer.byte_length
+        )));
+    }
+    let buffer_len = buffer.byte_length;
+
+    let mesh = doc
+        .meshes
+        .first()
+        .ok_or_else(|| bad("the file contains no mesh".into()))?;
+    let primitive = mesh
+        .primitives
+        .first()
+        .ok_or_else(|| bad("the mesh has no primitive".into()))?;
+    if primitive.mode.unwrap_or(TRIANGLES) != TRIANGLES {
+        return Err(bad("the primitive is not a triangle list".into()));
+    }
+    let prt = mesh
+        .extras
+        .as_ref()
+        .and_then(|extras| extras.get("prt"))
+        .ok_or_else(|| bad("not a prt-gpu file: the mesh has no extras.prt".into()))?;
+    let prt: PrtExtrasIn =
+        serde_json::from_value(prt.clone()).map_err(|e| bad(format!("invalid extras.prt: {e}")))?;
+    if prt.transfer_layout != TRANSFER_LAYOUT {
+        return Err(bad(format!(
+            "unsupported transfer layout \"{}\"",
+            prt.transfer_layout
+        )));
+    }
+    let meta = prt.metadata;
+    if meta.bands == 0 || meta.bands > crate::sh::MAX_BANDS {
+        return Err(bad(format!(
+            "extras.prt.bands is {}, expected 1 to {}",
+            meta.bands,
+            crate::sh::MAX_BANDS
+        )));
+    }
+    if meta.channels != 1 && meta.channels != 3 {
+        return Err(bad(format!(
+            "extras.prt.channels is {}, expected 1 or 3",
+            meta.channels
+        )));
+    }
+
+    let locate = |what: &str, index: Option<usize>, component: u32, kind: &str, comps: u64| {
+        locate(doc, buffer_len, what, index, component, kind, comps).map_err(bad)
+    };
+    let attribute = |name: &str| primitive.attributes.get(name).copied();
+    let positions = locate("POSITION", attribute("POSITION"), FLOAT, "VEC3", 3)?;
+    let v = positions.count;
+    let same_count = |span: Span, what: &str| {
+        if span.count == v {
+            Ok(span)
+        } else {
+            Err(bad(format!(
+                "{what} has {} elements but POSITION has {v}",
+                span.count
+            )))
+        }
+    };
+    let normals = same_count(
+        locate("NORMAL", attribute("NORMAL"), FLOAT, "VEC3", 3)?,
+        "NORMAL",
+    )?;
+    let albedo = same_count(
+        locate("COLOR_0", attribute("COLOR_0"), FLOAT, "VEC3", 3)?,
+        "COLOR_0",
+    )?;
+    let indices = locate("indices", primitive.indices, UNSIGNED_INT, "SCALAR", 1)?;
+    if indices.count % 3 != 0 {
+        return Err(bad(format!(
+            "{} indices do not make whole triangles",
+            indices.count
+        )));
+    }
+    if prt.vertices != v {
+        return Err(bad(format!(
+            "extras.prt.vertices is {} but POSITION has {v} elements",
+            prt.vertices
+        )));
+    }
+
+    let groups = groups(meta.bands);
+    let view = doc
+        .buffer_views
+        .get(prt.transfer_buffer_view)
+        .ok_or_else(|| bad("extras.prt.transfer_buffer_view does not exist".into()))?;
+    let expected = transfer_bytes(v, meta.channels, meta.bands);
+    if expected.map(|n| n as u64) != Some(view.byte_length) {
+        return Err(bad(format!(
+            "the transfer buffer view has {} bytes, expected {v} vertices x {} channels x {groups} groups x 16",
+            view.byte_length, meta.channels
+        )));
+    }
+    let mut transfer = Vec::with_capacity(meta.channels as usize * groups);
+    for channel in 0..meta.channels {
+        for group in 0..groups {
+            let name = transfer_attribute_name(meta.channels, channel, group);
+            let index = attribute(&name);
+            let span = same_count(locate(&name, index, FLOAT, "VEC4", 4)?, &name)?;
+            // The planar layout promised in extras.prt is what non-glTF readers rely on.
+            let block = channel as usize * groups + group;
+            let accessor = &doc.accessors[index.unwrap_or_default()];
+            if accessor.buffer_view != Some(prt.transfer_buffer_view)
+                || accessor.byte_offset != (block * v * 16) as u64
+                || span.stride != 16
+            {
+                return Err(bad(format!(
+                    "attribute {name} does not follow the planar transfer layout"
+                )));
+            }
+            transfer.push(span);
+        }
+    }
+
+    Ok(Plan {
+        vertices: v,
+        triangles: indices.count / 3,
+        coeffs_per_channel: (meta.bands * meta.bands) as usize,
+        groups,
+        metadata: meta,
+        positions,
+        normals,
+        albedo,
+        indices,
+        transfer,
+    })
+}
+
+/// Resolves accessor `index` to a span of `count` elements of `comps` 4-byte components,
+/// proven to lie inside the buffer (whose length was already checked against the BIN chunk).
+fn locate<X>(
+    doc: &Document<X>,
+    buffer_len: u64,
+    what: &str,
+    index: Option<usize>,
+    component: u32,
+    kind: &str,
+    comps: u64,
+) -> std::result::Result<Span, String> {
+    let index = index.ok_or_else(|| format!("the primitive has no {what} accessor"))?;
+    let accessor = doc
+        .accessors
+        .get(index)
+        .ok_or_else(|| format!("{what} refers to missing accessor {index}"))?;
+    if accessor.component_type != component || accessor.kind != kind {
+        return Err(format!(
+            "{what} is {} of component type {}, expected {kind} of {component}",
+            accessor.kind, accessor.component_type
+        ));
+    }
+    if accessor.sparse.is_some() {
+        return Err(format!(
+            "{what} is a sparse accessor, which is not supported"
+        ));
+    }
+    let view_index = accessor
+        .buffer_view
+        .ok_or_else(|| format!("{what} has no buffer view"))?;
+    let view = doc
+        .buffer_views
+        .get(view_index)
+        .ok_or_else(|| format!("{what} refers to missing buffer view {view_index}"))?;
+    if view.buffer != 0 {
+        return Err(format!(
+            "buffer view {view_index} refers to a missing buffer"
+        ));
+    }
+    let view_end = view.byte_offset.checked_add(view.byte_length);
+    if view_end.is_none_or(|end| end > buffer_len) {
+        return Err(format!(
+            "buffer view {view_index} runs past the end of the buffer"
+        ));
+    }
+    let element = 4 * comps;
+    let stride = view.byte_stride.unwrap_or(element);
+    if stride < element || stride % 4 != 0 {
+        return Err(format!(
+            "buffer view {view_index} has an invalid stride {stride}"
+        ));
+    }
+    if accessor.count == 0 {
+        return Err(format!("{what} has no elements"));
+    }
+    // The last element must end inside the view.
+    let end = (accessor.count - 1)
+        .checked_mul(stride)
+        .and_then(|x| x.checked_add(element))
+        .and_then(|x| x.checked_add(accessor.byte_offset));
+    if end.is_none_or(|end| end > view.byte_length) {
+        return Err(format!(
+            "{what} runs past the end of buffer view {view_index}"
+        ));
+    }
+    let offset = view.byte_offset + accessor.byte_offset;
+    if offset % 4 != 0 {
+        return Err(format!("{what} is not 4-byte aligned"));
+    }
+    // In range of usize: everything is bounded by the buffer, which is inside the file.
+    Ok(Span {
+        offset: offset as usize,
+        stride: stride as usize,
+        count: accessor.count as usize,
+    })
+}
+
+/// The bytes from a span's first element to the end of its last, with `element` bytes each.
+fn span_bytes<'a>(bin: &'a [u8], span: &Span, element: usize, path: &Path) -> Result<&'a [u8]> {
+    let len = (span.count - 1) * span.stride + element;
+    bin.get(span.offset..span.offset + len)
+        .ok_or_else(|| Error::baked(path, "an accessor runs past the BIN chunk"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::Mode;
+    use std::path::PathBuf;
+    use std::process::Command;
+
+    /// Three vertices, one triangle; bands 3 (9 coefficients, not a multiple of 4), RGB, every
+    /// coefficient distinct and not exactly representable in decimal.
+    fn sample(channels: u32) -> BakedMesh {
+        let bands = 3;
+        let positions = vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, -0.25, 0.1),
+            Vec3::new(-0.3, 2.0, 0.7),
+        ];
+        let v = positions.len();
+        let n = (bands * bands) as usize;
+        let coeffs = (0..v * channels as usize * n)
+            .map(|i| 0.1 * i as f32 - 1.7 / (i as f32 + 3.0))
+            .collect();
+        BakedMesh {
+            scene: Scene {
+                positions,
+                normals: Some(vec![Vec3::Z, Vec3::Y, Vec3::new(0.6, 0.0, 0.8)]),
+                albedo: vec![Vec3::splat(0.8), Vec3::new(0.1, 0.2, 0.3), Vec3::ONE],
+                triangles: vec![[0, 1, 2]],
+            },
+            transfer: Transfer {
+                bands,
+                channels,
+                vertex_count: v,
+                coeffs,
+            },
+            metadata: BakeMetadata {
+                tool: "prt-gpu".into(),
+                tool_version: env!("CARGO_PKG_VERSION").into(),
+                bands,
+                channels,
+                mode: Mode::Shadowed,
+                samples: 1024,
+                sampling: "stratified 32x32".into(),
+                seed: 0xDEAD_BEEF_CAFE_F00D,
+                backend: "cpu".into(),
+                sh_convention: crate::sh::CONVENTION.into(),
+                radiometry: "L_o = sum_k l_k t_k".into(),
+            },
+        }
+    }
+
+    /// A fresh directory under the system temp dir, removed on drop.
+    struct TempDir(PathBuf);
+
+    impl TempDir {
+        fn new(name: &str) -> Self {
+            let dir =
+                std::env::temp_dir().join(format!("prt-gpu-output-{}-{name}", std::process::id()));
+            let _ = fs::remove_dir_all(&dir);
+            fs::create_dir_all(&dir).unwrap();
+            TempDir(dir)
+        }
+
+        fn entries(&self) -> Vec<String> {
+            let mut names: Vec<String> = fs::read_dir(&self.0)
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            names.sort();
+            names
+        }
+    }
+
+    impl Drop for TempDir {
+        fn drop(&mut self) {
+            let _ = fs::remove_dir_all(&self.0);
+        }
+    }
+
+    fn json_of(bytes: &[u8]) -> serde_json::Value {
+        let len = u32_at(bytes, 12) as usize;
+        serde_json::from_slice(&bytes[20..20 + len]).unwrap()
+    }
+
+    #[test]
+    fn round_trip_is_exact() {
+        for channels in [1, 3] {
+            let baked = sample(channels);
+            let bytes = encode_glb(&baked).unwrap();
+            let decoded = decode_glb(&bytes, Path::new("mem.glb")).unwrap();
+            assert_eq!(decoded, baked);
+        }
+    }
+
+    #[test]
+    fn encoding_is_deterministic() {
+        let baked = sample(3);
+        assert_eq!(
+            encode_glb(&baked).unwrap(),
+            encode_glb(&baked.clone()).unwrap()
+        );
+    }
+
+    #[test]
+    fn layout_follows_the_spec() {
+        let baked = sample(3);
+        let bytes = encode_glb(&baked).unwrap();
+        assert_eq!(&bytes[..4], b"glTF");
+        assert_eq!(u32_at(&bytes, 8) as usize, bytes.len());
+        let json_len = u32_at(&bytes, 12) as usize;
+        assert_eq!(json_len % 4, 0);
+        assert_eq!(u32_at(&bytes, 16), CHUNK_JSON);
+        assert_eq!(u32_at(&bytes, 20 + json_len + 4), CHUNK_BIN);
+        assert_eq!(u32_at(&bytes, 20 + json_len) % 4, 0);
+
+        let doc = json_of(&bytes);
+        assert_eq!(doc["asset"]["version"], "2.0");
+        let attributes = &doc["meshes"][0]["primitives"][0]["attributes"];
+        // bands^2 = 9 needs three groups of four per channel.
+        for name in ["R", "G", "B"] {
+            for group in 0..3 {
+                assert!(attributes.get(format!("_PRT_{name}_{group}")).is_some());
+            }
+            assert!(attributes.get(format!("_PRT_{name}_3")).is_none());
+        }
+        let pos = &doc["accessors"][attributes["POSITION"].as_u64().unwrap() as usize];
+        assert_eq!(pos["min"], serde_json::json!([-0.3, -0.25, 0.0]));
+        assert_eq!(pos["max"], serde_json::json!([1.0, 2.0, 0.7]));
+        let prt = &doc["meshes"][0]["extras"]["prt"];
+        assert_eq!(prt["vertices"], 3);
+        assert_eq!(prt["seed"], 0xDEAD_BEEF_CAFE_F00Du64);
+        assert_eq!(prt["mode"], "shadowed");
+        assert_eq!(prt["transfer_layout"], TRANSFER_LAYOUT);
+
+        // Lane 1 of group 2 in channel 0 is coefficient 9: padding, so zero.
+        let view = &doc["bufferViews"][prt["transfer_buffer_view"].as_u64().unwrap() as usize];
+        let bin = 28 + json_len + view["byteOffset"].as_u64().unwrap() as usize;
+        let at = |c: usize, g: usize, vtx: usize, lane: usize| {
+            f32_at(&bytes, bin + ((c * 3 + g) * 3 + vtx) * 16 + 4 * lane)
+        };
+        assert_eq!(at(0, 2, 1, 1), 0.0);
+        assert_eq!(at(0, 2, 1, 0), baked.transfer.vertex_channel(1, 0)[8]);
+        assert_eq!(at(2, 1, 2, 3), baked.transfer.vertex_channel(2, 2)[7]);
+    }
+
+    #[test]
+    fn invalid_meshes_are_refused() {
+        let mut no_normals = sample(3);
+        no_normals.scene.normals = None;
+        let mut short = sample(3);
+        short.transfer.coeffs.pop();
+        let mut count = sample(3);
+        count.transfer.vertex_count = 4;
+        let mut index = sample(3);
+        index.scene.triangles[0][2] = 3;
+        let mut nan = sample(3);
+        nan.transfer.coeffs[5] = f32::NAN;
+        let mut meta = sample(3);
+        meta.metadata.bands = 4;
+        for baked in [no_normals, short, count, index, nan, meta] {
+            let err = encode_glb(&baked).unwrap_err().to_string();
+            assert!(!err.contains('\n'), "{err}");
+        }
+    }
+
+    #[test]
+    fn damaged_files_are_errors_not_panics() {
+        let bytes = encode_glb(&sample(3)).unwrap();
+        let path = Path::new("damaged.glb");
+        for len in 0..bytes.len() {
+            assert!(
+                decode_glb(&bytes[..len], path).is_err(),
+                "truncated to {len}"
+            );
+        }
+        let json_len = u32_at(&bytes, 12) as usize;
+        let mut rejected = 0;
+        for bit in 0..bytes.len() * 8 {
+            let mut flipped = bytes.clone();
+            flipped[bit / 8] ^= 1 << (bit % 8);
+            let result = decode_glb(&flipped, path);
+            // Headers carry no redundancy to spare: any flip there must be caught.
+            let byte = bit / 8;
+            if byte < 20 || (20 + json_len..28 + json_len).contains(&byte) {
+                assert!(result.is_err(), "flip of bit {bit} accepted");
+            }
+            if let Err(e) = result {
+                assert!(!e.to_string().contains('\n'));
+                rejected += 1;
+            }
+        }
+        assert!(rejected > 0);
+        let mut extended = bytes.clone();
+        extended.extend_from_slice(&[0; 4]);
+        assert!(decode_glb(&extended, path).is_err());
+    }
+
+    #[test]
+    fn foreign_gltf_is_refused() {
+        let bytes = encode_glb(&sample(3)).unwrap();
+        let mut doc = json_of(&bytes);
+        doc["meshes"][0].as_object_mut().unwrap().remove("extras");
+        let mut json = serde_json::to_vec(&doc).unwrap();
+        json.resize(json.len().next_multiple_of(4), b' ');
+        let json_len = u32_at(&bytes, 12) as usize;
+        let bin = &bytes[20 + json_len..];
+        let mut out = Vec::new();
+        let total = (20 + json.len() + bin.len()) as u32;
+        for word in [GLB_MAGIC, GLB_VERSION, total, json.len() as u32, CHUNK_JSON] {
+            out.extend_from_slice(&word.to_le_bytes());
+        }
+        out.extend_from_slice(&json);
+        out.extend_from_slice(bin);
+        let err = decode_glb(&out, Path::new("x.glb"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("extras.prt"), "{err}");
+    }
+
+    #[test]
+    fn write_into_missing_directory_fails_cleanly() {
+        let tmp = TempDir::new("missing");
+        let target = tmp.0.join("nope").join("out.glb");
+        let err = write_glb(&target, &sample(3)).unwrap_err().to_string();
+        assert!(err.contains("does not exist"), "{err}");
+        assert!(!target.exists());
+        assert!(tmp.entries().is_empty());
+    }
+
+    #[test]
+    fn write_then_read_round_trip() {
+        let tmp = TempDir::new("roundtrip");
+        let target = tmp.0.join("mesh.glb");
+        let baked = sample(3);
+        write_glb(&target, &baked).unwrap();
+        // Overwriting an existing file goes through the same rename.
+        write_glb(&target, &baked).unwrap();
+        assert_eq!(tmp.entries(), ["mesh.glb"]);
+        assert_eq!(read_glb(&target).unwrap(), baked);
+        assert_eq!(fs::read(&target).unwrap(), encode_glb(&baked).unwrap());
+        let (metadata, vertices, triangles) = read_metadata(&target).unwrap();
+        assert_eq!((metadata, vertices, triangles), (baked.metadata, 3, 1));
+    }
+
+    #[test]
+    fn failed_write_leaves_no_temporary_file() {
+        let tmp = TempDir::new("failed");
+        // Renaming a file over a directory fails after the temporary file is complete.
+        let target = tmp.0.join("taken.glb");
+        fs::create_dir(&target).unwrap();
+        let err = write_glb(&target, &sample(3)).unwrap_err();
+        assert!(
+            matches!(err, Error::Io { ref path, .. } if path == &target),
+            "{err}"
+        );
+        assert_eq!(tmp.entries(), ["taken.glb"]);
+        assert!(target.is_dir());
+
+        // Invalid input fails before anything is created.
+        let mut bad = sample(3);
+        bad.transfer.coeffs.clear();
+        assert!(write_glb(&tmp.0.join("bad.glb"), &bad).is_err());
+        assert_eq!(tmp.entries(), ["taken.glb"]);
+    }
+
+    #[test]
+    fn read_metadata_rejects_truncated_files() {
+        let tmp = TempDir::new("metadata");
+        let target = tmp.0.join("cut.glb");
+        let bytes = encode_glb(&sample(1)).unwrap();
+        for len in [0, 10, 30, bytes.len() - 4] {
+            fs::write(&target, &bytes[..len]).unwrap();
+            assert!(read_metadata(&target).is_err(), "truncated to {len}");
+        }
+    }
+
+    #[test]
+    fn readme_quotes_the_python_reader_verbatim() {
+        let readme = include_str!("../README.md");
+        assert!(
+            readme.contains(PYTHON_READER),
+            "README.md's Python snippet differs from PYTHON_READER"
+        );
+    }
+
+    #[test]
+    fn python_reader_reads_the_file() {
+        let numpy = Command::new("python3")
+            .args(["-c", "import numpy"])
+            .output();
+        if !numpy.is_ok_and(|o| o.status.success()) {
+            // CI installs numpy (ci/test.sh): there the check must run.
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "python3 with numpy is missing under CI"
+            );
+            eprintln!("skipping: python3 with numpy is not available");
+            return;
+        }
+        let line_count = PYTHON_READER.lines().count();
+        assert!(line_count <= 12, "{line_count} lines");
+        let tmp = TempDir::new("python");
+        let target = tmp.0.join("mesh.glb");
+        let baked = sample(3);
+        write_glb(&target, &baked).unwrap();
+        let out = Command::new("python3")
+            .arg("-c")
+            .arg(PYTHON_READER)
+            .arg(&target)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let printed: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(printed["positions"], serde_json::json!([3, 3]));
+        assert_eq!(printed["indices"], serde_json::json!([1, 3]));
+        assert_eq!(printed["transfer"], serde_json::json!([3, 3, 9]));
+        for channel in 0..3 {
+            let row: Vec<f32> = printed["last_vertex"][channel]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap() as f32)
+                .collect();
+            assert_eq!(row, baked.transfer.vertex_channel(2, channel));
+        }
+    }
+}

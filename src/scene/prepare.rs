@@ -1,0 +1,768 @@
+//! Turns a [`Scene`] as loaded into the scene that is baked: validated, free of degenerate
+//! triangles and unreferenced vertices, welded, with unit normals, vertices in Morton order.
+//!
+//! Every step is a pure function of its input, so the prepared scene (and therefore the bake)
+//! does not depend on hash-map iteration order or thread count.
+
+use std::collections::HashMap;
+
+use glam::{DVec3, Vec3};
+
+use super::Scene;
+use crate::error::{Error, Result};
+
+/// What `prepare` did, for the CLI to report.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct PrepareReport {
+    pub input_vertices: usize,
+    pub input_triangles: usize,
+    pub vertices: usize,
+    pub triangles: usize,
+    pub degenerate_triangles_removed: usize,
+    pub unreferenced_vertices_removed: usize,
+    /// Vertices merged into an identical one (same position and attributes).
+    pub vertices_welded: usize,
+    /// Normals were computed here (the input had none, or had unusable ones).
+    pub normals_computed: bool,
+    /// The input had normals, but some were non-finite or zero, so all were recomputed.
+    pub invalid_normals_replaced: bool,
+}
+
+/// Validates and repairs `scene` for baking.
+///
+/// Errors (never repaired, because any repair would be a guess): no vertices, no triangles,
+/// non-finite positions or albedo, out-of-range indices, attribute arrays whose length differs
+/// from the vertex count, and meshes whose triangles are all degenerate.
+///
+/// Repairs (counted in the report): degenerate triangles are dropped, unreferenced vertices
+/// are dropped, identical vertices are welded, missing or unusable normals are computed
+/// (angle-weighted), and vertices are reordered along a Morton curve for ray coherence.
+/// Triangle order is kept.
+pub fn prepare(scene: Scene) -> Result<(Scene, PrepareReport)> {
+    validate(&scene)?;
+    let mut report = PrepareReport {
+        input_vertices: scene.positions.len(),
+        input_triangles: scene.triangles.len(),
+        ..PrepareReport::default()
+    };
+
+    let scene = remove_degenerate_triangles(scene, &mut report)?;
+    let scene = remove_unreferenced_vertices(scene, &mut report);
+    let scene = match usable_normals(&scene) {
+        Some(normals) => weld_with_normals(scene, normals),
+        None => {
+            report.invalid_normals_replaced = scene.normals.is_some();
+            report.normals_computed = true;
+            weld_and_compute_normals(scene)?
+        }
+    };
+    report.vertices_welded =
+        report.input_vertices - report.unreferenced_vertices_removed - scene.positions.len();
+    let scene = sort_vertices_morton(scene);
+
+    report.vertices = scene.positions.len();
+    report.triangles = scene.triangles.len();
+    Ok((scene, report))
+}
+
+/// Per-vertex normals as the sum of adjacent unit face normals, each weighted by the
+/// triangle's interior angle at the vertex, normalized.
+///
+/// Angle weighting makes the result independent of how a flat region is triangulated (a cube
+/// corner gets (1,1,1)/√3 whether each face touches it with one triangle or two). Sums are
+/// taken in f64. Where the sum cancels (e.g. two coincident triangles of opposite winding) the
+/// vertex takes the normal of its first adjacent non-degenerate triangle. Vertices with no
+/// adjacent non-degenerate triangle get `Vec3::ZERO`; triangles with out-of-range indices are
+/// ignored.
+pub fn angle_weighted_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut sums = vec![DVec3::ZERO; positions.len()];
+    let mut weights = vec![0.0f64; positions.len()];
+    let mut first_face: Vec<Option<DVec3>> = vec![None; positions.len()];
+
+    for triangle in triangles {
+        let Some(corners) = corner_positions(positions, triangle) else {
+            continue;
+        };
+        let Some((normal, angles)) = face_normal_and_angles(corners) else {
+            continue;
+        };
+        for (&index, angle) in triangle.iter().zip(angles) {
+            let v = index as usize;
+            sums[v] += normal * angle;
+            weights[v] += angle;
+            first_face[v].get_or_insert(normal);
+        }
+    }
+
+    sums.iter()
+        .zip(&weights)
+        .zip(&first_face)
+        .map(|((&sum, &weight), first)| resolve_normal(sum, weight, *first))
+        .collect()
+}
+
+/// Cancellation threshold: a sum shorter than this fraction of its total weight carries no
+/// direction beyond rounding noise.
+const CANCELLED_SUM: f64 = 1e-9;
+
+fn resolve_normal(sum: DVec3, weight: f64, first: Option<DVec3>) -> Vec3 {
+    match first {
+        None => Vec3::ZERO,
+        Some(_) if sum.length() > CANCELLED_SUM * weight => sum.normalize().as_vec3(),
+        Some(fallback) => fallback.as_vec3(),
+    }
+}
+
+fn corner_positions(positions: &[Vec3], triangle: &[u32; 3]) -> Option<[DVec3; 3]> {
+    let corner = |i: u32| positions.get(i as usize).map(|p| p.as_dvec3());
+    Some([
+        corner(triangle[0])?,
+        corner(triangle[1])?,
+        corner(triangle[2])?,
+    ])
+}
+
+/// Unit normal and the interior angle at each corner; `None` for zero area.
+fn face_normal_and_angles([a, b, c]: [DVec3; 3]) -> Option<(DVec3, [f64; 3])> {
+    let cross = (b - a).cross(c - a);
+    let double_area = cross.length();
+    if !(double_area > 0.0 && double_area.is_finite()) {
+        return None;
+    }
+    // atan2(|u×v|, u·v) stays accurate for angles near 0 and π, where acos of a dot does not;
+    // |u×v| is twice the area whichever corner it is taken at.
+    let angle = |apex: DVec3, p: DVec3, q: DVec3| double_area.atan2((p - apex).dot(q - apex));
+    Some((
+        cross / double_area,
+        [angle(a, b, c), angle(b, c, a), angle(c, a, b)],
+    ))
+}
+
+fn validate(scene: &Scene) -> Result<()> {
+    let n = scene.positions.len();
+    if n == 0 {
+        return Err(Error::Geometry("mesh has no vertices".into()));
+    }
+    if scene.triangles.is_empty() {
+        return Err(Error::Geometry("mesh has no triangles".into()));
+    }
+    if scene.albedo.len() != n {
+        return Err(Error::Geometry(format!(
+            "albedo has {} entries for {n} vertices",
+            scene.albedo.len()
+        )));
+    }
+    if let Some(normals) = &scene.normals {
+        if normals.len() != n {
+            return Err(Error::Geometry(format!(
+                "normals have {} entries for {n} vertices",
+                normals.len()
+            )));
+        }
+    }
+    if let Some(i) = scene.positions.iter().position(|p| !p.is_finite()) {
+        return Err(Error::Geometry(format!(
+            "vertex {i} has a non-finite position {}",
+            show(scene.positions[i])
+        )));
+    }
+    if let Some(i) = scene.albedo.iter().position(|a| !a.is_finite()) {
+        return Err(Error::Geometry(format!(
+            "vertex {i} has a non-finite albedo {}",
+            show(scene.albedo[i])
+        )));
+    }
+    check_indices(&scene.triangles, n)
+}
+
+fn check_indices(triangles: &[[u32; 3]], vertex_count: usize) -> Result<()> {
+    for (t, triangle) in triangles.iter().enumerate() {
+        if let Some(&bad) = triangle.iter().find(|&&i| i as usize >= vertex_count) {
+            return Err(Error::Geometry(format!(
+                "triangle {t} refers to vertex {bad}, but there are only {vertex_count} vertices"
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn show(v: Vec3) -> String {
+    format!("({}, {}, {})", v.x, v.y, v.z)
+}
+
+fn remove_degenerate_triangles(mut scene: Scene, report: &mut PrepareReport) -> Result<Scene> {
+    let before = scene.triangles.len();
+    let positions = &scene.positions;
+    scene.triangles.retain(|t| !is_degenerate(t, positions));
+    report.degenerate_triangles_removed = before - scene.triangles.len();
+    if scene.triangles.is_empty() {
+        return Err(Error::Geometry(format!(
+            "all {before} triangles are degenerate"
+        )));
+    }
+    Ok(scene)
+}
+
+fn is_degenerate(&[i, j, k]: &[u32; 3], positions: &[Vec3]) -> bool {
+    i == j
+        || j == k
+        || k == i
+        || cross_is_exactly_zero(
+            positions[i as usize],
+            positions[j as usize],
+            positions[k as usize],
+        )
+}
+
+/// Decides exactly (no rounding) whether the three points are collinear.
+///
+/// (b−a)×(c−a) = a×b + b×c + c×a. Each component of the right side is a sum of six
+/// products of two f32 values; such a product is exact in f64 (48-bit mantissa, exponent
+/// well in range), and the sum is evaluated exactly as a floating-point expansion. A plain
+/// f64 cross product could round a truly collinear triangle to a tiny non-zero normal
+/// pointing anywhere, which would then be weighted by an interior angle of π.
+fn cross_is_exactly_zero(a: Vec3, b: Vec3, c: Vec3) -> bool {
+    let [a, b, c] = [a, b, c].map(|p| p.to_array().map(f64::from));
+    (0..3).all(|k| {
+        // Component k of p×q is p[i]q[j] − p[j]q[i], with (i, j) the next two axes.
+        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+        let terms = [(a, b), (b, c), (c, a)]
+            .into_iter()
+            .flat_map(|(p, q)| [p[i] * q[j], -(p[j] * q[i])]);
+        exact_sum_is_zero(terms)
+    })
+}
+
+/// Shewchuk's grow-expansion: after each step the components sum exactly to the terms added
+/// so far and do not overlap, so the sum is zero exactly when every component is zero.
+fn exact_sum_is_zero(terms: impl IntoIterator<Item = f64>) -> bool {
+    let mut expansion: Vec<f64> = Vec::new();
+    for term in terms {
+        let mut carry = term;
+        let mut next = Vec::with_capacity(expansion.len() + 1);
+        for &component in &expansion {
+            let (sum, error) = two_sum(carry, component);
+            if error != 0.0 {
+                next.push(error);
+            }
+            carry = sum;
+        }
+        next.push(carry);
+        expansion = next;
+    }
+    expansion.iter().all(|&c| c == 0.0)
+}
+
+/// Knuth's error-free addition: `sum + error == a + b` exactly.
+fn two_sum(a: f64, b: f64) -> (f64, f64) {
+    let sum = a + b;
+    let b_virtual = sum - a;
+    let a_virtual = sum - b_virtual;
+    (sum, (a - a_virtual) + (b - b_virtual))
+}
+
+/// Keeps only referenced vertices, in their original relative order.
+fn remove_unreferenced_vertices(scene: Scene, report: &mut PrepareReport) -> Scene {
+    let mut referenced = vec![false; scene.positions.len()];
+    for &i in scene.triangles.iter().flatten() {
+        referenced[i as usize] = true;
+    }
+    let kept: Vec<u32> = (0..scene.positions.len() as u32)
+        .filter(|&i| referenced[i as usize])
+        .collect();
+    report.unreferenced_vertices_removed = scene.positions.len() - kept.len();
+    select_vertices(&scene, &kept, |old| old)
+}
+
+/// Builds the scene made of the vertices `kept` (old indices, in new order); a triangle
+/// index `i` becomes the new index of `representative(i)`, which must be in `kept`.
+fn select_vertices(scene: &Scene, kept: &[u32], representative: impl Fn(u32) -> u32) -> Scene {
+    let mut new_index = vec![u32::MAX; scene.positions.len()];
+    for (new, &old) in kept.iter().enumerate() {
+        new_index[old as usize] = new as u32;
+    }
+    let pick = |values: &[Vec3]| kept.iter().map(|&i| values[i as usize]).collect::<Vec<_>>();
+    Scene {
+        positions: pick(&scene.positions),
+        normals: scene.normals.as_deref().map(pick),
+        albedo: pick(&scene.albedo),
+        triangles: scene
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| new_index[representative(i) as usize]))
+            .collect(),
+    }
+}
+
+/// The scene's normals, normalized, if every one is finite and non-zero.
+fn usable_normals(scene: &Scene) -> Option<Vec<Vec3>> {
+    scene
+        .normals
+        .as_ref()?
+        .iter()
+        .map(|n| n.try_normalize())
+        .collect()
+}
+
+/// Bit pattern used as a weld key; -0.0 and +0.0 are the same point, so they share a key.
+fn key(v: Vec3) -> [u32; 3] {
+    (v + Vec3::ZERO).to_array().map(f32::to_bits)
+}
+
+/// For each vertex, the index of the first vertex with the same key (itself if it is first).
+fn first_with_same_key<K: std::hash::Hash + Eq>(keys: impl Iterator<Item = K>) -> Vec<u32> {
+    let mut first: HashMap<K, u32> = HashMap::new();
+    keys.enumerate()
+        .map(|(i, k)| *first.entry(k).or_insert(i as u32))
+        .collect()
+}
+
+/// Merges vertices whose (position, albedo) or (position, normal, albedo) are identical.
+fn weld(scene: &Scene, representative: &[u32]) -> Scene {
+    let kept: Vec<u32> = (0..representative.len() as u32)
+        .filter(|&i| representative[i as usize] == i)
+        .collect();
+    select_vertices(scene, &kept, |old| representative[old as usize])
+}
+
+fn weld_with_normals(mut scene: Scene, normals: Vec<Vec3>) -> Scene {
+    let representative = first_with_same_key((0..scene.positions.len()).map(|i| {
+        (
+            key(scene.positions[i]),
+            key(normals[i]),
+            key(scene.albedo[i]),
+        )
+    }));
+    scene.normals = Some(normals);
+    weld(&scene, &representative)
+}
+
+/// Computes normals over the mesh welded by position alone, then welds by (position, albedo).
+///
+/// Computing on the position-welded mesh means a colour seam (same position, different
+/// albedo) does not also become a shading seam.
+fn weld_and_compute_normals(mut scene: Scene) -> Result<Scene> {
+    let same_position = first_with_same_key(scene.positions.iter().map(|&p| key(p)));
+    let position_triangles: Vec<[u32; 3]> = scene
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| same_position[i as usize]))
+        .collect();
+    // Non-representative vertices are referenced by no triangle here, so their normal is
+    // read from their representative below.
+    let by_position = angle_weighted_normals(&scene.positions, &position_triangles);
+    // Every triangle left is exactly non-degenerate, but its f64 cross product could still
+    // round to zero for extreme coordinates; that vertex has no usable normal.
+    if let Some(v) = same_position
+        .iter()
+        .position(|&rep| by_position[rep as usize] == Vec3::ZERO)
+    {
+        return Err(Error::Geometry(format!(
+            "cannot compute a normal for vertex at {}: its triangles are too small",
+            show(scene.positions[v])
+        )));
+    }
+    scene.normals = Some(
+        same_position
+            .iter()
+            .map(|&rep| by_position[rep as usize])
+            .collect(),
+    );
+    let representative = first_with_same_key(
+        scene
+            .positions
+            .iter()
+            .zip(&scene.albedo)
+            .map(|(&p, &a)| (key(p), key(a))),
+    );
+    Ok(weld(&scene, &representative))
+}
+
+fn sort_vertices_morton(scene: Scene) -> Scene {
+    let order = morton_order(&scene.positions);
+    select_vertices(&scene, &order, |old| old)
+}
+
+/// Vertex indices sorted by 30-bit Morton code of their position in the bounding box, ties
+/// broken by index, so equal inputs always give the same order.
+fn morton_order(positions: &[Vec3]) -> Vec<u32> {
+    let (min, max) = positions
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
+    // In f64, because max − min can overflow f32.
+    let (min, extent) = (min.as_dvec3(), max.as_dvec3() - min.as_dvec3());
+    let mut keyed: Vec<(u32, u32)> = positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (morton_code(p.as_dvec3(), min, extent), i as u32))
+        .collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+fn morton_code(p: DVec3, min: DVec3, extent: DVec3) -> u32 {
+    let cell = |v: f64, lo: f64, size: f64| -> u32 {
+        if size > 0.0 {
+            // f64 → u32 casts saturate, and the clamp keeps the maximum inside 10 bits.
+            (((v - lo) / size * 1024.0) as u32).min(1023)
+        } else {
+            0
+        }
+    };
+    spread_bits(cell(p.x, min.x, extent.x))
+        | spread_bits(cell(p.y, min.y, extent.y)) << 1
+        | spread_bits(cell(p.z, min.z, extent.z)) << 2
+}
+
+/// Inserts two zero bits between each of the low 10 bits of `v`.
+fn spread_bits(v: u32) -> u32 {
+    let mut v = v & 0x3ff;
+    v = (v | v << 16) & 0x0300_00ff;
+    v = (v | v << 8) & 0x0300_f00f;
+    v = (v | v << 4) & 0x030c_30c3;
+    (v | v << 2) & 0x0924_9249
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::DEFAULT_ALBEDO;
+
+    fn scene(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Scene {
+        Scene {
+            albedo: vec![DEFAULT_ALBEDO; positions.len()],
+            positions,
+            normals: None,
+            triangles,
+        }
+    }
+
+    fn geometry_message(result: Result<(Scene, PrepareReport)>) -> String {
+        match result {
+            Err(Error::Geometry(message)) => message,
+            other => panic!("expected a geometry error, got {other:?}"),
+        }
+    }
+
+    fn unit_cube() -> Scene {
+        let positions = (0..8)
+            .map(|i| Vec3::new((i & 1) as f32, (i >> 1 & 1) as f32, (i >> 2 & 1) as f32))
+            .collect();
+        // Outward winding; corners 0 and 7 are touched by two triangles on some faces and by
+        // one on others, which is what makes angle weighting matter.
+        let triangles = vec![
+            [0, 2, 3],
+            [0, 3, 1],
+            [4, 5, 7],
+            [4, 7, 6],
+            [0, 1, 5],
+            [0, 5, 4],
+            [2, 6, 7],
+            [2, 7, 3],
+            [0, 4, 6],
+            [0, 6, 2],
+            [1, 3, 7],
+            [1, 7, 5],
+        ];
+        scene(positions, triangles)
+    }
+
+    #[test]
+    fn cube_corner_normal_is_the_diagonal() {
+        let cube = unit_cube();
+        let normals = angle_weighted_normals(&cube.positions, &cube.triangles);
+        for (p, n) in cube.positions.iter().zip(&normals) {
+            let expected = (*p - Vec3::splat(0.5)).normalize();
+            assert!(
+                n.distance(expected) < 1e-6,
+                "corner {p}: normal {n}, expected {expected}"
+            );
+        }
+    }
+
+    #[test]
+    fn opposite_coincident_triangles_fall_back_to_first_face() {
+        let positions = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let normals = angle_weighted_normals(&positions, &[[0, 1, 2], [0, 2, 1]]);
+        assert_eq!(normals, vec![Vec3::Z; 3]);
+    }
+
+    #[test]
+    fn unreferenced_vertex_gets_zero_normal_and_bad_indices_are_ignored() {
+        let positions = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::ONE];
+        let normals = angle_weighted_normals(&positions, &[[0, 1, 2], [0, 1, 99]]);
+        assert_eq!(normals, vec![Vec3::Z, Vec3::Z, Vec3::Z, Vec3::ZERO]);
+    }
+
+    #[test]
+    fn teapot_welds_to_529_vertices() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/teapot.obj");
+        let loaded = crate::scene::obj::load(&path).unwrap();
+        assert_eq!(loaded.vertex_count(), 792);
+        assert!(loaded.normals.is_none());
+        let (prepared, report) = prepare(loaded).unwrap();
+        assert_eq!(prepared.vertex_count(), 529);
+        assert_eq!(report.vertices, 529);
+        assert_eq!(report.input_vertices, 792);
+        assert!(report.normals_computed);
+        assert_eq!(
+            report.vertices_welded + report.unreferenced_vertices_removed,
+            792 - 529
+        );
+        assert_eq!(
+            report.triangles + report.degenerate_triangles_removed,
+            report.input_triangles
+        );
+        let normals = prepared.normals.as_ref().unwrap();
+        assert!(normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-5));
+    }
+
+    #[test]
+    fn nan_position_is_an_error_naming_the_vertex() {
+        let mut s = unit_cube();
+        s.positions[5].y = f32::NAN;
+        let message = geometry_message(prepare(s));
+        assert!(message.contains("vertex 5"), "{message}");
+        assert!(message.contains("NaN"), "{message}");
+    }
+
+    #[test]
+    fn infinite_position_is_an_error() {
+        let mut s = unit_cube();
+        s.positions[2].x = f32::NEG_INFINITY;
+        assert!(geometry_message(prepare(s)).contains("vertex 2"));
+    }
+
+    #[test]
+    fn out_of_range_index_is_an_error_naming_the_triangle() {
+        let mut s = unit_cube();
+        s.triangles[3][1] = 8;
+        let message = geometry_message(prepare(s));
+        assert!(message.contains("triangle 3"), "{message}");
+        assert!(message.contains("vertex 8"), "{message}");
+    }
+
+    #[test]
+    fn empty_meshes_are_errors() {
+        let message = geometry_message(prepare(Scene::default()));
+        assert!(message.contains("no vertices"), "{message}");
+        let message = geometry_message(prepare(scene(vec![Vec3::ZERO; 3], vec![])));
+        assert!(message.contains("no triangles"), "{message}");
+    }
+
+    #[test]
+    fn attribute_length_mismatch_is_an_error() {
+        let mut s = unit_cube();
+        s.albedo.pop();
+        assert!(geometry_message(prepare(s)).contains("albedo"));
+        let mut s = unit_cube();
+        s.normals = Some(vec![Vec3::Y; 3]);
+        assert!(geometry_message(prepare(s)).contains("normals"));
+    }
+
+    #[test]
+    fn degenerate_triangles_are_removed() {
+        let mut s = unit_cube();
+        let p = Vec3::new(0.1, 0.2, 0.3);
+        // Scaling by powers of two is exact, so these three are exactly collinear; the last
+        // vertex duplicates the position of vertex 1 under another index.
+        s.positions.extend([p, p * 2.0, p * 4.0, Vec3::X]);
+        s.albedo.extend([DEFAULT_ALBEDO; 4]);
+        s.triangles.extend([[0, 0, 1], [8, 9, 10], [1, 2, 11]]);
+
+        let (prepared, report) = prepare(s).unwrap();
+        assert_eq!(report.degenerate_triangles_removed, 3);
+        assert_eq!(prepared.triangle_count(), 12);
+        assert_eq!(report.unreferenced_vertices_removed, 4);
+        assert_eq!(prepared.vertex_count(), 8);
+    }
+
+    #[test]
+    fn nearly_collinear_f32_points_are_not_degenerate() {
+        // Exactly collinear in f32 is rare; a point one ulp off the line must be kept.
+        let a = Vec3::new(0.1, 0.2, 0.3);
+        let b = Vec3::new(0.2, 0.4, 0.6);
+        let off = Vec3::new(0.4, f32::from_bits(0.8f32.to_bits() + 1), 1.2);
+        assert!(!cross_is_exactly_zero(a, b, off));
+        assert!(cross_is_exactly_zero(
+            Vec3::ZERO,
+            Vec3::ONE,
+            Vec3::splat(3.0)
+        ));
+        let d = Vec3::new(3.0, -5.0, 7.0);
+        let tiny = f32::powi(2.0, -60);
+        assert!(cross_is_exactly_zero(d * tiny, d * 0.75, d / tiny));
+    }
+
+    #[test]
+    fn all_degenerate_is_an_error() {
+        let s = scene(
+            vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0],
+            vec![[0, 1, 2], [1, 1, 2]],
+        );
+        let message = geometry_message(prepare(s));
+        assert_eq!(message, "all 2 triangles are degenerate");
+    }
+
+    #[test]
+    fn invalid_normals_are_recomputed_and_reported() {
+        let mut s = unit_cube();
+        let mut normals = vec![Vec3::Y; 8];
+        normals[4] = Vec3::new(f32::NAN, 0.0, 0.0);
+        s.normals = Some(normals);
+        let (prepared, report) = prepare(s).unwrap();
+        assert!(report.invalid_normals_replaced && report.normals_computed);
+        for (p, n) in prepared.positions.iter().zip(prepared.normals.unwrap()) {
+            assert!(n.distance((*p - Vec3::splat(0.5)).normalize()) < 1e-6);
+        }
+    }
+
+    #[test]
+    fn given_normals_are_normalized_and_split_vertices_kept() {
+        // Two quads sharing an edge, with a hard crease: shared positions, different normals.
+        let positions = vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::Z,
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::Y,
+        ];
+        let mut s = scene(positions, vec![[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]]);
+        s.normals = Some([vec![Vec3::Y * 3.0; 4], vec![Vec3::Z * 0.5; 4]].concat());
+        let (prepared, report) = prepare(s).unwrap();
+        assert!(!report.normals_computed);
+        assert_eq!(report.vertices_welded, 0);
+        assert_eq!(prepared.vertex_count(), 8);
+        let normals = prepared.normals.unwrap();
+        assert!(normals.iter().all(|&n| n == Vec3::Y || n == Vec3::Z));
+    }
+
+    #[test]
+    fn identical_vertices_with_normals_are_welded() {
+        let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::X, Vec3::Y, Vec3::ONE];
+        let mut s = scene(positions, vec![[0, 1, 2], [3, 5, 4]]);
+        s.normals = Some(vec![Vec3::Z; 6]);
+        let (prepared, report) = prepare(s).unwrap();
+        assert_eq!(report.vertices_welded, 2);
+        assert_eq!(prepared.vertex_count(), 4);
+    }
+
+    #[test]
+    fn colour_seam_welds_apart_but_shares_the_normal() {
+        // A folded strip whose two halves differ in albedo: the seam vertices are not welded,
+        // but their normals must still come from both halves.
+        let positions = vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(0.0, 1.0, -1.0),
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(0.0, 1.0, 1.0),
+        ];
+        let mut s = scene(positions, vec![[0, 1, 2], [3, 5, 4]]);
+        s.albedo[3..].fill(Vec3::new(0.2, 0.3, 0.4));
+        let (prepared, report) = prepare(s).unwrap();
+        assert_eq!(report.vertices_welded, 0);
+        let normals = prepared.normals.unwrap();
+        for (p, n) in prepared.positions.iter().zip(normals) {
+            if p.y == 0.0 {
+                assert!(n.distance(Vec3::Y) < 1e-6, "seam normal {n}");
+            }
+        }
+    }
+
+    #[test]
+    fn negative_zero_welds_with_positive_zero() {
+        let positions = vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::new(-0.0, 0.0, -0.0),
+            Vec3::Z,
+        ];
+        let s = scene(positions, vec![[0, 1, 2], [3, 2, 4]]);
+        let (prepared, report) = prepare(s).unwrap();
+        assert_eq!(report.vertices_welded, 1);
+        assert_eq!(prepared.vertex_count(), 4);
+    }
+
+    #[test]
+    fn morton_order_is_a_deterministic_permutation() {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut positions: Vec<Vec3> = (0..5000)
+            .map(|_| Vec3::new(next(), next(), next()))
+            .collect();
+        positions.extend_from_within(..100);
+        let order = morton_order(&positions);
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..positions.len() as u32).collect::<Vec<_>>());
+        assert_eq!(order, morton_order(&positions));
+        // Duplicated positions share a code; the lower original index comes first.
+        for i in 0..100 {
+            let first = order.iter().position(|&v| v == i).unwrap();
+            let second = order.iter().position(|&v| v == i + 5000).unwrap();
+            assert!(first < second);
+        }
+        let min = positions
+            .iter()
+            .fold(Vec3::INFINITY, |m, &p| m.min(p))
+            .as_dvec3();
+        let max = positions
+            .iter()
+            .fold(Vec3::NEG_INFINITY, |m, &p| m.max(p))
+            .as_dvec3();
+        let codes: Vec<u32> = order
+            .iter()
+            .map(|&i| morton_code(positions[i as usize].as_dvec3(), min, max - min))
+            .collect();
+        assert!(codes.windows(2).all(|w| w[0] <= w[1]));
+    }
+
+    #[test]
+    fn morton_codes_interleave_axes() {
+        assert_eq!(spread_bits(0b11), 0b1001);
+        assert_eq!(spread_bits(1023), 0x0924_9249);
+        let code = morton_code(DVec3::ONE, DVec3::ZERO, DVec3::ONE);
+        assert_eq!(code, (1 << 30) - 1);
+        assert_eq!(
+            morton_code(DVec3::new(0.0, 0.5, 0.0), DVec3::ZERO, DVec3::ONE),
+            2 << 27
+        );
+    }
+
+    #[test]
+    fn prepared_triangles_keep_order_and_geometry() {
+        let mut s = unit_cube();
+        s.positions.reverse();
+        for t in &mut s.triangles {
+            *t = t.map(|i| 7 - i);
+        }
+        let original: Vec<[Vec3; 3]> = s
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| s.positions[i as usize]))
+            .collect();
+        let (prepared, _) = prepare(s).unwrap();
+        let after: Vec<[Vec3; 3]> = prepared
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| prepared.positions[i as usize]))
+            .collect();
+        assert_eq!(original, after);
+        // Morton order of the unit cube corners is the binary count x + 2y + 4z.
+        let expected: Vec<Vec3> = unit_cube().positions;
+        assert_eq!(prepared.positions, expected);
+    }
+}

@@ -1,0 +1,151 @@
+//! WGSL sources, assembled from `wgsl/` with the constants they share with Rust generated from
+//! the Rust definitions (no "keep in sync" comments).
+
+use crate::bvh::STACK_SIZE;
+use crate::ray::{MIN_DIRECTION_COMPONENT, RAY_T_MAX, SLAB_WIDENING};
+
+/// Invocations per workgroup of every kernel.
+pub const WORKGROUP_SIZE: u32 = 64;
+
+const BVH_WGSL: &str = include_str!("../wgsl/bvh.wgsl");
+const VISIBILITY_WGSL: &str = include_str!("../wgsl/visibility.wgsl");
+const PROJECT_WGSL: &str = include_str!("../wgsl/project.wgsl");
+
+/// Constants every kernel sees. `{:?}` prints the shortest decimal that parses back to the
+/// same f32, so WGSL gets the exact Rust values.
+fn prelude() -> String {
+    format!(
+        "// Generated from Rust by src/shaders.rs.\n\
+         const STACK_SIZE: u32 = {STACK_SIZE}u;\n\
+         const WORKGROUP_SIZE: u32 = {WORKGROUP_SIZE}u;\n\
+         const SLAB_WIDENING: f32 = {SLAB_WIDENING:?};\n\
+         const MIN_DIRECTION_COMPONENT: f32 = {MIN_DIRECTION_COMPONENT:?};\n\
+         const RAY_T_MAX: f32 = {RAY_T_MAX:?};\n\n"
+    )
+}
+
+/// The visibility kernel (BVH traversal included).
+pub fn visibility_kernel() -> String {
+    format!("{}{BVH_WGSL}\n{VISIBILITY_WGSL}", prelude())
+}
+
+/// The projection kernel.
+pub fn project_kernel() -> String {
+    format!("{}{PROJECT_WGSL}", prelude())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::gpu::{ProjectParams, VisibilityParams};
+    use crate::bvh::{BvhNode, BvhTriangle};
+    use std::mem::{offset_of, size_of};
+
+    fn parse(source: &str) -> naga::Module {
+        let module = naga::front::wgsl::parse_str(source)
+            .unwrap_or_else(|e| panic!("WGSL does not parse:\n{}", e.emit_to_string(source)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::empty(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("WGSL does not validate:\n{}", e.emit_to_string(source)));
+        module
+    }
+
+    /// (size, [(member, offset)]) of a WGSL struct, from naga's layout.
+    fn wgsl_layout(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
+        for (_, ty) in module.types.iter() {
+            if ty.name.as_deref() == Some(name) {
+                if let naga::TypeInner::Struct { members, span } = &ty.inner {
+                    let fields = members
+                        .iter()
+                        .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+                        .collect();
+                    return (*span, fields);
+                }
+            }
+        }
+        panic!("struct {name} not found in WGSL");
+    }
+
+    macro_rules! rust_layout {
+        ($ty:ty, $($field:ident),+) => {
+            (
+                size_of::<$ty>() as u32,
+                vec![$((stringify!($field).to_string(), offset_of!($ty, $field) as u32)),+],
+            )
+        };
+    }
+
+    #[test]
+    fn every_kernel_parses_and_validates() {
+        parse(&visibility_kernel());
+        parse(&project_kernel());
+    }
+
+    #[test]
+    fn shared_structs_match_their_wgsl_twins() {
+        let visibility = parse(&visibility_kernel());
+        let project = parse(&project_kernel());
+        assert_eq!(
+            wgsl_layout(&visibility, "BvhNode"),
+            rust_layout!(BvhNode, min, left_or_first, max, triangle_count)
+        );
+        assert_eq!(
+            wgsl_layout(&visibility, "BvhTriangle"),
+            rust_layout!(BvhTriangle, v0, source_index, v1, pad1, v2, pad2)
+        );
+        assert_eq!(
+            wgsl_layout(&visibility, "VisibilityParams"),
+            rust_layout!(
+                VisibilityParams,
+                vertex_offset,
+                vertex_count,
+                sample_offset,
+                sample_count,
+                words_per_vertex,
+                max_steps,
+                shadowed,
+                pad0
+            )
+        );
+        assert_eq!(
+            wgsl_layout(&project, "ProjectParams"),
+            rust_layout!(
+                ProjectParams,
+                vertex_offset,
+                vertex_count,
+                sample_offset,
+                sample_count,
+                words_per_vertex,
+                coeff_count,
+                accumulate,
+                pad0
+            )
+        );
+    }
+
+    #[test]
+    fn generated_constants_are_exact() {
+        let source = prelude();
+        let module = parse(&source);
+        // The f32 constants must come back bit-identical after WGSL parsing.
+        let mut checked = 0;
+        for (_, constant) in module.constants.iter() {
+            let value = match &module.global_expressions[constant.init] {
+                naga::Expression::Literal(naga::Literal::F32(v)) => *v,
+                _ => continue,
+            };
+            let expected = match constant.name.as_deref() {
+                Some("SLAB_WIDENING") => SLAB_WIDENING,
+                Some("MIN_DIRECTION_COMPONENT") => MIN_DIRECTION_COMPONENT,
+                Some("RAY_T_MAX") => RAY_T_MAX,
+                other => panic!("unexpected constant {other:?}"),
+            };
+            assert_eq!(value.to_bits(), expected.to_bits());
+            checked += 1;
+        }
+        assert_eq!(checked, 3, "expected three f32 constants");
+    }
+}

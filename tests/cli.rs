@@ -1,0 +1,246 @@
+//! The command line end to end: a bake, `info`, and every kind of bad input failing cleanly.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn prt_gpu(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_prt-gpu"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run prt-gpu")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("prt-gpu-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn bakes_the_builtin_scene_and_reports_it() {
+    let dir = scratch("default");
+    let out = prt_gpu(&["bake", "--samples", "64", "-o", "scene.glb"], &dir);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("vertices") && stdout.contains("rays/s"),
+        "{stdout}"
+    );
+    assert_eq!(files_in(&dir), ["scene.glb"]);
+
+    let info = prt_gpu(&["info", "scene.glb"], &dir);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(info.status.success());
+    for expected in [
+        "bands:        4",
+        "samples:      64",
+        "mode:         shadowed",
+        "Condon-Shortley",
+    ] {
+        assert!(text.contains(expected), "info lacks {expected:?}:\n{text}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_non_square_sample_count_is_rounded_and_said() {
+    let dir = scratch("square");
+    let out = prt_gpu(
+        &[
+            "bake",
+            "--samples",
+            "50",
+            "--mode",
+            "unshadowed",
+            "-o",
+            "a.glb",
+        ],
+        &dir,
+    );
+    assert!(out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("using 49"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A bad invocation: the file it needs (name, contents), its arguments, and a piece of the
+/// one-line error it must print.
+struct BadInput {
+    case: &'static str,
+    file: Option<(&'static str, &'static [u8])>,
+    args: &'static [&'static str],
+    expect: &'static str,
+}
+
+macro_rules! ply_header {
+    () => {
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+    };
+}
+
+/// Writes the input's file to a fresh directory, runs prt-gpu there, and checks the failure.
+fn assert_clean_failure(input: &BadInput) {
+    let case = input.case;
+    let dir = scratch(case);
+    if let Some((name, contents)) = input.file {
+        std::fs::write(dir.join(name), contents).unwrap();
+    }
+    let before = files_in(&dir);
+    let out = prt_gpu(input.args, &dir);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{case}: succeeded");
+    assert!(!stderr.contains("panicked"), "{case}: panicked: {stderr}");
+    // Informational notes (e.g. which backend bakes) may precede the error.
+    let lines: Vec<&str> = stderr
+        .lines()
+        .filter(|l| !l.starts_with("note: "))
+        .collect();
+    assert_eq!(
+        lines.len(),
+        1,
+        "{case}: expected one error line, got {stderr:?}"
+    );
+    assert!(
+        lines[0]
+            .to_lowercase()
+            .contains(&input.expect.to_lowercase()),
+        "{case}: {:?} does not mention {:?}",
+        lines[0],
+        input.expect
+    );
+    assert_eq!(files_in(&dir), before, "{case}: files were left behind");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_input_fails_with_one_line_and_no_output() {
+    let bad_index = concat!(
+        ply_header!(),
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n"
+    );
+    let no_faces = concat!(ply_header!(), "end_header\n0 0 0\n1 0 0\n0 1 0\n");
+    let cases = [
+        BadInput {
+            case: "missing",
+            file: None,
+            args: &["bake", "nope.obj", "-o", "o.glb"],
+            expect: "nope.obj",
+        },
+        BadInput {
+            case: "empty",
+            file: Some(("e.obj", b"# nothing\n")),
+            args: &["bake", "e.obj", "-o", "o.glb"],
+            expect: "e.obj",
+        },
+        BadInput {
+            case: "nofaces",
+            file: Some(("v.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\n")),
+            args: &["bake", "v.obj", "-o", "o.glb"],
+            expect: "faces",
+        },
+        BadInput {
+            case: "nan",
+            file: Some(("n.obj", b"v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")),
+            args: &["bake", "n.obj", "-o", "o.glb"],
+            expect: "n.obj: invalid mesh: vertex 1",
+        },
+        BadInput {
+            case: "index",
+            file: Some(("i.ply", bad_index.as_bytes())),
+            args: &["bake", "i.ply", "-o", "o.glb"],
+            expect: "i.ply: invalid mesh: triangle 0 refers to vertex 7",
+        },
+        BadInput {
+            case: "plyfaces",
+            file: Some(("f.ply", no_faces.as_bytes())),
+            args: &["bake", "f.ply", "-o", "o.glb"],
+            expect: "faces",
+        },
+        BadInput {
+            case: "bands0",
+            file: None,
+            args: &["bake", "--bands", "0", "-o", "o.glb"],
+            expect: "bands",
+        },
+        BadInput {
+            case: "bands999",
+            file: None,
+            args: &["bake", "--bands", "999", "-o", "o.glb"],
+            expect: "bands",
+        },
+        BadInput {
+            case: "samples0",
+            file: None,
+            args: &["bake", "--samples", "0", "-o", "o.glb"],
+            expect: "samples",
+        },
+        BadInput {
+            case: "samplesbig",
+            file: None,
+            args: &["bake", "--samples", "4000000000", "-o", "o.glb"],
+            expect: "samples",
+        },
+        BadInput {
+            case: "albedo",
+            file: None,
+            args: &["bake", "--albedo", "2,0,0", "-o", "o.glb"],
+            expect: "albedo",
+        },
+        BadInput {
+            case: "outdir",
+            file: None,
+            args: &["bake", "--samples", "16", "-o", "no/such/dir/o.glb"],
+            expect: "no/such/dir",
+        },
+        BadInput {
+            case: "format",
+            file: Some(("m.stl", b"solid\n")),
+            args: &["bake", "m.stl", "-o", "o.glb"],
+            expect: "format",
+        },
+        BadInput {
+            case: "info",
+            file: Some(("bad.glb", b"not a glb at all")),
+            args: &["info", "bad.glb"],
+            expect: "bad.glb",
+        },
+        BadInput {
+            case: "chunk0",
+            file: None,
+            args: &["bake", "--chunk-vertices", "0", "-o", "o.glb"],
+            expect: "chunk-vertices",
+        },
+        BadInput {
+            case: "adapter",
+            file: None,
+            args: &[
+                "bake",
+                "--device",
+                "gpu",
+                "--adapter",
+                "no-such-adapter-xyz",
+                "-o",
+                "o.glb",
+            ],
+            expect: "no-such-adapter-xyz",
+        },
+    ];
+    for input in &cases {
+        assert_clean_failure(input);
+    }
+}

@@ -1,0 +1,43 @@
+//! Shared by the integration tests: the backends to run every check on.
+//!
+//! The GPU backend is opened once per test binary on any adapter (lavapipe in CI). Without an
+//! adapter the GPU half of a test is skipped with a printed reason, except under CI (or with
+//! PRT_GPU_REQUIRE_ADAPTER=1), where that is a failure: GPU tests must never silently skip.
+
+#![allow(dead_code)]
+
+use std::sync::OnceLock;
+
+use prt_gpu::bake::gpu::{Chunking, GpuBaker};
+use prt_gpu::bake::Backend;
+use prt_gpu::gpu::{self, DeviceChoice};
+
+static GPU: OnceLock<Option<GpuBaker>> = OnceLock::new();
+
+/// The GPU baker, or `None` (with the reason printed) where there is no adapter outside CI.
+pub fn gpu_baker() -> Option<&'static GpuBaker> {
+    GPU.get_or_init(|| match gpu::open(DeviceChoice::Gpu, None) {
+        Ok(Some(context)) => Some(GpuBaker::new(context).expect("compile the kernels")),
+        Ok(None) => unreachable!("DeviceChoice::Gpu never falls back to the CPU"),
+        Err(e) if gpu::adapter_required() => {
+            panic!("no GPU adapter under CI (install mesa-vulkan-drivers): {e}")
+        }
+        Err(e) => {
+            eprintln!("skipping GPU half of the test: {e}");
+            None
+        }
+    })
+    .as_ref()
+}
+
+/// The CPU backend, and the GPU backend where an adapter exists.
+pub fn backends() -> Vec<Backend<'static>> {
+    let mut all = vec![Backend::Cpu];
+    if let Some(baker) = gpu_baker() {
+        all.push(Backend::Gpu {
+            baker,
+            chunking: Chunking::default(),
+        });
+    }
+    all
+}

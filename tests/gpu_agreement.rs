@@ -1,0 +1,234 @@
+//! The GPU backend against the CPU reference, ray for ray and coefficient for coefficient.
+//!
+//! Tolerance, from first principles: both backends read the same origins, directions and SH
+//! table. A ray whose visibility differs changes coefficient k of its vertex by at most
+//! `(w/pi) max_s |cos_s y_k(s)|`; the rest is rounding, and the GPU's f32 sum over a vertex's
+//! samples (per 32-sample word, then over words) errs by at most
+//! `gamma(32 + words + 4) (w/pi) sum_s |cos_s y_k(s)|`.
+
+mod common;
+
+use std::path::PathBuf;
+
+use glam::Vec3;
+use prt_gpu::bake::cpu;
+use prt_gpu::bake::gpu::{visibility_bits_and_transfer, Chunking, GpuBaker};
+use prt_gpu::bake::{ray_origins, DirectInputs, Mode};
+use prt_gpu::bvh::Bvh;
+use prt_gpu::sampling::{stratified_sphere, SampleSet};
+use prt_gpu::scene::{self, builtin, prepare::prepare, Scene};
+use prt_gpu::sh::{coeff_count, ShTable};
+
+struct Prepared {
+    origins: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    bvh: Bvh,
+    samples: SampleSet,
+    table: ShTable,
+}
+
+impl Prepared {
+    fn new(scene: Scene, bands: u32, samples: u32) -> Self {
+        let (scene, _) = prepare(scene).unwrap();
+        let normals = scene.normals.clone().unwrap();
+        let bvh = Bvh::build(&scene.positions, &scene.triangles);
+        let origins = ray_origins(&scene.positions, &normals, &bvh);
+        let samples = stratified_sphere(samples, 7);
+        let table = ShTable::new(bands, &samples.directions);
+        Prepared {
+            origins,
+            normals,
+            bvh,
+            samples,
+            table,
+        }
+    }
+
+    fn inputs(&self) -> DirectInputs<'_> {
+        DirectInputs {
+            origins: &self.origins,
+            normals: &self.normals,
+            bvh: &self.bvh,
+            samples: &self.samples,
+            table: &self.table,
+        }
+    }
+}
+
+fn data(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name)
+}
+
+/// Compares one bake on both backends; returns (rays cast, rays whose visibility differs).
+fn compare(
+    baker: &GpuBaker,
+    prepared: &Prepared,
+    mode: Mode,
+    chunking: Chunking,
+    what: &str,
+) -> (u64, u64) {
+    let inputs = prepared.inputs();
+    let n = coeff_count(inputs.table.bands);
+    let words = cpu::words_per_vertex(inputs.samples.len());
+    let cpu_bits = cpu::visibility_bits(&inputs, mode);
+    let (cpu_transfer, rays) = cpu::direct_transfer(&inputs, mode, &prt_gpu::bake::NoProgress);
+    let (gpu_bits, gpu_transfer) =
+        visibility_bits_and_transfer(baker, &inputs, mode, chunking).unwrap();
+    assert_eq!(gpu_bits.len(), cpu_bits.len());
+
+    let scale = cpu::transfer_scale(&inputs);
+    let gamma = |m: f64| m * 2f64.powi(-24) / (1.0 - m * 2f64.powi(-24));
+    let rounding = gamma((32 + words + 4) as f64);
+    let mut differing_rays = 0u64;
+    for v in 0..inputs.origins.len() {
+        let cpu_row = &cpu_bits[v * words..(v + 1) * words];
+        let gpu_row = &gpu_bits[v * words..(v + 1) * words];
+        let differing: Vec<usize> = (0..inputs.samples.len())
+            .filter(|&s| (cpu_row[s / 32] ^ gpu_row[s / 32]) & (1 << (s % 32)) != 0)
+            .collect();
+        differing_rays += differing.len() as u64;
+        for k in 0..n {
+            let term = |s: usize| {
+                (inputs.normals[v].dot(inputs.samples.directions[s]) as f64
+                    * inputs.table.row(s)[k] as f64)
+                    .abs()
+            };
+            let visible_sum: f64 = (0..inputs.samples.len())
+                .filter(|&s| (cpu_row[s / 32] | gpu_row[s / 32]) & (1 << (s % 32)) != 0)
+                .map(term)
+                .sum();
+            let flipped: f64 = differing.iter().map(|&s| term(s)).sum();
+            let (c, g) = (
+                cpu_transfer[v * n + k] as f64,
+                gpu_transfer[v * n + k] as f64,
+            );
+            let tolerance =
+                scale * (flipped + rounding * visible_sum) + 2f64.powi(-23) * c.abs() + 1e-12;
+            assert!(
+                (c - g).abs() <= tolerance,
+                "{what}: vertex {v}, k = {k}: cpu {c}, gpu {g}, tolerance {tolerance} ({} rays differ)",
+                differing.len()
+            );
+        }
+    }
+    (rays, differing_rays)
+}
+
+fn check_scene(scene: Scene, samples: u32, what: &str) {
+    let Some(baker) = common::gpu_baker() else {
+        return;
+    };
+    let prepared = Prepared::new(scene, 4, samples);
+    let (rays, differing) = compare(baker, &prepared, Mode::Shadowed, Chunking::default(), what);
+    eprintln!("{what}: {differing} of {rays} rays differ between CPU and GPU");
+    assert!(rays > 0);
+    assert!(
+        differing as f64 <= 1e-5 * rays as f64,
+        "{what}: {differing} of {rays} rays differ (more than 1 in 10^5)"
+    );
+    let (_, differing) = compare(
+        baker,
+        &prepared,
+        Mode::Unshadowed,
+        Chunking::default(),
+        what,
+    );
+    assert!(
+        differing as f64 <= 1e-5 * rays as f64,
+        "{what} unshadowed: {differing} rays differ"
+    );
+}
+
+#[test]
+fn builtin_scene_agrees() {
+    check_scene(builtin::default_scene(), 1024, "built-in scene");
+}
+
+#[test]
+fn bunny_agrees() {
+    check_scene(scene::load(&data("bunny.obj")).unwrap(), 1024, "bunny");
+}
+
+#[test]
+fn dragon_agrees() {
+    check_scene(
+        scene::load(&data("dragon_vrip_res3.ply.gz")).unwrap(),
+        256,
+        "dragon_vrip_res3",
+    );
+}
+
+#[test]
+fn many_small_chunks_equal_one_big_chunk() {
+    let Some(baker) = common::gpu_baker() else {
+        return;
+    };
+    // 324 samples: the last 64-sample chunk is partial; 7 bands: 49 coefficients.
+    let prepared = Prepared::new(scene::load(&data("teapot.obj")).unwrap(), 7, 324);
+    let inputs = prepared.inputs();
+    let whole =
+        visibility_bits_and_transfer(baker, &inputs, Mode::Shadowed, Chunking::default()).unwrap();
+    let small = Chunking {
+        max_vertices: Some(37),
+        max_samples: Some(64),
+        max_steps: None,
+    };
+    let chunked = visibility_bits_and_transfer(baker, &inputs, Mode::Shadowed, small).unwrap();
+    assert!(whole.0 == chunked.0, "visibility bits depend on chunking");
+    // Sums over sample chunks are added in another order: equal within f32 rounding of the
+    // vertex's largest coefficient (a few ulps; small coefficients are sums that cancel).
+    let n = coeff_count(7);
+    for (v, (a, b)) in whole.1.chunks(n).zip(chunked.1.chunks(n)).enumerate() {
+        let size = a.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+        for k in 0..n {
+            assert!(
+                (a[k] - b[k]).abs() <= 1e-5 * size,
+                "vertex {v}, k = {k}: {} vs {}",
+                a[k],
+                b[k]
+            );
+        }
+    }
+    // And the chunked bake still agrees with the CPU ray for ray.
+    let (rays, differing) = compare(
+        baker,
+        &prepared,
+        Mode::Shadowed,
+        small,
+        "teapot in small chunks",
+    );
+    assert!(differing as f64 <= 1e-5 * rays as f64);
+}
+
+#[test]
+fn a_traversal_past_its_step_budget_is_an_error_not_a_wrong_answer() {
+    // llvmpipe silently truncates long loops; the kernel counts its own steps instead. With a
+    // budget too small for any real traversal, every ray that needs more must be reported.
+    let Some(baker) = common::gpu_baker() else {
+        return;
+    };
+    let prepared = Prepared::new(scene::load(&data("bunny.obj")).unwrap(), 2, 64);
+    let tiny = Chunking {
+        max_steps: Some(4),
+        ..Chunking::default()
+    };
+    let Err(error) = visibility_bits_and_transfer(baker, &prepared.inputs(), Mode::Shadowed, tiny)
+    else {
+        panic!("a 4-step budget cannot trace the bunny");
+    };
+    assert!(error.to_string().contains("traversal steps"), "{error}");
+}
+
+#[test]
+fn auto_never_picks_a_software_adapter() {
+    let adapters = prt_gpu::gpu::list_adapters();
+    let only_software = !adapters.is_empty() && adapters.iter().all(|a| a.is_software());
+    let opened = prt_gpu::gpu::open(prt_gpu::gpu::DeviceChoice::Auto, None).unwrap();
+    if only_software || adapters.is_empty() {
+        assert!(opened.is_none(), "auto opened a software adapter");
+    } else {
+        assert!(!opened.unwrap().adapter.is_software());
+    }
+}

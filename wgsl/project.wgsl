@@ -1,0 +1,51 @@
+// Projection pass: one invocation per (vertex, coefficient) of a chunk; sums
+// cos(n, w_s) y_k(w_s) over the samples whose visibility bit is set. Rust twin:
+// bake::cpu::project_visibility. Sums run per 32-sample word and are then added, which keeps
+// the f32 rounding error near (32 + samples/32) ulps instead of growing with the sample count.
+
+struct ProjectParams {
+    vertex_offset: u32,
+    vertex_count: u32,
+    sample_offset: u32,
+    sample_count: u32,
+    words_per_vertex: u32,
+    coeff_count: u32,
+    // 1: add to what `transfer` holds (later sample chunks); 0: overwrite.
+    accumulate: u32,
+    pad0: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: ProjectParams;
+@group(0) @binding(1) var<storage, read> normals: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> directions: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> sh_table: array<f32>;
+@group(0) @binding(4) var<storage, read> visible_bits: array<u32>;
+@group(0) @binding(5) var<storage, read_write> transfer: array<f32>;
+
+@compute @workgroup_size(WORKGROUP_SIZE, 1, 1)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let index = id.x;
+    if (index >= params.vertex_count * params.coeff_count) {
+        return;
+    }
+    let local_vertex = index / params.coeff_count;
+    let k = index % params.coeff_count;
+    let normal = normals[params.vertex_offset + local_vertex].xyz;
+    var total = 0.0;
+    for (var word = 0u; word < params.words_per_vertex; word += 1u) {
+        let bits = visible_bits[local_vertex * params.words_per_vertex + word];
+        var partial = 0.0;
+        for (var bit = 0u; bit < 32u; bit += 1u) {
+            if ((bits & (1u << bit)) != 0u) {
+                let sample = params.sample_offset + word * 32u + bit;
+                let cosine = dot(normal, directions[sample].xyz);
+                partial += cosine * sh_table[sample * params.coeff_count + k];
+            }
+        }
+        total += partial;
+    }
+    if (params.accumulate != 0u) {
+        total += transfer[index];
+    }
+    transfer[index] = total;
+}

@@ -1,0 +1,53 @@
+// Visibility pass: one invocation per (vertex, sample) of a chunk; sets the bit of every ray
+// that is above the vertex's horizon and unblocked. Rust twin: bake::cpu::trace_visibility.
+// Dispatch: x over vertices of the chunk (WORKGROUP_SIZE per group), y over samples.
+
+struct VisibilityParams {
+    vertex_offset: u32,
+    vertex_count: u32,
+    sample_offset: u32,
+    sample_count: u32,
+    words_per_vertex: u32,
+    max_steps: u32,
+    // 1: trace rays; 0: every sample above the horizon is visible (unshadowed transfer).
+    shadowed: u32,
+    pad0: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: VisibilityParams;
+@group(0) @binding(1) var<storage, read> nodes: array<BvhNode>;
+@group(0) @binding(2) var<storage, read> triangles: array<BvhTriangle>;
+@group(0) @binding(3) var<storage, read> origins: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> normals: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read> directions: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read_write> visible_bits: array<atomic<u32>>;
+// [0]: rays whose traversal ran out of steps (must stay 0).
+@group(0) @binding(7) var<storage, read_write> exhausted_rays: array<atomic<u32>>;
+
+@compute @workgroup_size(WORKGROUP_SIZE, 1, 1)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let local_vertex = id.x;
+    let local_sample = id.y;
+    if (local_vertex >= params.vertex_count || local_sample >= params.sample_count) {
+        return;
+    }
+    let vertex = params.vertex_offset + local_vertex;
+    let direction = directions[params.sample_offset + local_sample].xyz;
+    let normal = normals[vertex].xyz;
+    if (dot(normal, direction) <= 0.0) {
+        return;
+    }
+    var visible = true;
+    if (params.shadowed != 0u) {
+        let hit = occluded(make_ray(origins[vertex].xyz, direction), RAY_T_MAX, params.max_steps);
+        if (hit.exhausted) {
+            atomicAdd(&exhausted_rays[0], 1u);
+            return;
+        }
+        visible = !hit.occluded;
+    }
+    if (visible) {
+        let word = local_vertex * params.words_per_vertex + local_sample / 32u;
+        atomicOr(&visible_bits[word], 1u << (local_sample % 32u));
+    }
+}

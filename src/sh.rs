@@ -190,34 +190,34 @@ mod tests {
     use super::*;
     use std::f64::consts::PI;
 
+    /// (P_n(x), P_n'(x)) by Bonnet's recurrence (plain Legendre polynomials, test use only).
+    fn legendre_with_derivative(n: usize, x: f64) -> (f64, f64) {
+        let (mut p0, mut p1) = (1.0, x);
+        if n == 0 {
+            return (1.0, 0.0);
+        }
+        for k in 2..=n {
+            let kf = k as f64;
+            let p2 = ((2.0 * kf - 1.0) * x * p1 - (kf - 1.0) * p0) / kf;
+            p0 = p1;
+            p1 = p2;
+        }
+        (p1, n as f64 * (x * p1 - p0) / (x * x - 1.0))
+    }
+
     /// Gauss–Legendre nodes and weights on [-1, 1] by Newton iteration on P_n.
     fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
         (0..n)
             .map(|i| {
                 let mut x = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
                 for _ in 0..100 {
-                    let (mut p0, mut p1) = (1.0, x);
-                    for k in 2..=n {
-                        let kf = k as f64;
-                        let p2 = ((2.0 * kf - 1.0) * x * p1 - (kf - 1.0) * p0) / kf;
-                        p0 = p1;
-                        p1 = p2;
-                    }
-                    let dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
-                    let dx = p1 / dp;
-                    x -= dx;
-                    if dx.abs() < 1e-15 {
+                    let (p, dp) = legendre_with_derivative(n, x);
+                    x -= p / dp;
+                    if (p / dp).abs() < 1e-15 {
                         break;
                     }
                 }
-                let (mut p0, mut p1) = (1.0, x);
-                for k in 2..=n {
-                    let kf = k as f64;
-                    let p2 = ((2.0 * kf - 1.0) * x * p1 - (kf - 1.0) * p0) / kf;
-                    p0 = p1;
-                    p1 = p2;
-                }
-                let dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
+                let (_, dp) = legendre_with_derivative(n, x);
                 (x, 2.0 / ((1.0 - x * x) * dp * dp))
             })
             .collect()
@@ -339,19 +339,7 @@ mod tests {
             let mut moment = 0.0;
             for &(x, w) in &nodes {
                 let t = 0.5 * (x + 1.0);
-                let (mut p0, mut p1) = (1.0, t);
-                let p = match l {
-                    0 => 1.0,
-                    _ => {
-                        for k in 2..=l {
-                            let kf = k as f64;
-                            let p2 = ((2.0 * kf - 1.0) * t * p1 - (kf - 1.0) * p0) / kf;
-                            p0 = p1;
-                            p1 = p2;
-                        }
-                        p1
-                    }
-                };
+                let (p, _) = legendre_with_derivative(l as usize, t);
                 moment += 0.5 * w * t * p;
             }
             let k_l = ((2 * l + 1) as f64 / (4.0 * PI)).sqrt();

@@ -10,49 +10,16 @@ mod common;
 
 use std::path::PathBuf;
 
-use glam::Vec3;
 use prt_gpu::bake::cpu;
 use prt_gpu::bake::gpu::{visibility_bits_and_transfer, Chunking, GpuBaker};
-use prt_gpu::bake::{ray_origins, DirectInputs, Mode};
-use prt_gpu::bvh::Bvh;
-use prt_gpu::sampling::{stratified_sphere, SampleSet};
+use prt_gpu::bake::{BakeInputs, Mode};
 use prt_gpu::scene::{self, builtin, prepare::prepare, Scene};
-use prt_gpu::sh::{coeff_count, ShTable};
+use prt_gpu::sh::coeff_count;
 
-struct Prepared {
-    origins: Vec<Vec3>,
-    normals: Vec<Vec3>,
-    bvh: Bvh,
-    samples: SampleSet,
-    table: ShTable,
-}
-
-impl Prepared {
-    fn new(scene: Scene, bands: u32, samples: u32) -> Self {
-        let (scene, _) = prepare(scene).unwrap();
-        let normals = scene.normals.clone().unwrap();
-        let bvh = Bvh::build(&scene.positions, &scene.triangles);
-        let origins = ray_origins(&scene.positions, &normals, &bvh);
-        let samples = stratified_sphere(samples, 7);
-        let table = ShTable::new(bands, &samples.directions);
-        Prepared {
-            origins,
-            normals,
-            bvh,
-            samples,
-            table,
-        }
-    }
-
-    fn inputs(&self) -> DirectInputs<'_> {
-        DirectInputs {
-            origins: &self.origins,
-            normals: &self.normals,
-            bvh: &self.bvh,
-            samples: &self.samples,
-            table: &self.table,
-        }
-    }
+/// Inputs of a bake of `scene` with `bands` bands and `samples` samples.
+fn prepared(scene: Scene, bands: u32, samples: u32) -> BakeInputs {
+    let (scene, _) = prepare(scene).unwrap();
+    BakeInputs::new(&scene, bands, samples, 7)
 }
 
 fn data(name: &str) -> PathBuf {
@@ -64,12 +31,12 @@ fn data(name: &str) -> PathBuf {
 /// Compares one bake on both backends; returns (rays cast, rays whose visibility differs).
 fn compare(
     baker: &GpuBaker,
-    prepared: &Prepared,
+    prepared: &BakeInputs,
     mode: Mode,
     chunking: Chunking,
     what: &str,
 ) -> (u64, u64) {
-    let inputs = prepared.inputs();
+    let inputs = prepared.view();
     let n = coeff_count(inputs.table.bands);
     let words = cpu::words_per_vertex(inputs.samples.len());
     let cpu_bits = cpu::visibility_bits(&inputs, mode);
@@ -120,7 +87,7 @@ fn check_scene(scene: Scene, samples: u32, what: &str) {
     let Some(baker) = common::gpu_baker() else {
         return;
     };
-    let prepared = Prepared::new(scene, 4, samples);
+    let prepared = prepared(scene, 4, samples);
     let (rays, differing) = compare(baker, &prepared, Mode::Shadowed, Chunking::default(), what);
     eprintln!("{what}: {differing} of {rays} rays differ between CPU and GPU");
     assert!(rays > 0);
@@ -165,9 +132,9 @@ fn many_small_chunks_equal_one_big_chunk() {
     let Some(baker) = common::gpu_baker() else {
         return;
     };
-    // 324 samples: the last 64-sample chunk is partial; 7 bands: 49 coefficients.
-    let prepared = Prepared::new(scene::load(&data("teapot.obj")).unwrap(), 7, 324);
-    let inputs = prepared.inputs();
+    // 324 samples: the last 64-sample chunk is partial; 8 bands: 64 coefficients.
+    let prepared = prepared(scene::load(&data("teapot.obj")).unwrap(), 8, 324);
+    let inputs = prepared.view();
     let whole =
         visibility_bits_and_transfer(baker, &inputs, Mode::Shadowed, Chunking::default()).unwrap();
     let small = Chunking {
@@ -179,7 +146,7 @@ fn many_small_chunks_equal_one_big_chunk() {
     assert!(whole.0 == chunked.0, "visibility bits depend on chunking");
     // Sums over sample chunks are added in another order: equal within f32 rounding of the
     // vertex's largest coefficient (a few ulps; small coefficients are sums that cancel).
-    let n = coeff_count(7);
+    let n = coeff_count(8);
     for (v, (a, b)) in whole.1.chunks(n).zip(chunked.1.chunks(n)).enumerate() {
         let size = a.iter().fold(0.0f32, |m, x| m.max(x.abs()));
         for k in 0..n {
@@ -209,12 +176,12 @@ fn a_traversal_past_its_step_budget_is_an_error_not_a_wrong_answer() {
     let Some(baker) = common::gpu_baker() else {
         return;
     };
-    let prepared = Prepared::new(scene::load(&data("bunny.obj")).unwrap(), 2, 64);
+    let prepared = prepared(scene::load(&data("bunny.obj")).unwrap(), 2, 64);
     let tiny = Chunking {
         max_steps: Some(4),
         ..Chunking::default()
     };
-    let Err(error) = visibility_bits_and_transfer(baker, &prepared.inputs(), Mode::Shadowed, tiny)
+    let Err(error) = visibility_bits_and_transfer(baker, &prepared.view(), Mode::Shadowed, tiny)
     else {
         panic!("a 4-step budget cannot trace the bunny");
     };

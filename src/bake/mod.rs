@@ -202,20 +202,10 @@ pub fn bake(
     if let Some(albedo) = options.albedo {
         scene.albedo.iter_mut().for_each(|a| *a = albedo);
     }
-    let normals = scene.normals.clone().expect("prepare computes normals");
-    let bvh = Bvh::build(&scene.positions, &scene.triangles);
-    let samples = stratified_sphere(options.samples_used(), options.seed);
-    let table = ShTable::new(options.bands, &samples.directions);
+    let owned = BakeInputs::new(&scene, options.bands, options.samples_used(), options.seed);
+    let inputs = owned.view();
     let seconds_prepare = started.elapsed().as_secs_f64();
 
-    let origins = ray_origins(&scene.positions, &normals, &bvh);
-    let inputs = DirectInputs {
-        origins: &origins,
-        normals: &normals,
-        bvh: &bvh,
-        samples: &samples,
-        table: &table,
-    };
     let started = Instant::now();
     progress.stage("transfer", scene.vertex_count() as u64);
     let (scalar, rays_cast) = match backend {
@@ -235,7 +225,7 @@ pub fn bake(
         bands: options.bands,
         channels: transfer.channels,
         mode: options.mode,
-        samples: samples.len() as u32,
+        samples: inputs.samples.len() as u32,
         sampling: "stratified-sphere".to_string(),
         seed: options.seed,
         backend: backend.describe(),
@@ -244,9 +234,9 @@ pub fn bake(
     };
     let report = BakeReport {
         prepare: prepare_report,
-        samples_used: samples.len() as u32,
+        samples_used: inputs.samples.len() as u32,
         rays_cast,
-        bvh_nodes: bvh.nodes.len(),
+        bvh_nodes: inputs.bvh.nodes.len(),
         seconds_prepare,
         seconds_transfer,
         backend: backend.describe(),
@@ -259,6 +249,43 @@ pub fn bake(
         },
         report,
     ))
+}
+
+/// The arrays [`DirectInputs`] borrows, built from a prepared scene: what both backends read.
+pub struct BakeInputs {
+    pub origins: Vec<Vec3>,
+    pub normals: Vec<Vec3>,
+    pub bvh: Bvh,
+    pub samples: SampleSet,
+    pub table: ShTable,
+}
+
+impl BakeInputs {
+    /// `scene` must be prepared (normals present); `samples` must be a square.
+    pub fn new(scene: &Scene, bands: u32, samples: u32, seed: u64) -> Self {
+        let normals = scene.normals.clone().expect("a prepared scene has normals");
+        let bvh = Bvh::build(&scene.positions, &scene.triangles);
+        let origins = ray_origins(&scene.positions, &normals, &bvh);
+        let samples = stratified_sphere(samples, seed);
+        let table = ShTable::new(bands, &samples.directions);
+        BakeInputs {
+            origins,
+            normals,
+            bvh,
+            samples,
+            table,
+        }
+    }
+
+    pub fn view(&self) -> DirectInputs<'_> {
+        DirectInputs {
+            origins: &self.origins,
+            normals: &self.normals,
+            bvh: &self.bvh,
+            samples: &self.samples,
+            table: &self.table,
+        }
+    }
 }
 
 /// Every vertex moved off its surface along its normal, where its rays start.

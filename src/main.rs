@@ -51,6 +51,13 @@ struct BakeArgs {
     /// Light transport to capture.
     #[arg(long, value_enum, default_value_t = Mode::Shadowed)]
     mode: Mode,
+    /// Interreflected mode: bounces of light between surfaces added to the direct transfer.
+    #[arg(long, default_value_t = 3)]
+    bounces: u32,
+    /// Interreflected mode: stop early once a bounce adds less than this fraction of the
+    /// energy so far (0 runs every bounce).
+    #[arg(long, default_value_t = 0.0)]
+    bounce_tolerance: f64,
     /// Seed of the sample directions: the same seed gives the same file.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -115,6 +122,8 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
         seed: args.seed,
         mode: args.mode,
         albedo: args.albedo,
+        bounces: args.bounces,
+        bounce_tolerance: args.bounce_tolerance,
     };
     options.validate().map_err(|e| e.to_string())?;
     let (scene, name) = match &args.mesh {
@@ -169,7 +178,16 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
     progress.finish();
     output::write_glb(&output_path, &baked).map_err(|e| e.to_string())?;
 
-    let seconds = report.seconds_prepare + report.seconds_transfer;
+    for (i, bounce) in report.bounces.iter().enumerate() {
+        eprintln!(
+            "bounce {}: +{:.2}% energy in {:.2} s",
+            i + 1,
+            100.0 * bounce.relative_energy,
+            bounce.seconds
+        );
+    }
+    let seconds_bounces: f64 = report.bounces.iter().map(|b| b.seconds).sum();
+    let seconds = report.seconds_prepare + report.seconds_transfer + seconds_bounces;
     let rays_per_second = report.rays_cast as f64 / report.seconds_transfer.max(1e-9);
     println!(
         "baked {name}: {} vertices, {} triangles, {} bands, {} samples, {} mode; {} rays in {:.2} s \
@@ -249,6 +267,7 @@ fn run_info(path: &Path) -> Result<(), String> {
     println!("channels:     {}", metadata.channels);
     println!("samples:      {} ({})", metadata.samples, metadata.sampling);
     println!("seed:         {}", metadata.seed);
+    println!("bounces:      {}", metadata.bounces);
     println!("backend:      {}", metadata.backend);
     println!("made by:      {} {}", metadata.tool, metadata.tool_version);
     println!("sh basis:     {}", metadata.sh_convention);

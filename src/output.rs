@@ -1041,6 +1041,7 @@ mod tests {
                 backend: "cpu".into(),
                 sh_convention: crate::sh::CONVENTION.into(),
                 radiometry: "L_o = sum_k l_k t_k".into(),
+                bounces: 0,
             },
         }
     }

@@ -1,6 +1,7 @@
 //! WGSL sources, assembled from `wgsl/` with the constants they share with Rust generated from
 //! the Rust definitions (no "keep in sync" comments).
 
+use crate::bake::bounce::NO_HIT;
 use crate::bvh::STACK_SIZE;
 use crate::ray::{MIN_DIRECTION_COMPONENT, RAY_T_MAX, SLAB_WIDENING};
 
@@ -10,6 +11,7 @@ pub const WORKGROUP_SIZE: u32 = 64;
 const BVH_WGSL: &str = include_str!("../wgsl/bvh.wgsl");
 const VISIBILITY_WGSL: &str = include_str!("../wgsl/visibility.wgsl");
 const PROJECT_WGSL: &str = include_str!("../wgsl/project.wgsl");
+const GATHER_WGSL: &str = include_str!("../wgsl/gather.wgsl");
 
 /// Constants every kernel sees. `{:?}` prints the shortest decimal that parses back to the
 /// same f32, so WGSL gets the exact Rust values.
@@ -20,7 +22,8 @@ fn prelude() -> String {
          const WORKGROUP_SIZE: u32 = {WORKGROUP_SIZE}u;\n\
          const SLAB_WIDENING: f32 = {SLAB_WIDENING:?};\n\
          const MIN_DIRECTION_COMPONENT: f32 = {MIN_DIRECTION_COMPONENT:?};\n\
-         const RAY_T_MAX: f32 = {RAY_T_MAX:?};\n\n"
+         const RAY_T_MAX: f32 = {RAY_T_MAX:?};\n\
+         const NO_HIT: u32 = {NO_HIT}u;\n\n"
     )
 }
 
@@ -34,10 +37,16 @@ pub fn project_kernel() -> String {
     format!("{}{PROJECT_WGSL}", prelude())
 }
 
+/// The bounce (gather) kernel.
+pub fn gather_kernel() -> String {
+    format!("{}{GATHER_WGSL}", prelude())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bake::gpu::{ProjectParams, VisibilityParams};
+    use crate::bake::bounce::Hit;
+    use crate::bake::gpu::{GatherParams, ProjectParams, VisibilityParams};
     use crate::bvh::{BvhNode, BvhTriangle};
     use std::mem::{offset_of, size_of};
 
@@ -82,6 +91,7 @@ mod tests {
     fn every_kernel_parses_and_validates() {
         parse(&visibility_kernel());
         parse(&project_kernel());
+        parse(&gather_kernel());
     }
 
     #[test]
@@ -107,7 +117,25 @@ mod tests {
                 words_per_vertex,
                 max_steps,
                 shadowed,
-                pad0
+                record_hits
+            )
+        );
+        assert_eq!(
+            wgsl_layout(&visibility, "Hit"),
+            rust_layout!(Hit, triangle, u, v)
+        );
+        assert_eq!(
+            wgsl_layout(&parse(&gather_kernel()), "GatherParams"),
+            rust_layout!(
+                GatherParams,
+                row_offset,
+                row_count,
+                coeff_count,
+                entry_begin,
+                entry_limit,
+                accumulate,
+                pad0,
+                pad1
             )
         );
         assert_eq!(

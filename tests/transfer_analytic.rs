@@ -27,6 +27,7 @@ fn estimate_with_error(
     let inputs = DirectInputs {
         origins: &[Vec3::ZERO],
         normals: &[normal],
+        triangles: &[],
         bvh: &bvh,
         samples: &set,
         table: &table,

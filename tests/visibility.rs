@@ -177,6 +177,7 @@ fn gpu_escapes(baker: &GpuBaker, bvh: &Bvh, origins: &[Vec3], directions: Vec<Ve
     let inputs = DirectInputs {
         origins: &doubled,
         normals: &normals,
+        triangles: &[],
         bvh,
         samples: &samples,
         table: &table,

@@ -74,8 +74,16 @@ fn hits_box(ray: Ray, box_min: vec3<f32>, box_max: vec3<f32>, t_min: f32, t_max:
     return near <= far;
 }
 
-// Watertight ray-triangle test (Woop, Benthin, Wald 2013): distance, or -1 on a miss.
-fn intersect_triangle(ray: Ray, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, t_min: f32, t_max: f32) -> f32 {
+// A hit on a triangle: distance (negative on a miss) and barycentrics of v1 and v2.
+struct TriangleHit {
+    t: f32,
+    u: f32,
+    v: f32,
+}
+
+// Watertight ray-triangle test (Woop, Benthin, Wald 2013); Rust twin: ray::intersect_triangle.
+fn intersect_triangle(ray: Ray, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, t_min: f32, t_max: f32) -> TriangleHit {
+    let miss = TriangleHit(-1.0, 0.0, 0.0);
     let kx = ray.axis_x;
     let ky = ray.axis_y;
     let kz = ray.axis_z;
@@ -92,37 +100,40 @@ fn intersect_triangle(ray: Ray, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, t_m
     let v = ax * cy - ay * cx;
     let w = bx * ay - by * ax;
     if ((u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0)) {
-        return -1.0;
+        return miss;
     }
     let det = u + v + w;
     if (det == 0.0) {
-        return -1.0;
+        return miss;
     }
     let az = ray.shear.z * a[kz];
     let bz = ray.shear.z * b[kz];
     let cz = ray.shear.z * c[kz];
     let t = (u * az + v * bz + w * cz) / det;
     if (!(t > t_min && t < t_max)) {
-        return -1.0;
+        return miss;
     }
-    return t;
+    return TriangleHit(t, v / det, w / det);
 }
 
-// Result of an any-hit query: occluded, and whether the step budget ran out first.
-struct AnyHit {
-    occluded: bool,
+// Result of a traversal: whether and where the ray hit, and whether the step budget ran out.
+struct Trace {
+    hit: bool,
     exhausted: bool,
+    // Scene index of the closest triangle hit so far and the barycentrics of its v1 and v2.
+    triangle: u32,
+    u: f32,
+    v: f32,
 }
 
-// Any-hit traversal of `nodes`/`triangles` (declared by the kernel that includes this file).
+// Closest-hit (any_hit false) or any-hit (any_hit true) traversal of `nodes`/`triangles`
+// (declared by the kernel that includes this file); Rust twin: Bvh::traverse.
 // Every loop iteration counts against `max_steps`: llvmpipe silently ends any invocation's loops
 // after 65,535 iterations in total, so a traversal that could come near that reports itself
 // as exhausted instead of returning a wrong answer.
-fn occluded(ray: Ray, t_max: f32, max_steps: u32) -> AnyHit {
-    var result = AnyHit(false, false);
-    if (arrayLength(&triangles) == 0u) {
-        return result;
-    }
+fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool) -> Trace {
+    var result = Trace(false, false, NO_HIT, 0.0, 0.0);
+    var t_max = t_max_in;
     if (!hits_box(ray, nodes[0].min, nodes[0].max, 0.0, t_max)) {
         return result;
     }
@@ -142,9 +153,16 @@ fn occluded(ray: Ray, t_max: f32, max_steps: u32) -> AnyHit {
             steps += node.triangle_count;
             for (var i = node.left_or_first; i < node.left_or_first + node.triangle_count; i += 1u) {
                 let tri = triangles[i];
-                if (intersect_triangle(ray, tri.v0, tri.v1, tri.v2, 0.0, t_max) >= 0.0) {
-                    result.occluded = true;
-                    return result;
+                let hit = intersect_triangle(ray, tri.v0, tri.v1, tri.v2, 0.0, t_max);
+                if (hit.t >= 0.0) {
+                    result.hit = true;
+                    result.triangle = tri.source_index;
+                    result.u = hit.u;
+                    result.v = hit.v;
+                    if (any_hit) {
+                        return result;
+                    }
+                    t_max = hit.t;
                 }
             }
         } else {

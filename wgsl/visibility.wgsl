@@ -1,6 +1,14 @@
 // Visibility pass: one invocation per (vertex, sample) of a chunk; sets the bit of every ray
-// that is above the vertex's horizon and unblocked. Rust twin: bake::cpu::trace_visibility.
+// that is above the vertex's horizon and unblocked, and, for interreflection, records where a
+// blocked ray hits. Rust twins: bake::cpu::trace_visibility, bake::bounce::vertex_hits.
 // Dispatch: x over vertices of the chunk (WORKGROUP_SIZE per group), y over samples.
+
+// 12 bytes; Rust twin: bake::bounce::Hit.
+struct Hit {
+    triangle: u32,
+    u: f32,
+    v: f32,
+}
 
 struct VisibilityParams {
     vertex_offset: u32,
@@ -11,7 +19,8 @@ struct VisibilityParams {
     max_steps: u32,
     // 1: trace rays; 0: every sample above the horizon is visible (unshadowed transfer).
     shadowed: u32,
-    pad0: u32,
+    // 1: find the closest hit of each ray and write it to `hits` (interreflection).
+    record_hits: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: VisibilityParams;
@@ -23,6 +32,8 @@ struct VisibilityParams {
 @group(0) @binding(6) var<storage, read_write> visible_bits: array<atomic<u32>>;
 // [0]: rays whose traversal ran out of steps (must stay 0).
 @group(0) @binding(7) var<storage, read_write> exhausted_rays: array<atomic<u32>>;
+// [local_vertex * sample_count + local_sample]; written only when record_hits is 1.
+@group(0) @binding(8) var<storage, read_write> hits: array<Hit>;
 
 @compute @workgroup_size(WORKGROUP_SIZE, 1, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -34,17 +45,25 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let vertex = params.vertex_offset + local_vertex;
     let direction = directions[params.sample_offset + local_sample].xyz;
     let normal = normals[vertex].xyz;
+    let hit_slot = local_vertex * params.sample_count + local_sample;
     if (dot(normal, direction) <= 0.0) {
+        if (params.record_hits != 0u) {
+            hits[hit_slot] = Hit(NO_HIT, 0.0, 0.0);
+        }
         return;
     }
     var visible = true;
     if (params.shadowed != 0u) {
-        let hit = occluded(make_ray(origins[vertex].xyz, direction), RAY_T_MAX, params.max_steps);
-        if (hit.exhausted) {
+        let closest = params.record_hits != 0u;
+        let found = trace(make_ray(origins[vertex].xyz, direction), RAY_T_MAX, params.max_steps, !closest);
+        if (found.exhausted) {
             atomicAdd(&exhausted_rays[0], 1u);
             return;
         }
-        visible = !hit.occluded;
+        visible = !found.hit;
+        if (closest) {
+            hits[hit_slot] = Hit(found.triangle, found.u, found.v);
+        }
     }
     if (visible) {
         let word = local_vertex * params.words_per_vertex + local_sample / 32u;

@@ -20,7 +20,7 @@ pub fn words_per_vertex(samples: usize) -> usize {
 }
 
 /// Sets bit s of `bits` (word s/32, bit s%32) when sample s is above the horizon of `vertex`
-/// and, in shadowed mode, nothing blocks it. Returns the number of rays cast.
+/// and, in shadowed and interreflected mode, nothing blocks it. Returns the number of rays cast.
 pub fn trace_visibility(inputs: &DirectInputs, mode: Mode, vertex: usize, bits: &mut [u32]) -> u64 {
     let normal = inputs.normals[vertex];
     let origin = inputs.origins[vertex];
@@ -30,7 +30,7 @@ pub fn trace_visibility(inputs: &DirectInputs, mode: Mode, vertex: usize, bits: 
         if normal.dot(direction) <= 0.0 {
             continue;
         }
-        if mode == Mode::Shadowed {
+        if mode != Mode::Unshadowed {
             rays += 1;
             if inputs.bvh.occluded(&Ray::new(origin, direction), RAY_T_MAX) {
                 continue;

@@ -12,6 +12,7 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
+use super::bounce::{GatherMatrix, Hit, NO_HIT};
 use super::{DirectInputs, Mode, Progress};
 use crate::error::{Error, Result};
 use crate::gpu::GpuContext;
@@ -31,7 +32,8 @@ pub struct VisibilityParams {
     pub max_steps: u32,
     /// 1: trace rays; 0: every sample above the horizon is visible.
     pub shadowed: u32,
-    pub pad0: u32,
+    /// 1: closest-hit traversal, hits written for interreflection.
+    pub record_hits: u32,
 }
 
 /// Uniforms of the projection kernel, 32 bytes; WGSL twin in wgsl/project.wgsl.
@@ -47,6 +49,23 @@ pub struct ProjectParams {
     pub accumulate: u32,
     pub pad0: u32,
 }
+
+/// Uniforms of the bounce (gather) kernel, 32 bytes; WGSL twin in wgsl/gather.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GatherParams {
+    pub row_offset: u32,
+    pub row_count: u32,
+    pub coeff_count: u32,
+    pub entry_begin: u32,
+    pub entry_limit: u32,
+    pub accumulate: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+}
+
+/// Matrix entries one gather invocation sums in one pass (its loop count).
+const GATHER_ENTRIES_PER_PASS: u32 = 16_384;
 
 /// Traversal steps allowed per ray: under llvmpipe's silent cap of 65,535 loop iterations per
 /// invocation with room to spare. A real mesh needs a few hundred; a ray that needs more is
@@ -87,12 +106,14 @@ pub struct GpuBaker {
     visibility_layout: wgpu::BindGroupLayout,
     project: wgpu::ComputePipeline,
     project_layout: wgpu::BindGroupLayout,
+    gather: wgpu::ComputePipeline,
+    gather_layout: wgpu::BindGroupLayout,
 }
 
 impl GpuBaker {
     pub fn new(context: GpuContext) -> Result<Self> {
         let ctx = &context;
-        let ((visibility, visibility_layout), (project, project_layout)) =
+        let ((visibility, visibility_layout), (project, project_layout), (gather, gather_layout)) =
             ctx.checked("compiling the kernels", || {
                 let visibility = pipeline(
                     ctx,
@@ -107,6 +128,7 @@ impl GpuBaker {
                         storage_entry(5, true),
                         storage_entry(6, false),
                         storage_entry(7, false),
+                        storage_entry(8, false),
                     ],
                 );
                 let project = pipeline(
@@ -122,7 +144,21 @@ impl GpuBaker {
                         storage_entry(5, false),
                     ],
                 );
-                (visibility, project)
+                let gather = pipeline(
+                    ctx,
+                    "gather",
+                    shaders::gather_kernel(),
+                    &[
+                        uniform_entry(0),
+                        storage_entry(1, true),
+                        storage_entry(2, true),
+                        storage_entry(3, true),
+                        storage_entry(4, true),
+                        storage_entry(5, true),
+                        storage_entry(6, false),
+                    ],
+                );
+                (visibility, project, gather)
             })?;
         Ok(GpuBaker {
             context,
@@ -130,6 +166,8 @@ impl GpuBaker {
             visibility_layout,
             project,
             project_layout,
+            gather,
+            gather_layout,
         })
     }
 }
@@ -197,6 +235,7 @@ fn plan_chunks(
     vertices: u32,
     samples: u32,
     coeffs: u32,
+    record_hits: bool,
     chunking: Chunking,
 ) -> (u32, u32) {
     let max_binding = ctx
@@ -218,12 +257,19 @@ fn plan_chunks(
     let by_budget = (PAIRS_PER_SUBMISSION / sample_chunk as u64).max(1);
     let by_bits = max_binding / (words * 4);
     let by_transfer = max_binding / (coeffs as u64 * 4);
+    let hit_bytes = if record_hits {
+        std::mem::size_of::<Hit>() as u64
+    } else {
+        0
+    };
+    let by_hits = max_binding / (sample_chunk as u64 * hit_bytes).max(1);
     let by_visibility_dispatch = max_groups * WORKGROUP_SIZE as u64;
     let by_project_dispatch = max_groups * WORKGROUP_SIZE as u64 / coeffs as u64;
     let vertex_chunk = [
         by_budget,
         by_bits,
         by_transfer,
+        by_hits,
         by_visibility_dispatch,
         by_project_dispatch,
     ]
@@ -240,8 +286,18 @@ fn as_vec4(values: &[glam::Vec3]) -> Vec<[f32; 4]> {
     values.iter().map(|v| [v.x, v.y, v.z, 0.0]).collect()
 }
 
-/// Runs both passes over every chunk. Returns the raw projected sums `[vertex][k]` (not yet
-/// scaled by the sample weight), optionally the visibility bits `[vertex][word]`, and counts.
+/// What one run of the visibility and projection passes gives back.
+struct RunOutput {
+    /// Raw projected sums `[vertex][k]`, not yet scaled by the sample weight.
+    sums: Vec<f32>,
+    /// Visibility bits `[vertex][word]`, when asked for.
+    bits: Vec<u32>,
+    /// Per vertex, `(sample, hit)` of every blocked ray (interreflected mode only).
+    hits: Vec<Vec<(u32, Hit)>>,
+    stats: GpuRun,
+}
+
+/// Runs both passes over every chunk.
 fn run(
     baker: &GpuBaker,
     inputs: &DirectInputs,
@@ -249,14 +305,21 @@ fn run(
     chunking: Chunking,
     keep_bits: bool,
     progress: &dyn Progress,
-) -> Result<(Vec<f32>, Vec<u32>, GpuRun)> {
+) -> Result<RunOutput> {
     let ctx = &baker.context;
+    let record_hits = mode == Mode::Interreflected;
     let vertex_count = inputs.origins.len() as u32;
     let sample_count = inputs.samples.len() as u32;
     let coeffs = coeff_count(inputs.table.bands) as u32;
     let total_words = sample_count.div_ceil(32) as usize;
-    let (vertex_chunk, sample_chunk) =
-        plan_chunks(ctx, vertex_count, sample_count, coeffs, chunking);
+    let (vertex_chunk, sample_chunk) = plan_chunks(
+        ctx,
+        vertex_count,
+        sample_count,
+        coeffs,
+        record_hits,
+        chunking,
+    );
     let chunk_words = sample_chunk / 32;
 
     let needs_binding = |name: &str, bytes: u64| -> Result<()> {
@@ -289,6 +352,15 @@ fn run(
     let bits = ctx.output("visibility bits", bits_bytes);
     let transfer = ctx.output("transfer", transfer_bytes);
     let exhausted = ctx.output("exhausted rays", 4);
+    let hit_size = std::mem::size_of::<Hit>() as u64;
+    let hits = ctx.output(
+        "hits",
+        if record_hits {
+            vertex_chunk as u64 * sample_chunk as u64 * hit_size
+        } else {
+            hit_size
+        },
+    );
     let visibility_params = ctx.uniform("visibility params", &VisibilityParams::default());
     let project_params = ctx.uniform("project params", &ProjectParams::default());
 
@@ -320,6 +392,7 @@ fn run(
                     &directions,
                     &bits,
                     &exhausted,
+                    &hits,
                 ],
             ),
             bind(
@@ -339,6 +412,11 @@ fn run(
     let mut sums = vec![0.0f32; vertex_count as usize * coeffs as usize];
     let mut all_bits = if keep_bits {
         vec![0u32; vertex_count as usize * total_words]
+    } else {
+        Vec::new()
+    };
+    let mut vertex_hits: Vec<Vec<(u32, Hit)>> = if record_hits {
+        vec![Vec::new(); vertex_count as usize]
     } else {
         Vec::new()
     };
@@ -363,8 +441,8 @@ fn run(
                     sample_count: samples,
                     words_per_vertex: chunk_words,
                     max_steps,
-                    shadowed: (mode == Mode::Shadowed) as u32,
-                    pad0: 0,
+                    shadowed: (mode != Mode::Unshadowed) as u32,
+                    record_hits: record_hits as u32,
                 }),
             );
             ctx.queue.write_buffer(
@@ -422,6 +500,18 @@ fn run(
                         .copy_from_slice(&chunk_bits[v * chunk_words as usize..][..words]);
                 }
             }
+            if record_hits {
+                let chunk_hits: Vec<Hit> =
+                    ctx.read_back(&hits, vertices as u64 * samples as u64 * hit_size)?;
+                for (v, row) in chunk_hits.chunks(samples as usize).enumerate() {
+                    let own = &mut vertex_hits[(vertex_offset as usize) + v];
+                    for (s, hit) in row.iter().enumerate() {
+                        if hit.triangle != NO_HIT {
+                            own.push((sample_offset + s as u32, *hit));
+                        }
+                    }
+                }
+            }
         }
         let chunk_sums: Vec<f32> = ctx.read_back(&transfer, vertices as u64 * coeffs as u64 * 4)?;
         sums[(vertex_offset * coeffs) as usize..][..chunk_sums.len()].copy_from_slice(&chunk_sums);
@@ -436,12 +526,17 @@ fn run(
             exhausted_rays[0]
         )));
     }
-    stats.rays_cast = if mode == Mode::Shadowed {
-        rays_above_horizon(inputs)
-    } else {
+    stats.rays_cast = if mode == Mode::Unshadowed {
         0
+    } else {
+        rays_above_horizon(inputs)
     };
-    Ok((sums, all_bits, stats))
+    Ok(RunOutput {
+        sums,
+        bits: all_bits,
+        hits: vertex_hits,
+        stats,
+    })
 }
 
 /// Rays a shadowed bake casts: vertex–sample pairs above the horizon (as the CPU counts them).
@@ -460,6 +555,33 @@ fn rays_above_horizon(inputs: &DirectInputs) -> u64 {
         .sum()
 }
 
+fn scaled(mut sums: Vec<f32>, inputs: &DirectInputs) -> Vec<f32> {
+    let scale = super::cpu::transfer_scale(inputs);
+    sums.iter_mut()
+        .for_each(|t| *t = (*t as f64 * scale) as f32);
+    sums
+}
+
+/// Albedo-free direct transfer `[vertex][k]` and the gather matrix of the closest hits, from
+/// one closest-hit traversal per ray on the GPU (interreflected mode).
+pub fn direct_transfer_and_gather_matrix(
+    baker: &GpuBaker,
+    inputs: &DirectInputs,
+    chunking: Chunking,
+    progress: &dyn Progress,
+) -> Result<(Vec<f32>, GatherMatrix, GpuRun)> {
+    let out = run(
+        baker,
+        inputs,
+        Mode::Interreflected,
+        chunking,
+        false,
+        progress,
+    )?;
+    let matrix = super::bounce::gather_matrix_from_vertex_hits(inputs, &out.hits);
+    Ok((scaled(out.sums, inputs), matrix, out.stats))
+}
+
 /// Albedo-free direct transfer of every vertex, `[vertex][k]`, computed on the GPU.
 pub fn direct_transfer(
     baker: &GpuBaker,
@@ -468,11 +590,8 @@ pub fn direct_transfer(
     chunking: Chunking,
     progress: &dyn Progress,
 ) -> Result<(Vec<f32>, GpuRun)> {
-    let (mut sums, _, stats) = run(baker, inputs, mode, chunking, false, progress)?;
-    let scale = super::cpu::transfer_scale(inputs);
-    sums.iter_mut()
-        .for_each(|t| *t = (*t as f64 * scale) as f32);
-    Ok((sums, stats))
+    let out = run(baker, inputs, mode, chunking, false, progress)?;
+    Ok((scaled(out.sums, inputs), out.stats))
 }
 
 /// The GPU's visibility bits `[vertex][word]` and its transfer, for comparison with
@@ -483,9 +602,163 @@ pub fn visibility_bits_and_transfer(
     mode: Mode,
     chunking: Chunking,
 ) -> Result<(Vec<u32>, Vec<f32>)> {
-    let (mut sums, bits, _) = run(baker, inputs, mode, chunking, true, &super::NoProgress)?;
-    let scale = super::cpu::transfer_scale(inputs);
-    sums.iter_mut()
-        .for_each(|t| *t = (*t as f64 * scale) as f32);
-    Ok((bits, sums))
+    let out = run(baker, inputs, mode, chunking, true, &super::NoProgress)?;
+    Ok((out.bits, scaled(out.sums, inputs)))
+}
+
+/// The gather matrix uploaded for bounce passes: row chunks that fit the adapter's bindings.
+pub struct GpuGatherMatrix {
+    chunks: Vec<RowChunk>,
+    albedo: wgpu::Buffer,
+    rows: u32,
+    coeffs: u32,
+}
+
+struct RowChunk {
+    row_offset: u32,
+    row_count: u32,
+    max_row_len: u32,
+    offsets: wgpu::Buffer,
+    columns: wgpu::Buffer,
+    weights: wgpu::Buffer,
+}
+
+impl GpuBaker {
+    /// Uploads `matrix` and the albedo for bounces of `bands`-band RGB transfer.
+    pub fn upload_gather_matrix(
+        &self,
+        matrix: &GatherMatrix,
+        albedo: &[glam::Vec3],
+        bands: u32,
+    ) -> Result<GpuGatherMatrix> {
+        let ctx = &self.context;
+        let coeffs = coeff_count(bands) as u32;
+        let per_row = 3 * coeffs as u64;
+        let max_binding = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
+        let max_entries = (max_binding / 4) as usize;
+        let max_rows = (ctx.limits.max_compute_workgroups_per_dimension as u64
+            * WORKGROUP_SIZE as u64
+            / per_row)
+            .min(max_binding / (per_row * 4)) as usize;
+        let rows = matrix.rows();
+        let mut chunks = Vec::new();
+        let mut first = 0;
+        while first < rows {
+            // Grow the chunk while its entries fit one binding.
+            let start_entry = matrix.row_offsets[first] as usize;
+            let mut last = first + 1;
+            while last < rows
+                && last - first < max_rows
+                && matrix.row_offsets[last + 1] as usize - start_entry <= max_entries
+            {
+                last += 1;
+            }
+            let end_entry = matrix.row_offsets[last] as usize;
+            if end_entry - start_entry > max_entries {
+                return Err(Error::Gpu(format!(
+                    "gather row {first} has {} entries, more than one binding holds",
+                    end_entry - start_entry
+                )));
+            }
+            let offsets: Vec<u32> = matrix.row_offsets[first..=last]
+                .iter()
+                .map(|&o| o - start_entry as u32)
+                .collect();
+            let max_row_len = offsets.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0);
+            chunks.push(RowChunk {
+                row_offset: first as u32,
+                row_count: (last - first) as u32,
+                max_row_len,
+                offsets: ctx.storage("gather row offsets", &offsets),
+                columns: ctx.storage("gather columns", &matrix.columns[start_entry..end_entry]),
+                weights: ctx.storage("gather weights", &matrix.weights[start_entry..end_entry]),
+            });
+            first = last;
+        }
+        Ok(GpuGatherMatrix {
+            chunks,
+            albedo: ctx.storage("albedo", &as_vec4(albedo)),
+            rows: rows as u32,
+            coeffs,
+        })
+    }
+
+    /// One bounce on the GPU: `next[p][c][k] = albedo[p][c] sum_j weight_pj previous[j][c][k]`.
+    pub fn bounce(&self, matrix: &GpuGatherMatrix, previous: &[f32]) -> Result<Vec<f32>> {
+        let ctx = &self.context;
+        let per_row = 3 * matrix.coeffs;
+        let bytes = matrix.rows as u64 * per_row as u64 * 4;
+        let previous = ctx.storage("previous bounce", previous);
+        let next = ctx.output("next bounce", bytes);
+        let params = ctx.uniform("gather params", &GatherParams::default());
+        for chunk in &matrix.chunks {
+            let group = ctx.checked("binding the gather buffers", || {
+                let buffers = [
+                    &params,
+                    &chunk.offsets,
+                    &chunk.columns,
+                    &chunk.weights,
+                    &matrix.albedo,
+                    &previous,
+                    &next,
+                ];
+                let entries: Vec<wgpu::BindGroupEntry> = buffers
+                    .iter()
+                    .enumerate()
+                    .map(|(i, b)| wgpu::BindGroupEntry {
+                        binding: i as u32,
+                        resource: b.as_entire_binding(),
+                    })
+                    .collect();
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("gather"),
+                    layout: &self.gather_layout,
+                    entries: &entries,
+                })
+            })?;
+            let passes = chunk.max_row_len.div_ceil(GATHER_ENTRIES_PER_PASS).max(1);
+            for pass_index in 0..passes {
+                ctx.queue.write_buffer(
+                    &params,
+                    0,
+                    bytemuck::bytes_of(&GatherParams {
+                        row_offset: chunk.row_offset,
+                        row_count: chunk.row_count,
+                        coeff_count: matrix.coeffs,
+                        entry_begin: pass_index * GATHER_ENTRIES_PER_PASS,
+                        entry_limit: GATHER_ENTRIES_PER_PASS,
+                        accumulate: (pass_index > 0) as u32,
+                        pad0: 0,
+                        pad1: 0,
+                    }),
+                );
+                ctx.checked("running the gather kernel", || {
+                    let mut encoder =
+                        ctx.device
+                            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                                label: Some("bounce"),
+                            });
+                    {
+                        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                            label: Some("gather"),
+                            timestamp_writes: None,
+                        });
+                        pass.set_pipeline(&self.gather);
+                        pass.set_bind_group(0, &group, &[]);
+                        pass.dispatch_workgroups(
+                            (chunk.row_count * per_row).div_ceil(WORKGROUP_SIZE),
+                            1,
+                            1,
+                        );
+                    }
+                    ctx.queue.submit([encoder.finish()]);
+                })?;
+                ctx.wait()?;
+            }
+        }
+        ctx.read_back(&next, bytes)
+    }
 }

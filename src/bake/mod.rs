@@ -1,5 +1,6 @@
 //! The bake: options in, one [`Transfer`] out, whichever backend computes it.
 
+pub mod bounce;
 pub mod cpu;
 pub mod gpu;
 
@@ -25,6 +26,8 @@ pub enum Mode {
     Unshadowed,
     /// Clamped cosine times binary visibility against the whole scene.
     Shadowed,
+    /// Shadowed transfer plus light reflected between surfaces (`--bounces`).
+    Interreflected,
 }
 
 impl Mode {
@@ -32,9 +35,13 @@ impl Mode {
         match self {
             Mode::Unshadowed => "unshadowed",
             Mode::Shadowed => "shadowed",
+            Mode::Interreflected => "interreflected",
         }
     }
 }
+
+/// The most bounces a bake accepts.
+pub const MAX_BOUNCES: u32 = 64;
 
 /// Per-vertex transfer vectors, RGB.
 ///
@@ -79,6 +86,9 @@ pub struct BakeMetadata {
     pub sh_convention: String,
     /// One line describing the radiometric meaning of the coefficients.
     pub radiometry: String,
+    /// Interreflection bounces added to the direct transfer (0 for the other modes).
+    #[serde(default)]
+    pub bounces: u32,
 }
 
 /// What the user asks of a bake.
@@ -91,6 +101,10 @@ pub struct BakeOptions {
     pub mode: Mode,
     /// Replaces every material's albedo when set.
     pub albedo: Option<Vec3>,
+    /// Interreflected mode: bounces after the direct pass.
+    pub bounces: u32,
+    /// Interreflected mode: stop once a bounce adds less than this fraction of the energy.
+    pub bounce_tolerance: f64,
 }
 
 impl Default for BakeOptions {
@@ -101,6 +115,8 @@ impl Default for BakeOptions {
             seed: 1,
             mode: Mode::Shadowed,
             albedo: None,
+            bounces: 3,
+            bounce_tolerance: 0.0,
         }
     }
 }
@@ -117,6 +133,18 @@ impl BakeOptions {
             return Err(Error::Options(format!(
                 "--samples {} is out of range (1 to {MAX_SAMPLES})",
                 self.samples
+            )));
+        }
+        if self.bounces > MAX_BOUNCES {
+            return Err(Error::Options(format!(
+                "--bounces {} is out of range (0 to {MAX_BOUNCES})",
+                self.bounces
+            )));
+        }
+        if !(0.0..1.0).contains(&self.bounce_tolerance) {
+            return Err(Error::Options(format!(
+                "--bounce-tolerance {} must lie in [0, 1)",
+                self.bounce_tolerance
             )));
         }
         if let Some(a) = self.albedo {
@@ -153,6 +181,8 @@ pub struct DirectInputs<'a> {
     /// Ray origins: vertex positions moved off the surface (`ray::offset_ray_origin`).
     pub origins: &'a [Vec3],
     pub normals: &'a [Vec3],
+    /// The scene's triangles (what hit triangles' `source_index` refers to).
+    pub triangles: &'a [[u32; 3]],
     pub bvh: &'a Bvh,
     pub samples: &'a SampleSet,
     pub table: &'a ShTable,
@@ -185,8 +215,67 @@ pub struct BakeReport {
     pub rays_cast: u64,
     pub bvh_nodes: usize,
     pub seconds_prepare: f64,
+    /// The direct pass (and, interreflected, the hits and the gather matrix).
     pub seconds_transfer: f64,
+    /// One entry per bounce performed.
+    pub bounces: Vec<BounceStat>,
+    /// Non-zero entries of the gather matrix (interreflected mode).
+    pub gather_entries: usize,
     pub backend: String,
+}
+
+/// What one bounce added and what it cost.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BounceStat {
+    /// DC energy the bounce added over the DC energy of all transfer before it.
+    pub relative_energy: f64,
+    pub seconds: f64,
+}
+
+/// Adds `options.bounces` bounces to `transfer` in place (stopping early below
+/// `options.bounce_tolerance`), on the backend's device.
+fn add_bounces(
+    transfer: &mut Transfer,
+    matrix: &bounce::GatherMatrix,
+    albedo: &[Vec3],
+    options: &BakeOptions,
+    backend: &Backend,
+    progress: &dyn Progress,
+) -> Result<Vec<BounceStat>> {
+    let coeffs = coeff_count(transfer.bands);
+    let uploaded = match backend {
+        Backend::Gpu { baker, .. } => Some((
+            baker,
+            baker.upload_gather_matrix(matrix, albedo, transfer.bands)?,
+        )),
+        Backend::Cpu => None,
+    };
+    progress.stage("bounces", options.bounces as u64);
+    let mut previous = transfer.coeffs.clone();
+    let mut stats = Vec::new();
+    for _ in 0..options.bounces {
+        let started = Instant::now();
+        let next = match &uploaded {
+            Some((baker, gpu_matrix)) => baker.bounce(gpu_matrix, &previous)?,
+            None => bounce::apply_cpu(matrix, &previous, albedo, coeffs),
+        };
+        let relative_energy = bounce::relative_energy(&next, &transfer.coeffs, coeffs);
+        transfer
+            .coeffs
+            .iter_mut()
+            .zip(&next)
+            .for_each(|(t, n)| *t += n);
+        stats.push(BounceStat {
+            relative_energy,
+            seconds: started.elapsed().as_secs_f64(),
+        });
+        progress.advance(1);
+        previous = next;
+        if relative_energy < options.bounce_tolerance {
+            break;
+        }
+    }
+    Ok(stats)
 }
 
 /// The whole bake: prepare the mesh, build the BVH, draw samples, compute transfer.
@@ -208,17 +297,40 @@ pub fn bake(
 
     let started = Instant::now();
     progress.stage("transfer", scene.vertex_count() as u64);
-    let (scalar, rays_cast) = match backend {
-        Backend::Cpu => cpu::direct_transfer(&inputs, options.mode, progress),
-        Backend::Gpu { baker, chunking } => {
-            let (scalar, run) =
-                gpu::direct_transfer(baker, &inputs, options.mode, *chunking, progress)?;
-            (scalar, run.rays_cast)
+    let (scalar, matrix, rays_cast) = match (backend, options.mode) {
+        (Backend::Cpu, Mode::Interreflected) => {
+            let (scalar, matrix, rays) =
+                bounce::direct_transfer_and_gather_matrix_cpu(&inputs, progress);
+            (scalar, Some(matrix), rays)
+        }
+        (Backend::Cpu, mode) => {
+            let (scalar, rays) = cpu::direct_transfer(&inputs, mode, progress);
+            (scalar, None, rays)
+        }
+        (Backend::Gpu { baker, chunking }, Mode::Interreflected) => {
+            let (scalar, matrix, run) =
+                gpu::direct_transfer_and_gather_matrix(baker, &inputs, *chunking, progress)?;
+            (scalar, Some(matrix), run.rays_cast)
+        }
+        (Backend::Gpu { baker, chunking }, mode) => {
+            let (scalar, run) = gpu::direct_transfer(baker, &inputs, mode, *chunking, progress)?;
+            (scalar, None, run.rays_cast)
         }
     };
     let seconds_transfer = started.elapsed().as_secs_f64();
 
-    let transfer = tint_by_albedo(&scalar, &scene.albedo, options.bands);
+    let mut transfer = tint_by_albedo(&scalar, &scene.albedo, options.bands);
+    let bounces = match &matrix {
+        Some(matrix) => add_bounces(
+            &mut transfer,
+            matrix,
+            &scene.albedo,
+            options,
+            backend,
+            progress,
+        )?,
+        None => Vec::new(),
+    };
     let metadata = BakeMetadata {
         tool: env!("CARGO_PKG_NAME").to_string(),
         tool_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -231,6 +343,7 @@ pub fn bake(
         backend: backend.describe(),
         sh_convention: CONVENTION.to_string(),
         radiometry: RADIOMETRY.to_string(),
+        bounces: bounces.len() as u32,
     };
     let report = BakeReport {
         prepare: prepare_report,
@@ -239,6 +352,8 @@ pub fn bake(
         bvh_nodes: inputs.bvh.nodes.len(),
         seconds_prepare,
         seconds_transfer,
+        bounces,
+        gather_entries: matrix.map_or(0, |m| m.columns.len()),
         backend: backend.describe(),
     };
     Ok((
@@ -255,6 +370,7 @@ pub fn bake(
 pub struct BakeInputs {
     pub origins: Vec<Vec3>,
     pub normals: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
     pub bvh: Bvh,
     pub samples: SampleSet,
     pub table: ShTable,
@@ -271,6 +387,7 @@ impl BakeInputs {
         BakeInputs {
             origins,
             normals,
+            triangles: scene.triangles.clone(),
             bvh,
             samples,
             table,
@@ -281,6 +398,7 @@ impl BakeInputs {
         DirectInputs {
             origins: &self.origins,
             normals: &self.normals,
+            triangles: &self.triangles,
             bvh: &self.bvh,
             samples: &self.samples,
             table: &self.table,

@@ -1,0 +1,285 @@
+//! Interreflected transfer (Sloan, Kautz & Snyder 2002): each bounce gathers the previous
+//! bounce's transfer where a vertex's blocked rays hit the scene,
+//!
+//! `T^b_p = (rho_p / pi) integral (1 - V_p(w)) T^(b-1)(q(p, w)) max(0, n_p . w) dw`,
+//!
+//! with `T^(b-1)(q)` interpolated from the hit triangle's vertices. The hits never change
+//! between bounces, so they are found once and folded into a sparse gather matrix: row p lists
+//! (vertex j, weight) with `T^b_p = rho_p sum_j weight_pj T^(b-1)_j`. A bounce is then a sparse
+//! matrix product and costs no rays; the matrix is what both backends build from their hits.
+//!
+//! Back faces: a ray that reaches the back of a surface (the side its interpolated vertex
+//! normal points away from) is blocked for direct light but gathers nothing: the transfer
+//! baked at those vertices describes their front side, and the back of an open surface
+//! receives no light of its own in this model.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{cpu, DirectInputs, Progress};
+use crate::ray::{Ray, RAY_T_MAX};
+use crate::sh::coeff_count;
+
+/// The closest hit of one ray, 12 bytes. WGSL twin in wgsl/hits.wgsl:
+/// `struct Hit { triangle: u32, u: f32, v: f32 }`. `u`, `v`: barycentrics of the triangle's
+/// second and third vertices.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Hit {
+    /// Index into the scene's triangles, or [`NO_HIT`].
+    pub triangle: u32,
+    pub u: f32,
+    pub v: f32,
+}
+const _: () = assert!(std::mem::size_of::<Hit>() == 12);
+
+/// `Hit::triangle` of a ray that escaped or was not cast.
+pub const NO_HIT: u32 = u32::MAX;
+
+/// Compressed sparse rows: row p holds `columns[row_offsets[p]..row_offsets[p+1]]` and their
+/// `weights`, columns ascending and distinct.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GatherMatrix {
+    pub row_offsets: Vec<u32>,
+    pub columns: Vec<u32>,
+    pub weights: Vec<f32>,
+}
+
+impl GatherMatrix {
+    pub fn rows(&self) -> usize {
+        self.row_offsets.len().saturating_sub(1)
+    }
+
+    pub fn row(&self, p: usize) -> (&[u32], &[f32]) {
+        let range = self.row_offsets[p] as usize..self.row_offsets[p + 1] as usize;
+        (&self.columns[range.clone()], &self.weights[range])
+    }
+
+    /// The longest row: bounds the loop of the GPU gather kernel.
+    pub fn max_row_len(&self) -> usize {
+        self.row_offsets
+            .windows(2)
+            .map(|w| (w[1] - w[0]) as usize)
+            .max()
+            .unwrap_or(0)
+    }
+
+    fn from_rows(rows: Vec<Vec<(u32, f32)>>) -> Self {
+        let mut matrix = GatherMatrix {
+            row_offsets: Vec::with_capacity(rows.len() + 1),
+            ..Default::default()
+        };
+        matrix.row_offsets.push(0);
+        for row in rows {
+            for (column, weight) in row {
+                matrix.columns.push(column);
+                matrix.weights.push(weight);
+            }
+            matrix.row_offsets.push(matrix.columns.len() as u32);
+        }
+        matrix
+    }
+}
+
+/// The gather row of `vertex` from the hits of its blocked rays, `(sample, hit)`.
+///
+/// Each front-facing hit adds `(w / pi) cos(n_p, w_s) b_j` to the weight of each hit-triangle
+/// vertex j with barycentric `b_j`. Entries of one vertex are merged, so a row is as long as
+/// the number of distinct vertices the rays land near, not three per ray.
+pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> Vec<(u32, f32)> {
+    let normal = inputs.normals[vertex];
+    let scale = cpu::transfer_scale(inputs);
+    let mut entries: Vec<(u32, f64)> = Vec::with_capacity(hits.len() * 3);
+    for &(sample, hit) in hits {
+        if hit.triangle == NO_HIT {
+            continue;
+        }
+        let direction = inputs.samples.directions[sample as usize];
+        let cosine = normal.dot(direction);
+        let corners = inputs.triangles[hit.triangle as usize];
+        let barycentrics = [1.0 - hit.u - hit.v, hit.u, hit.v];
+        let shading_normal: Vec3 = corners
+            .iter()
+            .zip(barycentrics)
+            .map(|(&j, b)| inputs.normals[j as usize] * b)
+            .sum();
+        if cosine <= 0.0 || shading_normal.dot(direction) >= 0.0 {
+            continue;
+        }
+        for (&j, b) in corners.iter().zip(barycentrics) {
+            entries.push((j, scale * cosine as f64 * b.max(0.0) as f64));
+        }
+    }
+    entries.sort_by_key(|&(j, _)| j);
+    let mut row: Vec<(u32, f32)> = Vec::with_capacity(entries.len());
+    let mut i = 0;
+    while i < entries.len() {
+        let column = entries[i].0;
+        let mut weight = 0.0;
+        while i < entries.len() && entries[i].0 == column {
+            weight += entries[i].1;
+            i += 1;
+        }
+        if weight > 0.0 {
+            row.push((column, weight as f32));
+        }
+    }
+    row
+}
+
+/// Closest hits of the blocked rays of one vertex, on the CPU: `(sample, hit)` for every
+/// sample above the horizon that the scene blocks.
+pub fn vertex_hits(inputs: &DirectInputs, vertex: usize) -> Vec<(u32, Hit)> {
+    let normal = inputs.normals[vertex];
+    let origin = inputs.origins[vertex];
+    let mut hits = Vec::new();
+    for (s, &direction) in inputs.samples.directions.iter().enumerate() {
+        if normal.dot(direction) <= 0.0 {
+            continue;
+        }
+        if let Some((triangle, hit)) = inputs
+            .bvh
+            .closest_hit(&Ray::new(origin, direction), RAY_T_MAX)
+        {
+            hits.push((
+                s as u32,
+                Hit {
+                    triangle,
+                    u: hit.u,
+                    v: hit.v,
+                },
+            ));
+        }
+    }
+    hits
+}
+
+/// Albedo-free direct transfer `[vertex][k]` and the gather matrix, on the CPU, from one
+/// closest-hit traversal per ray: a ray is visible exactly when it hits nothing. Returns them
+/// and the rays cast.
+pub fn direct_transfer_and_gather_matrix_cpu(
+    inputs: &DirectInputs,
+    progress: &dyn Progress,
+) -> (Vec<f32>, GatherMatrix, u64) {
+    let n = coeff_count(inputs.table.bands);
+    let words = cpu::words_per_vertex(inputs.samples.len());
+    /// One vertex's direct transfer, gather row and rays cast.
+    type VertexResult = (Vec<f32>, Vec<(u32, f32)>, u64);
+    let per_vertex: Vec<VertexResult> = (0..inputs.origins.len())
+        .into_par_iter()
+        .with_min_len(64)
+        .map(|v| {
+            let hits = vertex_hits(inputs, v);
+            let normal = inputs.normals[v];
+            let mut bits = vec![0u32; words];
+            let mut rays = 0;
+            for (s, d) in inputs.samples.directions.iter().enumerate() {
+                if normal.dot(*d) > 0.0 {
+                    bits[s / 32] |= 1 << (s % 32);
+                    rays += 1;
+                }
+            }
+            for &(s, _) in &hits {
+                bits[s as usize / 32] &= !(1 << (s % 32));
+            }
+            let mut sums = vec![0.0f64; n];
+            cpu::project_visibility(inputs, v, &bits, &mut sums);
+            let scale = cpu::transfer_scale(inputs);
+            let transfer = sums.iter().map(|t| (t * scale) as f32).collect();
+            progress.advance(1);
+            (transfer, gather_row(inputs, v, &hits), rays)
+        })
+        .collect();
+    let mut transfer = Vec::with_capacity(inputs.origins.len() * n);
+    let mut rows = Vec::with_capacity(per_vertex.len());
+    let mut rays = 0;
+    for (t, row, r) in per_vertex {
+        transfer.extend(t);
+        rows.push(row);
+        rays += r;
+    }
+    (transfer, GatherMatrix::from_rows(rows), rays)
+}
+
+/// The gather matrix from the blocked rays' hits of every vertex, `(sample, hit)` per vertex
+/// (what the GPU's closest-hit pass returns).
+pub fn gather_matrix_from_vertex_hits(
+    inputs: &DirectInputs,
+    hits: &[Vec<(u32, Hit)>],
+) -> GatherMatrix {
+    let rows = hits
+        .par_iter()
+        .enumerate()
+        .map(|(v, own)| gather_row(inputs, v, own))
+        .collect();
+    GatherMatrix::from_rows(rows)
+}
+
+/// One bounce on the CPU: `next[p][c][k] = albedo[p][c] sum_j weight_pj previous[j][c][k]`,
+/// for RGB transfer `[vertex][3][coeffs]`. Sums in f64 in column order.
+pub fn apply_cpu(
+    matrix: &GatherMatrix,
+    previous: &[f32],
+    albedo: &[Vec3],
+    coeffs: usize,
+) -> Vec<f32> {
+    let stride = 3 * coeffs;
+    let mut next = vec![0.0f32; matrix.rows() * stride];
+    next.par_chunks_mut(stride)
+        .enumerate()
+        .for_each(|(p, out)| {
+            let (columns, weights) = matrix.row(p);
+            let mut acc = vec![0.0f64; stride];
+            for (&j, &w) in columns.iter().zip(weights) {
+                let source = &previous[j as usize * stride..(j as usize + 1) * stride];
+                for (a, &t) in acc.iter_mut().zip(source) {
+                    *a += w as f64 * t as f64;
+                }
+            }
+            for c in 0..3 {
+                for k in 0..coeffs {
+                    out[c * coeffs + k] = (albedo[p][c] as f64 * acc[c * coeffs + k]) as f32;
+                }
+            }
+        });
+    next
+}
+
+/// Energy a bounce adds relative to all transfer so far: the ratio of the summed DC terms
+/// (what a vertex reflects under constant white light), over all vertices and channels.
+pub fn relative_energy(added: &[f32], total: &[f32], coeffs: usize) -> f64 {
+    let dc = |t: &[f32]| -> f64 { t.iter().step_by(coeffs).map(|&x| x.abs() as f64).sum() };
+    let total = dc(total);
+    if total == 0.0 {
+        0.0
+    } else {
+        dc(added) / total
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_merge_duplicate_columns_and_keep_them_sorted() {
+        let matrix =
+            GatherMatrix::from_rows(vec![vec![(2, 0.5), (7, 0.25)], vec![], vec![(0, 1.0)]]);
+        assert_eq!(matrix.rows(), 3);
+        assert_eq!(matrix.row(0), (&[2u32, 7][..], &[0.5f32, 0.25][..]));
+        assert_eq!(matrix.row(1).0.len(), 0);
+        assert_eq!(matrix.max_row_len(), 2);
+    }
+
+    #[test]
+    fn a_bounce_scales_by_albedo_and_weights() {
+        // Vertex 0 gathers half of vertex 1's transfer; vertex 1 gathers nothing.
+        let matrix = GatherMatrix::from_rows(vec![vec![(1, 0.5)], vec![]]);
+        let coeffs = 1;
+        let previous = vec![0.0, 0.0, 0.0, 1.0, 2.0, 4.0];
+        let albedo = [Vec3::new(1.0, 0.5, 0.25), Vec3::ONE];
+        let next = apply_cpu(&matrix, &previous, &albedo, coeffs);
+        assert_eq!(next, vec![0.5, 0.5, 0.5, 0.0, 0.0, 0.0]);
+    }
+}

@@ -191,15 +191,16 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
     let rays_per_second = report.rays_cast as f64 / report.seconds_transfer.max(1e-9);
     println!(
         "baked {name}: {} vertices, {} triangles, {} bands, {} samples, {} mode; {} rays in {:.2} s \
-         ({:.2} M rays/s, {}) -> {}",
+         ({:.2} M rays/s), {:.2} s in all ({}) -> {}",
         report.prepare.vertices,
         report.prepare.triangles,
         options.bands,
         report.samples_used,
         options.mode.name(),
         report.rays_cast,
-        seconds,
+        report.seconds_transfer,
         rays_per_second / 1e6,
+        seconds,
         report.backend,
         output_path.display()
     );

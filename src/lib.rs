@@ -7,6 +7,7 @@ pub mod bake;
 pub mod bvh;
 pub mod error;
 pub mod gpu;
+pub mod light;
 pub mod output;
 pub mod ray;
 pub mod sampling;

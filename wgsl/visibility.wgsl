@@ -1,7 +1,10 @@
 // Visibility pass: one invocation per (vertex, sample) of a chunk; sets the bit of every ray
 // that is above the vertex's horizon and unblocked, and, for interreflection, records where a
 // blocked ray hits. Rust twins: bake::cpu::trace_visibility, bake::bounce::vertex_hits.
-// Dispatch: x over vertices of the chunk (WORKGROUP_SIZE per group), y over samples.
+// Dispatch: x over samples of the chunk (WORKGROUP_SIZE per group), y over vertices: a
+// workgroup casts consecutive sample directions from one vertex. Measured on lavapipe against
+// workgroups of 64 Morton-adjacent vertices sharing one direction: 0.72x the CPU time
+// (docs/performance.md).
 
 // 12 bytes; Rust twin: bake::bounce::Hit.
 struct Hit {
@@ -37,8 +40,8 @@ struct VisibilityParams {
 
 @compute @workgroup_size(WORKGROUP_SIZE, 1, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let local_vertex = id.x;
-    let local_sample = id.y;
+    let local_sample = id.x;
+    let local_vertex = id.y;
     if (local_vertex >= params.vertex_count || local_sample >= params.sample_count) {
         return;
     }

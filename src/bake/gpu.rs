@@ -263,7 +263,7 @@ fn plan_chunks(
         0
     };
     let by_hits = max_binding / (sample_chunk as u64 * hit_bytes).max(1);
-    let by_visibility_dispatch = max_groups * WORKGROUP_SIZE as u64;
+    let by_visibility_dispatch = max_groups;
     let by_project_dispatch = max_groups * WORKGROUP_SIZE as u64 / coeffs as u64;
     let vertex_chunk = [
         by_budget,
@@ -474,7 +474,7 @@ fn run(
                     });
                     pass.set_pipeline(&baker.visibility);
                     pass.set_bind_group(0, &visibility_group, &[]);
-                    pass.dispatch_workgroups(vertices.div_ceil(WORKGROUP_SIZE), samples, 1);
+                    pass.dispatch_workgroups(samples.div_ceil(WORKGROUP_SIZE), vertices, 1);
                 }
                 {
                     let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {

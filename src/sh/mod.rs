@@ -16,6 +16,9 @@
 
 use glam::DVec3;
 
+pub mod rotation;
+pub mod window;
+
 /// The basis in one line, for file metadata and `prt-gpu info`.
 pub const CONVENTION: &str = "real orthonormal SH, k = l(l+1)+m, Condon-Shortley phase, \
 theta from +Z, phi from +X towards +Y (world space, Y up)";

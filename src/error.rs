@@ -22,6 +22,9 @@ pub enum Error {
     /// No usable adapter, or the GPU failed (validation, device loss, limits).
     #[error("gpu: {0}")]
     Gpu(String),
+    /// An environment map or light file that cannot be read, or lighting that cannot be projected.
+    #[error("{path}: {message}")]
+    Light { path: PathBuf, message: String },
     /// A baked file that is not one of ours, or is damaged.
     #[error("{path}: {message}")]
     Baked { path: PathBuf, message: String },
@@ -37,6 +40,13 @@ impl Error {
 
     pub fn mesh(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         Error::Mesh {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+
+    pub fn light(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Error::Light {
             path: path.into(),
             message: message.into(),
         }

@@ -67,6 +67,8 @@ pub struct GpuContext {
     pub queue: wgpu::Queue,
     pub adapter: AdapterSummary,
     pub limits: wgpu::Limits,
+    /// Kept for what the device cannot answer, such as which formats can be rendered to.
+    handle: wgpu::Adapter,
 }
 
 fn instance() -> wgpu::Instance {
@@ -173,6 +175,7 @@ fn open_adapter(adapter: &wgpu::Adapter) -> Result<GpuContext> {
         queue,
         adapter: summary,
         limits,
+        handle: adapter.clone(),
     })
 }
 
@@ -244,6 +247,12 @@ impl GpuContext {
         drop(view);
         staging.unmap();
         Ok(values)
+    }
+
+    /// What the adapter allows for `format` (downlevel backends such as GL cannot render to
+    /// every format that WebGPU guarantees).
+    pub fn format_features(&self, format: wgpu::TextureFormat) -> wgpu::TextureFormatFeatures {
+        self.handle.get_texture_format_features(format)
     }
 
     /// Blocks until the queue is idle.

@@ -1,7 +1,8 @@
 //! prt-gpu: precomputed radiance transfer baking.
 //!
 //! The data flows one way, one module per step:
-//! `scene` (load, prepare) → `bvh` → `sampling` + `sh` → `bake` (cpu backend) → `output`.
+//! `scene` (load, prepare) → `bvh` → `sampling` + `sh` → `bake` (cpu backend) → `output`;
+//! `light` + a baked transfer → `render` (relight, preview images).
 
 pub mod bake;
 pub mod bvh;
@@ -10,6 +11,7 @@ pub mod gpu;
 pub mod light;
 pub mod output;
 pub mod ray;
+pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod sh;

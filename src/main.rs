@@ -11,6 +11,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
 use prt_gpu::bake::{self, Backend, BakeOptions, Mode, Progress};
 use prt_gpu::gpu::{self, DeviceChoice};
+use prt_gpu::light::{self, analytic, Mapping, ShLight};
+use prt_gpu::render::{self, Camera, ToneMap};
+use prt_gpu::sh::window::Window;
 use prt_gpu::{output, scene};
 
 #[derive(Parser)]
@@ -35,6 +38,100 @@ enum Command {
     },
     /// List the GPU adapters wgpu can see, best first.
     Devices,
+    /// Project lighting onto SH: an environment map and/or analytic lights (they add up).
+    Light(LightArgs),
+    /// Relight baked files under a light and render them side by side to PNG or EXR.
+    Render(RenderArgs),
+}
+
+/// How a light is post-processed, shared by `light` and `render`.
+#[derive(clap::Args)]
+struct LightShaping {
+    /// Ringing control: none, hanning, lanczos, or non-negative (the least smoothing that
+    /// leaves no negative radiance anywhere).
+    #[arg(long, value_enum, default_value_t = Window::None)]
+    window: Window,
+    /// Rotate the light: yaw (about +Y), pitch (about +X), roll (about +Z), in degrees.
+    #[arg(long, value_parser = parse_rgb, allow_hyphen_values = true)]
+    rotate: Option<Vec3>,
+}
+
+#[derive(clap::Args)]
+struct LightArgs {
+    /// Environment map: OpenEXR, Radiance .hdr, PNG or JPEG.
+    envmap: Option<PathBuf>,
+    /// SH bands of the light.
+    #[arg(long, default_value_t = 4)]
+    bands: u32,
+    /// How the map's pixels map to directions (auto-detected from the aspect ratio when it
+    /// is unambiguous: 2:1 lat-long, 4:3 and 3:4 cube crosses).
+    #[arg(long, value_enum)]
+    mapping: Option<Mapping>,
+    /// Give NaN or infinite pixels zero weight instead of failing.
+    #[arg(long)]
+    skip_invalid: bool,
+    /// Add a sun: direction X,Y,Z (towards the sun).
+    #[arg(long, value_parser = parse_rgb, allow_hyphen_values = true)]
+    sun: Option<Vec3>,
+    /// Sun disk half-angle in degrees.
+    #[arg(long, default_value_t = 0.27)]
+    sun_angle: f64,
+    /// Sun irradiance (R,G,B or one value).
+    #[arg(long, value_parser = parse_rgb, default_value = "3")]
+    sun_irradiance: Vec3,
+    /// Add a sky of this radiance above the horizon (R,G,B).
+    #[arg(long, value_parser = parse_rgb)]
+    sky: Option<Vec3>,
+    /// Ground radiance below the horizon, with --sky.
+    #[arg(long, value_parser = parse_rgb, default_value = "0")]
+    ground: Vec3,
+    /// Add constant ambient radiance (R,G,B).
+    #[arg(long, value_parser = parse_rgb)]
+    ambient: Option<Vec3>,
+    /// Add the tutorial's two-light test function.
+    #[arg(long)]
+    tutorial: bool,
+    #[command(flatten)]
+    shaping: LightShaping,
+    /// Output light.json.
+    #[arg(short, long, default_value = "light.json")]
+    output: PathBuf,
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// Baked .glb files; several are rendered side by side, left to right.
+    #[arg(required = true)]
+    baked: Vec<PathBuf>,
+    /// The light: light.json, or an environment map projected at each file's bands.
+    #[arg(long)]
+    light: Option<PathBuf>,
+    /// Environment-map parameterization (with --light ENVMAP).
+    #[arg(long, value_enum)]
+    mapping: Option<Mapping>,
+    #[command(flatten)]
+    shaping: LightShaping,
+    /// Camera: eye x,y,z, target x,y,z [, vertical field of view in degrees]. Default: a
+    /// three-quarter view that frames the mesh.
+    #[arg(long, allow_hyphen_values = true)]
+    camera: Option<Camera>,
+    /// Exposure in stops (PNG only).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    exposure: f32,
+    /// Tone mapping for PNG; EXR keeps linear radiance.
+    #[arg(long, value_enum, default_value_t = ToneMap::Reinhard)]
+    tone_map: ToneMap,
+    /// Size of each panel in pixels.
+    #[arg(long, default_value_t = 640)]
+    width: u32,
+    #[arg(long, default_value_t = 480)]
+    height: u32,
+    /// Use the adapter whose name contains this text.
+    #[arg(long)]
+    adapter: Option<String>,
+    /// Output image: .png (tone-mapped sRGB) or .exr (linear HDR).
+    #[arg(short, long, default_value = "preview.png")]
+    output: PathBuf,
 }
 
 #[derive(clap::Args)]
@@ -74,6 +171,9 @@ struct BakeArgs {
     /// Use the adapter whose name contains this text (see `prt-gpu devices`).
     #[arg(long)]
     adapter: Option<String>,
+    /// Also render a preview of the result under a default sky and sun (.png or .exr).
+    #[arg(long)]
+    preview: Option<PathBuf>,
     /// GPU: at most this many vertices per chunk (for testing chunking; default from limits).
     #[arg(long, hide_short_help = true)]
     chunk_vertices: Option<u32>,
@@ -105,6 +205,8 @@ fn main() -> ExitCode {
         Command::Bake(args) => run_bake(args),
         Command::Info { file } => run_info(&file),
         Command::Devices => run_devices(),
+        Command::Light(args) => run_light(args),
+        Command::Render(args) => run_render(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -135,6 +237,9 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
         .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
     // Fail before the long part, not after it.
     output::check_destination(&output_path).map_err(|e| e.to_string())?;
+    if let Some(preview) = &args.preview {
+        output::check_destination(preview).map_err(|e| e.to_string())?;
+    }
     if options.samples_used() != options.samples {
         let side = (options.samples_used() as f64).sqrt() as u32;
         eprintln!(
@@ -177,6 +282,18 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
         })?;
     progress.finish();
     output::write_glb(&output_path, &baked).map_err(|e| e.to_string())?;
+    if let Some(preview) = &args.preview {
+        let light = light::preview_light(options.bands).map_err(|e| e.to_string())?;
+        let context = match baker {
+            Some(baker) => baker.context,
+            None => open_render_device(None)?,
+        };
+        let image =
+            render::preview(&context, &baked, &light, None, 640, 480).map_err(|e| e.to_string())?;
+        render::write_image(preview, &image, 640, 480, ToneMap::Reinhard, 0.0)
+            .map_err(|e| e.to_string())?;
+        eprintln!("preview -> {}", preview.display());
+    }
 
     for (i, bounce) in report.bounces.iter().enumerate() {
         eprintln!(
@@ -252,6 +369,144 @@ fn run_devices() -> Result<(), String> {
         );
     }
     Ok(())
+}
+
+fn run_light(args: LightArgs) -> Result<(), String> {
+    let bands = args.bands;
+    if bands == 0 || bands > prt_gpu::sh::MAX_BANDS {
+        return Err(format!(
+            "invalid option: --bands {bands} is out of range (1 to {})",
+            prt_gpu::sh::MAX_BANDS
+        ));
+    }
+    output::check_destination(&args.output).map_err(|e| e.to_string())?;
+    let err = |e: prt_gpu::Error| e.to_string();
+    let mut total = ShLight::constant(bands, [0.0; 3]);
+    let mut parts = Vec::new();
+    if let Some(path) = &args.envmap {
+        let loaded = light::load(path, bands, args.mapping, args.skip_invalid).map_err(err)?;
+        if loaded.skipped_pixels > 0 {
+            eprintln!(
+                "note: skipped {} NaN or infinite pixels",
+                loaded.skipped_pixels
+            );
+        }
+        if let Some(mapping) = loaded.mapping {
+            parts.push(format!("{} ({mapping:?})", path.display()));
+        }
+        total = total.plus(&loaded.light).map_err(err)?;
+    }
+    if let Some(direction) = args.sun {
+        let sun = analytic::sun_disk(
+            bands,
+            direction.as_dvec3(),
+            args.sun_angle.to_radians(),
+            args.sun_irradiance.to_array(),
+        )
+        .map_err(err)?;
+        total = total.plus(&sun).map_err(err)?;
+        parts.push("sun".into());
+    }
+    if let Some(sky) = args.sky {
+        let hemisphere =
+            analytic::hemisphere(bands, sky.to_array(), args.ground.to_array()).map_err(err)?;
+        total = total.plus(&hemisphere).map_err(err)?;
+        parts.push("sky".into());
+    }
+    if let Some(ambient) = args.ambient {
+        total = total
+            .plus(&ShLight::constant(bands, ambient.to_array()))
+            .map_err(err)?;
+        parts.push("ambient".into());
+    }
+    if args.tutorial {
+        total = total
+            .plus(&analytic::tutorial_two_lights(bands).map_err(err)?)
+            .map_err(err)?;
+        parts.push("tutorial two lights".into());
+    }
+    if parts.is_empty() {
+        return Err("invalid option: give an environment map or at least one of --sun, --sky, --ambient, --tutorial".into());
+    }
+    let light = shape(total, &args.shaping);
+    light::write_json(&args.output, &light).map_err(err)?;
+    println!(
+        "projected {} onto {bands} bands (DC {:.4} {:.4} {:.4}) -> {}",
+        parts.join(" + "),
+        light.coeffs[0][0],
+        light.coeffs[0][1],
+        light.coeffs[0][2],
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// Rotation first, then windowing, so the window sees the light as it will be used.
+fn shape(light: ShLight, shaping: &LightShaping) -> ShLight {
+    let light = match shaping.rotate {
+        Some(r) => light.rotated(r.x as f64, r.y as f64, r.z as f64),
+        None => light,
+    };
+    light.windowed(shaping.window)
+}
+
+fn run_render(args: RenderArgs) -> Result<(), String> {
+    output::check_destination(&args.output).map_err(|e| e.to_string())?;
+    let err = |e: prt_gpu::Error| e.to_string();
+    let context = open_render_device(args.adapter.as_deref())?;
+    let mut panels = Vec::new();
+    for path in &args.baked {
+        let baked = output::read_glb(path).map_err(err)?;
+        let bands = baked.metadata.bands;
+        let light = match &args.light {
+            Some(light_path) => {
+                light::load(light_path, bands, args.mapping, false)
+                    .map_err(err)?
+                    .light
+            }
+            None => light::preview_light(bands).map_err(err)?,
+        };
+        let light = shape(light, &args.shaping);
+        panels.push(
+            render::preview(
+                &context,
+                &baked,
+                &light,
+                args.camera.as_ref(),
+                args.width,
+                args.height,
+            )
+            .map_err(err)?,
+        );
+    }
+    let image = render::side_by_side(&panels, args.width, args.height).map_err(err)?;
+    let width = args.width * panels.len() as u32;
+    render::write_image(
+        &args.output,
+        &image,
+        width,
+        args.height,
+        args.tone_map,
+        args.exposure,
+    )
+    .map_err(err)?;
+    println!(
+        "rendered {} panel(s) of {}x{} on {} -> {}",
+        panels.len(),
+        args.width,
+        args.height,
+        context.adapter.label(),
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// Any adapter, software ones included: rasterising a preview is cheap anywhere.
+fn open_render_device(adapter: Option<&str>) -> Result<gpu::GpuContext, String> {
+    match gpu::open(DeviceChoice::Gpu, adapter).map_err(|e| e.to_string())? {
+        Some(context) => Ok(context),
+        None => Err("gpu: no adapter to render with".to_string()),
+    }
 }
 
 fn run_info(path: &Path) -> Result<(), String> {

@@ -77,6 +77,16 @@ pub fn transfer_attribute_name(channels: u32, channel: u32, group: usize) -> Str
 /// renamed over the target, so readers never see a half-written file.
 pub fn write_glb(path: &Path, baked: &BakedMesh) -> Result<()> {
     validate(baked)?;
+    // Fails before encoding, so a typo in the directory costs no work.
+    check_destination(path)?;
+    let bytes = encode_valid(baked)?;
+    write_atomically(path, &bytes)
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory that is synced and
+/// renamed over the target; on failure the temporary file is removed. Every output format of
+/// the crate goes through here, so none can leave a half-written file.
+pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
     let dir = check_destination(path)?;
     let Some(file_name) = path.file_name() else {
         return Err(Error::io(
@@ -84,11 +94,10 @@ pub fn write_glb(path: &Path, baked: &BakedMesh) -> Result<()> {
             io::Error::new(io::ErrorKind::InvalidInput, "output path names no file"),
         ));
     };
-    let bytes = encode_valid(baked)?;
     let mut tmp_name = file_name.to_os_string();
     tmp_name.push(format!(".tmp-{}", std::process::id()));
     let tmp = dir.join(tmp_name);
-    let result = write_then_rename(&tmp, path, &bytes);
+    let result = write_then_rename(&tmp, path, bytes);
     if result.is_err() {
         // Best effort: the error being reported matters more than a failure to clean up.
         let _ = fs::remove_file(&tmp);

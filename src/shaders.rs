@@ -12,6 +12,7 @@ const BVH_WGSL: &str = include_str!("../wgsl/bvh.wgsl");
 const VISIBILITY_WGSL: &str = include_str!("../wgsl/visibility.wgsl");
 const PROJECT_WGSL: &str = include_str!("../wgsl/project.wgsl");
 const GATHER_WGSL: &str = include_str!("../wgsl/gather.wgsl");
+const RENDER_WGSL: &str = include_str!("../wgsl/render.wgsl");
 
 /// Constants every kernel sees. `{:?}` prints the shortest decimal that parses back to the
 /// same f32, so WGSL gets the exact Rust values.
@@ -42,12 +43,18 @@ pub fn gather_kernel() -> String {
     format!("{}{GATHER_WGSL}", prelude())
 }
 
+/// The preview renderer's vertex and fragment shaders.
+pub fn render_shader() -> String {
+    format!("{}{RENDER_WGSL}", prelude())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::bake::bounce::Hit;
     use crate::bake::gpu::{GatherParams, ProjectParams, VisibilityParams};
     use crate::bvh::{BvhNode, BvhTriangle};
+    use crate::render::RenderParams;
     use std::mem::{offset_of, size_of};
 
     fn parse(source: &str) -> naga::Module {
@@ -92,6 +99,7 @@ mod tests {
         parse(&visibility_kernel());
         parse(&project_kernel());
         parse(&gather_kernel());
+        parse(&render_shader());
     }
 
     #[test]
@@ -137,6 +145,10 @@ mod tests {
                 pad0,
                 pad1
             )
+        );
+        assert_eq!(
+            wgsl_layout(&parse(&render_shader()), "RenderParams"),
+            rust_layout!(RenderParams, clip_from_world)
         );
         assert_eq!(
             wgsl_layout(&project, "ProjectParams"),

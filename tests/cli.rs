@@ -226,6 +226,30 @@ fn bad_input_fails_with_one_line_and_no_output() {
             expect: "chunk-vertices",
         },
         BadInput {
+            case: "nolight",
+            file: None,
+            args: &["light", "-o", "l.json"],
+            expect: "environment map",
+        },
+        BadInput {
+            case: "nomap",
+            file: None,
+            args: &["light", "nope.exr", "-o", "l.json"],
+            expect: "nope.exr",
+        },
+        BadInput {
+            case: "badexr",
+            file: Some(("cut.exr", b"v/1\x01\x02\x00\x00\x00")),
+            args: &["light", "cut.exr", "-o", "l.json"],
+            expect: "cut.exr",
+        },
+        BadInput {
+            case: "rendermissing",
+            file: None,
+            args: &["render", "nope.glb", "-o", "p.png"],
+            expect: "nope.glb",
+        },
+        BadInput {
             case: "adapter",
             file: None,
             args: &[
@@ -243,4 +267,137 @@ fn bad_input_fails_with_one_line_and_no_output() {
     for input in &cases {
         assert_clean_failure(input);
     }
+}
+
+#[test]
+fn light_projects_a_real_map_and_refuses_a_wrong_forced_mapping() {
+    let dir = scratch("light");
+    let studio = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/studio.exr");
+    let out = prt_gpu(
+        &[
+            "light",
+            studio,
+            "--bands",
+            "3",
+            "--window",
+            "non-negative",
+            "-o",
+            "l.json",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.join("l.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(json["bands"], 3);
+    assert_eq!(json["coeffs"].as_array().unwrap().len(), 9);
+
+    // A 2:1 map forced to be an angular probe is refused, and nothing is written.
+    let out = prt_gpu(
+        &["light", studio, "--mapping", "angular", "-o", "a.json"],
+        &dir,
+    );
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("error:") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    assert!(!dir.join("a.json").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bake_then_render_side_by_side() {
+    if prt_gpu::gpu::list_adapters().is_empty() {
+        assert!(!prt_gpu::gpu::adapter_required(), "no GPU adapter under CI");
+        eprintln!("skipping: no adapter to render with");
+        return;
+    }
+    let dir = scratch("render");
+    for mode in ["unshadowed", "shadowed"] {
+        let out = prt_gpu(
+            &[
+                "bake",
+                "--samples",
+                "64",
+                "--mode",
+                mode,
+                "-o",
+                &format!("{mode}.glb"),
+            ],
+            &dir,
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let studio = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/studio.exr");
+    let out = prt_gpu(
+        &[
+            "render",
+            "unshadowed.glb",
+            "shadowed.glb",
+            "--light",
+            studio,
+            "--width",
+            "160",
+            "--height",
+            "120",
+            "-o",
+            "side.png",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let image = image::open(dir.join("side.png")).unwrap().to_rgba8();
+    assert_eq!(image.dimensions(), (320, 120));
+    // The scene fills the middle of each panel and leaves the corners empty (transparent).
+    for panel in 0..2 {
+        assert!(
+            image.get_pixel(panel * 160 + 80, 75)[3] == 255,
+            "panel {panel} centre is empty"
+        );
+        assert_eq!(
+            image.get_pixel(panel * 160 + 1, 1)[3],
+            0,
+            "panel {panel} corner is covered"
+        );
+    }
+
+    let out = prt_gpu(
+        &[
+            "bake",
+            "--samples",
+            "16",
+            "--preview",
+            "p.png",
+            "-o",
+            "p.glb",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        image::open(dir.join("p.png"))
+            .unwrap()
+            .to_rgba8()
+            .dimensions(),
+        (640, 480)
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

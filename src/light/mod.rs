@@ -1,6 +1,30 @@
 //! Lighting in the SH basis: what a baked transfer is dotted with.
+//!
+//! - [`envmap`] reads environment-map files as linear RGB images;
+//! - [`mapping`] says how each parameterization maps pixels to directions and solid angles;
+//! - [`project`] turns an environment map into SH coefficients;
+//! - [`analytic`] gives closed-form projections of analytic lights;
+//! - [`file`] reads and writes light.json.
 
+pub mod analytic;
+pub mod envmap;
+pub mod file;
+pub mod mapping;
+pub mod project;
+
+pub use envmap::EnvImage;
+pub use file::{read_json, write_json};
+pub use mapping::Mapping;
+pub use project::{project, project_faces, project_with, ProjectOptions, Projection};
+
+use std::path::Path;
+
+use glam::DVec3;
 use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::sh::rotation::ShRotation;
+use crate::sh::window::{apply_window, factors_for, Window};
 
 /// RGB lighting coefficients `l_k = integral L_in(w) y_k(w) dw` in the basis of `sh`
 /// (`coeffs[k] = [r, g, b]`, `k = l(l+1) + m`, `bands^2` entries).
@@ -18,4 +42,95 @@ impl ShLight {
         coeffs[0] = rgb.map(|c| c * dc);
         ShLight { bands, coeffs }
     }
+}
+
+impl ShLight {
+    /// The light turned by yaw (about +Y), pitch (about +X) and roll (about +Z), in degrees,
+    /// as `sh::rotation::ShRotation::from_yaw_pitch_roll` composes them.
+    pub fn rotated(&self, yaw_deg: f64, pitch_deg: f64, roll_deg: f64) -> ShLight {
+        let rotation = ShRotation::from_yaw_pitch_roll(self.bands, yaw_deg, pitch_deg, roll_deg);
+        ShLight {
+            bands: self.bands,
+            coeffs: rotation.apply_rgb(&self.coeffs),
+        }
+    }
+
+    /// The light with `window` applied against ringing.
+    pub fn windowed(&self, window: Window) -> ShLight {
+        let mut coeffs = self.coeffs.clone();
+        apply_window(&mut coeffs, &factors_for(window, &self.coeffs, self.bands));
+        ShLight {
+            bands: self.bands,
+            coeffs,
+        }
+    }
+
+    /// The sum of two lights of the same band count.
+    pub fn plus(&self, other: &ShLight) -> Result<ShLight> {
+        if self.bands != other.bands {
+            return Err(Error::Options(format!(
+                "cannot add lights of {} and {} bands",
+                self.bands, other.bands
+            )));
+        }
+        let coeffs = self
+            .coeffs
+            .iter()
+            .zip(&other.coeffs)
+            .map(|(a, b)| [a[0] + b[0], a[1] + b[1], a[2] + b[2]])
+            .collect();
+        Ok(ShLight {
+            bands: self.bands,
+            coeffs,
+        })
+    }
+}
+
+/// What `load` read, besides the light.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoadedLight {
+    pub light: ShLight,
+    /// The parameterization used for an environment map (`None` for light.json).
+    pub mapping: Option<Mapping>,
+    /// NaN or infinite pixels skipped (with `skip_invalid`).
+    pub skipped_pixels: usize,
+}
+
+/// A light from a file: light.json as written by `prt-gpu light`, or an environment map
+/// (EXR, HDR, PNG, JPEG) projected at `bands` with `mapping` (auto-detected when `None`).
+pub fn load(
+    path: &Path,
+    bands: u32,
+    mapping: Option<Mapping>,
+    skip_invalid: bool,
+) -> Result<LoadedLight> {
+    let is_json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if is_json {
+        let light = read_json(path)?;
+        return Ok(LoadedLight {
+            light,
+            mapping: None,
+            skipped_pixels: 0,
+        });
+    }
+    let image = envmap::load(path)?;
+    let mapping =
+        Mapping::resolve(mapping, image.width, image.height).map_err(|m| Error::light(path, m))?;
+    let projection = project_with(&image, mapping, bands, &ProjectOptions { skip_invalid })?;
+    Ok(LoadedLight {
+        light: projection.light,
+        mapping: Some(mapping),
+        skipped_pixels: projection.skipped,
+    })
+}
+
+/// The light `bake --preview` uses: a blue-white sky over a dim ground and a warm sun from
+/// above the front right, soft enough for a few bands to render without ringing.
+pub fn preview_light(bands: u32) -> Result<ShLight> {
+    let sky = analytic::hemisphere(bands, [0.55, 0.65, 0.8], [0.12, 0.1, 0.08])?;
+    let sun_direction = DVec3::new(0.5, 0.8, 0.6).normalize();
+    let sun = analytic::sun_disk(bands, sun_direction, 0.2, [2.2, 2.0, 1.7])?;
+    sky.plus(&sun)
 }

@@ -1,0 +1,241 @@
+//! Environment maps as linear RGB f32 images: OpenEXR through `exr`, Radiance .hdr and
+//! sRGB PNG/JPEG through `image`. The format is told by the file's magic bytes, not its name.
+
+use crate::error::{Error, Result};
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+/// A linear RGB image, row 0 at the top, `pixels[y * width + x]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvImage {
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<[f32; 3]>,
+    /// Where the pixels came from, for error messages (`<memory>` for built images).
+    pub source: PathBuf,
+}
+
+impl EnvImage {
+    pub fn new(
+        width: usize,
+        height: usize,
+        pixels: Vec<[f32; 3]>,
+        source: impl Into<PathBuf>,
+    ) -> Result<Self> {
+        let source = source.into();
+        if width == 0 || height == 0 {
+            return Err(Error::light(
+                source,
+                format!("the image is empty ({width}x{height})"),
+            ));
+        }
+        if pixels.len() != width * height {
+            return Err(Error::light(
+                source,
+                format!("{} pixels for a {width}x{height} image", pixels.len()),
+            ));
+        }
+        Ok(EnvImage {
+            width,
+            height,
+            pixels,
+            source,
+        })
+    }
+
+    /// An in-memory image with `pixel(x, y)` at every pixel.
+    pub fn from_fn(
+        width: usize,
+        height: usize,
+        mut pixel: impl FnMut(usize, usize) -> [f32; 3],
+    ) -> Result<Self> {
+        let pixels = (0..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .map(|(x, y)| pixel(x, y))
+            .collect();
+        EnvImage::new(width, height, pixels, "<memory>")
+    }
+
+    pub fn pixel(&self, x: usize, y: usize) -> [f32; 3] {
+        self.pixels[y * self.width + x]
+    }
+}
+
+/// Reads an environment map file.
+pub fn load(path: &Path) -> Result<EnvImage> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    decode(&bytes, path)
+}
+
+const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+
+/// Decodes an environment map held in memory; `path` only names it in errors.
+pub fn decode(bytes: &[u8], path: &Path) -> Result<EnvImage> {
+    if bytes.is_empty() {
+        return Err(Error::light(path, "the file is empty"));
+    }
+    if bytes.starts_with(&EXR_MAGIC) {
+        return decode_exr(bytes, path);
+    }
+    decode_with_image(bytes, path)
+}
+
+/// Pixels of the first valid layer, largest resolution level; R, G, B must be present and any
+/// alpha is ignored. Half, float and uint samples all arrive as f32.
+fn decode_exr(bytes: &[u8], path: &Path) -> Result<EnvImage> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .specific_channels()
+        .required("R")
+        .required("G")
+        .required("B")
+        .collect_pixels(
+            |size: Vec2<usize>, _| (size.width(), vec![[0.0f32; 3]; size.area()]),
+            |(width, pixels): &mut (usize, Vec<[f32; 3]>),
+             at: Vec2<usize>,
+             (r, g, b): (f32, f32, f32)| {
+                pixels[at.y() * *width + at.x()] = [r, g, b];
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(Cursor::new(bytes))
+        .map_err(|e| {
+            crate::error::Error::light(path, format!("OpenEXR: {}", one_line(&e.to_string())))
+        })?;
+    let size = image.layer_data.size;
+    let (_, pixels) = image.layer_data.channel_data.pixels;
+    EnvImage::new(size.width(), size.height(), pixels, path)
+}
+
+fn decode_with_image(bytes: &[u8], path: &Path) -> Result<EnvImage> {
+    let format = image::guess_format(bytes).map_err(|_| {
+        Error::light(
+            path,
+            "not an environment map this program reads (OpenEXR, Radiance .hdr, PNG, JPEG)",
+        )
+    })?;
+    let decoded = image::load_from_memory_with_format(bytes, format)
+        .map_err(|e| Error::light(path, one_line(&e.to_string())))?;
+    let (width, height) = (decoded.width() as usize, decoded.height() as usize);
+    let rgb = decoded.into_rgb32f();
+    // Radiance files hold linear radiance; 8- and 16-bit formats hold sRGB-encoded values.
+    let linear = format == image::ImageFormat::Hdr;
+    let pixels = rgb
+        .pixels()
+        .map(|p| if linear { p.0 } else { p.0.map(srgb_to_linear) })
+        .collect();
+    EnvImage::new(width, height, pixels, path)
+}
+
+/// The sRGB transfer function inverted (IEC 61966-2-1).
+pub fn srgb_to_linear(encoded: f32) -> f32 {
+    if encoded <= 0.04045 {
+        encoded / 12.92
+    } else {
+        ((encoded + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn one_line(message: &str) -> String {
+    message.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn studio() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/studio.exr")
+    }
+
+    fn assert_one_line(e: &Error) -> String {
+        let text = e.to_string();
+        assert!(!text.contains('\n'), "{text}");
+        text
+    }
+
+    #[test]
+    fn loads_the_dwab_half_float_exr_copy() {
+        let image = load(&studio()).unwrap();
+        assert_eq!((image.width, image.height), (1024, 512));
+        assert!(image.pixels.iter().flatten().all(|v| v.is_finite()));
+        let mean: f64 = image
+            .pixels
+            .iter()
+            .flatten()
+            .map(|&v| v as f64)
+            .sum::<f64>()
+            / (3 * image.pixels.len()) as f64;
+        assert!(mean > 0.01 && mean < 100.0, "mean {mean}");
+    }
+
+    #[test]
+    fn loads_the_shared_real_maps_when_present() {
+        let dir = Path::new("/work/shared/data/envmaps");
+        for (name, peak_at_least) in [("forest.exr", 1.0f32), ("sunrise.exr", 30_000.0)] {
+            let path = dir.join(name);
+            if !path.exists() {
+                eprintln!("skipping {}: not on this machine", path.display());
+                continue;
+            }
+            let image = load(&path).unwrap();
+            assert_eq!((image.width, image.height), (1024, 512));
+            let peak = image.pixels.iter().flatten().fold(0.0f32, |a, &b| a.max(b));
+            assert!(peak >= peak_at_least, "{name}: peak {peak}");
+        }
+    }
+
+    #[test]
+    fn truncated_exr_is_a_one_line_error() {
+        let bytes = std::fs::read(studio()).unwrap();
+        for keep in [4, 100, bytes.len() / 2] {
+            let e = decode(&bytes[..keep], Path::new("cut.exr")).unwrap_err();
+            let text = assert_one_line(&e);
+            assert!(text.starts_with("cut.exr: OpenEXR"), "{text}");
+        }
+    }
+
+    #[test]
+    fn empty_and_unknown_files_are_errors() {
+        let e = decode(&[], Path::new("empty.hdr")).unwrap_err();
+        assert_eq!(assert_one_line(&e), "empty.hdr: the file is empty");
+        let e = decode(b"hello world", Path::new("x.txt")).unwrap_err();
+        assert!(assert_one_line(&e).contains("not an environment map"));
+        let e = EnvImage::new(0, 4, vec![], "zero.exr").unwrap_err();
+        assert_eq!(assert_one_line(&e), "zero.exr: the image is empty (0x4)");
+        assert!(EnvImage::from_fn(0, 0, |_, _| [0.0; 3]).is_err());
+    }
+
+    #[test]
+    fn png_is_decoded_from_srgb() {
+        let mut png = Vec::new();
+        let source = image::RgbImage::from_fn(4, 2, |x, _| {
+            image::Rgb([if x == 0 { 255 } else { 188 }, 0, 128])
+        });
+        source
+            .write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        let image = decode(&png, Path::new("t.png")).unwrap();
+        assert_eq!((image.width, image.height), (4, 2));
+        let [r, g, b] = image.pixel(1, 1);
+        // sRGB 188 is about linear 0.5; 128 about 0.2158.
+        assert!((r - 0.5029).abs() < 1e-3 && g == 0.0 && (b - 0.2158).abs() < 1e-3);
+        assert_eq!(image.pixel(0, 0)[0], 1.0);
+    }
+
+    #[test]
+    fn radiance_hdr_stays_linear() {
+        let mut hdr = Vec::new();
+        let source =
+            image::Rgb32FImage::from_fn(4, 2, |x, _| image::Rgb([x as f32 * 2.0, 0.5, 100.0]));
+        image::DynamicImage::ImageRgb32F(source)
+            .write_to(&mut Cursor::new(&mut hdr), image::ImageFormat::Hdr)
+            .unwrap();
+        let image = decode(&hdr, Path::new("t.hdr")).unwrap();
+        let [r, g, b] = image.pixel(3, 0);
+        assert!((r - 6.0).abs() < 0.05 && (g - 0.5).abs() < 0.01 && (b - 100.0).abs() < 1.0);
+    }
+}

@@ -70,6 +70,15 @@ struct LightArgs {
     /// Give NaN or infinite pixels zero weight instead of failing.
     #[arg(long)]
     skip_invalid: bool,
+    /// A cube map as six separate faces: +X,-X,+Y,-Y,+Z,-Z image paths, comma-separated.
+    #[arg(long, value_delimiter = ',', conflicts_with = "envmap")]
+    faces: Vec<PathBuf>,
+    /// Add a directional light (a delta): direction X,Y,Z towards the light.
+    #[arg(long, value_parser = parse_rgb, allow_hyphen_values = true)]
+    directional: Option<Vec3>,
+    /// Irradiance of --directional (R,G,B or one value).
+    #[arg(long, value_parser = parse_rgb, default_value = "1")]
+    directional_intensity: Vec3,
     /// Add a sun: direction X,Y,Z (towards the sun).
     #[arg(long, value_parser = parse_rgb, allow_hyphen_values = true)]
     sun: Option<Vec3>,
@@ -396,6 +405,27 @@ fn run_light(args: LightArgs) -> Result<(), String> {
         }
         total = total.plus(&loaded.light).map_err(err)?;
     }
+    if !args.faces.is_empty() {
+        let loaded = light::load_faces(&args.faces, bands, args.skip_invalid).map_err(err)?;
+        if loaded.skipped_pixels > 0 {
+            eprintln!(
+                "note: skipped {} NaN or infinite pixels",
+                loaded.skipped_pixels
+            );
+        }
+        total = total.plus(&loaded.light).map_err(err)?;
+        parts.push("six cube faces".into());
+    }
+    if let Some(direction) = args.directional {
+        let light = analytic::directional(
+            bands,
+            direction.as_dvec3(),
+            args.directional_intensity.to_array(),
+        )
+        .map_err(err)?;
+        total = total.plus(&light).map_err(err)?;
+        parts.push("directional".into());
+    }
     if let Some(direction) = args.sun {
         let sun = analytic::sun_disk(
             bands,
@@ -426,7 +456,7 @@ fn run_light(args: LightArgs) -> Result<(), String> {
         parts.push("tutorial two lights".into());
     }
     if parts.is_empty() {
-        return Err("invalid option: give an environment map or at least one of --sun, --sky, --ambient, --tutorial".into());
+        return Err("invalid option: give an environment map (or --faces) or at least one of --directional, --sun, --sky, --ambient, --tutorial".into());
     }
     let light = shape(total, &args.shaping);
     light::write_json(&args.output, &light).map_err(err)?;

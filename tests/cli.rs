@@ -308,6 +308,40 @@ fn light_projects_a_real_map_and_refuses_a_wrong_forced_mapping() {
         "{stderr}"
     );
     assert!(!dir.join("a.json").exists());
+
+    // Six white faces (sRGB 255 = linear 1): a constant unit light, DC sqrt(4 pi) alone.
+    let names = ["px.png", "nx.png", "py.png", "ny.png", "pz.png", "nz.png"];
+    for name in names {
+        image::RgbImage::from_pixel(8, 8, image::Rgb([255, 255, 255]))
+            .save(dir.join(name))
+            .unwrap();
+    }
+    let faces = names.join(",");
+    let out = prt_gpu(
+        &["light", "--faces", &faces, "--bands", "2", "-o", "c.json"],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("c.json")).unwrap()).unwrap();
+    let coeffs = json["coeffs"].as_array().unwrap();
+    let dc = coeffs[0][0].as_f64().unwrap();
+    assert!(
+        (dc - (4.0 * std::f64::consts::PI).sqrt()).abs() < 1e-5,
+        "DC {dc}"
+    );
+    for (k, c) in coeffs.iter().enumerate().skip(1) {
+        assert!(
+            c[0].as_f64().unwrap().abs() < 1e-6,
+            "coefficient {k} of a constant light"
+        );
+    }
+    let out = prt_gpu(&["light", "--faces", "px.png,nx.png", "-o", "d.json"], &dir);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("six"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -126,3 +126,49 @@ fn a_rotated_light_relights_like_a_rotated_scene() {
         }
     }
 }
+
+#[test]
+fn rotating_the_light_equals_projecting_the_rotated_map() {
+    // A band-limited function drawn into a lat-long map, and the same function turned by R
+    // drawn into another (pixel values f(R^-1 w), exact, so no resampling error): projecting
+    // the second must give the rotated coefficients of the first.
+    use prt_gpu::light::{mapping::pixel_direction, project, EnvImage, Mapping};
+    let bands = 4;
+    let n = sh::coeff_count(bands);
+    let coefficients: Vec<f64> = (0..n)
+        .map(|k| {
+            if k == 0 {
+                2.0
+            } else {
+                0.4 * ((k * 7) as f64).sin()
+            }
+        })
+        .collect();
+    let f = |w: DVec3| -> f32 {
+        let y = sh::basis(bands, w);
+        (0..n).map(|k| coefficients[k] * y[k]).sum::<f64>() as f32
+    };
+    let (width, height) = (512, 256);
+    let draw = |turn: glam::DMat3| {
+        EnvImage::from_fn(width, height, |x, y| {
+            let w = pixel_direction(Mapping::Latlong, width, height, x, y).unwrap();
+            let v = f(turn.transpose() * w);
+            [v, v, v]
+        })
+        .unwrap()
+    };
+    let (yaw, pitch, roll) = (40.0f64, -25.0f64, 10.0f64);
+    let turn = glam::DMat3::from_rotation_y(yaw.to_radians())
+        * glam::DMat3::from_rotation_x(pitch.to_radians())
+        * glam::DMat3::from_rotation_z(roll.to_radians());
+    let original = project(&draw(glam::DMat3::IDENTITY), Mapping::Latlong, bands).unwrap();
+    let rotated_map = project(&draw(turn), Mapping::Latlong, bands).unwrap();
+    let rotated_light = original.rotated(yaw, pitch, roll);
+    for k in 0..n {
+        let (a, b) = (rotated_light.coeffs[k][0], rotated_map.coeffs[k][0]);
+        assert!(
+            (a - b).abs() < 1e-4 * 2.0,
+            "k = {k}: rotated light {a}, projected rotated map {b}"
+        );
+    }
+}

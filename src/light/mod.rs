@@ -126,6 +126,34 @@ pub fn load(
     })
 }
 
+/// A light from six cube faces, +X, -X, +Y, -Y, +Z, -Z (each oriented as in the horizontal
+/// cross, see `mapping::CROSS_HORIZONTAL`), projected at `bands`.
+pub fn load_faces(
+    paths: &[std::path::PathBuf],
+    bands: u32,
+    skip_invalid: bool,
+) -> Result<LoadedLight> {
+    if paths.len() != 6 {
+        return Err(Error::Options(format!(
+            "--faces needs six images (+X,-X,+Y,-Y,+Z,-Z), not {}",
+            paths.len()
+        )));
+    }
+    let images = paths
+        .iter()
+        .map(|p| envmap::load(p))
+        .collect::<Result<Vec<_>>>()?;
+    let faces = [
+        &images[0], &images[1], &images[2], &images[3], &images[4], &images[5],
+    ];
+    let projection = project_faces(faces, bands, &ProjectOptions { skip_invalid })?;
+    Ok(LoadedLight {
+        light: projection.light,
+        mapping: Some(Mapping::CrossHorizontal),
+        skipped_pixels: projection.skipped,
+    })
+}
+
 /// The light `bake --preview` uses: a blue-white sky over a dim ground and a warm sun from
 /// above the front right, soft enough for a few bands to render without ringing.
 pub fn preview_light(bands: u32) -> Result<ShLight> {

@@ -366,19 +366,7 @@ fn run(
 
     let (visibility_group, project_group) = ctx.checked("binding the buffers", || {
         let bind = |layout: &wgpu::BindGroupLayout, buffers: &[&wgpu::Buffer]| {
-            let entries: Vec<wgpu::BindGroupEntry> = buffers
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect();
-            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: None,
-                layout,
-                entries: &entries,
-            })
+            ctx.bind_buffers("bake", layout, buffers)
         };
         (
             bind(
@@ -705,19 +693,7 @@ impl GpuBaker {
                     &previous,
                     &next,
                 ];
-                let entries: Vec<wgpu::BindGroupEntry> = buffers
-                    .iter()
-                    .enumerate()
-                    .map(|(i, b)| wgpu::BindGroupEntry {
-                        binding: i as u32,
-                        resource: b.as_entire_binding(),
-                    })
-                    .collect();
-                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("gather"),
-                    layout: &self.gather_layout,
-                    entries: &entries,
-                })
+                ctx.bind_buffers("gather", &self.gather_layout, &buffers)
             })?;
             let passes = chunk.max_row_len.div_ceil(GATHER_ENTRIES_PER_PASS).max(1);
             for pass_index in 0..passes {

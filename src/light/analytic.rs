@@ -134,7 +134,7 @@ pub fn tutorial_two_lights(bands: u32) -> Result<ShLight> {
 /// Zonal coefficients of `max(0, slope t - offset)` about +Z (requires 0 < offset < slope).
 fn clamped_linear_zonal(bands: u32, slope: f64, offset: f64) -> Vec<f64> {
     let start = offset / slope;
-    let nodes = gauss_legendre(bands as usize + 1);
+    let nodes = crate::sh::legendre::gauss_legendre(bands as usize + 1);
     (0..bands)
         .map(|l| {
             let half = 0.5 * (1.0 - start);
@@ -164,40 +164,9 @@ fn cap_legendre_integral(l: u32, c: f64) -> f64 {
     }
 }
 
-/// Legendre polynomial P_l(x) by Bonnet's recurrence.
+/// P_l(x), for the closed forms above.
 fn legendre(l: u32, x: f64) -> f64 {
-    let (mut prev, mut cur) = (1.0, x);
-    if l == 0 {
-        return 1.0;
-    }
-    for n in 2..=l {
-        let nf = n as f64;
-        let next = ((2.0 * nf - 1.0) * x * cur - (nf - 1.0) * prev) / nf;
-        prev = cur;
-        cur = next;
-    }
-    cur
-}
-
-/// Gauss–Legendre nodes and weights on [-1, 1] (Newton on P_n from Chebyshev-like guesses).
-pub(crate) fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
-    (0..n)
-        .map(|i| {
-            let mut x = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-            let mut derivative = 1.0;
-            for _ in 0..100 {
-                let p = legendre(n as u32, x);
-                let p_prev = legendre(n as u32 - 1, x);
-                derivative = n as f64 * (x * p - p_prev) / (x * x - 1.0);
-                let step = p / derivative;
-                x -= step;
-                if step.abs() < 1e-15 {
-                    break;
-                }
-            }
-            (x, 2.0 / ((1.0 - x * x) * derivative * derivative))
-        })
-        .collect()
+    crate::sh::legendre::legendre(l as usize, x)
 }
 
 /// Coefficients of a zonal shape (per unit radiance) turned to `axis`, scaled per channel.
@@ -246,7 +215,7 @@ mod tests {
         let (rings, azimuths) = (600, 1200);
         let mut out = vec![[0.0; 3]; sh::coeff_count(bands)];
         let mut y = vec![0.0; sh::coeff_count(bands)];
-        for (z, wz) in gauss_legendre(rings) {
+        for (z, wz) in crate::sh::legendre::gauss_legendre(rings) {
             let s = (1.0 - z * z).sqrt();
             for j in 0..azimuths {
                 let p = 2.0 * PI * (j as f64 + 0.5) / azimuths as f64;
@@ -391,7 +360,10 @@ mod tests {
         assert!((legendre(2, 0.3) - (3.0 * 0.09 - 1.0) / 2.0).abs() < 1e-15);
         assert!(cap_legendre_integral(2, 0.0).abs() < 1e-15);
         assert!((cap_legendre_integral(1, 0.5) - 0.375).abs() < 1e-15);
-        let sum: f64 = gauss_legendre(7).iter().map(|(x, w)| w * x.powi(12)).sum();
+        let sum: f64 = crate::sh::legendre::gauss_legendre(7)
+            .iter()
+            .map(|(x, w)| w * x.powi(12))
+            .sum();
         assert!((sum - 2.0 / 13.0).abs() < 1e-14);
     }
 }

@@ -166,7 +166,7 @@ fn swap_yz_block(bands: u32, l: i32) -> Vec<f64> {
     let first = sh::index(l, -l);
     let azimuths = 2 * bands as usize + 2;
     let mut block = vec![0.0; size * size];
-    for (z, wz) in super::analytic::gauss_legendre(bands as usize + 1) {
+    for (z, wz) in crate::sh::legendre::gauss_legendre(bands as usize + 1) {
         let s = (1.0 - z * z).sqrt();
         for q in 0..azimuths {
             let p = 2.0 * std::f64::consts::PI * (q as f64 + 0.5) / azimuths as f64;

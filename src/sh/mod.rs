@@ -16,6 +16,7 @@
 
 use glam::DVec3;
 
+pub mod legendre;
 pub mod rotation;
 pub mod window;
 
@@ -193,55 +194,9 @@ mod tests {
     use super::*;
     use std::f64::consts::PI;
 
-    /// (P_n(x), P_n'(x)) by Bonnet's recurrence (plain Legendre polynomials, test use only).
-    fn legendre_with_derivative(n: usize, x: f64) -> (f64, f64) {
-        let (mut p0, mut p1) = (1.0, x);
-        if n == 0 {
-            return (1.0, 0.0);
-        }
-        for k in 2..=n {
-            let kf = k as f64;
-            let p2 = ((2.0 * kf - 1.0) * x * p1 - (kf - 1.0) * p0) / kf;
-            p0 = p1;
-            p1 = p2;
-        }
-        (p1, n as f64 * (x * p1 - p0) / (x * x - 1.0))
-    }
-
-    /// Gauss–Legendre nodes and weights on [-1, 1] by Newton iteration on P_n.
-    fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
-        (0..n)
-            .map(|i| {
-                let mut x = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-                for _ in 0..100 {
-                    let (p, dp) = legendre_with_derivative(n, x);
-                    x -= p / dp;
-                    if (p / dp).abs() < 1e-15 {
-                        break;
-                    }
-                }
-                let (_, dp) = legendre_with_derivative(n, x);
-                (x, 2.0 / ((1.0 - x * x) * dp * dp))
-            })
-            .collect()
-    }
-
     /// A product quadrature exact for spherical polynomials of degree < 2 * bands.
     fn sphere_quadrature(bands: usize) -> Vec<(DVec3, f64)> {
-        let nodes = gauss_legendre(bands + 1);
-        let azimuths = 2 * bands + 2;
-        let mut q = Vec::new();
-        for &(z, w) in &nodes {
-            let s = (1.0 - z * z).sqrt();
-            for j in 0..azimuths {
-                let p = 2.0 * PI * (j as f64 + 0.5) / azimuths as f64;
-                q.push((
-                    DVec3::new(s * p.cos(), s * p.sin(), z),
-                    w * 2.0 * PI / azimuths as f64,
-                ));
-            }
-        }
-        q
+        legendre::sphere_product_rule(bands + 1)
     }
 
     fn gram_error(bands: u32, eval: impl Fn(DVec3) -> Vec<f64>) -> f64 {
@@ -337,12 +292,12 @@ mod tests {
     #[test]
     fn clamped_cosine_zonal_matches_quadrature() {
         // integral max(0, t) P_l(t) on [0, 1] by Gauss–Legendre on the half interval.
-        let nodes = gauss_legendre(64);
+        let nodes = legendre::gauss_legendre(64);
         for l in 0..20u32 {
             let mut moment = 0.0;
             for &(x, w) in &nodes {
                 let t = 0.5 * (x + 1.0);
-                let (p, _) = legendre_with_derivative(l as usize, t);
+                let p = legendre::legendre(l as usize, t);
                 moment += 0.5 * w * t * p;
             }
             let k_l = ((2 * l + 1) as f64 / (4.0 * PI)).sqrt();

@@ -247,7 +247,6 @@ mod tests {
     use super::*;
     use crate::sh::{basis, index, rotate_zonal};
     use glam::{DQuat, DVec3};
-    use std::f64::consts::PI;
 
     /// A small deterministic generator (SplitMix64) so failures reproduce.
     struct Rng(u64);
@@ -287,48 +286,9 @@ mod tests {
         (-l..=l).map(|m| coeffs[index(l, m)].powi(2)).sum()
     }
 
-    /// (P_n(x), P_n'(x)) by Bonnet's recurrence.
-    fn legendre(n: usize, x: f64) -> (f64, f64) {
-        let (mut p0, mut p1) = (1.0, x);
-        if n == 0 {
-            return (1.0, 0.0);
-        }
-        for k in 2..=n {
-            let kf = k as f64;
-            let p2 = ((2.0 * kf - 1.0) * x * p1 - (kf - 1.0) * p0) / kf;
-            p0 = p1;
-            p1 = p2;
-        }
-        (p1, n as f64 * (x * p1 - p0) / (x * x - 1.0))
-    }
-
-    /// Gauss–Legendre in cos(theta) times the uniform rule in phi: `n` and `2n` points integrate
-    /// every spherical polynomial of degree < 2n exactly, and a product of two functions of
-    /// `n` bands has degree 2n - 2.
+    /// Exact for products of two functions of `n - 1` bands.
     fn product_quadrature(n: usize) -> Vec<(DVec3, f64)> {
-        let mut rule = Vec::new();
-        for i in 0..n {
-            let mut z = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-            for _ in 0..100 {
-                let (p, dp) = legendre(n, z);
-                z -= p / dp;
-                if (p / dp).abs() < 1e-16 {
-                    break;
-                }
-            }
-            let (_, dp) = legendre(n, z);
-            let weight = 2.0 / ((1.0 - z * z) * dp * dp);
-            let s = (1.0 - z * z).sqrt();
-            let azimuths = 2 * n;
-            for j in 0..azimuths {
-                let phi = 2.0 * PI * j as f64 / azimuths as f64;
-                rule.push((
-                    DVec3::new(s * phi.cos(), s * phi.sin(), z),
-                    weight * 2.0 * PI / azimuths as f64,
-                ));
-            }
-        }
-        rule
+        crate::sh::legendre::sphere_product_rule(n)
     }
 
     fn block_product(l: i32, a: &[f64], b: &[f64]) -> Vec<f64> {

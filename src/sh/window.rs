@@ -32,6 +32,7 @@
 use glam::DVec3;
 use std::f64::consts::PI;
 
+use super::legendre::{gauss_legendre, legendre_all};
 use super::{coeff_count, eval_basis};
 
 /// Which window to apply to lighting coefficients.
@@ -266,47 +267,6 @@ pub fn min_reconstruction(coeffs: &[[f32; 3]], bands: u32) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
-/// Gauss–Legendre nodes and weights on `[-1, 1]`, exact for polynomials of degree `< 2n`.
-fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
-    (0..n)
-        .map(|i| {
-            let mut x = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-            for _ in 0..100 {
-                let (p, dp) = legendre_and_derivative(n, x);
-                let dx = p / dp;
-                x -= dx;
-                if dx.abs() < 1e-16 {
-                    break;
-                }
-            }
-            let (_, dp) = legendre_and_derivative(n, x);
-            (x, 2.0 / ((1.0 - x * x) * dp * dp))
-        })
-        .collect()
-}
-
-/// `(P_0(x), ..., P_{n}(x))` by Bonnet's recurrence `(k+1) P_{k+1} = (2k+1) x P_k - k P_{k-1}`.
-fn legendre_all(n: usize, x: f64) -> Vec<f64> {
-    let mut p = vec![1.0; n + 1];
-    if n >= 1 {
-        p[1] = x;
-    }
-    for k in 1..n {
-        let kf = k as f64;
-        p[k + 1] = ((2.0 * kf + 1.0) * x * p[k] - kf * p[k - 1]) / (kf + 1.0);
-    }
-    p
-}
-
-/// `(P_n(x), P_n'(x))`, with `P_n' = n (x P_n - P_{n-1}) / (x^2 - 1)` (used inside (-1, 1)).
-fn legendre_and_derivative(n: usize, x: f64) -> (f64, f64) {
-    if n == 0 {
-        return (1.0, 0.0);
-    }
-    let p = legendre_all(n, x);
-    (p[n], n as f64 * (x * p[n] - p[n - 1]) / (x * x - 1.0))
-}
-
 /// The Fejér-type kernel `(1 + t)^e p_n(t)^2`, `p_n = sum_{j<=n} (2j+1) P_j`, `2n + e = bands - 1`.
 fn positive_kernel(bands: usize, t: f64) -> f64 {
     let degree = bands.saturating_sub(1);
@@ -398,21 +358,9 @@ pub fn non_negative_factors(coeffs: &[[f32; 3]], bands: u32) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::legendre::legendre;
     use super::*;
     use crate::sh::rotate_zonal;
-
-    /// P_n(x) by Bonnet's recurrence.
-    fn legendre(n: usize, x: f64) -> f64 {
-        let (mut p0, mut p1) = (1.0, x);
-        if n == 0 {
-            return 1.0;
-        }
-        for k in 2..=n {
-            let kf = k as f64;
-            (p0, p1) = (p1, ((2.0 * kf - 1.0) * x * p1 - (kf - 1.0) * p0) / kf);
-        }
-        p1
-    }
 
     /// Zonal coefficients of the unit-radiance cone of half-angle `a` about +Z:
     /// `2 pi K_l integral_{cos a}^1 P_l(t) dt`, where `integral_x^1 P_l = (P_{l-1}(x) -

@@ -312,6 +312,14 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
             bounce.seconds
         );
     }
+    if report.gather_entries > 0 {
+        // Each entry is a u32 column and an f32 weight.
+        eprintln!(
+            "gather matrix: {} entries ({:.1} MiB)",
+            report.gather_entries,
+            (report.gather_entries * 8) as f64 / (1u64 << 20) as f64
+        );
+    }
     let seconds_bounces: f64 = report.bounces.iter().map(|b| b.seconds).sum();
     let seconds = report.seconds_prepare + report.seconds_transfer + seconds_bounces;
     let rays_per_second = report.rays_cast as f64 / report.seconds_transfer.max(1e-9);

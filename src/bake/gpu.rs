@@ -282,6 +282,23 @@ fn plan_chunks(
     (vertex_chunk, sample_chunk.max(32))
 }
 
+/// Records one compute pass: `pipeline` over `workgroups` with `group` at binding set 0.
+fn encode_pass(
+    encoder: &mut wgpu::CommandEncoder,
+    label: &str,
+    pipeline: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    workgroups: [u32; 3],
+) {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes: None,
+    });
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, group, &[]);
+    pass.dispatch_workgroups(workgroups[0], workgroups[1], workgroups[2]);
+}
+
 fn as_vec4(values: &[glam::Vec3]) -> Vec<[f32; 4]> {
     values.iter().map(|v| [v.x, v.y, v.z, 0.0]).collect()
 }
@@ -455,24 +472,20 @@ fn run(
                             label: Some("bake chunk"),
                         });
                 encoder.clear_buffer(&bits, 0, None);
-                {
-                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some("visibility"),
-                        timestamp_writes: None,
-                    });
-                    pass.set_pipeline(&baker.visibility);
-                    pass.set_bind_group(0, &visibility_group, &[]);
-                    pass.dispatch_workgroups(samples.div_ceil(WORKGROUP_SIZE), vertices, 1);
-                }
-                {
-                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some("project"),
-                        timestamp_writes: None,
-                    });
-                    pass.set_pipeline(&baker.project);
-                    pass.set_bind_group(0, &project_group, &[]);
-                    pass.dispatch_workgroups((vertices * coeffs).div_ceil(WORKGROUP_SIZE), 1, 1);
-                }
+                encode_pass(
+                    &mut encoder,
+                    "visibility",
+                    &baker.visibility,
+                    &visibility_group,
+                    [samples.div_ceil(WORKGROUP_SIZE), vertices, 1],
+                );
+                encode_pass(
+                    &mut encoder,
+                    "project",
+                    &baker.project,
+                    &project_group,
+                    [(vertices * coeffs).div_ceil(WORKGROUP_SIZE), 1, 1],
+                );
                 ctx.queue.submit([encoder.finish()]);
             })?;
             ctx.wait()?;
@@ -717,19 +730,13 @@ impl GpuBaker {
                             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                                 label: Some("bounce"),
                             });
-                    {
-                        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                            label: Some("gather"),
-                            timestamp_writes: None,
-                        });
-                        pass.set_pipeline(&self.gather);
-                        pass.set_bind_group(0, &group, &[]);
-                        pass.dispatch_workgroups(
-                            (chunk.row_count * per_row).div_ceil(WORKGROUP_SIZE),
-                            1,
-                            1,
-                        );
-                    }
+                    encode_pass(
+                        &mut encoder,
+                        "gather",
+                        &self.gather,
+                        &group,
+                        [(chunk.row_count * per_row).div_ceil(WORKGROUP_SIZE), 1, 1],
+                    );
                     ctx.queue.submit([encoder.finish()]);
                 })?;
                 ctx.wait()?;

@@ -14,7 +14,7 @@ use std::f64::consts::PI;
 /// A delta of total `intensity` (W/m^2-like: the integral of radiance over the sphere) arriving
 /// from `direction`: `l_k = intensity * y_k(direction)`.
 pub fn directional(bands: u32, direction: DVec3, intensity: [f32; 3]) -> Result<ShLight> {
-    check_bands(bands)?;
+    sh::check_bands(bands)?;
     let dir = unit(direction, "light direction")?;
     let y = sh::basis(bands, dir);
     Ok(from_channels(bands, |c| {
@@ -25,7 +25,7 @@ pub fn directional(bands: u32, direction: DVec3, intensity: [f32; 3]) -> Result<
 /// Uniform `radiance` inside the cone of half-angle `half_angle` (radians, in (0, pi]) about
 /// `axis`, zero outside: `integral_{cos a}^{1} P_l = (P_{l-1}(cos a) - P_{l+1}(cos a)) / (2l+1)`.
 pub fn cone(bands: u32, axis: DVec3, half_angle: f64, radiance: [f32; 3]) -> Result<ShLight> {
-    check_bands(bands)?;
+    sh::check_bands(bands)?;
     let axis = unit(axis, "cone axis")?;
     if !(half_angle > 0.0 && half_angle <= PI) {
         return Err(Error::Options(format!(
@@ -73,7 +73,7 @@ pub fn sun_disk(
 
 /// `sky` radiance above the horizon (y > 0), `ground` below, about the world's +Y up axis.
 pub fn hemisphere(bands: u32, sky: [f32; 3], ground: [f32; 3]) -> Result<ShLight> {
-    check_bands(bands)?;
+    sh::check_bands(bands)?;
     // The upper half about +Z, then turned to +Y; the lower half is its mirror, (-1)^l.
     let upper: Vec<f64> = (0..bands)
         .map(|l| zonal_scale(l) * cap_legendre_integral(l, 0.0))
@@ -95,7 +95,7 @@ pub fn hemisphere(bands: u32, sky: [f32; 3], ground: [f32; 3]) -> Result<ShLight
 
 /// Constant radiance from every direction.
 pub fn constant(bands: u32, rgb: [f32; 3]) -> Result<ShLight> {
-    check_bands(bands)?;
+    sh::check_bands(bands)?;
     Ok(ShLight::constant(bands, rgb))
 }
 
@@ -119,7 +119,7 @@ pub fn tutorial_two_lights_radiance(direction: DVec3) -> f64 {
 /// `integral_c^1 (a t - b) P_l(t) dt` is a polynomial of degree l + 1 on [c, 1], which
 /// Gauss–Legendre with `bands + 1` nodes integrates exactly; no sphere sampling is involved.
 pub fn tutorial_two_lights(bands: u32) -> Result<ShLight> {
-    check_bands(bands)?;
+    sh::check_bands(bands)?;
     let second_axis = DVec3::new(2.5f64.cos(), 2.5f64.sin(), 0.0);
     let mut total = vec![0.0; sh::coeff_count(bands)];
     for (axis, slope, offset) in [(DVec3::Z, 5.0, 4.0), (second_axis, 4.0, 3.0)] {
@@ -183,16 +183,6 @@ fn from_channels(bands: u32, channel: impl Fn(usize) -> Vec<f64>) -> ShLight {
         .map(|k| [r[k] as f32, g[k] as f32, b[k] as f32])
         .collect();
     ShLight { bands, coeffs }
-}
-
-fn check_bands(bands: u32) -> Result<()> {
-    if bands == 0 || bands > sh::MAX_BANDS {
-        return Err(Error::Options(format!(
-            "bands must be between 1 and {}, not {bands}",
-            sh::MAX_BANDS
-        )));
-    }
-    Ok(())
 }
 
 fn unit(v: DVec3, what: &str) -> Result<DVec3> {

@@ -577,11 +577,12 @@ pub(crate) fn latlong_row_nodes(width: usize, height: usize, y: usize) -> [(f64,
     nodes.map(|(s, c, w)| (s, c, w * total / sum))
 }
 
+/// Every parameterization and a size of the right aspect, for tests across mappings.
 #[cfg(test)]
-mod tests {
-    use super::*;
+pub(crate) mod test_support {
+    use super::Mapping;
 
-    const ALL: [Mapping; 5] = [
+    pub(crate) const ALL: [Mapping; 5] = [
         Mapping::Latlong,
         Mapping::Angular,
         Mapping::MirrorBall,
@@ -589,7 +590,7 @@ mod tests {
         Mapping::CrossVertical,
     ];
 
-    fn size_for(mapping: Mapping, n: usize) -> (usize, usize) {
+    pub(crate) fn size_for(mapping: Mapping, n: usize) -> (usize, usize) {
         match mapping {
             Mapping::Latlong => (2 * n, n),
             Mapping::Angular | Mapping::MirrorBall => (n, n),
@@ -597,6 +598,12 @@ mod tests {
             Mapping::CrossVertical => (3 * n, 4 * n),
         }
     }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::test_support::{size_for, ALL};
+    use super::*;
 
     fn close(a: DVec3, b: DVec3, tol: f64) -> bool {
         (a - b).length() < tol

@@ -35,7 +35,7 @@ pub fn project_with(
     bands: u32,
     options: &ProjectOptions,
 ) -> Result<Projection> {
-    check_bands(bands)?;
+    sh::check_bands(bands)?;
     mapping
         .check_size(image.width, image.height)
         .map_err(|m| Error::light(&image.source, m))?;
@@ -220,16 +220,6 @@ pub fn cross_from_faces(faces: [&EnvImage; 6]) -> Result<EnvImage> {
     EnvImage::new(width, height, pixels, faces[0].source.clone())
 }
 
-fn check_bands(bands: u32) -> Result<()> {
-    if bands == 0 || bands > sh::MAX_BANDS {
-        return Err(Error::Options(format!(
-            "bands must be between 1 and {}, not {bands}",
-            sh::MAX_BANDS
-        )));
-    }
-    Ok(())
-}
-
 fn is_valid(p: &[f32; 3]) -> bool {
     p.iter().all(|v| v.is_finite())
 }
@@ -279,26 +269,10 @@ fn row_sum(image: &EnvImage, layout: &Layout, bands: u32, y: usize) -> Vec<[f64;
 
 #[cfg(test)]
 mod tests {
+    use super::super::mapping::test_support::{size_for, ALL};
     use super::super::mapping::{pixel_direction, pixel_solid_angle};
     use super::*;
     use std::f64::consts::PI;
-
-    const ALL: [Mapping; 5] = [
-        Mapping::Latlong,
-        Mapping::Angular,
-        Mapping::MirrorBall,
-        Mapping::CrossHorizontal,
-        Mapping::CrossVertical,
-    ];
-
-    fn size_for(mapping: Mapping, n: usize) -> (usize, usize) {
-        match mapping {
-            Mapping::Latlong => (2 * n, n),
-            Mapping::Angular | Mapping::MirrorBall => (n, n),
-            Mapping::CrossHorizontal => (4 * n, 3 * n),
-            Mapping::CrossVertical => (3 * n, 4 * n),
-        }
-    }
 
     fn constant(mapping: Mapping, n: usize, rgb: [f32; 3]) -> EnvImage {
         let (w, h) = size_for(mapping, n);

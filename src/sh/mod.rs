@@ -27,6 +27,16 @@ theta from +Z, phi from +X towards +Y (world space, Y up)";
 /// The largest band count the baker accepts.
 pub const MAX_BANDS: u32 = 32;
 
+/// `Ok` for a band count the baker supports (1 to [`MAX_BANDS`]).
+pub fn check_bands(bands: u32) -> crate::Result<()> {
+    if bands == 0 || bands > MAX_BANDS {
+        return Err(crate::Error::Options(format!(
+            "bands must be between 1 and {MAX_BANDS}, not {bands}"
+        )));
+    }
+    Ok(())
+}
+
 /// Number of coefficients for `bands` bands.
 pub const fn coeff_count(bands: u32) -> usize {
     (bands * bands) as usize

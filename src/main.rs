@@ -9,10 +9,11 @@ use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
-use prt_gpu::bake::{self, Backend, BakeOptions, Mode, Progress};
+use prt_gpu::bake::{self, Backend, BakeOptions, Mode, Progress, DEFAULT_SAMPLING};
 use prt_gpu::gpu::{self, DeviceChoice};
 use prt_gpu::light::{self, analytic, Mapping, ShLight};
 use prt_gpu::render::{self, Camera, ToneMap};
+use prt_gpu::sampling::Sampling;
 use prt_gpu::sh::window::Window;
 use prt_gpu::{output, scene};
 
@@ -151,9 +152,13 @@ struct BakeArgs {
     /// Spherical-harmonic bands (bands^2 coefficients per channel).
     #[arg(long, default_value_t = 4)]
     bands: u32,
-    /// Sample directions per vertex; rounded to the nearest square (stratified sampling).
+    /// Sample directions per vertex (rounded to the nearest square for stratified and cosine).
     #[arg(long, default_value_t = 1024)]
     samples: u32,
+    /// How sample directions are drawn and weighted. control-variate (the default) estimates
+    /// only what geometry blocks and adds the exact unoccluded transfer; see `prt-gpu chart`.
+    #[arg(long, value_enum, default_value_t = DEFAULT_SAMPLING)]
+    sampling: Sampling,
     /// Light transport to capture.
     #[arg(long, value_enum, default_value_t = Mode::Shadowed)]
     mode: Mode,
@@ -230,6 +235,7 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
     let options = BakeOptions {
         bands: args.bands,
         samples: args.samples,
+        sampling: args.sampling,
         seed: args.seed,
         mode: args.mode,
         albedo: args.albedo,
@@ -252,8 +258,9 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
     if options.samples_used() != options.samples {
         let side = (options.samples_used() as f64).sqrt() as u32;
         eprintln!(
-            "note: --samples {} is not a square; using {} ({side} x {side} strata)",
+            "note: --samples {} is not a square; {} sampling uses {} ({side} x {side} strata)",
             options.samples,
+            options.sampling.name(),
             options.samples_used()
         );
     }
@@ -324,12 +331,13 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
     let seconds = report.seconds_prepare + report.seconds_transfer + seconds_bounces;
     let rays_per_second = report.rays_cast as f64 / report.seconds_transfer.max(1e-9);
     println!(
-        "baked {name}: {} vertices, {} triangles, {} bands, {} samples, {} mode; {} rays in {:.2} s \
+        "baked {name}: {} vertices, {} triangles, {} bands, {} {} samples, {} mode; {} rays in {:.2} s \
          ({:.2} M rays/s), {:.2} s in all ({}) -> {}",
         report.prepare.vertices,
         report.prepare.triangles,
         options.bands,
         report.samples_used,
+        options.sampling.name(),
         options.mode.name(),
         report.rays_cast,
         report.seconds_transfer,

@@ -4,7 +4,8 @@
 //! which has no 64-bit integers, can reproduce it bit for bit with wrapping `u32` arithmetic.
 //! Floats are formed from the top 24 bits, which every f32 represents exactly.
 
-use glam::{DVec3, Vec3};
+use glam::{DMat3, DVec3, Vec3};
+use serde::{Deserialize, Serialize};
 
 /// PCG-RXS-M-XS-32: a 32-bit linear congruential state with a permuted output.
 #[derive(Clone, Debug)]
@@ -57,12 +58,113 @@ pub fn nearest_square(requested: u32) -> u32 {
     side * side
 }
 
-/// Directions on the unit sphere with one shared quadrature weight (uniform density).
+/// How the bake draws its sample directions and turns them into transfer (`--sampling`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Sampling {
+    /// Plain Monte Carlo: independent uniform directions on the sphere, shared by all vertices.
+    Uniform,
+    /// The tutorial's jittered sqrt(N) x sqrt(N) grid on the sphere, shared by all vertices.
+    Stratified,
+    /// A spherical Fibonacci set turned by a random rotation, shared by all vertices.
+    Fibonacci,
+    /// A jittered grid with cosine-weighted density on each vertex's own hemisphere: no ray
+    /// goes below the horizon, and the cosine is carried by the density instead of the sum.
+    Cosine,
+    /// The spherical Fibonacci set with a control variate: the unoccluded transfer in closed
+    /// form, minus a Monte Carlo estimate of the part that geometry blocks.
+    ControlVariate,
+}
+
+impl Sampling {
+    pub fn name(self) -> &'static str {
+        match self {
+            Sampling::Uniform => "uniform",
+            Sampling::Stratified => "stratified",
+            Sampling::Fibonacci => "fibonacci",
+            Sampling::Cosine => "cosine",
+            Sampling::ControlVariate => "control-variate",
+        }
+    }
+
+    pub const ALL: [Sampling; 5] = [
+        Sampling::Uniform,
+        Sampling::Stratified,
+        Sampling::Fibonacci,
+        Sampling::Cosine,
+        Sampling::ControlVariate,
+    ];
+
+    /// The sample count used for `requested`: grids need a square number.
+    pub fn samples_used(self, requested: u32) -> u32 {
+        match self {
+            Sampling::Stratified | Sampling::Cosine => nearest_square(requested),
+            Sampling::Uniform | Sampling::Fibonacci | Sampling::ControlVariate => requested.max(1),
+        }
+    }
+
+    /// The direction set of a bake; `count` must come from [`Sampling::samples_used`].
+    pub fn directions(self, count: u32, seed: u64) -> SampleSet {
+        match self {
+            Sampling::Uniform => uniform_sphere(count, seed),
+            Sampling::Stratified => stratified_sphere(count, seed),
+            Sampling::Fibonacci | Sampling::ControlVariate => fibonacci_sphere(count, seed),
+            Sampling::Cosine => cosine_hemisphere(count, seed),
+        }
+    }
+
+    /// How the projected sums become transfer.
+    pub fn estimator(self) -> Estimator {
+        match self {
+            Sampling::Uniform | Sampling::Stratified | Sampling::Fibonacci => Estimator::Visible,
+            Sampling::Cosine => Estimator::CosineWeighted,
+            Sampling::ControlVariate => Estimator::Blocked,
+        }
+    }
+}
+
+/// The Monte Carlo estimator of `t_k = (1/pi) integral V(w) max(0, n.w) y_k(w) dw`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Estimator {
+    /// `(dw/pi) sum over visible s of (n.w_s) y_k(w_s)`, uniform density.
+    Visible,
+    /// `t_k(unoccluded, closed form) - (dw/pi) sum over blocked s of (n.w_s) y_k(w_s)`:
+    /// only the blocked part is estimated, so the error shrinks with the occluded fraction.
+    Blocked,
+    /// Directions in the vertex's tangent frame with density `cos / pi`, so
+    /// `t_k = (1/N) sum over visible s of y_k(w_s)`; sums run in the tangent frame and are
+    /// rotated to the world once per vertex.
+    CosineWeighted,
+}
+
+impl Estimator {
+    /// Whether a sample's projected term carries the cosine `n.w`.
+    pub fn weights_by_cosine(self) -> bool {
+        self != Estimator::CosineWeighted
+    }
+
+    /// Whether the sums run over blocked rays rather than visible ones.
+    pub fn sums_blocked(self) -> bool {
+        self == Estimator::Blocked
+    }
+}
+
+/// Whether a set's directions are world directions or live in each vertex's tangent frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DirectionFrame {
+    World,
+    /// `(x, y, z)` means `x t + y b + z n` with `(t, b, n)` = [`tangent_frame`] of the normal.
+    Tangent,
+}
+
+/// Directions shared by all vertices, with one quadrature weight each.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SampleSet {
     pub directions: Vec<Vec3>,
-    /// Solid angle per sample: 4 pi / N.
+    /// What each sample stands for: its solid angle (4 pi / N) for uniform densities, pi / N
+    /// for the cosine density (so that `weight / pi` is the estimator's `1/N`).
     pub weight: f64,
+    pub frame: DirectionFrame,
 }
 
 impl SampleSet {
@@ -102,6 +204,117 @@ pub fn stratified_sphere(count: u32, seed: u64) -> SampleSet {
     SampleSet {
         directions,
         weight: 4.0 * std::f64::consts::PI / count as f64,
+        frame: DirectionFrame::World,
+    }
+}
+
+/// Independent uniform directions on the sphere: plain Monte Carlo, the baseline.
+pub fn uniform_sphere(count: u32, seed: u64) -> SampleSet {
+    let mut rng = Pcg32::new(seed);
+    let directions = (0..count)
+        .map(|_| {
+            let u = rng.next_f32() as f64;
+            let v = rng.next_f32() as f64;
+            square_to_sphere(u, v).normalize().as_vec3()
+        })
+        .collect();
+    SampleSet {
+        directions,
+        weight: 4.0 * std::f64::consts::PI / count as f64,
+        frame: DirectionFrame::World,
+    }
+}
+
+/// The golden angle's fraction of a turn, (3 - sqrt 5) / 2.
+const GOLDEN_FRACTION: f64 = 0.381_966_011_250_105_1;
+
+/// Spherical Fibonacci points (point i at height `1 - (2i + 1)/N`, turned by the golden angle
+/// from the last), then all turned by one uniformly random rotation. The rotation makes every
+/// point uniformly distributed on its own, so the estimate is unbiased; the lattice keeps the
+/// points evenly spread, so its error falls faster than plain Monte Carlo's.
+pub fn fibonacci_sphere(count: u32, seed: u64) -> SampleSet {
+    let mut rng = Pcg32::new(seed);
+    let rotation = random_rotation(&mut rng);
+    let n = count as f64;
+    let directions = (0..count)
+        .map(|i| {
+            let z = 1.0 - (2.0 * i as f64 + 1.0) / n;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = 2.0 * std::f64::consts::PI * (i as f64 * GOLDEN_FRACTION).fract();
+            let point = DVec3::new(r * phi.cos(), r * phi.sin(), z);
+            (rotation * point).normalize().as_vec3()
+        })
+        .collect();
+    SampleSet {
+        directions,
+        weight: 4.0 * std::f64::consts::PI / n,
+        frame: DirectionFrame::World,
+    }
+}
+
+/// A rotation drawn uniformly from SO(3): a uniform quaternion (Shoemake's method).
+pub fn random_rotation(rng: &mut Pcg32) -> DMat3 {
+    let u1 = rng.next_f32() as f64;
+    let (u2, u3) = (
+        2.0 * std::f64::consts::PI * rng.next_f32() as f64,
+        2.0 * std::f64::consts::PI * rng.next_f32() as f64,
+    );
+    let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
+    let q = glam::DQuat::from_xyzw(a * u2.sin(), a * u2.cos(), b * u3.sin(), b * u3.cos());
+    DMat3::from_quat(q.normalize())
+}
+
+/// A jittered `side x side` grid mapped to the upper hemisphere with density `cos(theta) / pi`
+/// (Malley: a uniform point of the unit disk lifted onto the hemisphere). Directions are in
+/// the tangent frame, z along the normal. `count` must be a square.
+pub fn cosine_hemisphere(count: u32, seed: u64) -> SampleSet {
+    let side = (count as f64).sqrt().round() as u32;
+    assert_eq!(side * side, count, "cosine_hemisphere needs a square count");
+    let mut rng = Pcg32::new(seed);
+    let mut directions = Vec::with_capacity(count as usize);
+    for a in 0..side {
+        for b in 0..side {
+            let u = (a as f64 + rng.next_f32() as f64) / side as f64;
+            let v = (b as f64 + rng.next_f32() as f64) / side as f64;
+            directions.push(square_to_cosine_hemisphere(u, v).normalize().as_vec3());
+        }
+    }
+    SampleSet {
+        directions,
+        weight: std::f64::consts::PI / count as f64,
+        frame: DirectionFrame::Tangent,
+    }
+}
+
+/// `r = sqrt(u)`, `phi = 2 pi v` on the disk, lifted to `z = sqrt(1 - u)`. The smallest u is
+/// kept off 1 so that z stays positive.
+pub fn square_to_cosine_hemisphere(u: f64, v: f64) -> DVec3 {
+    let u = u.min(1.0 - 1e-7);
+    let r = u.sqrt();
+    let phi = 2.0 * std::f64::consts::PI * v;
+    DVec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u).sqrt())
+}
+
+/// A right-handed orthonormal frame `(t, b, n)` around a unit normal, with no branch on the
+/// normal's direction except its z sign (Duff et al., "Building an orthonormal basis,
+/// revisited", 2017). wgsl/visibility.wgsl's `tangent_frame` is its twin, in the same f32 steps.
+pub fn tangent_frame(n: Vec3) -> [Vec3; 3] {
+    let sign = if n.z >= 0.0 { 1.0f32 } else { -1.0 };
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    let tangent = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    let bitangent = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+    [tangent, bitangent, n]
+}
+
+/// World direction of sample `d` for a vertex with normal `n` in frame `frame`.
+pub fn world_direction(frame: DirectionFrame, n: Vec3, d: Vec3) -> Vec3 {
+    match frame {
+        DirectionFrame::World => d,
+        DirectionFrame::Tangent => {
+            let [t, b, n] = tangent_frame(n);
+            t * d.x + b * d.y + n * d.z
+        }
     }
 }
 
@@ -183,5 +396,77 @@ mod tests {
         // Stratification makes this far smaller than the 1/sqrt(N) of plain Monte Carlo.
         assert!(mean.length() < 0.01, "{mean}");
         assert!((set.weight * set.len() as f64 - 4.0 * std::f64::consts::PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn tangent_frames_are_right_handed_and_orthonormal() {
+        let mut rng = Pcg32::new(5);
+        let mut normals: Vec<Vec3> = (0..1000)
+            .map(|_| square_to_sphere(rng.next_f32() as f64, rng.next_f32() as f64).as_vec3())
+            .collect();
+        // The poles and the seam where the sign of z flips.
+        normals.extend([Vec3::Z, Vec3::NEG_Z, Vec3::X, Vec3::new(0.6, 0.8, -0.0)]);
+        for n in normals {
+            let n = n.normalize();
+            let [t, b, m] = tangent_frame(n);
+            assert_eq!(m, n);
+            for (u, v) in [(t, b), (b, n), (n, t)] {
+                assert!(u.dot(v).abs() < 1e-6, "{n}: {u} . {v}");
+            }
+            for axis in [t, b] {
+                assert!((axis.length() - 1.0).abs() < 1e-6);
+            }
+            assert!((t.cross(b) - n).length() < 1e-6, "{n}: not right-handed");
+        }
+    }
+
+    #[test]
+    fn fibonacci_points_are_evenly_spread_and_turn_with_the_seed() {
+        let a = fibonacci_sphere(1000, 1);
+        let b = fibonacci_sphere(1000, 2);
+        assert_ne!(a.directions, b.directions);
+        let mean: Vec3 = a.directions.iter().sum::<Vec3>() / 1000.0;
+        assert!(mean.length() < 1e-3, "{mean}");
+        // Evenly spread: the nearest neighbour of every point is about sqrt(4 pi / N) away,
+        // never much closer (random points would have pairs a few times closer).
+        let spacing = (4.0 * std::f32::consts::PI / 1000.0).sqrt();
+        for (i, p) in a.directions.iter().enumerate() {
+            let nearest = a
+                .directions
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .map(|(_, q)| (*p - *q).length())
+                .fold(f32::MAX, f32::min);
+            assert!(nearest > 0.5 * spacing, "point {i}: {nearest} vs {spacing}");
+        }
+    }
+
+    #[test]
+    fn cosine_directions_have_the_cosine_density() {
+        let set = cosine_hemisphere(64 * 64, 9);
+        assert_eq!(set.frame, DirectionFrame::Tangent);
+        assert!(set.directions.iter().all(|d| d.z > 0.0));
+        // Under density cos/pi: E[z] = 2/3, E[z^2] = 1/2, E[x] = E[y] = 0.
+        let n = set.len() as f32;
+        let mean: Vec3 = set.directions.iter().sum::<Vec3>() / n;
+        let mean_z2 = set.directions.iter().map(|d| d.z * d.z).sum::<f32>() / n;
+        assert!((mean.z - 2.0 / 3.0).abs() < 1e-3, "{mean}");
+        assert!((mean_z2 - 0.5).abs() < 1e-3, "{mean_z2}");
+        assert!(mean.x.abs() < 1e-3 && mean.y.abs() < 1e-3, "{mean}");
+        assert!((set.weight * n as f64 - std::f64::consts::PI).abs() < 1e-9);
+    }
+
+    #[test]
+    fn sample_counts_round_only_for_grids() {
+        assert_eq!(Sampling::Stratified.samples_used(1000), 1024);
+        assert_eq!(Sampling::Cosine.samples_used(1000), 1024);
+        assert_eq!(Sampling::Fibonacci.samples_used(1000), 1000);
+        assert_eq!(Sampling::Uniform.samples_used(1000), 1000);
+        assert_eq!(Sampling::ControlVariate.samples_used(1000), 1000);
+        for sampling in Sampling::ALL {
+            let used = sampling.samples_used(300);
+            assert_eq!(sampling.directions(used, 1).len(), used as usize);
+        }
     }
 }

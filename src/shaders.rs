@@ -125,7 +125,11 @@ mod tests {
                 words_per_vertex,
                 max_steps,
                 shadowed,
-                record_hits
+                record_hits,
+                tangent_frames,
+                pad0,
+                pad1,
+                pad2
             )
         );
         assert_eq!(
@@ -161,7 +165,7 @@ mod tests {
                 words_per_vertex,
                 coeff_count,
                 accumulate,
-                pad0
+                estimator
             )
         );
     }

@@ -65,6 +65,8 @@ fn a_non_square_sample_count_is_rounded_and_said() {
             "bake",
             "--samples",
             "50",
+            "--sampling",
+            "stratified",
             "--mode",
             "unshadowed",
             "-o",
@@ -74,7 +76,24 @@ fn a_non_square_sample_count_is_rounded_and_said() {
     );
     assert!(out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("using 49"), "{stderr}");
+    assert!(stderr.contains("uses 49"), "{stderr}");
+    // Sets without a grid take the count as given.
+    let out = prt_gpu(
+        &[
+            "bake",
+            "--samples",
+            "50",
+            "--sampling",
+            "fibonacci",
+            "--mode",
+            "unshadowed",
+            "-o",
+            "b.glb",
+        ],
+        &dir,
+    );
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stdout).contains("50 fibonacci samples"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use prt_gpu::bake::{bake, Backend, BakeOptions, Mode, NoProgress};
 use prt_gpu::output::encode_glb;
+use prt_gpu::sampling::Sampling;
 use prt_gpu::scene;
 
 fn data(name: &str) -> PathBuf {
@@ -14,11 +15,12 @@ fn data(name: &str) -> PathBuf {
 }
 
 /// Shadowed and unshadowed bakes of one mesh: DC terms per vertex, and the shadowed rays cast.
-fn dc_terms(name: &str, samples: u32) -> (Vec<f32>, Vec<f32>, u64) {
+fn dc_terms(name: &str, samples: u32, sampling: Sampling) -> (Vec<f32>, Vec<f32>, u64) {
     let mesh = scene::load(&data(name)).unwrap();
     let options = BakeOptions {
         bands: 4,
         samples,
+        sampling,
         ..BakeOptions::default()
     };
     let (shadowed, report) = bake(mesh.clone(), &options, &Backend::Cpu, &NoProgress).unwrap();
@@ -45,7 +47,13 @@ fn dc_terms(name: &str, samples: u32) -> (Vec<f32>, Vec<f32>, u64) {
 }
 
 fn check_shadowing(name: &str, samples: u32, min_shadowed_fraction: f64) {
-    let (shadowed, unshadowed, rays) = dc_terms(name, samples);
+    for sampling in Sampling::ALL {
+        check_shadowing_with(name, samples, min_shadowed_fraction, sampling);
+    }
+}
+
+fn check_shadowing_with(name: &str, samples: u32, min_shadowed_fraction: f64, sampling: Sampling) {
+    let (shadowed, unshadowed, rays) = dc_terms(name, samples, sampling);
     assert!(rays > 0);
     let mut strictly_darker = 0;
     for (v, (s, u)) in shadowed.iter().zip(&unshadowed).enumerate() {
@@ -53,9 +61,14 @@ fn check_shadowing(name: &str, samples: u32, min_shadowed_fraction: f64) {
         // The DC basis function is a positive constant: blocking rays can only lower it.
         assert!(
             *s <= *u + 1e-6,
-            "{name} vertex {v}: shadowed {s} > unshadowed {u}"
+            "{name} {sampling:?} vertex {v}: shadowed {s} > unshadowed {u}"
         );
-        assert!(*s >= 0.0);
+        // Sums over visible rays are sums of positive terms; the control variate subtracts
+        // from the exact unoccluded value and may dip below zero by its (tested) open-sky
+        // error where nearly everything is blocked.
+        if !sampling.estimator().sums_blocked() {
+            assert!(*s >= 0.0, "{name} {sampling:?} vertex {v}: {s}");
+        }
         if *s < 0.95 * *u {
             strictly_darker += 1;
         }

@@ -6,7 +6,7 @@ use glam::{DVec3, Vec3};
 use prt_gpu::bake::gpu::Chunking;
 use prt_gpu::bake::{bake, cpu, gpu, Backend, BakeOptions, DirectInputs, Mode, NoProgress};
 use prt_gpu::bvh::Bvh;
-use prt_gpu::sampling::stratified_sphere;
+use prt_gpu::sampling::{stratified_sphere, Estimator};
 use prt_gpu::scene::builtin;
 use prt_gpu::sh::{coeff_count, unshadowed_transfer, ShTable};
 
@@ -31,6 +31,7 @@ fn estimate_with_error(
         bvh: &bvh,
         samples: &set,
         table: &table,
+        estimator: Estimator::Visible,
     };
     let n = coeff_count(bands);
     let estimate: Vec<f64> = match backend {

@@ -8,7 +8,7 @@ use prt_gpu::bake::gpu::{visibility_bits_and_transfer, Chunking, GpuBaker};
 use prt_gpu::bake::{bake, Backend, BakeOptions, DirectInputs, Mode, NoProgress};
 use prt_gpu::bvh::Bvh;
 use prt_gpu::ray::{Ray, RAY_T_MAX};
-use prt_gpu::sampling::{Pcg32, SampleSet};
+use prt_gpu::sampling::{DirectionFrame, Estimator, Pcg32, SampleSet};
 use prt_gpu::scene::{builtin, prepare::prepare, Scene};
 use prt_gpu::sh::ShTable;
 
@@ -172,6 +172,7 @@ fn gpu_escapes(baker: &GpuBaker, bvh: &Bvh, origins: &[Vec3], directions: Vec<Ve
     let samples = SampleSet {
         weight: 4.0 * std::f64::consts::PI / directions.len() as f64,
         directions,
+        frame: DirectionFrame::World,
     };
     let table = ShTable::new(1, &samples.directions);
     let inputs = DirectInputs {
@@ -181,6 +182,7 @@ fn gpu_escapes(baker: &GpuBaker, bvh: &Bvh, origins: &[Vec3], directions: Vec<Ve
         bvh,
         samples: &samples,
         table: &table,
+        estimator: Estimator::Visible,
     };
     let (bits, _) =
         visibility_bits_and_transfer(baker, &inputs, Mode::Shadowed, Chunking::default()).unwrap();

@@ -1,6 +1,6 @@
 // Projection pass: one invocation per (vertex, coefficient) of a chunk; sums
-// cos(n, w_s) y_k(w_s) over the samples whose visibility bit is set. Rust twin:
-// bake::cpu::project_visibility. Sums run per 32-sample word and are then added, which keeps
+// cos(n, w_s) y_k(w_s) over the samples whose visibility bit is set (or over the blocked ones,
+// or without the cosine: see ESTIMATOR_*). Rust twin: bake::cpu::project_visibility. Sums run per 32-sample word and are then added, which keeps
 // the f32 rounding error near (32 + samples/32) ulps instead of growing with the sample count.
 
 struct ProjectParams {
@@ -12,8 +12,15 @@ struct ProjectParams {
     coeff_count: u32,
     // 1: add to what `transfer` holds (later sample chunks); 0: overwrite.
     accumulate: u32,
-    pad0: u32,
+    estimator: u32,
 }
+
+// Rust twin: sampling::Estimator. Visible: cosine-weighted sum over visible samples.
+const ESTIMATOR_VISIBLE: u32 = 0u;
+// Cosine-weighted sum over samples above the horizon that are blocked (control variate).
+const ESTIMATOR_BLOCKED: u32 = 1u;
+// Unweighted sum over visible samples; directions are in the tangent frame (cosine density).
+const ESTIMATOR_COSINE_WEIGHTED: u32 = 2u;
 
 @group(0) @binding(0) var<uniform> params: ProjectParams;
 @group(0) @binding(1) var<storage, read> normals: array<vec4<f32>>;
@@ -31,15 +38,22 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let local_vertex = index / params.coeff_count;
     let k = index % params.coeff_count;
     let normal = normals[params.vertex_offset + local_vertex].xyz;
+    let sums_blocked = params.estimator == ESTIMATOR_BLOCKED;
+    let tangent = params.estimator == ESTIMATOR_COSINE_WEIGHTED;
     var total = 0.0;
     for (var word = 0u; word < params.words_per_vertex; word += 1u) {
         let bits = visible_bits[local_vertex * params.words_per_vertex + word];
         var partial = 0.0;
-        for (var bit = 0u; bit < 32u; bit += 1u) {
-            if ((bits & (1u << bit)) != 0u) {
-                let sample = params.sample_offset + word * 32u + bit;
-                let cosine = dot(normal, directions[sample].xyz);
-                partial += cosine * sh_table[sample * params.coeff_count + k];
+        let bits_in_word = min(32u, params.sample_count - min(params.sample_count, word * 32u));
+        for (var bit = 0u; bit < bits_in_word; bit += 1u) {
+            let sample = params.sample_offset + word * 32u + bit;
+            let direction = directions[sample].xyz;
+            let cosine = select(dot(normal, direction), direction.z, tangent);
+            let visible = (bits & (1u << bit)) != 0u;
+            let selected = select(visible, cosine > 0.0 && !visible, sums_blocked);
+            if (selected) {
+                let weight = select(cosine, 1.0, tangent);
+                partial += weight * sh_table[sample * params.coeff_count + k];
             }
         }
         total += partial;

@@ -24,6 +24,11 @@ struct VisibilityParams {
     shadowed: u32,
     // 1: find the closest hit of each ray and write it to `hits` (interreflection).
     record_hits: u32,
+    // 1: directions are in each vertex's tangent frame (cosine-weighted sampling).
+    tangent_frames: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: VisibilityParams;
@@ -38,6 +43,16 @@ struct VisibilityParams {
 // [local_vertex * sample_count + local_sample]; written only when record_hits is 1.
 @group(0) @binding(8) var<storage, read_write> hits: array<Hit>;
 
+// Rust twin: sampling::tangent_frame (Duff et al. 2017), step for step.
+fn tangent_frame(n: vec3<f32>) -> mat3x3<f32> {
+    let sign = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    let tangent = vec3<f32>(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    let bitangent = vec3<f32>(b, sign + n.y * n.y * a, -n.y);
+    return mat3x3<f32>(tangent, bitangent, n);
+}
+
 @compute @workgroup_size(WORKGROUP_SIZE, 1, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let local_sample = id.x;
@@ -46,8 +61,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let vertex = params.vertex_offset + local_vertex;
-    let direction = directions[params.sample_offset + local_sample].xyz;
     let normal = normals[vertex].xyz;
+    var direction = directions[params.sample_offset + local_sample].xyz;
+    if (params.tangent_frames != 0u) {
+        let frame = tangent_frame(normal);
+        direction = frame[0] * direction.x + frame[1] * direction.y + frame[2] * direction.z;
+    }
     let hit_slot = local_vertex * params.sample_count + local_sample;
     if (dot(normal, direction) <= 0.0) {
         if (params.record_hits != 0u) {

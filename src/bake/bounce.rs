@@ -19,6 +19,7 @@ use rayon::prelude::*;
 
 use super::{cpu, DirectInputs, Progress};
 use crate::ray::{Ray, RAY_T_MAX};
+use crate::sampling::world_direction;
 use crate::sh::coeff_count;
 
 /// The closest hit of one ray, 12 bytes. WGSL twin in wgsl/hits.wgsl:
@@ -84,8 +85,9 @@ impl GatherMatrix {
 
 /// The gather row of `vertex` from the hits of its blocked rays, `(sample, hit)`.
 ///
-/// Each front-facing hit adds `(w / pi) cos(n_p, w_s) b_j` to the weight of each hit-triangle
-/// vertex j with barycentric `b_j`. Entries of one vertex are merged, so a row is as long as
+/// Each front-facing hit adds `(w / pi) cos(n_p, w_s) b_j` (without the cosine when the
+/// sample density carries it) to the weight of each hit-triangle vertex j with barycentric
+/// `b_j`. Entries of one vertex are merged, so a row is as long as
 /// the number of distinct vertices the rays land near, not three per ray.
 pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> Vec<(u32, f32)> {
     let normal = inputs.normals[vertex];
@@ -95,7 +97,11 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
         if hit.triangle == NO_HIT {
             continue;
         }
-        let direction = inputs.samples.directions[sample as usize];
+        let direction = world_direction(
+            inputs.samples.frame,
+            normal,
+            inputs.samples.directions[sample as usize],
+        );
         let cosine = normal.dot(direction);
         let corners = inputs.triangles[hit.triangle as usize];
         let barycentrics = [1.0 - hit.u - hit.v, hit.u, hit.v];
@@ -107,8 +113,13 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
         if cosine <= 0.0 || shading_normal.dot(direction) >= 0.0 {
             continue;
         }
+        let density_weight = if inputs.estimator.weights_by_cosine() {
+            cosine as f64
+        } else {
+            1.0
+        };
         for (&j, b) in corners.iter().zip(barycentrics) {
-            entries.push((j, scale * cosine as f64 * b.max(0.0) as f64));
+            entries.push((j, scale * density_weight * b.max(0.0) as f64));
         }
     }
     entries.sort_by_key(|&(j, _)| j);
@@ -134,7 +145,8 @@ pub fn vertex_hits(inputs: &DirectInputs, vertex: usize) -> Vec<(u32, Hit)> {
     let normal = inputs.normals[vertex];
     let origin = inputs.origins[vertex];
     let mut hits = Vec::new();
-    for (s, &direction) in inputs.samples.directions.iter().enumerate() {
+    for (s, &sample) in inputs.samples.directions.iter().enumerate() {
+        let direction = world_direction(inputs.samples.frame, normal, sample);
         if normal.dot(direction) <= 0.0 {
             continue;
         }
@@ -174,8 +186,8 @@ pub fn direct_transfer_and_gather_matrix_cpu(
             let normal = inputs.normals[v];
             let mut bits = vec![0u32; words];
             let mut rays = 0;
-            for (s, d) in inputs.samples.directions.iter().enumerate() {
-                if normal.dot(*d) > 0.0 {
+            for (s, &d) in inputs.samples.directions.iter().enumerate() {
+                if normal.dot(world_direction(inputs.samples.frame, normal, d)) > 0.0 {
                     bits[s / 32] |= 1 << (s % 32);
                     rays += 1;
                 }
@@ -185,8 +197,8 @@ pub fn direct_transfer_and_gather_matrix_cpu(
             }
             let mut sums = vec![0.0f64; n];
             cpu::project_visibility(inputs, v, &bits, &mut sums);
-            let scale = cpu::transfer_scale(inputs);
-            let transfer = sums.iter().map(|t| (t * scale) as f32).collect();
+            cpu::finish_transfer(inputs, v, &mut sums);
+            let transfer = sums.iter().map(|&t| t as f32).collect();
             progress.advance(1);
             (transfer, gather_row(inputs, v, &hits), rays)
         })

@@ -8,7 +8,9 @@ use rayon::prelude::*;
 
 use super::{DirectInputs, Mode, Progress};
 use crate::ray::{Ray, RAY_T_MAX};
-use crate::sh::coeff_count;
+use crate::sampling::{tangent_frame, world_direction, DirectionFrame, Estimator};
+use crate::sh::rotation::ShRotation;
+use crate::sh::{coeff_count, unshadowed_transfer};
 
 /// Vertices handed to one rayon task: large enough to amortise scheduling, small enough for
 /// smooth progress and load balance on scenes with uneven occlusion.
@@ -26,7 +28,8 @@ pub fn trace_visibility(inputs: &DirectInputs, mode: Mode, vertex: usize, bits: 
     let origin = inputs.origins[vertex];
     let mut rays = 0;
     bits.fill(0);
-    for (s, &direction) in inputs.samples.directions.iter().enumerate() {
+    for (s, &sample) in inputs.samples.directions.iter().enumerate() {
+        let direction = world_direction(inputs.samples.frame, normal, sample);
         if normal.dot(direction) <= 0.0 {
             continue;
         }
@@ -41,26 +44,48 @@ pub fn trace_visibility(inputs: &DirectInputs, mode: Mode, vertex: usize, bits: 
     rays
 }
 
-/// `sum over set bits s of max(0, n.w_s) y_k(w_s)`, per 32-sample word then added (the GPU's
-/// order), into `out` (length bands^2). Not yet scaled by the sample weight.
+/// Whether sample `s` enters the sum: its visibility bit is set, or, when the estimator sums
+/// blocked rays, it is above the horizon and its bit is clear.
+fn selected(estimator: Estimator, visible: bool, cosine: f32) -> bool {
+    if estimator.sums_blocked() {
+        cosine > 0.0 && !visible
+    } else {
+        visible
+    }
+}
+
+/// `sum over selected s of w(s) y_k(w_s)` with `w(s) = n.w_s` (or 1 for the cosine density),
+/// per 32-sample word then added (the GPU's order), into `out` (length bands^2). Not yet
+/// scaled: see [`finish_transfer`].
 pub fn project_visibility(inputs: &DirectInputs, vertex: usize, bits: &[u32], out: &mut [f64]) {
     let n = coeff_count(inputs.table.bands);
     let normal = inputs.normals[vertex];
+    let estimator = inputs.estimator;
+    let sample_count = inputs.samples.len();
     out.fill(0.0);
     let mut partial = vec![0.0f64; n];
     for (word, &mask) in bits.iter().enumerate() {
-        if mask == 0 {
+        if mask == 0 && !estimator.sums_blocked() {
             continue;
         }
         partial.fill(0.0);
-        for bit in 0..32 {
-            if mask & (1 << bit) == 0 {
+        for bit in 0..32.min(sample_count - word * 32) {
+            let s = word * 32 + bit;
+            let direction = inputs.samples.directions[s];
+            let cosine = match inputs.samples.frame {
+                DirectionFrame::World => normal.dot(direction),
+                DirectionFrame::Tangent => direction.z,
+            };
+            if !selected(estimator, mask & (1 << bit) != 0, cosine) {
                 continue;
             }
-            let s = word * 32 + bit;
-            let cosine = normal.dot(inputs.samples.directions[s]) as f64;
+            let weight = if estimator.weights_by_cosine() {
+                cosine as f64
+            } else {
+                1.0
+            };
             for (acc, &y) in partial.iter_mut().zip(inputs.table.row(s)) {
-                *acc += cosine * y as f64;
+                *acc += weight * y as f64;
             }
         }
         for (o, p) in out.iter_mut().zip(&partial) {
@@ -69,13 +94,38 @@ pub fn project_visibility(inputs: &DirectInputs, vertex: usize, bits: &[u32], ou
     }
 }
 
-/// Scale from a projected sum to transfer: sample weight (4 pi / N) over pi.
+/// Scale from a projected sum to transfer: sample weight (4 pi / N, or pi / N for the cosine
+/// density) over pi.
 pub fn transfer_scale(inputs: &DirectInputs) -> f64 {
     inputs.samples.weight / std::f64::consts::PI
 }
 
-/// Albedo-free direct transfer of one vertex:
-/// `(1/pi) sum_s V(w_s) max(0, n.w_s) y_k(w_s) dw` into `out`. Returns the rays cast.
+/// Turns the projected sums of one vertex into its transfer, in place, by the estimator:
+/// scaled; or subtracted, scaled, from the closed-form unoccluded transfer; or scaled and
+/// rotated from the tangent frame to the world.
+pub fn finish_transfer(inputs: &DirectInputs, vertex: usize, sums: &mut [f64]) {
+    let scale = transfer_scale(inputs);
+    let bands = inputs.table.bands;
+    let normal = inputs.normals[vertex];
+    match inputs.estimator {
+        Estimator::Visible => sums.iter_mut().for_each(|t| *t *= scale),
+        Estimator::Blocked => {
+            let unoccluded = unshadowed_transfer(bands, normal.as_dvec3());
+            for (t, open) in sums.iter_mut().zip(unoccluded) {
+                *t = open - scale * *t;
+            }
+        }
+        Estimator::CosineWeighted => {
+            let [t, b, n] = tangent_frame(normal).map(|axis| axis.as_dvec3());
+            let to_world = ShRotation::new(bands, glam::DMat3::from_cols(t, b, n));
+            let local: Vec<f64> = sums.iter().map(|t| t * scale).collect();
+            sums.copy_from_slice(&to_world.apply(&local));
+        }
+    }
+}
+
+/// Albedo-free direct transfer of one vertex, the estimate of
+/// `(1/pi) integral V(w) max(0, n.w) y_k(w) dw`, into `out`. Returns the rays cast.
 pub fn vertex_direct_transfer(
     inputs: &DirectInputs,
     mode: Mode,
@@ -85,8 +135,7 @@ pub fn vertex_direct_transfer(
     let mut bits = vec![0u32; words_per_vertex(inputs.samples.len())];
     let rays = trace_visibility(inputs, mode, vertex, &mut bits);
     project_visibility(inputs, vertex, &bits, out);
-    let scale = transfer_scale(inputs);
-    out.iter_mut().for_each(|t| *t *= scale);
+    finish_transfer(inputs, vertex, out);
     rays
 }
 

@@ -16,10 +16,11 @@ use super::bounce::{GatherMatrix, Hit, NO_HIT};
 use super::{DirectInputs, Mode, Progress};
 use crate::error::{Error, Result};
 use crate::gpu::GpuContext;
+use crate::sampling::{world_direction, DirectionFrame, Estimator};
 use crate::sh::coeff_count;
 use crate::shaders::{self, WORKGROUP_SIZE};
 
-/// Uniforms of the visibility kernel, 32 bytes; WGSL twin in wgsl/visibility.wgsl.
+/// Uniforms of the visibility kernel, 48 bytes; WGSL twin in wgsl/visibility.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct VisibilityParams {
@@ -34,6 +35,11 @@ pub struct VisibilityParams {
     pub shadowed: u32,
     /// 1: closest-hit traversal, hits written for interreflection.
     pub record_hits: u32,
+    /// 1: sample directions are in each vertex's tangent frame (`sampling::tangent_frame`).
+    pub tangent_frames: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
 }
 
 /// Uniforms of the projection kernel, 32 bytes; WGSL twin in wgsl/project.wgsl.
@@ -47,7 +53,17 @@ pub struct ProjectParams {
     pub words_per_vertex: u32,
     pub coeff_count: u32,
     pub accumulate: u32,
-    pub pad0: u32,
+    /// `ESTIMATOR_*` in wgsl/project.wgsl: which samples enter the sum and their weight.
+    pub estimator: u32,
+}
+
+/// The project kernel's code for an estimator (its `ESTIMATOR_*` constants).
+fn estimator_code(estimator: Estimator) -> u32 {
+    match estimator {
+        Estimator::Visible => 0,
+        Estimator::Blocked => 1,
+        Estimator::CosineWeighted => 2,
+    }
 }
 
 /// Uniforms of the bounce (gather) kernel, 32 bytes; WGSL twin in wgsl/gather.wgsl.
@@ -448,6 +464,8 @@ fn run(
                     max_steps,
                     shadowed: (mode != Mode::Unshadowed) as u32,
                     record_hits: record_hits as u32,
+                    tangent_frames: (inputs.samples.frame == DirectionFrame::Tangent) as u32,
+                    ..Default::default()
                 }),
             );
             ctx.queue.write_buffer(
@@ -462,7 +480,7 @@ fn run(
                     words_per_vertex: chunk_words,
                     coeff_count: coeffs,
                     accumulate: (chunk_index > 0) as u32,
-                    pad0: 0,
+                    estimator: estimator_code(inputs.estimator),
                 }),
             );
             ctx.checked("running the kernels", || {
@@ -542,24 +560,29 @@ fn run(
 
 /// Rays a shadowed bake casts: vertex–sample pairs above the horizon (as the CPU counts them).
 fn rays_above_horizon(inputs: &DirectInputs) -> u64 {
+    let frame = inputs.samples.frame;
     inputs
         .normals
         .par_iter()
-        .map(|n| {
+        .map(|&n| {
             inputs
                 .samples
                 .directions
                 .iter()
-                .filter(|d| n.dot(**d) > 0.0)
+                .filter(|&&d| n.dot(world_direction(frame, n, d)) > 0.0)
                 .count() as u64
         })
         .sum()
 }
 
+/// Transfer from the kernels' raw sums, finished per vertex as the CPU finishes its own.
 fn scaled(mut sums: Vec<f32>, inputs: &DirectInputs) -> Vec<f32> {
-    let scale = super::cpu::transfer_scale(inputs);
-    sums.iter_mut()
-        .for_each(|t| *t = (*t as f64 * scale) as f32);
+    let n = coeff_count(inputs.table.bands);
+    sums.par_chunks_mut(n).enumerate().for_each(|(v, row)| {
+        let mut wide: Vec<f64> = row.iter().map(|&t| t as f64).collect();
+        super::cpu::finish_transfer(inputs, v, &mut wide);
+        row.iter_mut().zip(&wide).for_each(|(t, w)| *t = *w as f32);
+    });
     sums
 }
 

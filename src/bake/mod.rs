@@ -13,7 +13,7 @@ use crate::bvh::Bvh;
 use crate::error::{Error, Result};
 use crate::output::BakedMesh;
 use crate::ray::offset_ray_origin;
-use crate::sampling::{nearest_square, stratified_sphere, SampleSet, MAX_SAMPLES};
+use crate::sampling::{Estimator, SampleSet, Sampling, MAX_SAMPLES};
 use crate::scene::prepare::{prepare, PrepareReport};
 use crate::scene::Scene;
 use crate::sh::{coeff_count, ShTable, CONVENTION, MAX_BANDS};
@@ -77,8 +77,9 @@ pub struct BakeMetadata {
     pub bands: u32,
     pub channels: u32,
     pub mode: Mode,
-    /// Sample directions actually used (a square number for stratified sampling).
+    /// Sample directions actually used (a square number for the grid strategies).
     pub samples: u32,
+    /// The `--sampling` strategy's name.
     pub sampling: String,
     pub seed: u64,
     pub backend: String,
@@ -91,12 +92,16 @@ pub struct BakeMetadata {
     pub bounces: u32,
 }
 
+/// The strategy a bake uses when none is asked for; chosen from `prt-gpu chart` (README).
+pub const DEFAULT_SAMPLING: Sampling = Sampling::ControlVariate;
+
 /// What the user asks of a bake.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BakeOptions {
     pub bands: u32,
-    /// Requested sample directions; stratified sampling uses the nearest square.
+    /// Requested sample directions; the grid strategies use the nearest square.
     pub samples: u32,
+    pub sampling: Sampling,
     pub seed: u64,
     pub mode: Mode,
     /// Replaces every material's albedo when set.
@@ -112,6 +117,7 @@ impl Default for BakeOptions {
         BakeOptions {
             bands: 4,
             samples: 1024,
+            sampling: DEFAULT_SAMPLING,
             seed: 1,
             mode: Mode::Shadowed,
             albedo: None,
@@ -158,9 +164,9 @@ impl BakeOptions {
         Ok(())
     }
 
-    /// The sample count actually used: the nearest square.
+    /// The sample count actually used (the nearest square for the grid strategies).
     pub fn samples_used(&self) -> u32 {
-        nearest_square(self.samples)
+        self.sampling.samples_used(self.samples)
     }
 }
 
@@ -185,7 +191,9 @@ pub struct DirectInputs<'a> {
     pub triangles: &'a [[u32; 3]],
     pub bvh: &'a Bvh,
     pub samples: &'a SampleSet,
+    /// SH of each sample direction, `[sample][k]` (in the tangent frame for tangent sets).
     pub table: &'a ShTable,
+    pub estimator: Estimator,
 }
 
 /// Where the transfer is computed.
@@ -291,7 +299,13 @@ pub fn bake(
     if let Some(albedo) = options.albedo {
         scene.albedo.iter_mut().for_each(|a| *a = albedo);
     }
-    let owned = BakeInputs::new(&scene, options.bands, options.samples_used(), options.seed);
+    let owned = BakeInputs::with_sampling(
+        &scene,
+        options.bands,
+        options.samples_used(),
+        options.seed,
+        options.sampling,
+    );
     let inputs = owned.view();
     let seconds_prepare = started.elapsed().as_secs_f64();
 
@@ -338,7 +352,7 @@ pub fn bake(
         channels: transfer.channels,
         mode: options.mode,
         samples: inputs.samples.len() as u32,
-        sampling: "stratified-sphere".to_string(),
+        sampling: options.sampling.name().to_string(),
         seed: options.seed,
         backend: backend.describe(),
         sh_convention: CONVENTION.to_string(),
@@ -374,15 +388,28 @@ pub struct BakeInputs {
     pub bvh: Bvh,
     pub samples: SampleSet,
     pub table: ShTable,
+    pub estimator: Estimator,
 }
 
 impl BakeInputs {
-    /// `scene` must be prepared (normals present); `samples` must be a square.
+    /// Stratified sampling (the tutorial's); `scene` must be prepared (normals present) and
+    /// `samples` a square.
     pub fn new(scene: &Scene, bands: u32, samples: u32, seed: u64) -> Self {
+        Self::with_sampling(scene, bands, samples, seed, Sampling::Stratified)
+    }
+
+    /// `samples` must come from [`Sampling::samples_used`].
+    pub fn with_sampling(
+        scene: &Scene,
+        bands: u32,
+        samples: u32,
+        seed: u64,
+        sampling: Sampling,
+    ) -> Self {
         let normals = scene.normals.clone().expect("a prepared scene has normals");
         let bvh = Bvh::build(&scene.positions, &scene.triangles);
         let origins = ray_origins(&scene.positions, &normals, &bvh);
-        let samples = stratified_sphere(samples, seed);
+        let samples = sampling.directions(samples, seed);
         let table = ShTable::new(bands, &samples.directions);
         BakeInputs {
             origins,
@@ -391,6 +418,7 @@ impl BakeInputs {
             bvh,
             samples,
             table,
+            estimator: sampling.estimator(),
         }
     }
 
@@ -402,6 +430,7 @@ impl BakeInputs {
             bvh: &self.bvh,
             samples: &self.samples,
             table: &self.table,
+            estimator: self.estimator,
         }
     }
 }

@@ -28,6 +28,9 @@ pub enum Error {
     /// A baked file that is not one of ours, or is damaged.
     #[error("{path}: {message}")]
     Baked { path: PathBuf, message: String },
+    /// A chart that cannot be drawn: nothing to plot on log axes, or the drawing failed.
+    #[error("{path}: {message}")]
+    Chart { path: PathBuf, message: String },
 }
 
 impl Error {
@@ -54,6 +57,13 @@ impl Error {
 
     pub fn baked(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         Error::Baked {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+
+    pub fn chart(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Error::Chart {
             path: path.into(),
             message: message.into(),
         }

@@ -6,6 +6,7 @@
 
 pub mod bake;
 pub mod bvh;
+pub mod chart;
 pub mod error;
 pub mod gpu;
 pub mod light;

@@ -2,7 +2,8 @@
 //!
 //! The data flows one way, one module per step:
 //! `scene` (load, prepare) → `bvh` → `sampling` + `sh` → `bake` (cpu backend) → `output`;
-//! `light` + a baked transfer → `render` (relight, preview images).
+//! `light` + a baked transfer → `render` (relight, preview images);
+//! `sweep` bakes over strategies and sample counts against a reference → `chart`.
 
 pub mod bake;
 pub mod bvh;
@@ -17,5 +18,6 @@ pub mod sampling;
 pub mod scene;
 pub mod sh;
 pub mod shaders;
+pub mod sweep;
 
 pub use error::{Error, Result};

@@ -15,7 +15,8 @@ use prt_gpu::light::{self, analytic, Mapping, ShLight};
 use prt_gpu::render::{self, Camera, ToneMap};
 use prt_gpu::sampling::Sampling;
 use prt_gpu::sh::window::Window;
-use prt_gpu::{output, scene};
+use prt_gpu::sweep::{self, SweepOptions};
+use prt_gpu::{chart, output, scene};
 
 #[derive(Parser)]
 #[command(
@@ -43,6 +44,79 @@ enum Command {
     Light(LightArgs),
     /// Relight baked files under a light and render them side by side to PNG or EXR.
     Render(RenderArgs),
+    /// Chart speed against accuracy: every sampling strategy and backend over a sweep of
+    /// sample counts, against a high-sample reference bake (SVG or PNG, plus a CSV beside it).
+    Chart(ChartArgs),
+    /// Time the direct-transfer pass on the CPU and GPU backends side by side (rays/s).
+    Bench(BenchArgs),
+}
+
+#[derive(clap::Args)]
+struct ChartArgs {
+    /// Mesh to chart (the built-in scene when none is given).
+    mesh: Option<PathBuf>,
+    /// Output chart, .svg or .png; the numbers go to the same name with .csv.
+    #[arg(short, long, default_value = "chart.svg")]
+    output: PathBuf,
+    /// Spherical-harmonic bands.
+    #[arg(long, default_value_t = 4)]
+    bands: u32,
+    /// Light transport to bake.
+    #[arg(long, value_enum, default_value_t = Mode::Shadowed)]
+    mode: Mode,
+    /// Sample counts of the sweep, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [64, 256, 1024])]
+    samples: Vec<u32>,
+    /// Strategies to chart, comma-separated (default: all).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    sampling: Vec<Sampling>,
+    /// Samples of the reference bake every point is compared with.
+    #[arg(long, default_value_t = 16_384)]
+    reference_samples: u32,
+    /// Strategy of the reference bake.
+    #[arg(long, value_enum, default_value_t = Sampling::ControlVariate)]
+    reference_sampling: Sampling,
+    /// Light for the relit-radiance error: light.json or an environment map (default: the
+    /// preview's sky and sun).
+    #[arg(long)]
+    light: Option<PathBuf>,
+    /// The CPU backend always runs; this says which GPU joins it: `auto` a hardware GPU if
+    /// there is one, `gpu` any adapter (lavapipe included), `cpu` none.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    device: DeviceChoice,
+    /// Use the adapter whose name contains this text.
+    #[arg(long)]
+    adapter: Option<String>,
+    /// Seed of the sweep's sample directions (the reference uses another).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// Mesh to bake (the built-in scene when none is given).
+    mesh: Option<PathBuf>,
+    /// Spherical-harmonic bands.
+    #[arg(long, default_value_t = 4)]
+    bands: u32,
+    /// Sample directions per vertex.
+    #[arg(long, default_value_t = 1024)]
+    samples: u32,
+    /// Sampling strategy (as for `bake`).
+    #[arg(long, value_enum, default_value_t = DEFAULT_SAMPLING)]
+    sampling: Sampling,
+    /// Light transport to bake.
+    #[arg(long, value_enum, default_value_t = Mode::Shadowed)]
+    mode: Mode,
+    /// Timed runs per backend, interleaved CPU, GPU, CPU, GPU, ...; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    repeats: u32,
+    /// `gpu` (default) times any adapter, lavapipe included, beside the CPU; `cpu` only the CPU.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Gpu)]
+    device: DeviceChoice,
+    /// Use the adapter whose name contains this text.
+    #[arg(long)]
+    adapter: Option<String>,
 }
 
 /// How a light is post-processed, shared by `light` and `render`.
@@ -152,7 +226,7 @@ struct BakeArgs {
     /// Spherical-harmonic bands (bands^2 coefficients per channel).
     #[arg(long, default_value_t = 4)]
     bands: u32,
-    /// Sample directions per vertex (rounded to the nearest square for stratified and cosine).
+    /// Sample directions per vertex (rounded to the nearest square for stratified sampling).
     #[arg(long, default_value_t = 1024)]
     samples: u32,
     /// How sample directions are drawn and weighted. control-variate (the default) estimates
@@ -214,13 +288,22 @@ fn main() -> ExitCode {
     if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
         std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir());
     }
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if !e.use_stderr() => e.exit(),
+        Err(e) => {
+            eprintln!("{}", one_line(&e.to_string()));
+            return ExitCode::from(2);
+        }
+    };
     let result = match cli.command {
         Command::Bake(args) => run_bake(args),
         Command::Info { file } => run_info(&file),
         Command::Devices => run_devices(),
         Command::Light(args) => run_light(args),
         Command::Render(args) => run_render(args),
+        Command::Chart(args) => run_chart(args),
+        Command::Bench(args) => run_bench(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -229,6 +312,20 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// clap's multi-line usage error as one line: the error, and the possible values if listed.
+fn one_line(message: &str) -> String {
+    let mut lines = message.lines().map(str::trim).filter(|l| !l.is_empty());
+    let mut line = lines
+        .next()
+        .unwrap_or("error: invalid arguments")
+        .to_string();
+    if let Some(values) = lines.find(|l| l.starts_with("[possible values")) {
+        line.push(' ');
+        line.push_str(values);
+    }
+    line
 }
 
 fn run_bake(args: BakeArgs) -> Result<(), String> {
@@ -243,10 +340,7 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
         bounce_tolerance: args.bounce_tolerance,
     };
     options.validate().map_err(|e| e.to_string())?;
-    let (scene, name) = match &args.mesh {
-        Some(path) => (scene::load(path).map_err(|e| e.to_string())?, stem(path)),
-        None => (scene::builtin::default_scene(), "default-scene".to_string()),
-    };
+    let (scene, name) = load_scene(&args.mesh)?;
     let output_path = args
         .output
         .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
@@ -367,6 +461,244 @@ fn open_backend(choice: DeviceChoice, adapter: Option<&str>) -> Result<Option<Gp
             Ok(None)
         }
     }
+}
+
+/// The mesh named on the command line, or the built-in scene; and a name for messages.
+fn load_scene(mesh: &Option<PathBuf>) -> Result<(scene::Scene, String), String> {
+    match mesh {
+        Some(path) => Ok((scene::load(path).map_err(|e| e.to_string())?, stem(path))),
+        None => Ok((scene::builtin::default_scene(), "default-scene".to_string())),
+    }
+}
+
+fn run_chart(args: ChartArgs) -> Result<(), String> {
+    let extension = args
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !matches!(extension.as_deref(), Some("svg" | "png")) {
+        return Err(format!(
+            "{}: the chart is written as .svg or .png",
+            args.output.display()
+        ));
+    }
+    let csv_path = args.output.with_extension("csv");
+    output::check_destination(&args.output).map_err(|e| e.to_string())?;
+    if args.samples.is_empty() || args.samples.contains(&0) {
+        return Err("invalid option: --samples needs counts of at least 1".into());
+    }
+    let options = SweepOptions {
+        bands: args.bands,
+        mode: args.mode,
+        strategies: if args.sampling.is_empty() {
+            Sampling::ALL.to_vec()
+        } else {
+            args.sampling.clone()
+        },
+        counts: args.samples.clone(),
+        reference_samples: args.reference_samples,
+        reference_sampling: args.reference_sampling,
+        seed: args.seed,
+    };
+    for &count in options.counts.iter().chain([&options.reference_samples]) {
+        BakeOptions {
+            bands: options.bands,
+            samples: count,
+            ..BakeOptions::default()
+        }
+        .validate()
+        .map_err(|e| e.to_string())?;
+    }
+    let light = match &args.light {
+        Some(path) => {
+            light::load(path, args.bands, None, false)
+                .map_err(|e| e.to_string())?
+                .light
+        }
+        None => light::preview_light(args.bands).map_err(|e| e.to_string())?,
+    };
+    let (scene, name) = load_scene(&args.mesh)?;
+    let baker = match args.device {
+        DeviceChoice::Cpu => None,
+        choice => gpu::open(choice, args.adapter.as_deref())
+            .map_err(|e| e.to_string())?
+            .map(GpuBaker::new)
+            .transpose()
+            .map_err(|e| e.to_string())?,
+    };
+    let mut backends = vec![("cpu".to_string(), Backend::Cpu)];
+    if let Some(baker) = &baker {
+        eprintln!("gpu: {}", baker.context.adapter.label());
+        backends.push((
+            "gpu".to_string(),
+            Backend::Gpu {
+                baker,
+                chunking: Chunking::default(),
+            },
+        ));
+    }
+    let started = std::time::Instant::now();
+    let progress = BarProgress::default();
+    let result =
+        sweep::run(&scene, &options, &backends, &light, &progress).map_err(|e| e.to_string())?;
+    progress.finish();
+    let panels = chart_panels(&result);
+    let title = format!(
+        "{name}: {} bands, {} mode, against {} {} samples",
+        options.bands,
+        options.mode.name(),
+        result.reference_samples,
+        options.reference_sampling.name()
+    );
+    chart::draw_chart(&args.output, &title, "bake time (s)", &panels).map_err(|e| e.to_string())?;
+    sweep::write_csv(&csv_path, &result).map_err(|e| e.to_string())?;
+    for p in &result.points {
+        eprintln!(
+            "{:>16} {:>3} {:>6} samples: {:>8.3} s, transfer rms {:.3e}, radiance rms {:.3e}",
+            p.sampling.name(),
+            p.backend,
+            p.samples,
+            p.seconds,
+            p.transfer_rms,
+            p.radiance_rms
+        );
+    }
+    println!(
+        "charted {name}: {} points, reference {} samples in {:.2} s, {:.1} s in all -> {}, {}",
+        result.points.len(),
+        result.reference_samples,
+        result.reference_seconds,
+        started.elapsed().as_secs_f64(),
+        args.output.display(),
+        csv_path.display()
+    );
+    Ok(())
+}
+
+/// Two panels: transfer error and relit-radiance error, one line per strategy and backend.
+fn chart_panels(result: &sweep::Sweep) -> Vec<chart::ChartPanel> {
+    let mut lines: Vec<(String, Vec<&sweep::SweepPoint>)> = Vec::new();
+    for p in &result.points {
+        let label = format!("{} {}", p.sampling.name(), p.backend);
+        match lines.iter_mut().find(|(l, _)| *l == label) {
+            Some((_, points)) => points.push(p),
+            None => lines.push((label, vec![p])),
+        }
+    }
+    let panel =
+        |title: &str, y_label: &str, error: fn(&sweep::SweepPoint) -> f64| chart::ChartPanel {
+            title: title.to_string(),
+            y_label: y_label.to_string(),
+            series: lines
+                .iter()
+                .map(|(label, points)| chart::ChartSeries {
+                    label: label.clone(),
+                    points: points
+                        .iter()
+                        .map(|p| chart::ChartPoint {
+                            seconds: p.seconds,
+                            error: error(p),
+                            samples: p.samples,
+                        })
+                        .collect(),
+                })
+                .collect(),
+        };
+    vec![
+        panel("transfer", "RMS error of the transfer", |p| p.transfer_rms),
+        panel("relit radiance", "RMS error of the relit radiance", |p| {
+            p.radiance_rms
+        }),
+    ]
+}
+
+fn run_bench(args: BenchArgs) -> Result<(), String> {
+    let options = BakeOptions {
+        bands: args.bands,
+        samples: args.samples,
+        sampling: args.sampling,
+        mode: args.mode,
+        ..BakeOptions::default()
+    };
+    options.validate().map_err(|e| e.to_string())?;
+    if args.repeats == 0 {
+        return Err("invalid option: --repeats must be at least 1".into());
+    }
+    let (scene, name) = load_scene(&args.mesh)?;
+    let (scene, _) = scene::prepare::prepare(scene).map_err(|e| format!("{name}: {e}"))?;
+    let owned = bake::BakeInputs::with_sampling(
+        &scene,
+        options.bands,
+        options.samples_used(),
+        options.seed,
+        options.sampling,
+    );
+    let inputs = owned.view();
+    let baker = match args.device {
+        DeviceChoice::Cpu => None,
+        choice => match gpu::open(choice, args.adapter.as_deref()) {
+            Ok(context) => context
+                .map(GpuBaker::new)
+                .transpose()
+                .map_err(|e| e.to_string())?,
+            Err(e) => {
+                eprintln!("note: no GPU entry: {e}");
+                None
+            }
+        },
+    };
+    let mut cpu_times = Vec::new();
+    let mut gpu_times = Vec::new();
+    let mut rays = 0;
+    for round in 0..args.repeats {
+        eprintln!("round {} of {}", round + 1, args.repeats);
+        let started = std::time::Instant::now();
+        let (_, cast) = bake::cpu::direct_transfer(&inputs, options.mode, &bake::NoProgress);
+        cpu_times.push(started.elapsed().as_secs_f64());
+        rays = cast;
+        if let Some(baker) = &baker {
+            let started = std::time::Instant::now();
+            bake::gpu::direct_transfer(
+                baker,
+                &inputs,
+                options.mode,
+                Chunking::default(),
+                &bake::NoProgress,
+            )
+            .map_err(|e| e.to_string())?;
+            gpu_times.push(started.elapsed().as_secs_f64());
+        }
+    }
+    let median = |times: &mut Vec<f64>| {
+        times.sort_by(f64::total_cmp);
+        times[times.len() / 2]
+    };
+    println!(
+        "{name}: {} vertices, {} bands, {} {} samples, {} mode, {rays} rays; median of {} runs",
+        inputs.origins.len(),
+        options.bands,
+        inputs.samples.len(),
+        options.sampling.name(),
+        options.mode.name(),
+        args.repeats
+    );
+    let cpu_seconds = median(&mut cpu_times);
+    println!(
+        "cpu ({} threads): {cpu_seconds:.3} s, {:.2} M rays/s",
+        rayon::current_num_threads(),
+        rays as f64 / cpu_seconds / 1e6
+    );
+    if let Some(baker) = &baker {
+        let gpu_seconds = median(&mut gpu_times);
+        println!(
+            "gpu ({}): {gpu_seconds:.3} s, {:.2} M rays/s",
+            baker.context.adapter.label(),
+            rays as f64 / gpu_seconds / 1e6
+        );
+        println!("gpu / cpu throughput: {:.2}", cpu_seconds / gpu_seconds);
+    }
+    Ok(())
 }
 
 fn run_devices() -> Result<(), String> {
@@ -599,7 +931,7 @@ impl Progress for BarProgress {
     fn stage(&self, name: &str, total: u64) {
         let bar = ProgressBar::new(total).with_message(name.to_string());
         bar.set_style(
-            ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} vertices, eta {eta}")
+            ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len}, eta {eta}")
                 .expect("static template")
                 .progress_chars("=> "),
         );

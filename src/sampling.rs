@@ -68,11 +68,11 @@ pub enum Sampling {
     Stratified,
     /// A spherical Fibonacci set turned by a random rotation, shared by all vertices.
     Fibonacci,
-    /// A jittered grid with cosine-weighted density on each vertex's own hemisphere: no ray
-    /// goes below the horizon, and the cosine is carried by the density instead of the sum.
+    /// A randomly shifted Fibonacci lattice with cosine-weighted density on each vertex's own
+    /// hemisphere: no ray goes below the horizon, and the density carries the cosine.
     Cosine,
-    /// The spherical Fibonacci set with a control variate: the unoccluded transfer in closed
-    /// form, minus a Monte Carlo estimate of the part that geometry blocks.
+    /// The cosine set with a control variate: the unoccluded transfer in closed form, minus a
+    /// Monte Carlo estimate of the part that geometry blocks.
     ControlVariate,
 }
 
@@ -95,11 +95,11 @@ impl Sampling {
         Sampling::ControlVariate,
     ];
 
-    /// The sample count used for `requested`: grids need a square number.
+    /// The sample count used for `requested`: the stratified grid needs a square number.
     pub fn samples_used(self, requested: u32) -> u32 {
         match self {
-            Sampling::Stratified | Sampling::Cosine => nearest_square(requested),
-            Sampling::Uniform | Sampling::Fibonacci | Sampling::ControlVariate => requested.max(1),
+            Sampling::Stratified => nearest_square(requested),
+            _ => requested.max(1),
         }
     }
 
@@ -108,41 +108,33 @@ impl Sampling {
         match self {
             Sampling::Uniform => uniform_sphere(count, seed),
             Sampling::Stratified => stratified_sphere(count, seed),
-            Sampling::Fibonacci | Sampling::ControlVariate => fibonacci_sphere(count, seed),
-            Sampling::Cosine => cosine_hemisphere(count, seed),
+            Sampling::Fibonacci => fibonacci_sphere(count, seed),
+            Sampling::Cosine | Sampling::ControlVariate => cosine_hemisphere(count, seed),
         }
     }
 
     /// How the projected sums become transfer.
     pub fn estimator(self) -> Estimator {
         match self {
-            Sampling::Uniform | Sampling::Stratified | Sampling::Fibonacci => Estimator::Visible,
-            Sampling::Cosine => Estimator::CosineWeighted,
             Sampling::ControlVariate => Estimator::Blocked,
+            _ => Estimator::Visible,
         }
     }
 }
 
-/// The Monte Carlo estimator of `t_k = (1/pi) integral V(w) max(0, n.w) y_k(w) dw`.
+/// What the projected sums run over, for `t_k = (1/pi) integral V(w) max(0, n.w) y_k(w) dw`.
+/// The density is the sample set's (see [`SampleSet::weight`] and [`DirectionFrame`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Estimator {
-    /// `(dw/pi) sum over visible s of (n.w_s) y_k(w_s)`, uniform density.
+    /// `(w/pi) sum over visible s of f(s)`, with `f(s) = (n.w_s) y_k(w_s)` for uniform
+    /// densities and `y_k(w_s)` when the density carries the cosine.
     Visible,
-    /// `t_k(unoccluded, closed form) - (dw/pi) sum over blocked s of (n.w_s) y_k(w_s)`:
-    /// only the blocked part is estimated, so the error shrinks with the occluded fraction.
+    /// `t_k(unoccluded, closed form) - (w/pi) sum over blocked s of f(s)`: only the blocked
+    /// part is estimated, so the error shrinks with the occluded fraction.
     Blocked,
-    /// Directions in the vertex's tangent frame with density `cos / pi`, so
-    /// `t_k = (1/N) sum over visible s of y_k(w_s)`; sums run in the tangent frame and are
-    /// rotated to the world once per vertex.
-    CosineWeighted,
 }
 
 impl Estimator {
-    /// Whether a sample's projected term carries the cosine `n.w`.
-    pub fn weights_by_cosine(self) -> bool {
-        self != Estimator::CosineWeighted
-    }
-
     /// Whether the sums run over blocked rays rather than visible ones.
     pub fn sums_blocked(self) -> bool {
         self == Estimator::Blocked
@@ -152,8 +144,11 @@ impl Estimator {
 /// Whether a set's directions are world directions or live in each vertex's tangent frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DirectionFrame {
+    /// World directions, uniform density on the sphere.
     World,
-    /// `(x, y, z)` means `x t + y b + z n` with `(t, b, n)` = [`tangent_frame`] of the normal.
+    /// `(x, y, z)` means `x t + y b + z n` with `(t, b, n)` = [`tangent_frame`] of the normal;
+    /// the density is `cos / pi` on the hemisphere, so sums leave the cosine out and run in
+    /// the tangent frame, rotated to the world once per vertex.
     Tangent,
 }
 
@@ -264,24 +259,27 @@ pub fn random_rotation(rng: &mut Pcg32) -> DMat3 {
     DMat3::from_quat(q.normalize())
 }
 
-/// A jittered `side x side` grid mapped to the upper hemisphere with density `cos(theta) / pi`
-/// (Malley: a uniform point of the unit disk lifted onto the hemisphere). Directions are in
-/// the tangent frame, z along the normal. `count` must be a square.
+/// A Fibonacci lattice on the unit square (point i at `((i + 1/2) / N, i * golden fraction)`),
+/// shifted by one random offset modulo 1 (Cranley–Patterson rotation) and mapped to the upper
+/// hemisphere with density `cos(theta) / pi` (Malley: a uniform point of the unit disk lifted
+/// onto the hemisphere). The shift makes every point uniform on the square, so the estimate is
+/// unbiased; the lattice keeps the points evenly spread. Directions are in the tangent frame,
+/// z along the normal.
 pub fn cosine_hemisphere(count: u32, seed: u64) -> SampleSet {
-    let side = (count as f64).sqrt().round() as u32;
-    assert_eq!(side * side, count, "cosine_hemisphere needs a square count");
     let mut rng = Pcg32::new(seed);
-    let mut directions = Vec::with_capacity(count as usize);
-    for a in 0..side {
-        for b in 0..side {
-            let u = (a as f64 + rng.next_f32() as f64) / side as f64;
-            let v = (b as f64 + rng.next_f32() as f64) / side as f64;
-            directions.push(square_to_cosine_hemisphere(u, v).normalize().as_vec3());
-        }
-    }
+    let shift_u = rng.next_f32() as f64;
+    let shift_v = rng.next_f32() as f64;
+    let n = count as f64;
+    let directions = (0..count)
+        .map(|i| {
+            let u = ((i as f64 + 0.5) / n + shift_u).fract();
+            let v = (i as f64 * GOLDEN_FRACTION + shift_v).fract();
+            square_to_cosine_hemisphere(u, v).normalize().as_vec3()
+        })
+        .collect();
     SampleSet {
         directions,
-        weight: std::f64::consts::PI / count as f64,
+        weight: std::f64::consts::PI / n,
         frame: DirectionFrame::Tangent,
     }
 }
@@ -460,7 +458,7 @@ mod tests {
     #[test]
     fn sample_counts_round_only_for_grids() {
         assert_eq!(Sampling::Stratified.samples_used(1000), 1024);
-        assert_eq!(Sampling::Cosine.samples_used(1000), 1024);
+        assert_eq!(Sampling::Cosine.samples_used(1000), 1000);
         assert_eq!(Sampling::Fibonacci.samples_used(1000), 1000);
         assert_eq!(Sampling::Uniform.samples_used(1000), 1000);
         assert_eq!(Sampling::ControlVariate.samples_used(1000), 1000);

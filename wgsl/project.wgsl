@@ -15,12 +15,12 @@ struct ProjectParams {
     estimator: u32,
 }
 
-// Rust twin: sampling::Estimator. Visible: cosine-weighted sum over visible samples.
-const ESTIMATOR_VISIBLE: u32 = 0u;
-// Cosine-weighted sum over samples above the horizon that are blocked (control variate).
+// Flags of `estimator`; Rust twin: bake::gpu::estimator_flags. Without flags: sum over
+// visible samples of the cosine times y_k.
+// Sum over samples above the horizon that are blocked (sampling::Estimator::Blocked).
 const ESTIMATOR_BLOCKED: u32 = 1u;
-// Unweighted sum over visible samples; directions are in the tangent frame (cosine density).
-const ESTIMATOR_COSINE_WEIGHTED: u32 = 2u;
+// Directions in the tangent frame with cosine density: no cosine factor.
+const ESTIMATOR_TANGENT: u32 = 2u;
 
 @group(0) @binding(0) var<uniform> params: ProjectParams;
 @group(0) @binding(1) var<storage, read> normals: array<vec4<f32>>;
@@ -38,8 +38,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let local_vertex = index / params.coeff_count;
     let k = index % params.coeff_count;
     let normal = normals[params.vertex_offset + local_vertex].xyz;
-    let sums_blocked = params.estimator == ESTIMATOR_BLOCKED;
-    let tangent = params.estimator == ESTIMATOR_COSINE_WEIGHTED;
+    let sums_blocked = (params.estimator & ESTIMATOR_BLOCKED) != 0u;
+    let tangent = (params.estimator & ESTIMATOR_TANGENT) != 0u;
     var total = 0.0;
     for (var word = 0u; word < params.words_per_vertex; word += 1u) {
         let bits = visible_bits[local_vertex * params.words_per_vertex + word];

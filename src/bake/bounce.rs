@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use super::{cpu, DirectInputs, Progress};
 use crate::ray::{Ray, RAY_T_MAX};
-use crate::sampling::world_direction;
+use crate::sampling::{world_direction, DirectionFrame};
 use crate::sh::coeff_count;
 
 /// The closest hit of one ray, 12 bytes. WGSL twin in wgsl/hits.wgsl:
@@ -113,10 +113,9 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
         if cosine <= 0.0 || shading_normal.dot(direction) >= 0.0 {
             continue;
         }
-        let density_weight = if inputs.estimator.weights_by_cosine() {
-            cosine as f64
-        } else {
-            1.0
+        let density_weight = match inputs.samples.frame {
+            DirectionFrame::World => cosine as f64,
+            DirectionFrame::Tangent => 1.0,
         };
         for (&j, b) in corners.iter().zip(barycentrics) {
             entries.push((j, scale * density_weight * b.max(0.0) as f64));

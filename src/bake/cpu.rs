@@ -79,10 +79,9 @@ pub fn project_visibility(inputs: &DirectInputs, vertex: usize, bits: &[u32], ou
             if !selected(estimator, mask & (1 << bit) != 0, cosine) {
                 continue;
             }
-            let weight = if estimator.weights_by_cosine() {
-                cosine as f64
-            } else {
-                1.0
+            let weight = match inputs.samples.frame {
+                DirectionFrame::World => cosine as f64,
+                DirectionFrame::Tangent => 1.0,
             };
             for (acc, &y) in partial.iter_mut().zip(inputs.table.row(s)) {
                 *acc += weight * y as f64;
@@ -100,26 +99,24 @@ pub fn transfer_scale(inputs: &DirectInputs) -> f64 {
     inputs.samples.weight / std::f64::consts::PI
 }
 
-/// Turns the projected sums of one vertex into its transfer, in place, by the estimator:
-/// scaled; or subtracted, scaled, from the closed-form unoccluded transfer; or scaled and
-/// rotated from the tangent frame to the world.
+/// Turns the projected sums of one vertex into its transfer, in place: scaled, rotated from
+/// the tangent frame to the world where the set lives there, and for the control variate
+/// subtracted from the closed-form unoccluded transfer.
 pub fn finish_transfer(inputs: &DirectInputs, vertex: usize, sums: &mut [f64]) {
     let scale = transfer_scale(inputs);
     let bands = inputs.table.bands;
     let normal = inputs.normals[vertex];
-    match inputs.estimator {
-        Estimator::Visible => sums.iter_mut().for_each(|t| *t *= scale),
-        Estimator::Blocked => {
-            let unoccluded = unshadowed_transfer(bands, normal.as_dvec3());
-            for (t, open) in sums.iter_mut().zip(unoccluded) {
-                *t = open - scale * *t;
-            }
-        }
-        Estimator::CosineWeighted => {
-            let [t, b, n] = tangent_frame(normal).map(|axis| axis.as_dvec3());
-            let to_world = ShRotation::new(bands, glam::DMat3::from_cols(t, b, n));
-            let local: Vec<f64> = sums.iter().map(|t| t * scale).collect();
-            sums.copy_from_slice(&to_world.apply(&local));
+    sums.iter_mut().for_each(|t| *t *= scale);
+    if inputs.samples.frame == DirectionFrame::Tangent {
+        let [t, b, n] = tangent_frame(normal).map(|axis| axis.as_dvec3());
+        let to_world = ShRotation::new(bands, glam::DMat3::from_cols(t, b, n));
+        let world = to_world.apply(sums);
+        sums.copy_from_slice(&world);
+    }
+    if inputs.estimator == Estimator::Blocked {
+        let unoccluded = unshadowed_transfer(bands, normal.as_dvec3());
+        for (t, open) in sums.iter_mut().zip(unoccluded) {
+            *t = open - *t;
         }
     }
 }

@@ -53,17 +53,14 @@ pub struct ProjectParams {
     pub words_per_vertex: u32,
     pub coeff_count: u32,
     pub accumulate: u32,
-    /// `ESTIMATOR_*` in wgsl/project.wgsl: which samples enter the sum and their weight.
+    /// `ESTIMATOR_*` flags of wgsl/project.wgsl: which samples enter the sum, their weight.
     pub estimator: u32,
 }
 
-/// The project kernel's code for an estimator (its `ESTIMATOR_*` constants).
-fn estimator_code(estimator: Estimator) -> u32 {
-    match estimator {
-        Estimator::Visible => 0,
-        Estimator::Blocked => 1,
-        Estimator::CosineWeighted => 2,
-    }
+/// The project kernel's flags (its `ESTIMATOR_*` constants): bit 0 sums blocked rays, bit 1
+/// drops the cosine (tangent-frame sets with cosine density).
+fn estimator_flags(estimator: Estimator, frame: DirectionFrame) -> u32 {
+    (estimator == Estimator::Blocked) as u32 | ((frame == DirectionFrame::Tangent) as u32) << 1
 }
 
 /// Uniforms of the bounce (gather) kernel, 32 bytes; WGSL twin in wgsl/gather.wgsl.
@@ -480,7 +477,7 @@ fn run(
                     words_per_vertex: chunk_words,
                     coeff_count: coeffs,
                     accumulate: (chunk_index > 0) as u32,
-                    estimator: estimator_code(inputs.estimator),
+                    estimator: estimator_flags(inputs.estimator, inputs.samples.frame),
                 }),
             );
             ctx.checked("running the kernels", || {

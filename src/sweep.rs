@@ -1,0 +1,197 @@
+//! Speed against accuracy: bakes of one scene over strategies, backends and sample counts,
+//! each timed and compared with a high-sample reference bake. `prt-gpu chart` draws the result
+//! (crate::chart) and writes it as CSV; `prt-gpu bench` times the backends side by side.
+
+use std::path::Path;
+use std::time::Instant;
+
+use crate::bake::{bake, Backend, BakeOptions, Mode, NoProgress, Progress, Transfer};
+use crate::error::{Error, Result};
+use crate::light::ShLight;
+use crate::output::write_atomically;
+use crate::render::relight;
+use crate::sampling::Sampling;
+use crate::scene::Scene;
+
+/// What to sweep.
+#[derive(Clone, Debug)]
+pub struct SweepOptions {
+    pub bands: u32,
+    pub mode: Mode,
+    pub strategies: Vec<Sampling>,
+    /// Requested sample counts (the grid strategies round them to squares).
+    pub counts: Vec<u32>,
+    pub reference_samples: u32,
+    pub reference_sampling: Sampling,
+    pub seed: u64,
+}
+
+impl Default for SweepOptions {
+    fn default() -> Self {
+        SweepOptions {
+            bands: 4,
+            mode: Mode::Shadowed,
+            strategies: Sampling::ALL.to_vec(),
+            counts: vec![64, 256, 1024],
+            reference_samples: 16_384,
+            reference_sampling: Sampling::ControlVariate,
+            seed: 1,
+        }
+    }
+}
+
+/// One bake of the sweep.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepPoint {
+    pub sampling: Sampling,
+    /// "cpu" or "gpu".
+    pub backend: String,
+    /// Samples actually used.
+    pub samples: u32,
+    /// Wall time of the whole bake (preparation, BVH, samples, transfer).
+    pub seconds: f64,
+    pub rays: u64,
+    /// RMS over vertices, channels and coefficients of the transfer's difference.
+    pub transfer_rms: f64,
+    /// RMS over vertices and channels of the relit radiance's difference.
+    pub radiance_rms: f64,
+}
+
+/// A finished sweep.
+#[derive(Clone, Debug)]
+pub struct Sweep {
+    pub points: Vec<SweepPoint>,
+    pub reference_samples: u32,
+    pub reference_seconds: f64,
+    /// RMS of the reference's relit radiance: the scale the radiance errors compare with.
+    pub reference_radiance_rms: f64,
+}
+
+/// Root mean square of the differences of two equally long arrays.
+pub fn rms_difference(a: &[f32], b: &[f32]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    let squares: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(&x, &y)| (x as f64 - y as f64).powi(2))
+        .sum();
+    (squares / a.len().max(1) as f64).sqrt()
+}
+
+/// Relit radiance of every vertex and channel, flattened.
+fn radiance(transfer: &Transfer, light: &ShLight) -> Result<Vec<f32>> {
+    Ok(relight(transfer, light)?.into_iter().flatten().collect())
+}
+
+/// Bakes `scene` once per strategy, backend and count, and once for the reference (on the
+/// first backend). `backends` pairs a label with a backend.
+pub fn run(
+    scene: &Scene,
+    options: &SweepOptions,
+    backends: &[(String, Backend)],
+    light: &ShLight,
+    progress: &dyn Progress,
+) -> Result<Sweep> {
+    if options.strategies.is_empty() || options.counts.is_empty() || backends.is_empty() {
+        return Err(Error::Options(
+            "a sweep needs at least one strategy, one sample count and one backend".into(),
+        ));
+    }
+    let base = BakeOptions {
+        bands: options.bands,
+        mode: options.mode,
+        seed: options.seed,
+        ..BakeOptions::default()
+    };
+    let reference_options = BakeOptions {
+        samples: options.reference_samples,
+        sampling: options.reference_sampling,
+        // A seed no point of the sweep uses, so no point shares the reference's directions.
+        seed: options.seed.wrapping_add(0x5eed_0000),
+        ..base.clone()
+    };
+    reference_options.validate()?;
+    progress.stage(
+        "reference",
+        (options.strategies.len() * options.counts.len() * backends.len()) as u64,
+    );
+    let started = Instant::now();
+    let (reference, _) = bake(
+        scene.clone(),
+        &reference_options,
+        &backends[0].1,
+        &NoProgress,
+    )?;
+    let reference_seconds = started.elapsed().as_secs_f64();
+    let reference_radiance = radiance(&reference.transfer, light)?;
+    let zero = vec![0.0f32; reference_radiance.len()];
+
+    progress.stage(
+        "sweep",
+        (options.strategies.len() * options.counts.len() * backends.len()) as u64,
+    );
+    let mut points = Vec::new();
+    for &sampling in &options.strategies {
+        for (label, backend) in backends {
+            for &count in &options.counts {
+                let point_options = BakeOptions {
+                    samples: count,
+                    sampling,
+                    ..base.clone()
+                };
+                let started = Instant::now();
+                let (baked, report) = bake(scene.clone(), &point_options, backend, &NoProgress)?;
+                let seconds = started.elapsed().as_secs_f64();
+                points.push(SweepPoint {
+                    sampling,
+                    backend: label.clone(),
+                    samples: report.samples_used,
+                    seconds,
+                    rays: report.rays_cast,
+                    transfer_rms: rms_difference(
+                        &baked.transfer.coeffs,
+                        &reference.transfer.coeffs,
+                    ),
+                    radiance_rms: rms_difference(
+                        &radiance(&baked.transfer, light)?,
+                        &reference_radiance,
+                    ),
+                });
+                progress.advance(1);
+            }
+        }
+    }
+    Ok(Sweep {
+        points,
+        reference_samples: reference_options.samples_used(),
+        reference_seconds,
+        reference_radiance_rms: rms_difference(&reference_radiance, &zero),
+    })
+}
+
+/// The CSV header: one row per point follows.
+pub const CSV_HEADER: &str = "sampling,backend,samples,seconds,rays,transfer_rms,radiance_rms";
+
+/// The sweep as CSV text, one row per point.
+pub fn to_csv(sweep: &Sweep) -> String {
+    let mut text = String::from(CSV_HEADER);
+    text.push('\n');
+    for p in &sweep.points {
+        text.push_str(&format!(
+            "{},{},{},{:.6},{},{:.6e},{:.6e}\n",
+            p.sampling.name(),
+            p.backend,
+            p.samples,
+            p.seconds,
+            p.rays,
+            p.transfer_rms,
+            p.radiance_rms
+        ));
+    }
+    text
+}
+
+/// Writes [`to_csv`] to `path`, whole or not at all.
+pub fn write_csv(path: &Path, sweep: &Sweep) -> Result<()> {
+    write_atomically(path, to_csv(sweep).as_bytes())
+}

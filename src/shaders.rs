@@ -2,6 +2,7 @@
 //! the Rust definitions (no "keep in sync" comments).
 
 use crate::bake::bounce::NO_HIT;
+use crate::bake::gpu::{LAST_IN_LEAF, LEAF_FLAG};
 use crate::bvh::STACK_SIZE;
 use crate::ray::{MIN_DIRECTION_COMPONENT, RAY_T_MAX, SLAB_WIDENING};
 
@@ -24,7 +25,9 @@ fn prelude() -> String {
          const SLAB_WIDENING: f32 = {SLAB_WIDENING:?};\n\
          const MIN_DIRECTION_COMPONENT: f32 = {MIN_DIRECTION_COMPONENT:?};\n\
          const RAY_T_MAX: f32 = {RAY_T_MAX:?};\n\
-         const NO_HIT: u32 = {NO_HIT}u;\n\n"
+         const NO_HIT: u32 = {NO_HIT}u;\n\
+         const LEAF_FLAG: u32 = {LEAF_FLAG}u;\n\
+         const LAST_IN_LEAF: u32 = {LAST_IN_LEAF}u;\n\n"
     )
 }
 
@@ -52,8 +55,8 @@ pub fn render_shader() -> String {
 mod tests {
     use super::*;
     use crate::bake::bounce::Hit;
-    use crate::bake::gpu::{GatherParams, ProjectParams, VisibilityParams};
-    use crate::bvh::{BvhNode, BvhTriangle};
+    use crate::bake::gpu::{GatherParams, GpuNode, ProjectParams, VisibilityParams};
+    use crate::bvh::BvhTriangle;
     use crate::render::RenderParams;
     use std::mem::{offset_of, size_of};
 
@@ -106,13 +109,33 @@ mod tests {
     fn shared_structs_match_their_wgsl_twins() {
         let visibility = parse(&visibility_kernel());
         let project = parse(&project_kernel());
+        // The visibility kernel reads nodes and triangles as vec4<u32> words at these offsets
+        // (wgsl/bvh.wgsl).
         assert_eq!(
-            wgsl_layout(&visibility, "BvhNode"),
-            rust_layout!(BvhNode, min, left_or_first, max, triangle_count)
+            rust_layout!(GpuNode, left_box, left, right_box, right),
+            (
+                32,
+                vec![
+                    ("left_box".into(), 0),
+                    ("left".into(), 12),
+                    ("right_box".into(), 16),
+                    ("right".into(), 28)
+                ]
+            )
         );
         assert_eq!(
-            wgsl_layout(&visibility, "BvhTriangle"),
-            rust_layout!(BvhTriangle, v0, source_index, v1, pad1, v2, pad2)
+            rust_layout!(BvhTriangle, v0, source_index, v1, pad1, v2, pad2),
+            (
+                48,
+                vec![
+                    ("v0".into(), 0),
+                    ("source_index".into(), 12),
+                    ("v1".into(), 16),
+                    ("pad1".into(), 28),
+                    ("v2".into(), 32),
+                    ("pad2".into(), 44)
+                ]
+            )
         );
         assert_eq!(
             wgsl_layout(&visibility, "VisibilityParams"),
@@ -126,6 +149,8 @@ mod tests {
                 max_steps,
                 shadowed,
                 record_hits,
+                grid_origin,
+                grid_step,
                 tangent_frames,
                 pad0,
                 pad1,

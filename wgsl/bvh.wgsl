@@ -3,24 +3,6 @@
 // WORKGROUP_SIZE, SLAB_WIDENING and MIN_DIRECTION_COMPONENT are generated from their Rust
 // definitions (src/shaders.rs) and prepended to every kernel.
 
-// 32 bytes; Rust twin: bvh::BvhNode.
-struct BvhNode {
-    min: vec3<f32>,
-    left_or_first: u32,
-    max: vec3<f32>,
-    triangle_count: u32,
-}
-
-// 48 bytes; Rust twin: bvh::BvhTriangle.
-struct BvhTriangle {
-    v0: vec3<f32>,
-    source_index: u32,
-    v1: vec3<f32>,
-    pad1: u32,
-    v2: vec3<f32>,
-    pad2: u32,
-}
-
 struct Ray {
     origin: vec3<f32>,
     direction: vec3<f32>,
@@ -61,17 +43,6 @@ fn make_ray(origin: vec3<f32>, direction: vec3<f32>) -> Ray {
     let dz = direction[kz];
     ray.shear = vec3<f32>(direction[kx] / dz, direction[ky] / dz, 1.0 / dz);
     return ray;
-}
-
-// Slab test: true if the ray meets the box within [t_min, t_max].
-fn hits_box(ray: Ray, box_min: vec3<f32>, box_max: vec3<f32>, t_min: f32, t_max: f32) -> bool {
-    let t0 = (box_min - ray.origin) * ray.inv_direction;
-    let t1 = (box_max - ray.origin) * ray.inv_direction;
-    let near_v = min(t0, t1);
-    let far_v = max(t0, t1);
-    let near = max(max(max(near_v.x, near_v.y), near_v.z), t_min);
-    let far = min(min(min(far_v.x, far_v.y), far_v.z) * SLAB_WIDENING, t_max);
-    return near <= far;
 }
 
 // A hit on a triangle: distance (negative on a miss) and barycentrics of v1 and v2.
@@ -126,20 +97,52 @@ struct Trace {
     v: f32,
 }
 
+// The BVH as the visibility kernel reads it (built from bvh::Bvh by bake::gpu::GpuBvh), both
+// arrays as vec4<u32> so that every read is a 16-byte load.
+// `nodes`: 32 bytes (two vec4) per interior node of the CPU tree, Rust twin bake::gpu::GpuNode:
+//   [0].xyz  the left child's box, [0].w  the left child's reference,
+//   [1].xyz  the right child's box, [1].w  the right child's reference.
+// A box is (min.x, min.y), (min.z, max.x), (max.y, max.z) as pairs of u16 (low half first) on a
+// grid of 2^16 steps per axis, rounded outwards, so it holds at least what the exact box holds.
+// A reference is an interior child's index in `nodes`, or LEAF_FLAG | the index of a leaf's
+// first triangle.
+// `triangles`: 48 bytes (three vec4) per triangle in leaf order, Rust twin bvh::BvhTriangle:
+//   [0] = (v0, source_index), [1] = (v1, flags), [2] = (v2, 0), vertices as f32 bits;
+//   flags is LAST_IN_LEAF on the last triangle of a leaf.
+
+// A grid coordinate back to world space: exact, since the grid step is a power of two and
+// the grid is small enough that origin + q * step needs no rounding (bake::gpu::GpuBvh::new).
+fn grid_point(grid: vec3<f32>) -> vec3<f32> {
+    return params.grid_origin + grid * params.grid_step;
+}
+
+fn box_min(q: vec3<u32>) -> vec3<f32> {
+    return grid_point(vec3<f32>(f32(q.x & 0xffffu), f32(q.x >> 16u), f32(q.y & 0xffffu)));
+}
+
+fn box_max(q: vec3<u32>) -> vec3<f32> {
+    return grid_point(vec3<f32>(f32(q.y >> 16u), f32(q.z & 0xffffu), f32(q.z >> 16u)));
+}
+
 // Closest-hit (any_hit false) or any-hit (any_hit true) traversal of `nodes`/`triangles`
-// (declared by the kernel that includes this file); Rust twin: Bvh::traverse.
+// (declared by the kernel that includes this file); Rust twin: Bvh::traverse, which visits the
+// same nodes in the same order (with exact instead of grid-rounded boxes).
 // Every loop iteration counts against `max_steps`: llvmpipe silently ends any invocation's loops
 // after 65,535 iterations in total, so a traversal that could come near that reports itself
 // as exhausted instead of returning a wrong answer.
+//
+// Written for llvmpipe, where an invocation is one lane of an 8-wide SIMD group: both sides
+// of every branch run (masked) in every loop iteration, and a storage-buffer load is a loop
+// over the lanes with a bounds check per lane and per component. So an interior step reads
+// one 32-byte node (two vec4 loads) that holds both children's boxes and references, and a
+// leaf's triangles are read as three vec4 each.
 fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool) -> Trace {
     var result = Trace(false, false, NO_HIT, 0.0, 0.0);
     var t_max = t_max_in;
-    if (!hits_box(ray, nodes[0].min, nodes[0].max, 0.0, t_max)) {
-        return result;
-    }
     var stack: array<u32, STACK_SIZE>;
     var stack_len = 0u;
-    var node_index = 0u;
+    // The root's children are tested by the first step.
+    var node = 0u;
     var steps = 0u;
     loop {
         steps += 1u;
@@ -147,16 +150,23 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool) -> Trace {
             result.exhausted = true;
             return result;
         }
-        let node = nodes[node_index];
         var descend = false;
-        if (node.triangle_count > 0u) {
-            steps += node.triangle_count;
-            for (var i = node.left_or_first; i < node.left_or_first + node.triangle_count; i += 1u) {
-                let tri = triangles[i];
-                let hit = intersect_triangle(ray, tri.v0, tri.v1, tri.v2, 0.0, t_max);
+        if ((node & LEAF_FLAG) != 0u) {
+            // A leaf's triangles are consecutive; the last one has LAST_IN_LEAF in `flags`.
+            var i = node & ~LEAF_FLAG;
+            loop {
+                steps += 1u;
+                if (steps > max_steps) {
+                    result.exhausted = true;
+                    return result;
+                }
+                let w0 = triangles[3u * i];
+                let w1 = triangles[3u * i + 1u];
+                let w2 = triangles[3u * i + 2u];
+                let hit = intersect_triangle(ray, bitcast<vec3<f32>>(w0.xyz), bitcast<vec3<f32>>(w1.xyz), bitcast<vec3<f32>>(w2.xyz), 0.0, t_max);
                 if (hit.t >= 0.0) {
                     result.hit = true;
-                    result.triangle = tri.source_index;
+                    result.triangle = w0.w;
                     result.u = hit.u;
                     result.v = hit.v;
                     if (any_hit) {
@@ -164,14 +174,18 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool) -> Trace {
                     }
                     t_max = hit.t;
                 }
+                if (w1.w != 0u) {
+                    break;
+                }
+                i += 1u;
             }
         } else {
-            let left = nodes[node.left_or_first];
-            let right = nodes[node.left_or_first + 1u];
-            let t0l = (left.min - ray.origin) * ray.inv_direction;
-            let t1l = (left.max - ray.origin) * ray.inv_direction;
-            let t0r = (right.min - ray.origin) * ray.inv_direction;
-            let t1r = (right.max - ray.origin) * ray.inv_direction;
+            let l = nodes[2u * node];
+            let r = nodes[2u * node + 1u];
+            let t0l = (box_min(l.xyz) - ray.origin) * ray.inv_direction;
+            let t1l = (box_max(l.xyz) - ray.origin) * ray.inv_direction;
+            let t0r = (box_min(r.xyz) - ray.origin) * ray.inv_direction;
+            let t1r = (box_max(r.xyz) - ray.origin) * ray.inv_direction;
             let near_l = box_near(t0l, t1l);
             let near_r = box_near(t0r, t1r);
             let hit_l = near_l <= box_far(t0l, t1l, t_max);
@@ -179,15 +193,15 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool) -> Trace {
             if (hit_l && hit_r) {
                 // Visit the nearer child first, keep the other.
                 let near_first = near_l <= near_r;
-                stack[stack_len] = select(node.left_or_first, node.left_or_first + 1u, near_first);
+                stack[stack_len] = select(l.w, r.w, near_first);
                 stack_len += 1u;
-                node_index = select(node.left_or_first + 1u, node.left_or_first, near_first);
+                node = select(r.w, l.w, near_first);
                 descend = true;
             } else if (hit_l) {
-                node_index = node.left_or_first;
+                node = l.w;
                 descend = true;
             } else if (hit_r) {
-                node_index = node.left_or_first + 1u;
+                node = r.w;
                 descend = true;
             }
         }
@@ -196,7 +210,7 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool) -> Trace {
                 return result;
             }
             stack_len -= 1u;
-            node_index = stack[stack_len];
+            node = stack[stack_len];
         }
     }
     return result;

@@ -1,8 +1,8 @@
 // Visibility pass: one invocation per (vertex, sample) of a chunk; sets the bit of every ray
 // that is above the vertex's horizon and unblocked, and, for interreflection, records where a
 // blocked ray hits. Rust twins: bake::cpu::trace_visibility, bake::bounce::vertex_hits.
-// Dispatch: x over samples of the chunk (WORKGROUP_SIZE per group), y over vertices: a
-// workgroup casts consecutive sample directions from one vertex. Measured on lavapipe against
+// Dispatch: x over the slots of the vertices' sample lists (WORKGROUP_SIZE per group), y over
+// vertices: a workgroup casts consecutive above-horizon sample directions from one vertex. Measured on lavapipe against
 // workgroups of 64 Morton-adjacent vertices sharing one direction: 0.72x the CPU time
 // (docs/performance.md).
 
@@ -24,6 +24,9 @@ struct VisibilityParams {
     shadowed: u32,
     // 1: find the closest hit of each ray and write it to `hits` (interreflection).
     record_hits: u32,
+    // The grid of the node boxes: world = grid_origin + q * grid_step.
+    grid_origin: vec3<f32>,
+    grid_step: f32,
     // 1: directions are in each vertex's tangent frame (cosine-weighted sampling).
     tangent_frames: u32,
     pad0: u32,
@@ -32,16 +35,22 @@ struct VisibilityParams {
 }
 
 @group(0) @binding(0) var<uniform> params: VisibilityParams;
-@group(0) @binding(1) var<storage, read> nodes: array<BvhNode>;
-@group(0) @binding(2) var<storage, read> triangles: array<BvhTriangle>;
+@group(0) @binding(1) var<storage, read> nodes: array<vec4<u32>>;
+@group(0) @binding(2) var<storage, read> triangles: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read> origins: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> normals: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read> directions: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> visible_bits: array<atomic<u32>>;
 // [0]: rays whose traversal ran out of steps (must stay 0).
 @group(0) @binding(7) var<storage, read_write> exhausted_rays: array<atomic<u32>>;
-// [local_vertex * sample_count + local_sample]; written only when record_hits is 1.
+// [local_vertex * sample_count + local_sample]; written only when record_hits is 1, and only
+// for listed samples (the host reads no others).
 @group(0) @binding(8) var<storage, read_write> hits: array<Hit>;
+// [local_vertex * sample_count + slot]: the vertex's samples above its horizon (chunk-local
+// indices, ascending), then NO_SAMPLE.
+@group(0) @binding(9) var<storage, read> sample_lists: array<u32>;
+
+const NO_SAMPLE: u32 = 0xffffffffu;
 
 // Rust twin: sampling::tangent_frame (Duff et al. 2017), step for step.
 fn tangent_frame(n: vec3<f32>) -> mat3x3<f32> {
@@ -55,9 +64,15 @@ fn tangent_frame(n: vec3<f32>) -> mat3x3<f32> {
 
 @compute @workgroup_size(WORKGROUP_SIZE, 1, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let local_sample = id.x;
+    let slot = id.x;
     let local_vertex = id.y;
-    if (local_vertex >= params.vertex_count || local_sample >= params.sample_count) {
+    if (local_vertex >= params.vertex_count || slot >= params.sample_count) {
+        return;
+    }
+    // Only the samples above the vertex's horizon are listed (by the host, with the CPU's
+    // test), packed to the front of the vertex's row: whole SIMD groups trace rays.
+    let local_sample = sample_lists[local_vertex * params.sample_count + slot];
+    if (local_sample == NO_SAMPLE) {
         return;
     }
     let vertex = params.vertex_offset + local_vertex;
@@ -66,13 +81,6 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (params.tangent_frames != 0u) {
         let frame = tangent_frame(normal);
         direction = frame[0] * direction.x + frame[1] * direction.y + frame[2] * direction.z;
-    }
-    let hit_slot = local_vertex * params.sample_count + local_sample;
-    if (dot(normal, direction) <= 0.0) {
-        if (params.record_hits != 0u) {
-            hits[hit_slot] = Hit(NO_HIT, 0.0, 0.0);
-        }
-        return;
     }
     var visible = true;
     if (params.shadowed != 0u) {
@@ -84,7 +92,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         visible = !found.hit;
         if (closest) {
-            hits[hit_slot] = Hit(found.triangle, found.u, found.v);
+            hits[local_vertex * params.sample_count + local_sample] = Hit(found.triangle, found.u, found.v);
         }
     }
     if (visible) {

@@ -14,13 +14,14 @@ use rayon::prelude::*;
 
 use super::bounce::{GatherMatrix, Hit, NO_HIT};
 use super::{DirectInputs, Mode, Progress};
+use crate::bvh::{Bvh, BvhTriangle};
 use crate::error::{Error, Result};
 use crate::gpu::GpuContext;
 use crate::sampling::{world_direction, DirectionFrame, Estimator};
 use crate::sh::coeff_count;
 use crate::shaders::{self, WORKGROUP_SIZE};
 
-/// Uniforms of the visibility kernel, 48 bytes; WGSL twin in wgsl/visibility.wgsl.
+/// Uniforms of the visibility kernel, 64 bytes; WGSL twin in wgsl/visibility.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct VisibilityParams {
@@ -35,6 +36,9 @@ pub struct VisibilityParams {
     pub shadowed: u32,
     /// 1: closest-hit traversal, hits written for interreflection.
     pub record_hits: u32,
+    /// The grid of the node boxes ([`GpuBvh`]): world = grid_origin + q * grid_step.
+    pub grid_origin: [f32; 3],
+    pub grid_step: f32,
     /// 1: sample directions are in each vertex's tangent frame (`sampling::tangent_frame`).
     pub tangent_frames: u32,
     pub pad0: u32,
@@ -126,6 +130,7 @@ pub struct GpuBaker {
 impl GpuBaker {
     pub fn new(context: GpuContext) -> Result<Self> {
         let ctx = &context;
+
         let ((visibility, visibility_layout), (project, project_layout), (gather, gather_layout)) =
             ctx.checked("compiling the kernels", || {
                 let visibility = pipeline(
@@ -142,6 +147,7 @@ impl GpuBaker {
                         storage_entry(6, false),
                         storage_entry(7, false),
                         storage_entry(8, false),
+                        storage_entry(9, true),
                     ],
                 );
                 let project = pipeline(
@@ -242,6 +248,144 @@ fn pipeline(
     (pipeline, layout)
 }
 
+/// Marks a child reference in a [`GpuNode`] as a leaf (the rest is its first triangle).
+pub const LEAF_FLAG: u32 = 1 << 31;
+/// `BvhTriangle::pad1` of the last triangle of a leaf in [`GpuBvh::triangles`].
+pub const LAST_IN_LEAF: u32 = 1;
+
+/// One interior node of the CPU tree as the visibility kernel reads it, 32 bytes (WGSL layout
+/// in wgsl/bvh.wgsl): both children's boxes on the grid of [`GpuBvh`], and their references
+/// (an interior child's index in [`GpuBvh::nodes`], or `LEAF_FLAG | first triangle`).
+///
+/// A traversal step on llvmpipe pays per storage-buffer load (a loop over the SIMD lanes with
+/// a bounds check per lane and component): this layout gives a step two 16-byte loads where
+/// `BvhNode`s take six loads (the node, then both children's corners).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuNode {
+    /// (min.x, min.y), (min.z, max.x), (max.y, max.z) as pairs of u16, low half first.
+    pub left_box: [u32; 3],
+    pub left: u32,
+    pub right_box: [u32; 3],
+    pub right: u32,
+}
+const _: () = assert!(std::mem::size_of::<GpuNode>() == 32);
+
+/// The BVH in the visibility kernel's layout. Boxes are quantized to 16 bits per coordinate
+/// on a grid whose step is a power of two and whose points `grid_origin + q * grid_step` are
+/// all exact f32 values, rounded outwards: every box holds its exact box, so the kernel tests
+/// the triangles the CPU tests (and perhaps a few more, which cannot change an answer).
+/// Nodes come in the CPU tree's order and the near child is chosen the same way, so a
+/// closest-hit query finds the same triangle.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GpuBvh {
+    pub nodes: Vec<GpuNode>,
+    /// `bvh.triangles` with [`LAST_IN_LEAF`] in `pad1` of each leaf's last triangle.
+    pub triangles: Vec<BvhTriangle>,
+    pub grid_origin: [f32; 3],
+    pub grid_step: f32,
+}
+
+const GRID_MAX: f64 = 65535.0;
+
+impl GpuBvh {
+    pub fn new(bvh: &Bvh) -> Self {
+        let Some(root) = bvh.nodes.first() else {
+            // No triangles: one node whose children are a leaf holding a degenerate triangle
+            // (zero determinant: never hit).
+            return GpuBvh {
+                nodes: vec![GpuNode {
+                    left: LEAF_FLAG,
+                    right: LEAF_FLAG,
+                    ..GpuNode::default()
+                }],
+                triangles: vec![BvhTriangle {
+                    source_index: super::bounce::NO_HIT,
+                    pad1: LAST_IN_LEAF,
+                    ..BvhTriangle::default()
+                }],
+                grid_origin: [0.0; 3],
+                grid_step: 1.0,
+            };
+        };
+        let (lo, hi) = (root.min.map(f64::from), root.max.map(f64::from));
+        let magnitude = (0..3).fold(0.0f64, |m, a| m.max(lo[a].abs()).max(hi[a].abs()));
+        let extent = (0..3).fold(0.0f64, |m, a| m.max(hi[a] - lo[a]));
+        // The smallest power of two that spans the scene in GRID_MAX steps (plus one for the
+        // origin's rounding down) and keeps origin + q * step exact in f32 (24-bit mantissa).
+        let mut step = f64::from(f32::MIN_POSITIVE);
+        while extent > (GRID_MAX - 1.0) * step || magnitude + extent >= step * (1u64 << 23) as f64 {
+            step *= 2.0;
+        }
+        let origin = lo.map(|v| (v / step).floor() * step);
+        let grid = |v: f32, axis: usize, up: bool| -> u32 {
+            let q = (f64::from(v) - origin[axis]) / step;
+            (if up { q.ceil() } else { q.floor() }).clamp(0.0, GRID_MAX) as u32
+        };
+        let quantize = |index: u32| -> [u32; 3] {
+            let n = &bvh.nodes[index as usize];
+            let q = [
+                grid(n.min[0], 0, false),
+                grid(n.min[1], 1, false),
+                grid(n.min[2], 2, false),
+                grid(n.max[0], 0, true),
+                grid(n.max[1], 1, true),
+                grid(n.max[2], 2, true),
+            ];
+            [q[0] | q[1] << 16, q[2] | q[3] << 16, q[4] | q[5] << 16]
+        };
+
+        let mut triangles = bvh.triangles.clone();
+        let mut gpu_index = vec![u32::MAX; bvh.nodes.len()];
+        let mut interior = Vec::new();
+        if root.is_leaf() {
+            // A one-leaf tree: a node whose two children are that leaf.
+            interior.push((0, 0));
+        } else {
+            // Interior nodes in the CPU tree's order.
+            for (i, n) in bvh.nodes.iter().enumerate() {
+                if !n.is_leaf() {
+                    gpu_index[i] = interior.len() as u32;
+                    interior.push((n.left_or_first, n.left_or_first + 1));
+                }
+            }
+        }
+        let reference = |child: u32, triangles: &mut Vec<BvhTriangle>| -> u32 {
+            let n = &bvh.nodes[child as usize];
+            if n.is_leaf() {
+                triangles[(n.left_or_first + n.triangle_count - 1) as usize].pad1 = LAST_IN_LEAF;
+                LEAF_FLAG | n.left_or_first
+            } else {
+                gpu_index[child as usize]
+            }
+        };
+        let nodes = interior
+            .iter()
+            .map(|&(left, right)| GpuNode {
+                left_box: quantize(left),
+                left: reference(left, &mut triangles),
+                right_box: quantize(right),
+                right: reference(right, &mut triangles),
+            })
+            .collect();
+        GpuBvh {
+            nodes,
+            triangles,
+            grid_origin: origin.map(|v| v as f32),
+            grid_step: step as f32,
+        }
+    }
+
+    /// A box of `nodes` back in world space, as the kernel computes it.
+    pub fn decode(&self, q: [u32; 3]) -> ([f32; 3], [f32; 3]) {
+        let g = |v: u32, a: usize| self.grid_origin[a] + (v as f32) * self.grid_step;
+        (
+            [g(q[0] & 0xffff, 0), g(q[0] >> 16, 1), g(q[1] & 0xffff, 2)],
+            [g(q[1] >> 16, 0), g(q[2] & 0xffff, 1), g(q[2] >> 16, 2)],
+        )
+    }
+}
+
 /// Chunk sizes that respect the adapter's limits and the per-submission budget.
 fn plan_chunks(
     ctx: &GpuContext,
@@ -276,6 +420,7 @@ fn plan_chunks(
         0
     };
     let by_hits = max_binding / (sample_chunk as u64 * hit_bytes).max(1);
+    let by_lists = max_binding / (sample_chunk as u64 * 4);
     let by_visibility_dispatch = max_groups;
     let by_project_dispatch = max_groups * WORKGROUP_SIZE as u64 / coeffs as u64;
     let vertex_chunk = [
@@ -283,6 +428,7 @@ fn plan_chunks(
         by_bits,
         by_transfer,
         by_hits,
+        by_lists,
         by_visibility_dispatch,
         by_project_dispatch,
     ]
@@ -361,18 +507,25 @@ fn run(
         }
         Ok(())
     };
+    let gpu_bvh = GpuBvh::new(inputs.bvh);
     needs_binding(
         "the BVH triangles",
-        std::mem::size_of_val(inputs.bvh.triangles.as_slice()) as u64,
+        std::mem::size_of_val(gpu_bvh.triangles.as_slice()) as u64,
     )?;
     needs_binding(
         "the BVH nodes",
-        std::mem::size_of_val(inputs.bvh.nodes.as_slice()) as u64,
+        std::mem::size_of_val(gpu_bvh.nodes.as_slice()) as u64,
     )?;
+    if inputs.bvh.triangles.len() as u64 > LEAF_FLAG as u64 {
+        return Err(Error::Gpu(format!(
+            "{} triangles: the GPU BVH holds at most {LEAF_FLAG}",
+            inputs.bvh.triangles.len()
+        )));
+    }
     needs_binding("the SH table", (inputs.table.values.len() * 4) as u64)?;
 
-    let nodes = ctx.storage("bvh nodes", &inputs.bvh.nodes);
-    let triangles = ctx.storage("bvh triangles", &inputs.bvh.triangles);
+    let nodes = ctx.storage("bvh nodes", &gpu_bvh.nodes);
+    let triangles = ctx.storage("bvh triangles", &gpu_bvh.triangles);
     let origins = ctx.storage("origins", &as_vec4(inputs.origins));
     let normals = ctx.storage("normals", &as_vec4(inputs.normals));
     let directions = ctx.storage("directions", &as_vec4(&inputs.samples.directions));
@@ -390,6 +543,10 @@ fn run(
         } else {
             hit_size
         },
+    );
+    let sample_lists = ctx.output(
+        "sample lists",
+        vertex_chunk as u64 * sample_chunk as u64 * 4,
     );
     let visibility_params = ctx.uniform("visibility params", &VisibilityParams::default());
     let project_params = ctx.uniform("project params", &ProjectParams::default());
@@ -411,6 +568,7 @@ fn run(
                     &bits,
                     &exhausted,
                     &hits,
+                    &sample_lists,
                 ],
             ),
             bind(
@@ -449,6 +607,13 @@ fn run(
         {
             let samples = sample_chunk.min(sample_count - sample_offset);
             stats.sample_chunks += (vertex_offset == 0) as u32;
+            let (lists, longest) = sample_lists_above_horizon(
+                inputs,
+                vertex_offset as usize..(vertex_offset + vertices) as usize,
+                sample_offset as usize..(sample_offset + samples) as usize,
+            );
+            ctx.queue
+                .write_buffer(&sample_lists, 0, bytemuck::cast_slice(&lists));
             ctx.queue.write_buffer(
                 &visibility_params,
                 0,
@@ -461,6 +626,8 @@ fn run(
                     max_steps,
                     shadowed: (mode != Mode::Unshadowed) as u32,
                     record_hits: record_hits as u32,
+                    grid_origin: gpu_bvh.grid_origin,
+                    grid_step: gpu_bvh.grid_step,
                     tangent_frames: (inputs.samples.frame == DirectionFrame::Tangent) as u32,
                     ..Default::default()
                 }),
@@ -492,7 +659,7 @@ fn run(
                     "visibility",
                     &baker.visibility,
                     &visibility_group,
-                    [samples.div_ceil(WORKGROUP_SIZE), vertices, 1],
+                    [longest.div_ceil(WORKGROUP_SIZE), vertices, 1],
                 );
                 encode_pass(
                     &mut encoder,
@@ -519,11 +686,17 @@ fn run(
             if record_hits {
                 let chunk_hits: Vec<Hit> =
                     ctx.read_back(&hits, vertices as u64 * samples as u64 * hit_size)?;
-                for (v, row) in chunk_hits.chunks(samples as usize).enumerate() {
+                // Only listed samples were written.
+                for (v, (row, list)) in chunk_hits
+                    .chunks(samples as usize)
+                    .zip(lists.chunks(samples as usize))
+                    .enumerate()
+                {
                     let own = &mut vertex_hits[(vertex_offset as usize) + v];
-                    for (s, hit) in row.iter().enumerate() {
+                    for &s in list.iter().take_while(|&&s| s != NO_SAMPLE) {
+                        let hit = row[s as usize];
                         if hit.triangle != NO_HIT {
-                            own.push((sample_offset + s as u32, *hit));
+                            own.push((sample_offset + s, hit));
                         }
                     }
                 }
@@ -553,6 +726,45 @@ fn run(
         hits: vertex_hits,
         stats,
     })
+}
+
+/// End of a vertex's list in [`sample_lists_above_horizon`].
+const NO_SAMPLE: u32 = u32::MAX;
+
+/// For each vertex of `vertices`, the samples of `samples` above its horizon (by the CPU
+/// backend's test, so both trace the same rays) as indices from `samples.start`, ascending,
+/// padded with NO_SAMPLE to rows of `samples.len()`; and the longest list's length.
+///
+/// About half of all vertex–sample pairs are below the horizon. Listing the others first
+/// keeps llvmpipe's 8-wide SIMD groups full of rays (a group straddling the horizon would
+/// run masked lanes) and lets the dispatch skip groups with nothing to trace.
+fn sample_lists_above_horizon(
+    inputs: &DirectInputs,
+    vertices: std::ops::Range<usize>,
+    samples: std::ops::Range<usize>,
+) -> (Vec<u32>, u32) {
+    let width = samples.len();
+    let mut lists = vec![NO_SAMPLE; vertices.len() * width];
+    let longest = lists
+        .par_chunks_mut(width.max(1))
+        .zip(&inputs.normals[vertices])
+        .map(|(row, &normal)| {
+            let mut count = 0;
+            for (s, &sample) in inputs.samples.directions[samples.clone()]
+                .iter()
+                .enumerate()
+            {
+                let direction = world_direction(inputs.samples.frame, normal, sample);
+                if normal.dot(direction) > 0.0 {
+                    row[count] = s as u32;
+                    count += 1;
+                }
+            }
+            count as u32
+        })
+        .max()
+        .unwrap_or(0);
+    (lists, longest)
 }
 
 /// Rays a shadowed bake casts: vertex–sample pairs above the horizon (as the CPU counts them).
@@ -763,5 +975,139 @@ impl GpuBaker {
             }
         }
         ctx.read_back(&next, bytes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ray::{intersect_box, intersect_triangle, Ray, RAY_T_MAX};
+    use crate::sampling::Pcg32;
+    use crate::scene::builtin;
+    use glam::Vec3;
+
+    fn default_bvh() -> Bvh {
+        let scene = builtin::default_scene();
+        Bvh::build(&scene.positions, &scene.triangles)
+    }
+
+    /// The kernel's traversal (wgsl/bvh.wgsl `trace`), step for step, on the CPU.
+    fn gpu_closest_hit(g: &GpuBvh, ray: &Ray, any_hit: bool) -> Option<(u32, f32)> {
+        let mut t_max = RAY_T_MAX;
+        let mut best = None;
+        let mut stack = Vec::new();
+        let mut node = 0u32;
+        loop {
+            let mut descend = false;
+            if node & LEAF_FLAG != 0 {
+                let mut i = (node & !LEAF_FLAG) as usize;
+                loop {
+                    let t = &g.triangles[i];
+                    let [v0, v1, v2] = t.vertices();
+                    if let Some(hit) = intersect_triangle(ray, v0, v1, v2, 0.0, t_max) {
+                        best = Some((t.source_index, hit.t));
+                        if any_hit {
+                            return best;
+                        }
+                        t_max = hit.t;
+                    }
+                    if t.pad1 != 0 {
+                        break;
+                    }
+                    i += 1;
+                }
+            } else {
+                let n = &g.nodes[node as usize];
+                let test = |q| {
+                    let (lo, hi) = g.decode(q);
+                    intersect_box(ray, Vec3::from(lo), Vec3::from(hi), 0.0, t_max)
+                };
+                match (test(n.left_box), test(n.right_box)) {
+                    (Some(a), Some(b)) => {
+                        let (near, far) = if a <= b {
+                            (n.left, n.right)
+                        } else {
+                            (n.right, n.left)
+                        };
+                        stack.push(far);
+                        node = near;
+                        descend = true;
+                    }
+                    (Some(_), None) => (node, descend) = (n.left, true),
+                    (None, Some(_)) => (node, descend) = (n.right, true),
+                    (None, None) => {}
+                }
+            }
+            if !descend {
+                match stack.pop() {
+                    Some(next) => node = next,
+                    None => return best,
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn grid_boxes_hold_the_exact_boxes() {
+        let bvh = default_bvh();
+        let g = GpuBvh::new(&bvh);
+        let interior: Vec<_> = bvh.nodes.iter().filter(|n| !n.is_leaf()).collect();
+        assert_eq!(interior.len(), g.nodes.len());
+        for (n, gn) in interior.iter().zip(&g.nodes) {
+            for (child, q) in [
+                (n.left_or_first, gn.left_box),
+                (n.left_or_first + 1, gn.right_box),
+            ] {
+                let exact = &bvh.nodes[child as usize];
+                let (lo, hi) = g.decode(q);
+                for a in 0..3 {
+                    assert!(lo[a] <= exact.min[a] && hi[a] >= exact.max[a]);
+                    // Rounded outwards by less than two grid steps.
+                    assert!(exact.min[a] - lo[a] <= 2.0 * g.grid_step);
+                    assert!(hi[a] - exact.max[a] <= 2.0 * g.grid_step);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn gpu_layout_traversal_matches_the_cpu_tree() {
+        let bvh = default_bvh();
+        let g = GpuBvh::new(&bvh);
+        let mut rng = Pcg32::new(3);
+        let root = &bvh.nodes[0];
+        for _ in 0..20_000 {
+            let mut r = || rng.next_f32();
+            let origin = Vec3::from(root.min)
+                + (Vec3::from(root.max) - Vec3::from(root.min)) * Vec3::new(r(), r(), r());
+            let direction = (Vec3::new(r(), r(), r()) * 2.0 - 1.0).normalize_or(Vec3::Y);
+            let ray = Ray::new(origin, direction);
+            assert_eq!(
+                gpu_closest_hit(&g, &ray, true).is_some(),
+                bvh.occluded(&ray, RAY_T_MAX)
+            );
+            assert_eq!(
+                gpu_closest_hit(&g, &ray, false),
+                bvh.closest_hit(&ray, RAY_T_MAX).map(|(i, h)| (i, h.t))
+            );
+        }
+    }
+
+    #[test]
+    fn an_empty_or_one_leaf_tree_has_a_gpu_layout() {
+        let empty = GpuBvh::new(&Bvh::default());
+        assert_eq!(empty.nodes.len(), 1);
+        let ray = Ray::new(Vec3::ZERO, Vec3::Y);
+        assert_eq!(gpu_closest_hit(&empty, &ray, true), None);
+        let one = Bvh::build(
+            &[
+                Vec3::new(-1.0, 1.0, -1.0),
+                Vec3::new(1.0, 1.0, -1.0),
+                Vec3::new(0.0, 1.0, 1.0),
+            ],
+            &[[0, 1, 2]],
+        );
+        let g = GpuBvh::new(&one);
+        assert_eq!(gpu_closest_hit(&g, &ray, false).map(|h| h.0), Some(0));
     }
 }

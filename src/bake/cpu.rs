@@ -3,16 +3,22 @@
 //! the horizon and unblocked, `project_visibility` (wgsl/project.wgsl) sums cosine-weighted SH
 //! over the set bits. Sums are f64 in sample order, so a bake is bit-for-bit repeatable however
 //! rayon schedules the vertices.
+//!
+//! The bake traces direction-major: each sample direction is cast from 16 Morton-adjacent
+//! vertices at once as one ray packet (`crate::packet`), which sets the same bits as
+//! `trace_visibility`, the readable one-ray-at-a-time reference kept beside it.
 
 use rayon::prelude::*;
 
 use super::{DirectInputs, Mode, Progress};
+use crate::packet::{self, lane_mask, LaneMask, PacketOrigins, RayPacket, LANES};
 use crate::ray::{Ray, RAY_T_MAX};
 use crate::sh::coeff_count;
 
 /// Vertices handed to one rayon task: large enough to amortise scheduling, small enough for
-/// smooth progress and load balance on scenes with uneven occlusion.
-const VERTICES_PER_TASK: usize = 64;
+/// smooth progress and load balance on scenes with uneven occlusion. A multiple of the packet
+/// width, so that only the last task has a partly filled packet.
+const VERTICES_PER_TASK: usize = 4 * LANES;
 
 /// Words of visibility bits per vertex for `samples` samples.
 pub fn words_per_vertex(samples: usize) -> usize {
@@ -41,6 +47,67 @@ pub fn trace_visibility(inputs: &DirectInputs, mode: Mode, vertex: usize, bits: 
     rays
 }
 
+/// [`trace_visibility`] of the vertices `first..first + count` (`bits`: `count` rows of
+/// [`words_per_vertex`] words), traced direction-major in packets of [`LANES`] vertices.
+/// Returns the number of rays cast, the same count as the single-ray order.
+pub fn trace_visibility_packets(
+    inputs: &DirectInputs,
+    mode: Mode,
+    first: usize,
+    bits: &mut [u32],
+) -> u64 {
+    let words = words_per_vertex(inputs.samples.len());
+    let count = bits.len() / words;
+    bits.fill(0);
+    let mut rays = 0;
+    for start in (0..count).step_by(LANES) {
+        let lanes = LANES.min(count - start);
+        let vertices = first + start..first + start + lanes;
+        let origins = PacketOrigins::new(&inputs.origins[vertices.clone()]);
+        let normals = normal_lanes(&inputs.normals[vertices]);
+        let rows = &mut bits[start * words..(start + lanes) * words];
+        for (s, &direction) in inputs.samples.directions.iter().enumerate() {
+            let above = above_horizon(&normals, direction) & origins.filled;
+            let visible = if mode == Mode::Unshadowed || above == 0 {
+                above
+            } else {
+                rays += above.count_ones() as u64;
+                let packet = RayPacket::new(&origins, direction, above);
+                above & !packet::occluded(inputs.bvh, &packet, RAY_T_MAX)
+            };
+            set_bit_per_lane(rows, words, s, visible);
+        }
+    }
+    rays
+}
+
+/// Normals by axis, `[axis][lane]`; empty lanes get zero normals (never above the horizon).
+fn normal_lanes(normals: &[glam::Vec3]) -> [[f32; LANES]; 3] {
+    let mut lanes = [[0.0; LANES]; 3];
+    for (lane, n) in normals.iter().enumerate() {
+        for axis in 0..3 {
+            lanes[axis][lane] = n[axis];
+        }
+    }
+    lanes
+}
+
+/// Lanes whose normal has `n.w > 0`, with the single-ray test's arithmetic (`Vec3::dot`:
+/// `x*x' + y*y' + z*z'`, left to right) so that the horizon is the same bit for bit.
+fn above_horizon(normals: &[[f32; LANES]; 3], w: glam::Vec3) -> LaneMask {
+    lane_mask(|l| normals[0][l] * w.x + normals[1][l] * w.y + normals[2][l] * w.z > 0.0)
+}
+
+/// Sets bit `sample` in the row of every lane in `lanes` (`rows`: one row of `words` per lane).
+fn set_bit_per_lane(rows: &mut [u32], words: usize, sample: usize, mut lanes: LaneMask) {
+    let (word, bit) = (sample / 32, 1 << (sample % 32));
+    while lanes != 0 {
+        let lane = lanes.trailing_zeros() as usize;
+        rows[lane * words + word] |= bit;
+        lanes &= lanes - 1;
+    }
+}
+
 /// `sum over set bits s of max(0, n.w_s) y_k(w_s)`, per 32-sample word then added (the GPU's
 /// order), into `out` (length bands^2). Not yet scaled by the sample weight.
 pub fn project_visibility(inputs: &DirectInputs, vertex: usize, bits: &[u32], out: &mut [f64]) {
@@ -53,11 +120,11 @@ pub fn project_visibility(inputs: &DirectInputs, vertex: usize, bits: &[u32], ou
             continue;
         }
         partial.fill(0.0);
-        for bit in 0..32 {
-            if mask & (1 << bit) == 0 {
-                continue;
-            }
-            let s = word * 32 + bit;
+        // Set bits in ascending order, without a branch per bit.
+        let mut rest = mask;
+        while rest != 0 {
+            let s = word * 32 + rest.trailing_zeros() as usize;
+            rest &= rest - 1;
             let cosine = normal.dot(inputs.samples.directions[s]) as f64;
             for (acc, &y) in partial.iter_mut().zip(inputs.table.row(s)) {
                 *acc += cosine * y as f64;
@@ -97,6 +164,43 @@ pub fn direct_transfer(
     progress: &dyn Progress,
 ) -> (Vec<f32>, u64) {
     let n = coeff_count(inputs.table.bands);
+    let words = words_per_vertex(inputs.samples.len());
+    let scale = transfer_scale(inputs);
+    let mut transfer = vec![0.0f32; inputs.origins.len() * n];
+    let rays: u64 = transfer
+        .par_chunks_mut(n * VERTICES_PER_TASK)
+        .enumerate()
+        .map(|(task, chunk)| {
+            let first = task * VERTICES_PER_TASK;
+            let count = chunk.len() / n;
+            let mut bits = vec![0u32; count * words];
+            let rays = trace_visibility_packets(inputs, mode, first, &mut bits);
+            let mut acc = vec![0.0f64; n];
+            for (i, (out, row)) in chunk
+                .chunks_exact_mut(n)
+                .zip(bits.chunks(words))
+                .enumerate()
+            {
+                project_visibility(inputs, first + i, row, &mut acc);
+                for (o, a) in out.iter_mut().zip(&acc) {
+                    *o = (*a * scale) as f32;
+                }
+            }
+            progress.advance(count as u64);
+            rays
+        })
+        .sum();
+    (transfer, rays)
+}
+
+/// [`direct_transfer`] in the vertex-major, one-ray-at-a-time order of [`trace_visibility`]:
+/// the same numbers (up to edge-grazing rays), kept to measure what the packets gain.
+pub fn direct_transfer_single_rays(
+    inputs: &DirectInputs,
+    mode: Mode,
+    progress: &dyn Progress,
+) -> (Vec<f32>, u64) {
+    let n = coeff_count(inputs.table.bands);
     let mut transfer = vec![0.0f32; inputs.origins.len() * n];
     let rays: u64 = transfer
         .par_chunks_mut(n * VERTICES_PER_TASK)
@@ -123,8 +227,58 @@ pub fn direct_transfer(
 pub fn visibility_bits(inputs: &DirectInputs, mode: Mode) -> Vec<u32> {
     let words = words_per_vertex(inputs.samples.len());
     let mut bits = vec![0u32; inputs.origins.len() * words];
-    bits.par_chunks_mut(words).enumerate().for_each(|(v, out)| {
-        trace_visibility(inputs, mode, v, out);
-    });
+    bits.par_chunks_mut(words * VERTICES_PER_TASK)
+        .enumerate()
+        .for_each(|(task, rows)| {
+            trace_visibility_packets(inputs, mode, task * VERTICES_PER_TASK, rows);
+        });
     bits
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::{BakeInputs, NoProgress};
+    use crate::scene::{self, prepare::prepare};
+
+    fn bunny(samples: u32) -> BakeInputs {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny.obj");
+        let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
+        BakeInputs::new(&mesh, 3, samples, 5)
+    }
+
+    #[test]
+    fn packets_set_the_bits_of_single_rays() {
+        // 100 samples: words end in a partly used word; the bunny's vertex count is not a
+        // multiple of the packet width, so the last packet is partly filled.
+        let owned = bunny(100);
+        let inputs = owned.view();
+        assert_ne!(inputs.origins.len() % LANES, 0);
+        let words = words_per_vertex(inputs.samples.len());
+        for mode in [Mode::Unshadowed, Mode::Shadowed] {
+            let bits = visibility_bits(&inputs, mode);
+            let mut row = vec![0u32; words];
+            for v in 0..inputs.origins.len() {
+                trace_visibility(&inputs, mode, v, &mut row);
+                assert_eq!(
+                    &bits[v * words..(v + 1) * words],
+                    &row[..],
+                    "vertex {v} {mode:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn direct_transfer_matches_the_single_ray_order() {
+        let owned = bunny(256);
+        let inputs = owned.view();
+        for mode in [Mode::Unshadowed, Mode::Shadowed] {
+            let (packets, rays) = direct_transfer(&inputs, mode, &NoProgress);
+            let (single, single_rays) = direct_transfer_single_rays(&inputs, mode, &NoProgress);
+            assert_eq!(rays, single_rays, "{mode:?}");
+            assert_eq!(rays == 0, mode == Mode::Unshadowed);
+            assert_eq!(packets, single, "{mode:?}");
+        }
+    }
 }

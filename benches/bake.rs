@@ -1,9 +1,11 @@
 //! Shadowed bake of dragon_vrip_res3 (23k vertices, 1024 samples, 4 bands): rays per second of
-//! the direct-transfer pass on the CPU backend and, where an adapter exists, the GPU backend,
+//! the direct-transfer pass on the CPU backend (direction-major ray packets, and the plain
+//! vertex-major single-ray order they replaced) and, where an adapter exists, the GPU backend,
 //! side by side in one run (the machine is shared and noisy: compare ratios, not absolutes).
 //!
 //! Run: `cargo bench --bench bake` (criterion reports the throughput in rays/s).
 //! PRT_GPU_BENCH_ADAPTER=name picks the adapter; without any adapter the GPU entry is skipped.
+//! PRT_GPU_BENCH_SKIP_GPU=1 skips it too (on lavapipe it takes minutes).
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -26,10 +28,17 @@ fn shadowed_dragon(c: &mut Criterion) {
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(30));
     group.throughput(Throughput::Elements(rays));
-    group.bench_function("cpu", |b| {
+    group.bench_function("cpu packets", |b| {
         b.iter(|| cpu::direct_transfer(&inputs, Mode::Shadowed, &NoProgress))
     });
+    group.bench_function("cpu single rays", |b| {
+        b.iter(|| cpu::direct_transfer_single_rays(&inputs, Mode::Shadowed, &NoProgress))
+    });
 
+    if std::env::var_os("PRT_GPU_BENCH_SKIP_GPU").is_some() {
+        group.finish();
+        return;
+    }
     let adapter = std::env::var("PRT_GPU_BENCH_ADAPTER").ok();
     match prt_gpu::gpu::open(DeviceChoice::Gpu, adapter.as_deref()) {
         Ok(Some(context)) => {

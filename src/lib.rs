@@ -12,6 +12,7 @@ pub mod error;
 pub mod gpu;
 pub mod light;
 pub mod output;
+pub mod packet;
 pub mod ray;
 pub mod render;
 pub mod sampling;

@@ -718,7 +718,7 @@ fn check_head(head: &[u8], file_len: u64, path: &Path) -> Result<usize> {
     if u32_at(head, 16) != CHUNK_JSON {
         return bad("the first chunk is not the JSON chunk".into());
     }
-    if json_len % 4 != 0 {
+    if !json_len.is_multiple_of(4) {
         return bad(format!(
             "JSON chunk length {json_len} is not a multiple of 4"
         ));
@@ -736,7 +736,7 @@ fn check_bin_head(head: &[u8], start: u64, file_len: u64, path: &Path) -> Result
     if u32_at(head, 4) != CHUNK_BIN {
         return bad("the second chunk is not the BIN chunk".into());
     }
-    if len % 4 != 0 {
+    if !len.is_multiple_of(4) {
         return bad(format!("BIN chunk length {len} is not a multiple of 4"));
     }
     if start + 8 + u64::from(len) > file_len {

@@ -3,18 +3,24 @@
 //! the horizon and unblocked, `project_visibility` (wgsl/project.wgsl) sums cosine-weighted SH
 //! over the set bits. Sums are f64 in sample order, so a bake is bit-for-bit repeatable however
 //! rayon schedules the vertices.
+//!
+//! The bake traces direction-major: each sample direction is cast from 16 Morton-adjacent
+//! vertices at once as one ray packet (`crate::packet`), which sets the same bits as
+//! `trace_visibility`, the readable one-ray-at-a-time reference kept beside it.
 
 use rayon::prelude::*;
 
 use super::{DirectInputs, Mode, Progress};
+use crate::packet::{self, lane_mask, LaneMask, PacketOrigins, RayPacket, LANES};
 use crate::ray::{Ray, RAY_T_MAX};
 use crate::sampling::{tangent_frame, world_direction, DirectionFrame, Estimator};
 use crate::sh::rotation::ShRotation;
 use crate::sh::{coeff_count, unshadowed_transfer};
 
 /// Vertices handed to one rayon task: large enough to amortise scheduling, small enough for
-/// smooth progress and load balance on scenes with uneven occlusion.
-const VERTICES_PER_TASK: usize = 64;
+/// smooth progress and load balance on scenes with uneven occlusion. A multiple of the packet
+/// width, so that only the last task has a partly filled packet.
+const VERTICES_PER_TASK: usize = 4 * LANES;
 
 /// Words of visibility bits per vertex for `samples` samples.
 pub fn words_per_vertex(samples: usize) -> usize {
@@ -44,19 +50,88 @@ pub fn trace_visibility(inputs: &DirectInputs, mode: Mode, vertex: usize, bits: 
     rays
 }
 
-/// Whether sample `s` enters the sum: its visibility bit is set, or, when the estimator sums
-/// blocked rays, it is above the horizon and its bit is clear.
-fn selected(estimator: Estimator, visible: bool, cosine: f32) -> bool {
-    if estimator.sums_blocked() {
-        cosine > 0.0 && !visible
-    } else {
-        visible
+/// [`trace_visibility`] of the vertices `first..first + count` (`bits`: `count` rows of
+/// [`words_per_vertex`] words), traced direction-major in packets of [`LANES`] vertices.
+/// World directions only.
+/// Returns the number of rays cast, the same count as the single-ray order.
+pub fn trace_visibility_packets(
+    inputs: &DirectInputs,
+    mode: Mode,
+    first: usize,
+    bits: &mut [u32],
+) -> u64 {
+    let words = words_per_vertex(inputs.samples.len());
+    let count = bits.len() / words;
+    bits.fill(0);
+    let mut rays = 0;
+    for start in (0..count).step_by(LANES) {
+        let lanes = LANES.min(count - start);
+        let vertices = first + start..first + start + lanes;
+        let origins = PacketOrigins::new(&inputs.origins[vertices.clone()]);
+        let normals = normal_lanes(&inputs.normals[vertices]);
+        let rows = &mut bits[start * words..(start + lanes) * words];
+        for (s, &direction) in inputs.samples.directions.iter().enumerate() {
+            let above = above_horizon(&normals, direction) & origins.filled;
+            let visible = if mode == Mode::Unshadowed || above == 0 {
+                above
+            } else {
+                rays += above.count_ones() as u64;
+                let packet = RayPacket::new(&origins, direction, above);
+                above & !packet::occluded(inputs.bvh, &packet, RAY_T_MAX)
+            };
+            set_bit_per_lane(rows, words, s, visible);
+        }
+    }
+    rays
+}
+
+/// [`trace_visibility`] of the vertices `first..first + count` (`bits`: `count` rows): in
+/// packets where all vertices share the directions, one ray at a time where each vertex turns
+/// them into its own tangent frame (parallel rays are what make a packet).
+fn trace_visibility_of(inputs: &DirectInputs, mode: Mode, first: usize, bits: &mut [u32]) -> u64 {
+    match inputs.samples.frame {
+        DirectionFrame::World => trace_visibility_packets(inputs, mode, first, bits),
+        DirectionFrame::Tangent => {
+            let words = words_per_vertex(inputs.samples.len());
+            bits.chunks_mut(words)
+                .enumerate()
+                .map(|(i, row)| trace_visibility(inputs, mode, first + i, row))
+                .sum()
+        }
+    }
+}
+
+/// Normals by axis, `[axis][lane]`; empty lanes get zero normals (never above the horizon).
+fn normal_lanes(normals: &[glam::Vec3]) -> [[f32; LANES]; 3] {
+    let mut lanes = [[0.0; LANES]; 3];
+    for (lane, n) in normals.iter().enumerate() {
+        for axis in 0..3 {
+            lanes[axis][lane] = n[axis];
+        }
+    }
+    lanes
+}
+
+/// Lanes whose normal has `n.w > 0`, with the single-ray test's arithmetic (`Vec3::dot`:
+/// `x*x' + y*y' + z*z'`, left to right) so that the horizon is the same bit for bit.
+fn above_horizon(normals: &[[f32; LANES]; 3], w: glam::Vec3) -> LaneMask {
+    lane_mask(|l| normals[0][l] * w.x + normals[1][l] * w.y + normals[2][l] * w.z > 0.0)
+}
+
+/// Sets bit `sample` in the row of every lane in `lanes` (`rows`: one row of `words` per lane).
+fn set_bit_per_lane(rows: &mut [u32], words: usize, sample: usize, mut lanes: LaneMask) {
+    let (word, bit) = (sample / 32, 1 << (sample % 32));
+    while lanes != 0 {
+        let lane = lanes.trailing_zeros() as usize;
+        rows[lane * words + word] |= bit;
+        lanes &= lanes - 1;
     }
 }
 
 /// `sum over selected s of w(s) y_k(w_s)` with `w(s) = n.w_s` (or 1 for the cosine density),
-/// per 32-sample word then added (the GPU's order), into `out` (length bands^2). Not yet
-/// scaled: see [`finish_transfer`].
+/// per 32-sample word then added (the GPU's order), into `out` (length bands^2). Selected are
+/// the set bits, or, when the estimator sums blocked rays, the clear bits above the horizon.
+/// Not yet scaled: see [`finish_transfer`].
 pub fn project_visibility(inputs: &DirectInputs, vertex: usize, bits: &[u32], out: &mut [f64]) {
     let n = coeff_count(inputs.table.bands);
     let normal = inputs.normals[vertex];
@@ -69,20 +144,29 @@ pub fn project_visibility(inputs: &DirectInputs, vertex: usize, bits: &[u32], ou
             continue;
         }
         partial.fill(0.0);
-        for bit in 0..32.min(sample_count - word * 32) {
-            let s = word * 32 + bit;
+        // Candidate samples in ascending order, without a branch per bit.
+        let samples_in_word = (sample_count - word * 32).min(32);
+        let in_word = u32::MAX >> (32 - samples_in_word);
+        let mut rest = if estimator.sums_blocked() {
+            !mask & in_word
+        } else {
+            mask
+        };
+        while rest != 0 {
+            let s = word * 32 + rest.trailing_zeros() as usize;
+            rest &= rest - 1;
             let direction = inputs.samples.directions[s];
-            let cosine = match inputs.samples.frame {
-                DirectionFrame::World => normal.dot(direction),
-                DirectionFrame::Tangent => direction.z,
+            let (cosine, weight) = match inputs.samples.frame {
+                DirectionFrame::World => {
+                    let cosine = normal.dot(direction);
+                    (cosine, cosine as f64)
+                }
+                DirectionFrame::Tangent => (direction.z, 1.0),
             };
-            if !selected(estimator, mask & (1 << bit) != 0, cosine) {
+            // A clear bit below the horizon was never cast: it is not blocked.
+            if estimator.sums_blocked() && cosine <= 0.0 {
                 continue;
             }
-            let weight = match inputs.samples.frame {
-                DirectionFrame::World => cosine as f64,
-                DirectionFrame::Tangent => 1.0,
-            };
             for (acc, &y) in partial.iter_mut().zip(inputs.table.row(s)) {
                 *acc += weight * y as f64;
             }
@@ -143,6 +227,43 @@ pub fn direct_transfer(
     progress: &dyn Progress,
 ) -> (Vec<f32>, u64) {
     let n = coeff_count(inputs.table.bands);
+    let words = words_per_vertex(inputs.samples.len());
+    let mut transfer = vec![0.0f32; inputs.origins.len() * n];
+    let rays: u64 = transfer
+        .par_chunks_mut(n * VERTICES_PER_TASK)
+        .enumerate()
+        .map(|(task, chunk)| {
+            let first = task * VERTICES_PER_TASK;
+            let count = chunk.len() / n;
+            let mut bits = vec![0u32; count * words];
+            let rays = trace_visibility_of(inputs, mode, first, &mut bits);
+            let mut acc = vec![0.0f64; n];
+            for (i, (out, row)) in chunk
+                .chunks_exact_mut(n)
+                .zip(bits.chunks(words))
+                .enumerate()
+            {
+                project_visibility(inputs, first + i, row, &mut acc);
+                finish_transfer(inputs, first + i, &mut acc);
+                for (o, a) in out.iter_mut().zip(&acc) {
+                    *o = *a as f32;
+                }
+            }
+            progress.advance(count as u64);
+            rays
+        })
+        .sum();
+    (transfer, rays)
+}
+
+/// [`direct_transfer`] in the vertex-major, one-ray-at-a-time order of [`trace_visibility`]:
+/// the same numbers (up to edge-grazing rays), kept to measure what the packets gain.
+pub fn direct_transfer_single_rays(
+    inputs: &DirectInputs,
+    mode: Mode,
+    progress: &dyn Progress,
+) -> (Vec<f32>, u64) {
+    let n = coeff_count(inputs.table.bands);
     let mut transfer = vec![0.0f32; inputs.origins.len() * n];
     let rays: u64 = transfer
         .par_chunks_mut(n * VERTICES_PER_TASK)
@@ -169,8 +290,58 @@ pub fn direct_transfer(
 pub fn visibility_bits(inputs: &DirectInputs, mode: Mode) -> Vec<u32> {
     let words = words_per_vertex(inputs.samples.len());
     let mut bits = vec![0u32; inputs.origins.len() * words];
-    bits.par_chunks_mut(words).enumerate().for_each(|(v, out)| {
-        trace_visibility(inputs, mode, v, out);
-    });
+    bits.par_chunks_mut(words * VERTICES_PER_TASK)
+        .enumerate()
+        .for_each(|(task, rows)| {
+            trace_visibility_of(inputs, mode, task * VERTICES_PER_TASK, rows);
+        });
     bits
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::{BakeInputs, NoProgress};
+    use crate::scene::{self, prepare::prepare};
+
+    fn bunny(samples: u32) -> BakeInputs {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny.obj");
+        let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
+        BakeInputs::new(&mesh, 3, samples, 5)
+    }
+
+    #[test]
+    fn packets_set_the_bits_of_single_rays() {
+        // 100 samples: words end in a partly used word; the bunny's vertex count is not a
+        // multiple of the packet width, so the last packet is partly filled.
+        let owned = bunny(100);
+        let inputs = owned.view();
+        assert_ne!(inputs.origins.len() % LANES, 0);
+        let words = words_per_vertex(inputs.samples.len());
+        for mode in [Mode::Unshadowed, Mode::Shadowed] {
+            let bits = visibility_bits(&inputs, mode);
+            let mut row = vec![0u32; words];
+            for v in 0..inputs.origins.len() {
+                trace_visibility(&inputs, mode, v, &mut row);
+                assert_eq!(
+                    &bits[v * words..(v + 1) * words],
+                    &row[..],
+                    "vertex {v} {mode:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn direct_transfer_matches_the_single_ray_order() {
+        let owned = bunny(256);
+        let inputs = owned.view();
+        for mode in [Mode::Unshadowed, Mode::Shadowed] {
+            let (packets, rays) = direct_transfer(&inputs, mode, &NoProgress);
+            let (single, single_rays) = direct_transfer_single_rays(&inputs, mode, &NoProgress);
+            assert_eq!(rays, single_rays, "{mode:?}");
+            assert_eq!(rays == 0, mode == Mode::Unshadowed);
+            assert_eq!(packets, single, "{mode:?}");
+        }
+    }
 }

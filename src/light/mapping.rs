@@ -93,11 +93,11 @@ impl Mapping {
             Mapping::Latlong => (width == 2 * height, "2:1 (width = 2 x height)"),
             Mapping::Angular | Mapping::MirrorBall => (width == height, "1:1 (square)"),
             Mapping::CrossHorizontal => (
-                width % 4 == 0 && width / 4 * 3 == height,
+                width.is_multiple_of(4) && width / 4 * 3 == height,
                 "4:3 with a width divisible by 4",
             ),
             Mapping::CrossVertical => (
-                width % 3 == 0 && width / 3 * 4 == height,
+                width.is_multiple_of(3) && width / 3 * 4 == height,
                 "3:4 with a width divisible by 3",
             ),
         };

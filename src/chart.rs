@@ -316,22 +316,40 @@ struct SeriesStyle {
     marker: Marker,
 }
 
-/// One style per distinct label, in order of first appearance across all panels, so that
-/// "stratified gpu" has the same colour and marker in every panel. Colour and marker cycle
-/// with coprime periods (7 and 6), so 42 series are told apart before any repeats.
+/// One style per distinct label, the same in every panel. A label's first word picks its
+/// colour and its last word its marker, each in order of first appearance: "stratified cpu" and
+/// "stratified gpu" share a colour, "stratified gpu" and "cosine gpu" a marker, so a chart of
+/// strategies × backends reads as a grid. Colours and markers cycle past their lists.
 fn series_styles(panels: &[ChartPanel]) -> Vec<(String, SeriesStyle)> {
+    let mut first_words: Vec<&str> = Vec::new();
+    let mut last_words: Vec<&str> = Vec::new();
     let mut styles: Vec<(String, SeriesStyle)> = Vec::new();
     for series in panels.iter().flat_map(|p| &p.series) {
-        if styles.iter().all(|(label, _)| *label != series.label) {
-            let i = styles.len();
-            let style = SeriesStyle {
-                colour: COLOURS[i % COLOURS.len()],
-                marker: MARKERS[i % MARKERS.len()],
-            };
-            styles.push((series.label.clone(), style));
+        if styles.iter().any(|(label, _)| *label == series.label) {
+            continue;
         }
+        let first = series.label.split_whitespace().next().unwrap_or("");
+        let last = series.label.split_whitespace().last().unwrap_or("");
+        let colour = position_or_push(&mut first_words, first);
+        let marker = position_or_push(&mut last_words, last);
+        let style = SeriesStyle {
+            colour: COLOURS[colour % COLOURS.len()],
+            marker: MARKERS[marker % MARKERS.len()],
+        };
+        styles.push((series.label.clone(), style));
     }
     styles
+}
+
+/// Index of `word` in `words`, appended first if new.
+fn position_or_push<'a>(words: &mut Vec<&'a str>, word: &'a str) -> usize {
+    match words.iter().position(|w| *w == word) {
+        Some(i) => i,
+        None => {
+            words.push(word);
+            words.len() - 1
+        }
+    }
 }
 
 fn style_of(styles: &[(String, SeriesStyle)], label: &str) -> SeriesStyle {
@@ -855,11 +873,15 @@ mod tests {
     }
 
     #[test]
-    fn the_same_label_keeps_its_style_across_panels_and_labels_differ() {
+    fn labels_style_by_their_first_and_last_words() {
+        // "stratified cpu", "stratified gpu", "uniform cpu", in both panels.
         let panels = two_panels();
         let styles = series_styles(&panels);
         assert_eq!(styles.len(), 3);
-        assert_ne!(styles[0].1.colour, styles[1].1.colour);
-        assert_ne!(styles[1].1.marker, styles[2].1.marker);
+        let (stratified_cpu, stratified_gpu, uniform_cpu) = (styles[0].1, styles[1].1, styles[2].1);
+        assert_eq!(stratified_cpu.colour, stratified_gpu.colour);
+        assert_ne!(stratified_cpu.marker, stratified_gpu.marker);
+        assert_ne!(stratified_cpu.colour, uniform_cpu.colour);
+        assert_eq!(stratified_cpu.marker, uniform_cpu.marker);
     }
 }

@@ -9,7 +9,9 @@ use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
-use prt_gpu::bake::{self, Backend, BakeOptions, Mode, Progress, DEFAULT_SAMPLING};
+use prt_gpu::bake::{
+    self, Backend, BakeOptions, Mode, Progress, DEFAULT_SAMPLES, DEFAULT_SAMPLING,
+};
 use prt_gpu::gpu::{self, DeviceChoice};
 use prt_gpu::light::{self, analytic, Mapping, ShLight};
 use prt_gpu::render::{self, Camera, ToneMap};
@@ -100,7 +102,7 @@ struct BenchArgs {
     #[arg(long, default_value_t = 4)]
     bands: u32,
     /// Sample directions per vertex.
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, default_value_t = DEFAULT_SAMPLES)]
     samples: u32,
     /// Sampling strategy (as for `bake`).
     #[arg(long, value_enum, default_value_t = DEFAULT_SAMPLING)]
@@ -227,7 +229,7 @@ struct BakeArgs {
     #[arg(long, default_value_t = 4)]
     bands: u32,
     /// Sample directions per vertex (rounded to the nearest square for stratified sampling).
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, default_value_t = DEFAULT_SAMPLES)]
     samples: u32,
     /// How sample directions are drawn and weighted. control-variate (the default) estimates
     /// only what geometry blocks and adds the exact unoccluded transfer; see `prt-gpu chart`.

@@ -71,8 +71,8 @@ pub enum Sampling {
     /// A randomly shifted Fibonacci lattice with cosine-weighted density on each vertex's own
     /// hemisphere: no ray goes below the horizon, and the density carries the cosine.
     Cosine,
-    /// The cosine set with a control variate: the unoccluded transfer in closed form, minus a
-    /// Monte Carlo estimate of the part that geometry blocks.
+    /// The Fibonacci set with a control variate: the unoccluded transfer in closed form, minus
+    /// a Monte Carlo estimate of the part that geometry blocks.
     ControlVariate,
 }
 
@@ -108,8 +108,8 @@ impl Sampling {
         match self {
             Sampling::Uniform => uniform_sphere(count, seed),
             Sampling::Stratified => stratified_sphere(count, seed),
-            Sampling::Fibonacci => fibonacci_sphere(count, seed),
-            Sampling::Cosine | Sampling::ControlVariate => cosine_hemisphere(count, seed),
+            Sampling::Fibonacci | Sampling::ControlVariate => fibonacci_sphere(count, seed),
+            Sampling::Cosine => cosine_hemisphere(count, seed),
         }
     }
 

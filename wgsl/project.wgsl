@@ -43,18 +43,24 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var total = 0.0;
     for (var word = 0u; word < params.words_per_vertex; word += 1u) {
         let bits = visible_bits[local_vertex * params.words_per_vertex + word];
-        var partial = 0.0;
         let bits_in_word = min(32u, params.sample_count - min(params.sample_count, word * 32u));
-        for (var bit = 0u; bit < bits_in_word; bit += 1u) {
+        let in_word = select(0u, 0xffffffffu >> (32u - bits_in_word), bits_in_word > 0u);
+        // Candidate samples in ascending order: llvmpipe pays for every storage read, so only
+        // candidates read their direction and SH value.
+        var rest = select(bits, ~bits & in_word, sums_blocked);
+        var partial = 0.0;
+        while (rest != 0u) {
+            let bit = firstTrailingBit(rest);
+            rest &= rest - 1u;
             let sample = params.sample_offset + word * 32u + bit;
             let direction = directions[sample].xyz;
             let cosine = select(dot(normal, direction), direction.z, tangent);
-            let visible = (bits & (1u << bit)) != 0u;
-            let selected = select(visible, cosine > 0.0 && !visible, sums_blocked);
-            if (selected) {
-                let weight = select(cosine, 1.0, tangent);
-                partial += weight * sh_table[sample * params.coeff_count + k];
+            // A clear bit below the horizon was never cast: it is not blocked.
+            if (sums_blocked && cosine <= 0.0) {
+                continue;
             }
+            let weight = select(cosine, 1.0, tangent);
+            partial += weight * sh_table[sample * params.coeff_count + k];
         }
         total += partial;
     }

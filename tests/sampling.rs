@@ -433,3 +433,58 @@ fn default_bake_halves_the_tutorials_error_on_the_dragon() {
         "{default_sampling:?} / stratified at 1024 = {at_1024}"
     );
 }
+
+#[test]
+fn every_strategy_interreflects_alike_on_both_backends() {
+    // The bounce's gather weights follow the density (no cosine for the cosine set) and the
+    // direct part follows the estimator: with 1024 samples every strategy's scene-mean DC
+    // must land within 2% of the others, and the GPU within 0.1% of the CPU.
+    use prt_gpu::bake::{bake, Backend, BakeOptions};
+    let scene = occluded_scene();
+    let mean_dc_of = |sampling: Sampling, mode: Mode, backend: &Backend| {
+        let options = BakeOptions {
+            bands: 2,
+            samples: 1024,
+            sampling,
+            mode,
+            bounces: 2,
+            albedo: Some(Vec3::splat(0.8)),
+            ..BakeOptions::default()
+        };
+        let (baked, _) = bake(scene.clone(), &options, backend, &NoProgress).unwrap();
+        let t = &baked.transfer;
+        (0..t.vertex_count)
+            .map(|v| t.vertex_channel(v, 0)[0] as f64)
+            .sum::<f64>()
+            / t.vertex_count as f64
+    };
+    let mean_dc = |sampling, backend: &Backend| mean_dc_of(sampling, Mode::Interreflected, backend);
+    let reference = mean_dc(Sampling::Stratified, &Backend::Cpu);
+    // The bounces must add far more than the tolerance, or a wrong gather weight would hide.
+    let direct = mean_dc_of(Sampling::Stratified, Mode::Shadowed, &Backend::Cpu);
+    assert!(
+        reference > 1.1 * direct,
+        "bounces add too little: {direct} -> {reference}"
+    );
+    for sampling in Sampling::ALL {
+        let cpu = mean_dc(sampling, &Backend::Cpu);
+        eprintln!("{sampling:?}: mean DC {cpu:.5} vs stratified {reference:.5}");
+        assert!(
+            (cpu - reference).abs() <= 0.02 * reference,
+            "{sampling:?}: {cpu} vs {reference}"
+        );
+        if let Some(baker) = common::gpu_baker() {
+            let gpu = mean_dc(
+                sampling,
+                &Backend::Gpu {
+                    baker,
+                    chunking: Chunking::default(),
+                },
+            );
+            assert!(
+                (gpu - cpu).abs() <= 1e-3 * cpu,
+                "{sampling:?}: gpu {gpu} vs cpu {cpu}"
+            );
+        }
+    }
+}

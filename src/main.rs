@@ -545,7 +545,7 @@ fn run_chart(args: ChartArgs) -> Result<(), String> {
     let result =
         sweep::run(&scene, &options, &backends, &light, &progress).map_err(|e| e.to_string())?;
     progress.finish();
-    let panels = chart_panels(&result);
+    let panels = sweep::chart_panels(&result);
     let title = format!(
         "{name}: {} bands, {} mode, against {} {} samples",
         options.bands,
@@ -576,43 +576,6 @@ fn run_chart(args: ChartArgs) -> Result<(), String> {
         csv_path.display()
     );
     Ok(())
-}
-
-/// Two panels: transfer error and relit-radiance error, one line per strategy and backend.
-fn chart_panels(result: &sweep::Sweep) -> Vec<chart::ChartPanel> {
-    let mut lines: Vec<(String, Vec<&sweep::SweepPoint>)> = Vec::new();
-    for p in &result.points {
-        let label = format!("{} {}", p.sampling.name(), p.backend);
-        match lines.iter_mut().find(|(l, _)| *l == label) {
-            Some((_, points)) => points.push(p),
-            None => lines.push((label, vec![p])),
-        }
-    }
-    let panel =
-        |title: &str, y_label: &str, error: fn(&sweep::SweepPoint) -> f64| chart::ChartPanel {
-            title: title.to_string(),
-            y_label: y_label.to_string(),
-            series: lines
-                .iter()
-                .map(|(label, points)| chart::ChartSeries {
-                    label: label.clone(),
-                    points: points
-                        .iter()
-                        .map(|p| chart::ChartPoint {
-                            seconds: p.seconds,
-                            error: error(p),
-                            samples: p.samples,
-                        })
-                        .collect(),
-                })
-                .collect(),
-        };
-    vec![
-        panel("transfer", "RMS error of the transfer", |p| p.transfer_rms),
-        panel("relit radiance", "RMS error of the relit radiance", |p| {
-            p.radiance_rms
-        }),
-    ]
 }
 
 fn run_bench(args: BenchArgs) -> Result<(), String> {
@@ -650,32 +613,15 @@ fn run_bench(args: BenchArgs) -> Result<(), String> {
             }
         },
     };
-    let mut cpu_times = Vec::new();
-    let mut gpu_times = Vec::new();
-    let mut rays = 0;
-    for round in 0..args.repeats {
-        eprintln!("round {} of {}", round + 1, args.repeats);
-        let started = std::time::Instant::now();
-        let (_, cast) = bake::cpu::direct_transfer(&inputs, options.mode, &bake::NoProgress);
-        cpu_times.push(started.elapsed().as_secs_f64());
-        rays = cast;
-        if let Some(baker) = &baker {
-            let started = std::time::Instant::now();
-            bake::gpu::direct_transfer(
-                baker,
-                &inputs,
-                options.mode,
-                Chunking::default(),
-                &bake::NoProgress,
-            )
-            .map_err(|e| e.to_string())?;
-            gpu_times.push(started.elapsed().as_secs_f64());
-        }
-    }
-    let median = |times: &mut Vec<f64>| {
-        times.sort_by(f64::total_cmp);
-        times[times.len() / 2]
-    };
+    let timing = sweep::time_backends(
+        &inputs,
+        options.mode,
+        baker.as_ref(),
+        args.repeats,
+        |round| eprintln!("round {} of {}", round + 1, args.repeats),
+    )
+    .map_err(|e| e.to_string())?;
+    let rays = timing.rays;
     println!(
         "{name}: {} vertices, {} bands, {} {} samples, {} mode, {rays} rays; median of {} runs",
         inputs.origins.len(),
@@ -685,14 +631,13 @@ fn run_bench(args: BenchArgs) -> Result<(), String> {
         options.mode.name(),
         args.repeats
     );
-    let cpu_seconds = median(&mut cpu_times);
+    let cpu_seconds = timing.cpu_seconds;
     println!(
         "cpu ({} threads): {cpu_seconds:.3} s, {:.2} M rays/s",
         rayon::current_num_threads(),
         rays as f64 / cpu_seconds / 1e6
     );
-    if let Some(baker) = &baker {
-        let gpu_seconds = median(&mut gpu_times);
+    if let (Some(baker), Some(gpu_seconds)) = (&baker, timing.gpu_seconds) {
         println!(
             "gpu ({}): {gpu_seconds:.3} s, {:.2} M rays/s",
             baker.context.adapter.label(),

@@ -5,7 +5,10 @@
 use std::path::Path;
 use std::time::Instant;
 
-use crate::bake::{bake, Backend, BakeOptions, Mode, NoProgress, Progress, Transfer};
+use crate::bake::gpu::{Chunking, GpuBaker};
+use crate::bake::Transfer;
+use crate::bake::{bake, cpu, gpu, Backend, BakeOptions, DirectInputs, Mode, NoProgress, Progress};
+use crate::chart::{ChartPanel, ChartPoint, ChartSeries};
 use crate::error::{Error, Result};
 use crate::light::ShLight;
 use crate::output::write_atomically;
@@ -194,4 +197,160 @@ pub fn to_csv(sweep: &Sweep) -> String {
 /// Writes [`to_csv`] to `path`, whole or not at all.
 pub fn write_csv(path: &Path, sweep: &Sweep) -> Result<()> {
     write_atomically(path, to_csv(sweep).as_bytes())
+}
+
+/// Two panels: transfer error and relit-radiance error, one line per strategy and backend.
+pub fn chart_panels(result: &Sweep) -> Vec<ChartPanel> {
+    let mut lines: Vec<(String, Vec<&SweepPoint>)> = Vec::new();
+    for p in &result.points {
+        let label = format!("{} {}", p.sampling.name(), p.backend);
+        match lines.iter_mut().find(|(l, _)| *l == label) {
+            Some((_, points)) => points.push(p),
+            None => lines.push((label, vec![p])),
+        }
+    }
+    let panel = |title: &str, y_label: &str, error: fn(&SweepPoint) -> f64| ChartPanel {
+        title: title.to_string(),
+        y_label: y_label.to_string(),
+        series: lines
+            .iter()
+            .map(|(label, points)| ChartSeries {
+                label: label.clone(),
+                points: points
+                    .iter()
+                    .map(|p| ChartPoint {
+                        seconds: p.seconds,
+                        error: error(p),
+                        samples: p.samples,
+                    })
+                    .collect(),
+            })
+            .collect(),
+    };
+    vec![
+        panel("transfer", "RMS error of the transfer", |p| p.transfer_rms),
+        panel("relit radiance", "RMS error of the relit radiance", |p| {
+            p.radiance_rms
+        }),
+    ]
+}
+
+/// Median timings of the direct-transfer pass on each backend ([`time_backends`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BackendTimes {
+    pub rays: u64,
+    pub cpu_seconds: f64,
+    /// `None` without a GPU.
+    pub gpu_seconds: Option<f64>,
+}
+
+/// Times the direct-transfer pass `repeats` times on the CPU and, given a baker, the GPU,
+/// alternating so that both see the same machine load; reports the medians. `on_round` is
+/// called before each round.
+pub fn time_backends(
+    inputs: &DirectInputs,
+    mode: Mode,
+    baker: Option<&GpuBaker>,
+    repeats: u32,
+    on_round: impl Fn(u32),
+) -> Result<BackendTimes> {
+    let mut cpu_times = Vec::new();
+    let mut gpu_times = Vec::new();
+    let mut rays = 0;
+    for round in 0..repeats.max(1) {
+        on_round(round);
+        let started = Instant::now();
+        rays = cpu::direct_transfer(inputs, mode, &NoProgress).1;
+        cpu_times.push(started.elapsed().as_secs_f64());
+        if let Some(baker) = baker {
+            let started = Instant::now();
+            gpu::direct_transfer(baker, inputs, mode, Chunking::default(), &NoProgress)?;
+            gpu_times.push(started.elapsed().as_secs_f64());
+        }
+    }
+    Ok(BackendTimes {
+        rays,
+        cpu_seconds: median(&mut cpu_times),
+        gpu_seconds: (!gpu_times.is_empty()).then(|| median(&mut gpu_times)),
+    })
+}
+
+fn median(times: &mut [f64]) -> f64 {
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(sampling: Sampling, backend: &str, samples: u32) -> SweepPoint {
+        SweepPoint {
+            sampling,
+            backend: backend.to_string(),
+            samples,
+            seconds: samples as f64 * 1e-3,
+            rays: samples as u64 * 10,
+            transfer_rms: 1.0 / samples as f64,
+            radiance_rms: 2.0 / samples as f64,
+        }
+    }
+
+    fn sweep() -> Sweep {
+        let mut points = Vec::new();
+        for sampling in [Sampling::Stratified, Sampling::Cosine] {
+            for backend in ["cpu", "gpu"] {
+                for samples in [64, 256] {
+                    points.push(point(sampling, backend, samples));
+                }
+            }
+        }
+        Sweep {
+            points,
+            reference_samples: 4096,
+            reference_seconds: 1.0,
+            reference_radiance_rms: 1.0,
+        }
+    }
+
+    #[test]
+    fn panels_hold_one_series_per_strategy_and_backend() {
+        let panels = chart_panels(&sweep());
+        assert_eq!(panels.len(), 2);
+        let labels: Vec<&str> = panels[0].series.iter().map(|s| s.label.as_str()).collect();
+        assert_eq!(
+            labels,
+            [
+                "stratified cpu",
+                "stratified gpu",
+                "cosine cpu",
+                "cosine gpu"
+            ]
+        );
+        for series in &panels[1].series {
+            let samples: Vec<u32> = series.points.iter().map(|p| p.samples).collect();
+            assert_eq!(samples, [64, 256]);
+            // The right panel charts the radiance error.
+            assert_eq!(series.points[0].error, 2.0 / 64.0);
+        }
+    }
+
+    #[test]
+    fn csv_has_one_row_per_point() {
+        let text = to_csv(&sweep());
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[0], CSV_HEADER);
+        assert_eq!(lines.len(), 1 + 8);
+        assert!(
+            lines[1].starts_with("stratified,cpu,64,0.064000,640,"),
+            "{}",
+            lines[1]
+        );
+    }
+
+    #[test]
+    fn rms_difference_is_the_root_mean_square() {
+        assert_eq!(rms_difference(&[1.0, 2.0], &[1.0, 2.0]), 0.0);
+        assert!((rms_difference(&[3.0, 0.0], &[0.0, 4.0]) - 12.5f64.sqrt()).abs() < 1e-12);
+    }
 }

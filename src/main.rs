@@ -94,22 +94,43 @@ struct ChartArgs {
     seed: u64,
 }
 
+/// What `bake` and `bench` compute per vertex.
+#[derive(clap::Args)]
+struct TransferArgs {
+    /// Spherical-harmonic bands (bands^2 coefficients per channel).
+    #[arg(long, default_value_t = 4)]
+    bands: u32,
+    /// Sample directions per vertex (rounded to the nearest square for stratified sampling).
+    #[arg(long, default_value_t = DEFAULT_SAMPLES)]
+    samples: u32,
+    /// How sample directions are drawn and weighted. control-variate (the default) estimates
+    /// only what geometry blocks and adds the exact unoccluded transfer; see `prt-gpu chart`.
+    #[arg(long, value_enum, default_value_t = DEFAULT_SAMPLING)]
+    sampling: Sampling,
+    /// Light transport to capture.
+    #[arg(long, value_enum, default_value_t = Mode::Shadowed)]
+    mode: Mode,
+}
+
+impl TransferArgs {
+    /// Bake options with these settings and defaults for the rest.
+    fn options(&self) -> BakeOptions {
+        BakeOptions {
+            bands: self.bands,
+            samples: self.samples,
+            sampling: self.sampling,
+            mode: self.mode,
+            ..BakeOptions::default()
+        }
+    }
+}
+
 #[derive(clap::Args)]
 struct BenchArgs {
     /// Mesh to bake (the built-in scene when none is given).
     mesh: Option<PathBuf>,
-    /// Spherical-harmonic bands.
-    #[arg(long, default_value_t = 4)]
-    bands: u32,
-    /// Sample directions per vertex.
-    #[arg(long, default_value_t = DEFAULT_SAMPLES)]
-    samples: u32,
-    /// Sampling strategy (as for `bake`).
-    #[arg(long, value_enum, default_value_t = DEFAULT_SAMPLING)]
-    sampling: Sampling,
-    /// Light transport to bake.
-    #[arg(long, value_enum, default_value_t = Mode::Shadowed)]
-    mode: Mode,
+    #[command(flatten)]
+    transfer: TransferArgs,
     /// Timed runs per backend, interleaved CPU, GPU, CPU, GPU, ...; the median is reported.
     #[arg(long, default_value_t = 3)]
     repeats: u32,
@@ -225,19 +246,8 @@ struct BakeArgs {
     /// Mesh to bake: .obj, .ply or .ply.gz. Without it, the built-in scene (a sphere and a box
     /// on a ground plane beside a wall).
     mesh: Option<PathBuf>,
-    /// Spherical-harmonic bands (bands^2 coefficients per channel).
-    #[arg(long, default_value_t = 4)]
-    bands: u32,
-    /// Sample directions per vertex (rounded to the nearest square for stratified sampling).
-    #[arg(long, default_value_t = DEFAULT_SAMPLES)]
-    samples: u32,
-    /// How sample directions are drawn and weighted. control-variate (the default) estimates
-    /// only what geometry blocks and adds the exact unoccluded transfer; see `prt-gpu chart`.
-    #[arg(long, value_enum, default_value_t = DEFAULT_SAMPLING)]
-    sampling: Sampling,
-    /// Light transport to capture.
-    #[arg(long, value_enum, default_value_t = Mode::Shadowed)]
-    mode: Mode,
+    #[command(flatten)]
+    transfer: TransferArgs,
     /// Interreflected mode: bounces of light between surfaces added to the direct transfer.
     #[arg(long, default_value_t = 3)]
     bounces: u32,
@@ -332,14 +342,11 @@ fn one_line(message: &str) -> String {
 
 fn run_bake(args: BakeArgs) -> Result<(), String> {
     let options = BakeOptions {
-        bands: args.bands,
-        samples: args.samples,
-        sampling: args.sampling,
         seed: args.seed,
-        mode: args.mode,
         albedo: args.albedo,
         bounces: args.bounces,
         bounce_tolerance: args.bounce_tolerance,
+        ..args.transfer.options()
     };
     options.validate().map_err(|e| e.to_string())?;
     let (scene, name) = load_scene(&args.mesh)?;
@@ -579,26 +586,14 @@ fn run_chart(args: ChartArgs) -> Result<(), String> {
 }
 
 fn run_bench(args: BenchArgs) -> Result<(), String> {
-    let options = BakeOptions {
-        bands: args.bands,
-        samples: args.samples,
-        sampling: args.sampling,
-        mode: args.mode,
-        ..BakeOptions::default()
-    };
+    let options = args.transfer.options();
     options.validate().map_err(|e| e.to_string())?;
     if args.repeats == 0 {
         return Err("invalid option: --repeats must be at least 1".into());
     }
     let (scene, name) = load_scene(&args.mesh)?;
     let (scene, _) = scene::prepare::prepare(scene).map_err(|e| format!("{name}: {e}"))?;
-    let owned = bake::BakeInputs::with_sampling(
-        &scene,
-        options.bands,
-        options.samples_used(),
-        options.seed,
-        options.sampling,
-    );
+    let owned = bake::BakeInputs::for_options(&scene, &options);
     let inputs = owned.view();
     let baker = match args.device {
         DeviceChoice::Cpu => None,

@@ -305,13 +305,25 @@ pub fn tangent_frame(n: Vec3) -> [Vec3; 3] {
     [tangent, bitangent, n]
 }
 
-/// World direction of sample `d` for a vertex with normal `n` in frame `frame`.
-pub fn world_direction(frame: DirectionFrame, n: Vec3, d: Vec3) -> Vec3 {
-    match frame {
-        DirectionFrame::World => d,
-        DirectionFrame::Tangent => {
-            let [t, b, n] = tangent_frame(n);
-            t * d.x + b * d.y + n * d.z
+/// Maps a set's sample directions to world directions for one vertex: the identity for world
+/// sets, the vertex's tangent frame (worked out once, not per sample) for tangent sets.
+#[derive(Clone, Copy, Debug)]
+pub struct VertexDirections {
+    axes: Option<[Vec3; 3]>,
+}
+
+impl VertexDirections {
+    pub fn new(frame: DirectionFrame, n: Vec3) -> Self {
+        VertexDirections {
+            axes: (frame == DirectionFrame::Tangent).then(|| tangent_frame(n)),
+        }
+    }
+
+    /// World direction of sample `d`.
+    pub fn world(&self, d: Vec3) -> Vec3 {
+        match self.axes {
+            None => d,
+            Some([t, b, n]) => t * d.x + b * d.y + n * d.z,
         }
     }
 }

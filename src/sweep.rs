@@ -114,10 +114,7 @@ pub fn run(
         ..base.clone()
     };
     reference_options.validate()?;
-    progress.stage(
-        "reference",
-        (options.strategies.len() * options.counts.len() * backends.len()) as u64,
-    );
+    progress.stage("reference", 1);
     let started = Instant::now();
     let (reference, _) = bake(
         scene.clone(),
@@ -126,6 +123,7 @@ pub fn run(
         &NoProgress,
     )?;
     let reference_seconds = started.elapsed().as_secs_f64();
+    progress.advance(1);
     let reference_radiance = radiance(&reference.transfer, light)?;
     let zero = vec![0.0f32; reference_radiance.len()];
 

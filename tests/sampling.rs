@@ -256,8 +256,9 @@ fn cosine_samples_stay_above_the_horizon_and_rotate_with_the_normal() {
     let owned = inputs_for(&scene, 4, 256, 3, Sampling::Cosine);
     let inputs = owned.view();
     for &normal in inputs.normals {
+        let to_world = prt_gpu::sampling::VertexDirections::new(inputs.samples.frame, normal);
         for &d in &inputs.samples.directions {
-            let world = prt_gpu::sampling::world_direction(inputs.samples.frame, normal, d);
+            let world = to_world.world(d);
             assert!((world.length() - 1.0).abs() < 1e-5);
             assert!((normal.dot(world) - d.z).abs() < 1e-5);
             assert!(normal.dot(world) > 0.0);

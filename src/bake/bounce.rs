@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use super::{cpu, DirectInputs, Progress};
 use crate::ray::{Ray, RAY_T_MAX};
-use crate::sampling::{world_direction, DirectionFrame};
+use crate::sampling::{DirectionFrame, VertexDirections};
 use crate::sh::coeff_count;
 
 /// The closest hit of one ray, 12 bytes. WGSL twin in wgsl/hits.wgsl:
@@ -91,17 +91,14 @@ impl GatherMatrix {
 /// the number of distinct vertices the rays land near, not three per ray.
 pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> Vec<(u32, f32)> {
     let normal = inputs.normals[vertex];
+    let to_world = VertexDirections::new(inputs.samples.frame, normal);
     let scale = cpu::transfer_scale(inputs);
     let mut entries: Vec<(u32, f64)> = Vec::with_capacity(hits.len() * 3);
     for &(sample, hit) in hits {
         if hit.triangle == NO_HIT {
             continue;
         }
-        let direction = world_direction(
-            inputs.samples.frame,
-            normal,
-            inputs.samples.directions[sample as usize],
-        );
+        let direction = to_world.world(inputs.samples.directions[sample as usize]);
         let cosine = normal.dot(direction);
         let corners = inputs.triangles[hit.triangle as usize];
         let barycentrics = [1.0 - hit.u - hit.v, hit.u, hit.v];
@@ -142,10 +139,11 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
 /// sample above the horizon that the scene blocks.
 pub fn vertex_hits(inputs: &DirectInputs, vertex: usize) -> Vec<(u32, Hit)> {
     let normal = inputs.normals[vertex];
+    let to_world = VertexDirections::new(inputs.samples.frame, normal);
     let origin = inputs.origins[vertex];
     let mut hits = Vec::new();
     for (s, &sample) in inputs.samples.directions.iter().enumerate() {
-        let direction = world_direction(inputs.samples.frame, normal, sample);
+        let direction = to_world.world(sample);
         if normal.dot(direction) <= 0.0 {
             continue;
         }
@@ -183,10 +181,11 @@ pub fn direct_transfer_and_gather_matrix_cpu(
         .map(|v| {
             let hits = vertex_hits(inputs, v);
             let normal = inputs.normals[v];
+            let to_world = VertexDirections::new(inputs.samples.frame, normal);
             let mut bits = vec![0u32; words];
             let mut rays = 0;
             for (s, &d) in inputs.samples.directions.iter().enumerate() {
-                if normal.dot(world_direction(inputs.samples.frame, normal, d)) > 0.0 {
+                if normal.dot(to_world.world(d)) > 0.0 {
                     bits[s / 32] |= 1 << (s % 32);
                     rays += 1;
                 }

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use super::{DirectInputs, Mode, Progress};
 use crate::packet::{self, lane_mask, LaneMask, PacketOrigins, RayPacket, LANES};
 use crate::ray::{Ray, RAY_T_MAX};
-use crate::sampling::{tangent_frame, world_direction, DirectionFrame, Estimator};
+use crate::sampling::{tangent_frame, DirectionFrame, Estimator, VertexDirections};
 use crate::sh::rotation::ShRotation;
 use crate::sh::{coeff_count, unshadowed_transfer};
 
@@ -34,8 +34,9 @@ pub fn trace_visibility(inputs: &DirectInputs, mode: Mode, vertex: usize, bits: 
     let origin = inputs.origins[vertex];
     let mut rays = 0;
     bits.fill(0);
+    let to_world = VertexDirections::new(inputs.samples.frame, normal);
     for (s, &sample) in inputs.samples.directions.iter().enumerate() {
-        let direction = world_direction(inputs.samples.frame, normal, sample);
+        let direction = to_world.world(sample);
         if normal.dot(direction) <= 0.0 {
             continue;
         }

@@ -17,7 +17,7 @@ use super::{DirectInputs, Mode, Progress};
 use crate::bvh::{Bvh, BvhTriangle};
 use crate::error::{Error, Result};
 use crate::gpu::GpuContext;
-use crate::sampling::{world_direction, DirectionFrame, Estimator};
+use crate::sampling::{DirectionFrame, Estimator, VertexDirections};
 use crate::sh::coeff_count;
 use crate::shaders::{self, WORKGROUP_SIZE};
 
@@ -749,12 +749,13 @@ fn sample_lists_above_horizon(
         .par_chunks_mut(width.max(1))
         .zip(&inputs.normals[vertices])
         .map(|(row, &normal)| {
+            let to_world = VertexDirections::new(inputs.samples.frame, normal);
             let mut count = 0;
             for (s, &sample) in inputs.samples.directions[samples.clone()]
                 .iter()
                 .enumerate()
             {
-                let direction = world_direction(inputs.samples.frame, normal, sample);
+                let direction = to_world.world(sample);
                 if normal.dot(direction) > 0.0 {
                     row[count] = s as u32;
                     count += 1;
@@ -774,11 +775,12 @@ fn rays_above_horizon(inputs: &DirectInputs) -> u64 {
         .normals
         .par_iter()
         .map(|&n| {
+            let to_world = VertexDirections::new(frame, n);
             inputs
                 .samples
                 .directions
                 .iter()
-                .filter(|&&d| n.dot(world_direction(frame, n, d)) > 0.0)
+                .filter(|&&d| n.dot(to_world.world(d)) > 0.0)
                 .count() as u64
         })
         .sum()

@@ -304,13 +304,7 @@ pub fn bake(
     if let Some(albedo) = options.albedo {
         scene.albedo.iter_mut().for_each(|a| *a = albedo);
     }
-    let owned = BakeInputs::with_sampling(
-        &scene,
-        options.bands,
-        options.samples_used(),
-        options.seed,
-        options.sampling,
-    );
+    let owned = BakeInputs::for_options(&scene, options);
     let inputs = owned.view();
     let seconds_prepare = started.elapsed().as_secs_f64();
 
@@ -401,6 +395,17 @@ impl BakeInputs {
     /// `samples` a square.
     pub fn new(scene: &Scene, bands: u32, samples: u32, seed: u64) -> Self {
         Self::with_sampling(scene, bands, samples, seed, Sampling::Stratified)
+    }
+
+    /// What a bake with `options` reads.
+    pub fn for_options(scene: &Scene, options: &BakeOptions) -> Self {
+        Self::with_sampling(
+            scene,
+            options.bands,
+            options.samples_used(),
+            options.seed,
+            options.sampling,
+        )
     }
 
     /// `samples` must come from [`Sampling::samples_used`].

@@ -103,8 +103,8 @@ struct TransferArgs {
     /// Sample directions per vertex (rounded to the nearest square for stratified sampling).
     #[arg(long, default_value_t = DEFAULT_SAMPLES)]
     samples: u32,
-    /// How sample directions are drawn and weighted. control-variate (the default) estimates
-    /// only what geometry blocks and adds the exact unoccluded transfer; see `prt-gpu chart`.
+    /// How sample directions are drawn and weighted. cosine (the default) casts every ray above
+    /// the horizon, with the cosine in its density; see `prt-gpu chart`.
     #[arg(long, value_enum, default_value_t = DEFAULT_SAMPLING)]
     sampling: Sampling,
     /// Light transport to capture.

@@ -11,7 +11,7 @@
 use rayon::prelude::*;
 
 use super::{DirectInputs, Mode, Progress};
-use crate::packet::{self, lane_mask, LaneMask, PacketOrigins, RayPacket, LANES};
+use crate::packet::{self, lane_mask, FanPacket, LaneMask, PacketOrigins, RayPacket, LANES};
 use crate::ray::{Ray, RAY_T_MAX};
 use crate::sampling::{tangent_frame, DirectionFrame, Estimator, VertexDirections};
 use crate::sh::rotation::ShRotation;
@@ -86,9 +86,45 @@ pub fn trace_visibility_packets(
     rays
 }
 
+/// [`trace_visibility`] of one vertex, its samples cast [`LANES`] consecutive ones at a time
+/// as one fan packet from the vertex. For tangent-frame sets, whose directions no two vertices
+/// share. Returns the number of rays cast, the same count as [`trace_visibility`].
+pub fn trace_visibility_fans(
+    inputs: &DirectInputs,
+    mode: Mode,
+    vertex: usize,
+    bits: &mut [u32],
+) -> u64 {
+    // A packet's bits must lie in one word.
+    const _: () = assert!(32 % LANES == 0);
+    let normal = inputs.normals[vertex];
+    let origin = inputs.origins[vertex];
+    let to_world = VertexDirections::new(inputs.samples.frame, normal);
+    let mut rays = 0;
+    bits.fill(0);
+    let mut world = [glam::Vec3::ZERO; LANES];
+    for (packet_index, samples) in inputs.samples.directions.chunks(LANES).enumerate() {
+        for (w, &sample) in world.iter_mut().zip(samples) {
+            *w = to_world.world(sample);
+        }
+        let world = &world[..samples.len()];
+        let above = lane_mask(|l| l < world.len() && normal.dot(world[l]) > 0.0);
+        let visible = if mode == Mode::Unshadowed || above == 0 {
+            above
+        } else {
+            rays += above.count_ones() as u64;
+            let packet = FanPacket::new(origin, world, above);
+            above & !packet::occluded_fan(inputs.bvh, &packet, RAY_T_MAX)
+        };
+        let first_sample = packet_index * LANES;
+        bits[first_sample / 32] |= visible << (first_sample % 32);
+    }
+    rays
+}
+
 /// [`trace_visibility`] of the vertices `first..first + count` (`bits`: `count` rows): in
-/// packets where all vertices share the directions, one ray at a time where each vertex turns
-/// them into its own tangent frame (parallel rays are what make a packet).
+/// parallel packets across vertices where all vertices share the directions, in fan packets
+/// per vertex where each vertex turns them into its own tangent frame.
 fn trace_visibility_of(inputs: &DirectInputs, mode: Mode, first: usize, bits: &mut [u32]) -> u64 {
     match inputs.samples.frame {
         DirectionFrame::World => trace_visibility_packets(inputs, mode, first, bits),
@@ -96,7 +132,7 @@ fn trace_visibility_of(inputs: &DirectInputs, mode: Mode, first: usize, bits: &m
             let words = words_per_vertex(inputs.samples.len());
             bits.chunks_mut(words)
                 .enumerate()
-                .map(|(i, row)| trace_visibility(inputs, mode, first + i, row))
+                .map(|(i, row)| trace_visibility_fans(inputs, mode, first + i, row))
                 .sum()
         }
     }
@@ -306,9 +342,13 @@ mod tests {
     use crate::scene::{self, prepare::prepare};
 
     fn bunny(samples: u32) -> BakeInputs {
+        bunny_sampled(samples, crate::sampling::Sampling::Stratified)
+    }
+
+    fn bunny_sampled(samples: u32, sampling: crate::sampling::Sampling) -> BakeInputs {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny.obj");
         let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
-        BakeInputs::new(&mesh, 3, samples, 5)
+        BakeInputs::with_sampling(&mesh, 3, samples, 5, sampling)
     }
 
     #[test]
@@ -331,6 +371,26 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn fans_set_the_bits_of_single_rays() {
+        // 100 samples: the last packet of each vertex is partly filled (100 = 6 x 16 + 4).
+        let owned = bunny_sampled(100, crate::sampling::Sampling::Cosine);
+        let inputs = owned.view();
+        let words = words_per_vertex(inputs.samples.len());
+        let (mut fans, mut single) = (vec![0u32; words], vec![0u32; words]);
+        let mut blocked = 0;
+        for mode in [Mode::Unshadowed, Mode::Shadowed] {
+            for v in 0..inputs.origins.len() {
+                let rays = trace_visibility_fans(&inputs, mode, v, &mut fans);
+                assert_eq!(rays, trace_visibility(&inputs, mode, v, &mut single));
+                assert_eq!(fans, single, "vertex {v} {mode:?}");
+                let visible: u64 = fans.iter().map(|w| w.count_ones() as u64).sum();
+                blocked += rays.saturating_sub(visible);
+            }
+        }
+        assert!(blocked > 0);
     }
 
     #[test]

@@ -385,7 +385,7 @@ fn sort_vertices_morton(scene: Scene) -> Scene {
 
 /// Vertex indices sorted by 30-bit Morton code of their position in the bounding box, ties
 /// broken by index, so equal inputs always give the same order.
-fn morton_order(positions: &[Vec3]) -> Vec<u32> {
+pub fn morton_order(positions: &[Vec3]) -> Vec<u32> {
     let (min, max) = positions
         .iter()
         .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {

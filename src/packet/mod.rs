@@ -1,29 +1,27 @@
-//! Ray packets: up to [`LANES`] rays that share one direction and start at different origins,
-//! traced through the [`Bvh`] together. The CPU bake casts the same sample direction from 16
-//! Morton-adjacent vertices at a time; their rays are parallel and close, so they visit nearly
-//! the same nodes, and everything that depends only on the direction is worked out once:
+//! Ray packets: [`LANES`] rays traced through the [`Bvh`] together, of two kinds.
 //!
-//! - the near and far slab planes of every box (picked by the sign of each direction component);
-//! - the Woop–Benthin–Wald permutation and shear constants, and each triangle vertex's
-//!   coordinates permuted into the shear frame, once per triangle and packet.
+//! - [`RayPacket`] (`parallel.rs`): one direction from 16 origins, for direction sets shared by
+//!   all vertices.
+//! - [`FanPacket`] (`fan.rs`): one origin, 16 directions, for sets that each vertex turns into
+//!   its own tangent frame.
 //!
-//! Per lane remain the slab distances, the translation of the vertices to the lane's origin and
-//! the shear, the edge functions and the hit distance: `[f32; LANES]` arrays walked by plain loops, which
-//! LLVM turns into SIMD (one AVX-512 register, two AVX2 or four NEON/SSE registers per array).
-//! The one step LLVM does not vectorize well from plain loops, turning 16 lane comparisons into a
-//! 16-bit mask, is a per-instruction-set primitive ([`Isa`]). [`occluded`] picks, at run time,
-//! a copy of the traversal compiled for the widest vector unit of the machine (`mod dispatch`).
+//! Per-lane work is done on `[f32; LANES]` arrays walked by plain loops, which LLVM turns into
+//! SIMD (one AVX-512 register, two AVX2 or four NEON/SSE registers per array). The one step
+//! LLVM does not vectorize well from plain loops, turning 16 lane comparisons into a 16-bit
+//! mask, is a per-instruction-set primitive ([`Isa`]). The traversal is one function for both
+//! kinds; [`occluded`] and [`occluded_fan`] run, chosen at run time, a copy of it compiled for
+//! the widest vector unit of the machine (`mod dispatch`).
 //!
 //! Answers equal [`Bvh::occluded`] lane for lane, bit for bit: every lane does the single ray's
-//! arithmetic in the single ray's order. (Shearing each vertex once per packet, relative to an
-//! anchor point, and subtracting a sheared origin per lane would save a third of the triangle
-//! test's lane work and stays watertight, but it moves the rounding: on the built-in scene's
-//! ground plane 0.33% of the rays, grazing their own plane, came out blocked.)
+//! arithmetic in the single ray's order.
 
-use glam::Vec3;
+mod fan;
+mod parallel;
+
+pub use fan::FanPacket;
+pub use parallel::{PacketOrigins, RayPacket};
 
 use crate::bvh::{Bvh, BvhNode, BvhTriangle, STACK_SIZE};
-use crate::ray::{Ray, SLAB_WIDENING};
 
 /// Rays per packet: one AVX-512 register of f32.
 pub const LANES: usize = 16;
@@ -48,110 +46,6 @@ pub fn lane_mask(pred: impl Fn(usize) -> bool) -> LaneMask {
     mask
 }
 
-/// The origins of a packet, which stay the same for every direction cast from them.
-#[derive(Clone, Debug)]
-#[repr(C, align(64))]
-pub struct PacketOrigins {
-    /// Origins by axis: `origin[axis][lane]`, as given (the slab test uses them as they are).
-    pub origin: [Lanes; 3],
-    /// Lanes that carry an origin.
-    pub filled: LaneMask,
-}
-
-impl PacketOrigins {
-    /// Packs up to [`LANES`] origins; lanes beyond `origins.len()` are empty.
-    pub fn new(origins: &[Vec3]) -> Self {
-        assert!(
-            origins.len() <= LANES,
-            "a packet holds at most {LANES} rays"
-        );
-        // Empty lanes repeat the first origin so that they compute harmless finite numbers.
-        let first = origins.first().copied().unwrap_or(Vec3::ZERO);
-        let lane_origin = |lane: usize| origins.get(lane).copied().unwrap_or(first);
-        let origin = [0, 1, 2].map(|axis| std::array::from_fn(|lane| lane_origin(lane)[axis]));
-        PacketOrigins {
-            origin,
-            filled: ALL_LANES >> (LANES - origins.len()),
-        }
-    }
-}
-
-/// A packet of rays along one direction: the per-direction constants of the box and triangle
-/// tests, and per lane the origin in the triangle test's sheared frame.
-#[derive(Clone, Debug)]
-#[repr(C, align(64))]
-pub struct RayPacket<'a> {
-    /// Origins in the triangle test's permuted axes: `[o[kx], o[ky], o[kz]]` per lane.
-    permuted_origin: [Lanes; 3],
-    origins: &'a PacketOrigins,
-    /// The shared ray: direction, reciprocal, permutation and shear (its origin is unused).
-    ray: Ray,
-    /// Per axis, where in a node's eight words (`min.xyz, left_or_first, max.xyz, count`) the
-    /// plane lies through which the rays enter a box (`max` for a negative direction)...
-    near_word: [usize; 3],
-    /// ...and the plane through which they leave it.
-    far_word: [usize; 3],
-    /// Lanes that take part; the others never report a hit.
-    pub active: LaneMask,
-}
-
-impl<'a> RayPacket<'a> {
-    /// Rays from every lane of `origins` in `active` along `direction`.
-    pub fn new(origins: &'a PacketOrigins, direction: Vec3, active: LaneMask) -> Self {
-        let ray = Ray::new(Vec3::ZERO, direction);
-        let o = &origins.origin;
-        let permuted_origin = [o[ray.axis_x], o[ray.axis_y], o[ray.axis_z]];
-        let enters_at_max = [0, 1, 2].map(|axis| ray.inv_direction[axis] < 0.0);
-        let plane = |axis: usize, at_max: bool| axis + 4 * at_max as usize;
-        RayPacket {
-            permuted_origin,
-            origins,
-            ray,
-            near_word: [0, 1, 2].map(|axis| plane(axis, enters_at_max[axis])),
-            far_word: [0, 1, 2].map(|axis| plane(axis, !enters_at_max[axis])),
-            active: active & origins.filled,
-        }
-    }
-
-    /// The single ray of one lane, as [`Bvh::occluded`] would trace it.
-    pub fn lane_ray(&self, lane: usize) -> Ray {
-        let o = &self.origins.origin;
-        Ray::new(
-            Vec3::new(o[0][lane], o[1][lane], o[2][lane]),
-            self.ray.direction,
-        )
-    }
-}
-
-/// Slab test of every lane against one node's box: the lanes that meet it within `[0, t_max]`.
-///
-/// The same arithmetic as `ray::intersect_box`, lane by lane: `(bound - origin) * inv_dir`.
-/// Which of `min`/`max` gives the entry distance follows from the sign of `inv_dir` alone
-/// (both products are rounded monotonically), so the per-lane min/max of the single-ray test
-/// is not needed and the answers are the same bit for bit.
-#[inline(always)]
-fn box_lanes<I: Isa>(packet: &RayPacket, node: &BvhNode, t_max: f32) -> LaneMask {
-    let inv = packet.ray.inv_direction;
-    // Both planes are picked by index, without branches.
-    let words: &[f32; 8] = bytemuck::cast_ref(node);
-    let near_plane = packet.near_word.map(|i| words[i]);
-    let far_plane = packet.far_word.map(|i| words[i]);
-    let o = &packet.origins.origin;
-    let mut near = [0.0f32; LANES];
-    let mut far = [0.0f32; LANES];
-    for lane in 0..LANES {
-        let nx = (near_plane[0] - o[0][lane]) * inv.x;
-        let ny = (near_plane[1] - o[1][lane]) * inv.y;
-        let nz = (near_plane[2] - o[2][lane]) * inv.z;
-        let fx = (far_plane[0] - o[0][lane]) * inv.x;
-        let fy = (far_plane[1] - o[1][lane]) * inv.y;
-        let fz = (far_plane[2] - o[2][lane]) * inv.z;
-        near[lane] = max(max(nx, ny), max(nz, 0.0));
-        far[lane] = min(min(min(fx, fy), fz) * SLAB_WIDENING, t_max);
-    }
-    I::le_mask(&near, &far)
-}
-
 /// `f32::max` without its NaN rules, so that it is one vector instruction (no NaN reaches it:
 /// finite coordinates and finite reciprocals give finite or infinite products).
 #[inline(always)]
@@ -173,77 +67,25 @@ fn min(a: f32, b: f32) -> f32 {
     }
 }
 
-/// A triangle vertex with its axes permuted into the triangle test's frame, once per packet.
-#[inline(always)]
-fn permute_vertex(packet: &RayPacket, v: [f32; 3]) -> [f32; 3] {
-    let ray = &packet.ray;
-    [v[ray.axis_x], v[ray.axis_y], v[ray.axis_z]]
-}
-
-/// Watertight triangle test (Woop, Benthin, Wald 2013) of the lanes in `lanes`: those that hit
-/// the triangle on `(0, t_max)`, both faces counting, edge functions of zero counting as inside.
-/// Each lane computes exactly what `ray::intersect_triangle` computes for its ray.
-#[inline(always)]
-fn triangle_lanes<I: Isa>(
-    packet: &RayPacket,
-    tri: &BvhTriangle,
-    lanes: LaneMask,
-    t_max: f32,
-) -> LaneMask {
-    // (Three calls rather than `array::map`, whose closure LLVM leaves out of line.)
-    let a = permute_vertex(packet, tri.v0);
-    let b = permute_vertex(packet, tri.v1);
-    let c = permute_vertex(packet, tri.v2);
-    let (sx, sy, sz) = (packet.ray.shear.x, packet.ray.shear.y, packet.ray.shear.z);
-    let o = &packet.permuted_origin;
-    // Translated to the lane's origin, then sheared: the single ray's order of operations.
-    let shear = |v: &[f32; 3], lane: usize| {
-        let (x, y, z) = (v[0] - o[0][lane], v[1] - o[1][lane], v[2] - o[2][lane]);
-        (x - sx * z, y - sy * z, z)
-    };
-    // Edge functions of all lanes; a lane is outside when they have mixed signs.
-    let mut lowest = [0.0f32; LANES];
-    let mut highest = [0.0f32; LANES];
-    for lane in 0..LANES {
-        let (ax, ay, _) = shear(&a, lane);
-        let (bx, by, _) = shear(&b, lane);
-        let (cx, cy, _) = shear(&c, lane);
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
-        lowest[lane] = min(min(u, v), w);
-        highest[lane] = max(max(u, v), w);
-    }
-    const ZERO: Lanes = [0.0; LANES];
-    let outside = I::lt_mask(&lowest, &ZERO) & I::lt_mask(&ZERO, &highest);
-    let mut inside = lanes & !outside;
-    // Most triangles are missed by every lane; the few lanes inside finish one by one.
-    let mut hits = 0;
-    while inside != 0 {
-        let lane = inside.trailing_zeros() as usize;
-        inside &= inside - 1;
-        let (ax, ay, az) = shear(&a, lane);
-        let (bx, by, bz) = shear(&b, lane);
-        let (cx, cy, cz) = shear(&c, lane);
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
-        let det = u + v + w;
-        if det == 0.0 {
-            continue;
-        }
-        let t = (u * (sz * az) + v * (sz * bz) + w * (sz * cz)) / det;
-        if t > 0.0 && t < t_max {
-            hits |= 1 << lane;
-        }
-    }
-    hits
+/// What the traversal needs of a packet kind: its active lanes, and its box and triangle tests.
+trait Packet {
+    /// Lanes that take part; the others never report a hit.
+    fn active(&self) -> LaneMask;
+    /// Lanes that meet the node's box within `[0, t_max]`, as `ray::intersect_box` decides.
+    fn box_lanes<I: Isa>(&self, node: &BvhNode, t_max: f32) -> LaneMask;
+    /// Lanes among `lanes` that hit the triangle on `(0, t_max)`, as
+    /// `ray::intersect_triangle` decides (both faces count, zero edge functions are inside).
+    fn triangle_lanes<I: Isa>(&self, tri: &BvhTriangle, lanes: LaneMask, t_max: f32) -> LaneMask;
 }
 
 /// Which lanes of `packet` are blocked on `(0, t_max)`: for every active lane the answer of
-/// [`Bvh::occluded`] for that lane's ray (up to the edge-grazing rays described at the top).
-/// Inactive lanes are never reported.
+/// [`Bvh::occluded`] for that lane's ray. Inactive lanes are never reported.
 pub fn occluded(bvh: &Bvh, packet: &RayPacket, t_max: f32) -> LaneMask {
+    dispatch::occluded(bvh, packet, t_max)
+}
+
+/// [`occluded`] for a packet of rays from one origin.
+pub fn occluded_fan(bvh: &Bvh, packet: &FanPacket, t_max: f32) -> LaneMask {
     dispatch::occluded(bvh, packet, t_max)
 }
 
@@ -256,12 +98,12 @@ pub fn occluded(bvh: &Bvh, packet: &RayPacket, t_max: f32) -> LaneMask {
 /// centres along the direction, by the majority of lanes' entry distances, by the first lane's)
 /// each cost more than they saved, 5–15% in CPU time.
 #[inline(always)]
-fn occluded_lanes<I: Isa>(bvh: &Bvh, packet: &RayPacket, t_max: f32) -> LaneMask {
+fn occluded_lanes<P: Packet, I: Isa>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
     let Some(root) = bvh.nodes.first() else {
         return 0;
     };
     // Lanes not yet blocked.
-    let mut open = packet.active & box_lanes::<I>(packet, root, t_max);
+    let mut open = packet.active() & packet.box_lanes::<I>(root, t_max);
     if open == 0 {
         return 0;
     }
@@ -275,7 +117,7 @@ fn occluded_lanes<I: Isa>(bvh: &Bvh, packet: &RayPacket, t_max: f32) -> LaneMask
         if node.is_leaf() {
             let first = node.left_or_first as usize;
             for tri in &bvh.triangles[first..first + node.triangle_count as usize] {
-                let hits = triangle_lanes::<I>(packet, tri, lanes, t_max);
+                let hits = packet.triangle_lanes::<I>(tri, lanes, t_max);
                 if hits != 0 {
                     blocked |= hits;
                     open &= !hits;
@@ -292,8 +134,8 @@ fn occluded_lanes<I: Isa>(bvh: &Bvh, packet: &RayPacket, t_max: f32) -> LaneMask
             let first = node.left_or_first;
             let left = &bvh.nodes[first as usize];
             let right = &bvh.nodes[first as usize + 1];
-            let in_left = lanes & box_lanes::<I>(packet, left, t_max);
-            let in_right = lanes & box_lanes::<I>(packet, right, t_max);
+            let in_left = lanes & packet.box_lanes::<I>(left, t_max);
+            let in_right = lanes & packet.box_lanes::<I>(right, t_max);
             match (in_left != 0, in_right != 0) {
                 (true, true) => {
                     stack[stack_len] = (first + 1, in_right);
@@ -370,52 +212,70 @@ mod dispatch {
     use super::*;
 
     /// The signature every copy shares.
-    pub type Traversal = fn(&Bvh, &RayPacket, f32) -> LaneMask;
+    #[cfg(test)]
+    pub type Traversal<P> = fn(&Bvh, &P, f32) -> LaneMask;
+
+    /// The widest vector unit of this machine, found once.
+    #[cfg(target_arch = "x86_64")]
+    #[derive(Clone, Copy)]
+    enum Level {
+        Avx512,
+        Avx2,
+        Sse2,
+    }
 
     #[cfg(target_arch = "x86_64")]
-    pub fn occluded(bvh: &Bvh, packet: &RayPacket, t_max: f32) -> LaneMask {
+    fn level() -> Level {
         use std::sync::OnceLock;
-        static CHOSEN: OnceLock<Traversal> = OnceLock::new();
-        let chosen = CHOSEN.get_or_init(|| {
+        static LEVEL: OnceLock<Level> = OnceLock::new();
+        *LEVEL.get_or_init(|| {
             if std::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the CPU has the features the function is compiled for.
-                |b, p, t| unsafe { avx512(b, p, t) }
+                Level::Avx512
             } else if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
             {
-                // SAFETY: as above.
-                |b, p, t| unsafe { avx2(b, p, t) }
+                Level::Avx2
             } else {
-                occluded_lanes::<x86::Sse2>
+                Level::Sse2
             }
-        });
-        chosen(bvh, packet, t_max)
+        })
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    pub fn occluded<P: Packet>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
+        match level() {
+            // SAFETY: the CPU has the features the function is compiled for.
+            Level::Avx512 => unsafe { avx512(bvh, packet, t_max) },
+            // SAFETY: as above.
+            Level::Avx2 => unsafe { avx2(bvh, packet, t_max) },
+            Level::Sse2 => occluded_lanes::<P, x86::Sse2>(bvh, packet, t_max),
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma,bmi1,bmi2,popcnt")]
-    unsafe fn avx512(bvh: &Bvh, packet: &RayPacket, t_max: f32) -> LaneMask {
-        occluded_lanes::<x86::Avx512>(bvh, packet, t_max)
+    unsafe fn avx512<P: Packet>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
+        occluded_lanes::<P, x86::Avx512>(bvh, packet, t_max)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,popcnt")]
-    unsafe fn avx2(bvh: &Bvh, packet: &RayPacket, t_max: f32) -> LaneMask {
-        occluded_lanes::<x86::Avx2>(bvh, packet, t_max)
+    unsafe fn avx2<P: Packet>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
+        occluded_lanes::<P, x86::Avx2>(bvh, packet, t_max)
     }
 
     #[cfg(not(target_arch = "x86_64"))]
-    pub fn occluded(bvh: &Bvh, packet: &RayPacket, t_max: f32) -> LaneMask {
-        occluded_lanes::<Portable>(bvh, packet, t_max)
+    pub fn occluded<P: Packet>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
+        occluded_lanes::<P, Portable>(bvh, packet, t_max)
     }
 
     /// Every copy of the traversal this machine can run, for tests that compare them.
     #[cfg(test)]
-    pub fn all_available() -> Vec<(&'static str, Traversal)> {
-        let mut copies: Vec<(&'static str, Traversal)> =
-            vec![("portable", occluded_lanes::<Portable>)];
+    pub fn all_available<P: Packet>() -> Vec<(&'static str, Traversal<P>)> {
+        let mut copies: Vec<(&'static str, Traversal<P>)> =
+            vec![("portable", occluded_lanes::<P, Portable>)];
         #[cfg(target_arch = "x86_64")]
         {
-            copies.push(("sse2", occluded_lanes::<x86::Sse2>));
+            copies.push(("sse2", occluded_lanes::<P, x86::Sse2>));
             if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
                 // SAFETY: detected.
                 copies.push(("avx2", |b, p, t| unsafe { avx2(b, p, t) }));
@@ -528,6 +388,7 @@ mod tests {
     use crate::ray::RAY_T_MAX;
     use crate::sampling::Pcg32;
     use crate::scene::{self, builtin, prepare::prepare};
+    use glam::Vec3;
 
     fn random_direction(rng: &mut Pcg32) -> Vec3 {
         loop {
@@ -543,9 +404,10 @@ mod tests {
     /// Returns (lanes compared, lanes that differ, lanes blocked).
     fn compare_with_single_rays(inputs: &BakeInputs, width: usize, packets: usize) -> [usize; 3] {
         let mut rng = Pcg32::new(7);
-        let copies = dispatch::all_available();
         let mut counts = [0; 3];
         for _ in 0..packets {
+            // (Per packet: a copy's type names the packet's borrow of its origins.)
+            let copies = dispatch::all_available();
             let count = inputs.origins.len();
             let start = (rng.next_u32() as usize) % (count - width + 1);
             let origins = PacketOrigins::new(&inputs.origins[start..start + width]);
@@ -603,6 +465,73 @@ mod tests {
         }
     }
 
+    /// Every copy of the fan traversal against single rays: packets of `width` consecutive
+    /// samples of a cosine set, turned into the tangent frame of a random vertex, lanes above
+    /// the horizon active. Returns (lanes compared, lanes that differ, lanes blocked).
+    fn compare_fans_with_single_rays(
+        inputs: &BakeInputs,
+        width: usize,
+        packets: usize,
+    ) -> [usize; 3] {
+        let mut rng = Pcg32::new(11);
+        let set = crate::sampling::cosine_hemisphere(1024, 3);
+        let copies = dispatch::all_available();
+        let mut counts = [0; 3];
+        for _ in 0..packets {
+            let vertex = (rng.next_u32() as usize) % inputs.origins.len();
+            let normal = inputs.normals[vertex];
+            let start = (rng.next_u32() as usize) % (set.len() - width + 1);
+            let to_world = crate::sampling::VertexDirections::new(set.frame, normal);
+            let directions: Vec<Vec3> = set.directions[start..start + width]
+                .iter()
+                .map(|&d| to_world.world(d))
+                .collect();
+            let above = lane_mask(|l| l < width && normal.dot(directions[l]) > 0.0);
+            let packet = FanPacket::new(inputs.origins[vertex], &directions, above);
+            let expected = lane_mask(|l| {
+                above & (1 << l) != 0 && inputs.bvh.occluded(&packet.lane_ray(l), RAY_T_MAX)
+            });
+            let answers: Vec<LaneMask> = copies
+                .iter()
+                .map(|(_, f)| f(&inputs.bvh, &packet, RAY_T_MAX))
+                .collect();
+            for ((name, _), &got) in copies.iter().zip(&answers) {
+                assert_eq!(got, answers[0], "{name} differs from the portable copy");
+                assert_eq!(got & !above, 0, "{name}: an inactive lane reported a hit");
+            }
+            counts[0] += above.count_ones() as usize;
+            counts[1] += (answers[0] ^ expected).count_ones() as usize;
+            counts[2] += expected.count_ones() as usize;
+        }
+        counts
+    }
+
+    #[test]
+    fn fans_agree_with_single_rays_on_the_dragon_and_bunny() {
+        for (name, widths) in [
+            ("dragon_vrip_res3.ply.gz", &[LANES][..]),
+            ("bunny.obj", &[1, 5, LANES - 1, LANES][..]),
+        ] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("tests/data")
+                .join(name);
+            let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
+            let inputs = BakeInputs::new(&mesh, 1, 1, 1);
+            for &width in widths {
+                let [lanes, differ, blocked] =
+                    compare_fans_with_single_rays(&inputs, width, 10_000);
+                println!(
+                    "{name}, {width} lanes: {lanes} lanes, {blocked} blocked, {differ} differ"
+                );
+                assert!(
+                    blocked > lanes / 20,
+                    "too few blocked rays to test anything"
+                );
+                assert_eq!(differ, 0, "{name}, {width}-lane fans");
+            }
+        }
+    }
+
     #[test]
     fn inactive_and_empty_lanes_never_report() {
         // Inside a closed box every ray is blocked: exactly the active lanes must come back.
@@ -627,6 +556,18 @@ mod tests {
                 }
             }
         }
+        // The same for fans from one point inside.
+        for width in [1, 7, LANES] {
+            let directions: Vec<Vec3> = (0..width).map(|_| random_direction(&mut rng)).collect();
+            for active in [0, 0b1010_0110_0101_1001, ALL_LANES] {
+                let packet = FanPacket::new(points[3], &directions, active);
+                let expected = active & (ALL_LANES >> (LANES - width));
+                assert_eq!(packet.active, expected);
+                for (name, f) in dispatch::all_available() {
+                    assert_eq!(f(&bvh, &packet, RAY_T_MAX), expected, "{name} fan");
+                }
+            }
+        }
     }
 
     #[test]
@@ -635,5 +576,7 @@ mod tests {
         let origins = PacketOrigins::new(&[Vec3::ZERO; 3]);
         let packet = RayPacket::new(&origins, Vec3::X, ALL_LANES);
         assert_eq!(occluded(&bvh, &packet, RAY_T_MAX), 0);
+        let fan = FanPacket::new(Vec3::ZERO, &[Vec3::X, Vec3::Y], ALL_LANES);
+        assert_eq!(occluded_fan(&bvh, &fan, RAY_T_MAX), 0);
     }
 }

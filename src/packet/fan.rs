@@ -1,0 +1,172 @@
+//! Fan packets: rays that share one origin and fan out in up to 16 directions. The CPU bake
+//! casts a tangent-frame set (`DirectionFrame::Tangent`, the cosine set) this way: every vertex
+//! turns the set into its own directions, so no two vertices share a ray direction, but the
+//! rays of one vertex share their origin, and neighbouring samples of the set (which
+//! `sampling::cosine_hemisphere` stores next to each other) leave it through nearly the same
+//! boxes. Worked out once per packet rather than per lane:
+//!
+//! - the translation of every box plane to the origin, `bound - origin`;
+//! - the translation of every triangle vertex to the origin, `v - origin`.
+//!
+//! Per lane remain the slab products with the lane's reciprocal direction, the lane's
+//! permutation and shear of the translated vertices, the edge functions and the hit distance.
+
+use glam::Vec3;
+
+use super::{max, min, Isa, LaneMask, Lanes, Packet, ALL_LANES, LANES};
+use crate::bvh::{BvhNode, BvhTriangle};
+use crate::ray::{Ray, SLAB_WIDENING};
+
+/// Up to [`LANES`] rays from one origin, with the per-ray constants of the box and triangle
+/// tests of each lane laid out by lane.
+#[derive(Clone, Debug)]
+#[repr(C, align(64))]
+pub struct FanPacket {
+    /// Reciprocal directions by axis, `[axis][lane]`.
+    inv_direction: [Lanes; 3],
+    /// Shear constants by lane, `[sx, sy, sz][lane]` (see [`Ray::shear`]).
+    shear: [Lanes; 3],
+    /// The triangle test's permutation by lane, `[axis_x, axis_y, axis_z][lane]`.
+    axes: [[u32; LANES]; 3],
+    origin: [f32; 3],
+    directions: [Vec3; LANES],
+    /// Lanes that take part; the others never report a hit.
+    pub active: LaneMask,
+}
+
+impl FanPacket {
+    /// Rays from `origin` along each of `directions` (at most [`LANES`]), those in `active`
+    /// taking part; lanes beyond `directions.len()` are empty.
+    pub fn new(origin: Vec3, directions: &[Vec3], active: LaneMask) -> Self {
+        assert!(
+            directions.len() <= LANES,
+            "a packet holds at most {LANES} rays"
+        );
+        let filled = ALL_LANES >> (LANES - directions.len());
+        // Empty lanes repeat the first direction so that they compute harmless finite numbers.
+        let first = directions.first().copied().unwrap_or(Vec3::Z);
+        let directions: [Vec3; LANES] =
+            std::array::from_fn(|lane| directions.get(lane).copied().unwrap_or(first));
+        let rays = directions.map(|d| Ray::new(origin, d));
+        FanPacket {
+            inv_direction: [0, 1, 2].map(|axis| rays.map(|r| r.inv_direction[axis])),
+            shear: [0, 1, 2].map(|axis| rays.map(|r| r.shear[axis])),
+            axes: [
+                rays.map(|r| r.axis_x as u32),
+                rays.map(|r| r.axis_y as u32),
+                rays.map(|r| r.axis_z as u32),
+            ],
+            origin: origin.to_array(),
+            directions,
+            active: active & filled,
+        }
+    }
+
+    /// The single ray of one lane, as [`crate::bvh::Bvh::occluded`] would trace it.
+    pub fn lane_ray(&self, lane: usize) -> Ray {
+        Ray::new(Vec3::from_array(self.origin), self.directions[lane])
+    }
+
+    /// `v - origin`, the first step of both tests, shared by every lane.
+    #[inline(always)]
+    fn translated(&self, v: [f32; 3]) -> [f32; 3] {
+        let o = self.origin;
+        [v[0] - o[0], v[1] - o[1], v[2] - o[2]]
+    }
+}
+
+/// Component `axis` of `v`, by selects rather than an index, so that a loop over lanes with
+/// different axes stays vector code.
+#[inline(always)]
+fn component(v: &[f32; 3], axis: u32) -> f32 {
+    if axis == 0 {
+        v[0]
+    } else if axis == 1 {
+        v[1]
+    } else {
+        v[2]
+    }
+}
+
+impl Packet for FanPacket {
+    #[inline(always)]
+    fn active(&self) -> LaneMask {
+        self.active
+    }
+
+    /// `ray::intersect_box` lane by lane: `(bound - origin) * inv_dir`, the nearer and farther
+    /// of the two planes per axis, entry no earlier than 0, exit widened and capped at `t_max`.
+    #[inline(always)]
+    fn box_lanes<I: Isa>(&self, node: &BvhNode, t_max: f32) -> LaneMask {
+        let words: &[f32; 8] = bytemuck::cast_ref(node);
+        let low = self.translated([words[0], words[1], words[2]]);
+        let high = self.translated([words[4], words[5], words[6]]);
+        let inv = &self.inv_direction;
+        let mut near = [0.0f32; LANES];
+        let mut far = [0.0f32; LANES];
+        for lane in 0..LANES {
+            let (lx, hx) = (low[0] * inv[0][lane], high[0] * inv[0][lane]);
+            let (ly, hy) = (low[1] * inv[1][lane], high[1] * inv[1][lane]);
+            let (lz, hz) = (low[2] * inv[2][lane], high[2] * inv[2][lane]);
+            near[lane] = max(max(min(lx, hx), min(ly, hy)), max(min(lz, hz), 0.0));
+            let exit = min(min(max(lx, hx), max(ly, hy)), max(lz, hz));
+            far[lane] = min(exit * SLAB_WIDENING, t_max);
+        }
+        I::le_mask(&near, &far)
+    }
+
+    /// `ray::intersect_triangle` lane by lane: the vertices are translated to the origin once,
+    /// then each lane permutes and shears them with its own constants.
+    #[inline(always)]
+    fn triangle_lanes<I: Isa>(&self, tri: &BvhTriangle, lanes: LaneMask, t_max: f32) -> LaneMask {
+        let a = self.translated(tri.v0);
+        let b = self.translated(tri.v1);
+        let c = self.translated(tri.v2);
+        let [kx, ky, kz] = &self.axes;
+        let [sx, sy, sz] = &self.shear;
+        let shear = |v: &[f32; 3], lane: usize| {
+            let z = component(v, kz[lane]);
+            (
+                component(v, kx[lane]) - sx[lane] * z,
+                component(v, ky[lane]) - sy[lane] * z,
+                z,
+            )
+        };
+        let mut lowest = [0.0f32; LANES];
+        let mut highest = [0.0f32; LANES];
+        for lane in 0..LANES {
+            let (ax, ay, _) = shear(&a, lane);
+            let (bx, by, _) = shear(&b, lane);
+            let (cx, cy, _) = shear(&c, lane);
+            let u = cx * by - cy * bx;
+            let v = ax * cy - ay * cx;
+            let w = bx * ay - by * ax;
+            lowest[lane] = min(min(u, v), w);
+            highest[lane] = max(max(u, v), w);
+        }
+        const ZERO: Lanes = [0.0; LANES];
+        let outside = I::lt_mask(&lowest, &ZERO) & I::lt_mask(&ZERO, &highest);
+        let mut inside = lanes & !outside;
+        let mut hits = 0;
+        while inside != 0 {
+            let lane = inside.trailing_zeros() as usize;
+            inside &= inside - 1;
+            let (ax, ay, az) = shear(&a, lane);
+            let (bx, by, bz) = shear(&b, lane);
+            let (cx, cy, cz) = shear(&c, lane);
+            let u = cx * by - cy * bx;
+            let v = ax * cy - ay * cx;
+            let w = bx * ay - by * ax;
+            let det = u + v + w;
+            if det == 0.0 {
+                continue;
+            }
+            let s = sz[lane];
+            let t = (u * (s * az) + v * (s * bz) + w * (s * cz)) / det;
+            if t > 0.0 && t < t_max {
+                hits |= 1 << lane;
+            }
+        }
+        hits
+    }
+}

@@ -2,6 +2,8 @@
 //! the direct-transfer pass on the CPU backend (direction-major ray packets, and the plain
 //! vertex-major single-ray order they replaced) and, where an adapter exists, the GPU backend,
 //! side by side in one run (the machine is shared and noisy: compare ratios, not absolutes).
+//! A second group does the same on the CPU for the cosine set (the default), whose packets are
+//! fans from one vertex.
 //!
 //! Run: `cargo bench --bench bake` (criterion reports the throughput in rays/s).
 //! PRT_GPU_BENCH_ADAPTER=name picks the adapter; without any adapter the GPU entry is skipped.
@@ -14,11 +16,36 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use prt_gpu::bake::gpu::{self, Chunking, GpuBaker};
 use prt_gpu::bake::{cpu, BakeInputs, Mode, NoProgress};
 use prt_gpu::gpu::DeviceChoice;
-use prt_gpu::scene::{self, prepare::prepare};
+use prt_gpu::sampling::Sampling;
+use prt_gpu::scene::{self, prepare::prepare, Scene};
+
+fn dragon() -> Scene {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/dragon_vrip_res3.ply.gz");
+    prepare(scene::load(&path).expect("dragon"))
+        .expect("prepare")
+        .0
+}
+
+fn cosine_dragon(c: &mut Criterion) {
+    let owned = BakeInputs::with_sampling(&dragon(), 4, 1024, 1, Sampling::Cosine);
+    let inputs = owned.view();
+    let (_, rays) = cpu::direct_transfer(&inputs, Mode::Shadowed, &NoProgress);
+    let mut group = c.benchmark_group("dragon_vrip_res3 shadowed 1024 cosine samples 4 bands");
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_secs(1));
+    group.measurement_time(Duration::from_secs(30));
+    group.throughput(Throughput::Elements(rays));
+    group.bench_function("cpu fans", |b| {
+        b.iter(|| cpu::direct_transfer(&inputs, Mode::Shadowed, &NoProgress))
+    });
+    group.bench_function("cpu single rays", |b| {
+        b.iter(|| cpu::direct_transfer_single_rays(&inputs, Mode::Shadowed, &NoProgress))
+    });
+    group.finish();
+}
 
 fn shadowed_dragon(c: &mut Criterion) {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/dragon_vrip_res3.ply.gz");
-    let (mesh, _) = prepare(scene::load(&path).expect("dragon")).expect("prepare");
+    let mesh = dragon();
     let owned = BakeInputs::new(&mesh, 4, 1024, 1);
     let inputs = owned.view();
     let (_, rays) = cpu::direct_transfer(&inputs, Mode::Shadowed, &NoProgress);
@@ -64,5 +91,5 @@ fn shadowed_dragon(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, shadowed_dragon);
+criterion_group!(benches, shadowed_dragon, cosine_dragon);
 criterion_main!(benches);

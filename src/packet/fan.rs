@@ -15,7 +15,7 @@ use glam::Vec3;
 
 use super::{max, min, Isa, LaneMask, Lanes, Packet, ALL_LANES, LANES};
 use crate::bvh::{BvhNode, BvhTriangle};
-use crate::ray::{Ray, SLAB_WIDENING};
+use crate::ray::{Ray, MIN_DIRECTION_COMPONENT, SLAB_WIDENING};
 
 /// Up to [`LANES`] rays from one origin, with the per-ray constants of the box and triangle
 /// tests of each lane laid out by lane.
@@ -47,19 +47,51 @@ impl FanPacket {
         let first = directions.first().copied().unwrap_or(Vec3::Z);
         let directions: [Vec3; LANES] =
             std::array::from_fn(|lane| directions.get(lane).copied().unwrap_or(first));
-        let rays = directions.map(|d| Ray::new(origin, d));
-        FanPacket {
-            inv_direction: [0, 1, 2].map(|axis| rays.map(|r| r.inv_direction[axis])),
-            shear: [0, 1, 2].map(|axis| rays.map(|r| r.shear[axis])),
-            axes: [
-                rays.map(|r| r.axis_x as u32),
-                rays.map(|r| r.axis_y as u32),
-                rays.map(|r| r.axis_z as u32),
-            ],
+        let mut packet = FanPacket {
+            inv_direction: [[0.0; LANES]; 3],
+            shear: [[0.0; LANES]; 3],
+            axes: [[0; LANES]; 3],
             origin: origin.to_array(),
             directions,
             active: active & filled,
+        };
+        // `Ray::new`'s constants, step for step, in a loop over lanes that compiles to vector
+        // code (building 16 `Ray`s and transposing them took a fifth of the bake).
+        let d: [Lanes; 3] =
+            std::array::from_fn(|axis| std::array::from_fn(|l| directions[l][axis]));
+        for lane in 0..LANES {
+            let (x, y, z) = (d[0][lane], d[1][lane], d[2][lane]);
+            packet.inv_direction[0][lane] = 1.0 / away_from_zero(x);
+            packet.inv_direction[1][lane] = 1.0 / away_from_zero(y);
+            packet.inv_direction[2][lane] = 1.0 / away_from_zero(z);
+            let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
+            let axis_z: u32 = if ax > ay {
+                if ax > az {
+                    0
+                } else {
+                    2
+                }
+            } else if ay > az {
+                1
+            } else {
+                2
+            };
+            let next = |axis: u32| if axis == 2 { 0 } else { axis + 1 };
+            let v = [x, y, z];
+            let dz = component(&v, axis_z);
+            let (axis_x, axis_y) = if dz < 0.0 {
+                (next(next(axis_z)), next(axis_z))
+            } else {
+                (next(axis_z), next(next(axis_z)))
+            };
+            packet.axes[0][lane] = axis_x;
+            packet.axes[1][lane] = axis_y;
+            packet.axes[2][lane] = axis_z;
+            packet.shear[0][lane] = component(&v, axis_x) / dz;
+            packet.shear[1][lane] = component(&v, axis_y) / dz;
+            packet.shear[2][lane] = 1.0 / dz;
         }
+        packet
     }
 
     /// The single ray of one lane, as [`crate::bvh::Bvh::occluded`] would trace it.
@@ -72,6 +104,16 @@ impl FanPacket {
     fn translated(&self, v: [f32; 3]) -> [f32; 3] {
         let o = self.origin;
         [v[0] - o[0], v[1] - o[1], v[2] - o[2]]
+    }
+}
+
+/// `Ray::new`'s guard against zero direction components.
+#[inline(always)]
+fn away_from_zero(d: f32) -> f32 {
+    if d.abs() < MIN_DIRECTION_COMPONENT {
+        MIN_DIRECTION_COMPONENT.copysign(d)
+    } else {
+        d
     }
 }
 
@@ -168,5 +210,53 @@ impl Packet for FanPacket {
             }
         }
         hits
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Pcg32;
+
+    #[test]
+    fn lane_constants_are_those_of_single_rays() {
+        // Random directions, and the cases where `Ray::new` branches: ties between the largest
+        // components, negative dominant axes, zero and tiny components.
+        let mut rng = Pcg32::new(17);
+        let mut directions = vec![
+            Vec3::X,
+            Vec3::NEG_Y,
+            Vec3::Z,
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(-1.0, 1.0, 1.0),
+            Vec3::new(0.0, -1.0, -1.0),
+            Vec3::new(1e-30, -1e-25, -1.0),
+            Vec3::new(-0.0, 0.6, -0.8),
+        ];
+        while directions.len() < 16 * 64 {
+            let v = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+            directions.push(v.normalize_or(Vec3::X));
+        }
+        let origin = Vec3::new(0.5, -2.0, 3.0);
+        for fan in directions.chunks(LANES) {
+            let packet = FanPacket::new(origin, fan, ALL_LANES);
+            for (lane, &d) in fan.iter().enumerate() {
+                let ray = Ray::new(origin, d);
+                let bits = |v: [f32; 3]| v.map(f32::to_bits);
+                let lane_of = |arrays: &[Lanes; 3]| [0, 1, 2].map(|a| arrays[a][lane]);
+                assert_eq!(
+                    bits(lane_of(&packet.inv_direction)),
+                    bits(ray.inv_direction.to_array()),
+                    "{d}"
+                );
+                assert_eq!(
+                    bits(lane_of(&packet.shear)),
+                    bits(ray.shear.to_array()),
+                    "{d}"
+                );
+                let axes = [0, 1, 2].map(|a| packet.axes[a][lane] as usize);
+                assert_eq!(axes, [ray.axis_x, ray.axis_y, ray.axis_z], "{d}");
+            }
+        }
     }
 }

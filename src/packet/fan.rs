@@ -57,10 +57,8 @@ impl FanPacket {
         };
         // `Ray::new`'s constants, step for step, in a loop over lanes that compiles to vector
         // code (building 16 `Ray`s and transposing them took a fifth of the bake).
-        let d: [Lanes; 3] =
-            std::array::from_fn(|axis| std::array::from_fn(|l| directions[l][axis]));
-        for lane in 0..LANES {
-            let (x, y, z) = (d[0][lane], d[1][lane], d[2][lane]);
+        for (lane, direction) in directions.iter().enumerate() {
+            let [x, y, z] = direction.to_array();
             packet.inv_direction[0][lane] = 1.0 / away_from_zero(x);
             packet.inv_direction[1][lane] = 1.0 / away_from_zero(y);
             packet.inv_direction[2][lane] = 1.0 / away_from_zero(z);

@@ -184,7 +184,10 @@ trait Isa {
 }
 
 /// Any target: the plain loop.
-#[cfg_attr(all(target_arch = "x86_64", not(test)), allow(dead_code))]
+#[cfg_attr(
+    all(any(target_arch = "x86_64", target_arch = "aarch64"), not(test)),
+    allow(dead_code)
+)]
 struct Portable;
 
 impl Isa for Portable {
@@ -200,13 +203,13 @@ impl Isa for Portable {
 
 /// Run-time choice of the traversal's machine code. The source is one function; on x86-64 it is
 /// compiled three times: for AVX-512 (a packet array is one register), for AVX2 + FMA, and for
-/// the SSE2 that every x86-64 has. Other targets get the portable copy (on aarch64 LLVM
-/// vectorizes its arithmetic with NEON, the baseline there; only the masks stay scalar). Rust
-/// never contracts `a * b + c` into a fused multiply-add on its own, so all copies compute the
-/// same bits.
+/// the SSE2 that every x86-64 has. On aarch64 NEON is the baseline, so there is one copy, with
+/// NEON compares (checked under qemu-aarch64: the packet tests pass there). Other targets get
+/// the portable copy. Rust never contracts `a * b + c` into a fused multiply-add on its own, so
+/// all copies compute the same bits.
 ///
 /// Plain `#[target_feature]` functions and `std::arch` compares rather than a crate
-/// (`multiversion`, `pulp`): three thin wrappers, six compare functions and one cached feature
+/// (`multiversion`, `pulp`): two thin wrappers, eight compare functions and one cached feature
 /// test need no dependency, and the compares are the only place where a crate would help.
 mod dispatch {
     use super::*;
@@ -263,7 +266,12 @@ mod dispatch {
         occluded_lanes::<P, x86::Avx2>(bvh, packet, t_max)
     }
 
-    #[cfg(not(target_arch = "x86_64"))]
+    #[cfg(target_arch = "aarch64")]
+    pub fn occluded<P: Packet>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
+        occluded_lanes::<P, arm::Neon>(bvh, packet, t_max)
+    }
+
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
     pub fn occluded<P: Packet>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
         occluded_lanes::<P, Portable>(bvh, packet, t_max)
     }
@@ -285,6 +293,8 @@ mod dispatch {
                 copies.push(("avx512", |b, p, t| unsafe { avx512(b, p, t) }));
             }
         }
+        #[cfg(target_arch = "aarch64")]
+        copies.push(("neon", occluded_lanes::<P, arm::Neon>));
         copies
     }
 }
@@ -377,6 +387,51 @@ mod x86 {
         #[inline(always)]
         fn le_mask(a: &Lanes, b: &Lanes) -> LaneMask {
             sse2_mask(a, b, |x, y| unsafe { _mm_cmple_ps(x, y) })
+        }
+    }
+}
+
+/// The aarch64 compares: NEON is part of every aarch64, so no run-time test is needed.
+#[cfg(target_arch = "aarch64")]
+mod arm {
+    use super::{Isa, LaneMask, Lanes};
+    use std::arch::aarch64::*;
+
+    pub struct Neon;
+
+    /// Four 4-lane compares; each lane's all-ones result keeps its own bit of `1, 2, 4, 8`, and
+    /// one horizontal add gathers them.
+    #[inline(always)]
+    fn neon_mask(
+        a: &Lanes,
+        b: &Lanes,
+        cmp: impl Fn(float32x4_t, float32x4_t) -> uint32x4_t,
+    ) -> LaneMask {
+        const BITS: [u32; 4] = [1, 2, 4, 8];
+        let mut mask = 0;
+        for quarter in 0..4 {
+            // SAFETY: reads 4 values inside 16-element arrays and a 4-element constant; NEON is
+            // always present on aarch64.
+            let bits = unsafe {
+                let lanes = cmp(
+                    vld1q_f32(a.as_ptr().add(4 * quarter)),
+                    vld1q_f32(b.as_ptr().add(4 * quarter)),
+                );
+                vaddvq_u32(vandq_u32(lanes, vld1q_u32(BITS.as_ptr())))
+            };
+            mask |= (bits as LaneMask) << (4 * quarter);
+        }
+        mask
+    }
+
+    impl Isa for Neon {
+        #[inline(always)]
+        fn lt_mask(a: &Lanes, b: &Lanes) -> LaneMask {
+            neon_mask(a, b, |x, y| unsafe { vcltq_f32(x, y) })
+        }
+        #[inline(always)]
+        fn le_mask(a: &Lanes, b: &Lanes) -> LaneMask {
+            neon_mask(a, b, |x, y| unsafe { vcleq_f32(x, y) })
         }
     }
 }

@@ -266,7 +266,7 @@ pub fn random_rotation(rng: &mut Pcg32) -> DMat3 {
 /// unbiased; the lattice keeps the points evenly spread. Directions are in the tangent frame,
 /// z along the normal, stored in Morton order: consecutive lattice points are a golden angle
 /// apart, while every run of 16 Morton-ordered samples is a small cone, which the CPU casts as
-/// one packet (`packet::FanPacket`) and lavapipe's SIMD lanes read with fewer cache misses.
+/// one packet (`packet::FanPacket`); lavapipe gains from the order too (docs/performance.md).
 pub fn cosine_hemisphere(count: u32, seed: u64) -> SampleSet {
     let lattice = cosine_hemisphere_lattice_order(count, seed);
     // Ordered on the disk that Malley's lift starts from, where the points are uniform, so that

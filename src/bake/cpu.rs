@@ -4,9 +4,11 @@
 //! over the set bits. Sums are f64 in sample order, so a bake is bit-for-bit repeatable however
 //! rayon schedules the vertices.
 //!
-//! The bake traces direction-major: each sample direction is cast from 16 Morton-adjacent
-//! vertices at once as one ray packet (`crate::packet`), which sets the same bits as
-//! `trace_visibility`, the readable one-ray-at-a-time reference kept beside it.
+//! The bake traces in ray packets (`crate::packet`), which set the same bits as
+//! `trace_visibility`, the readable one-ray-at-a-time reference kept beside it: for a set
+//! shared by all vertices, each direction is cast from 16 Morton-adjacent vertices at once
+//! (`trace_visibility_packets`); for a tangent-frame set, each vertex casts 16 consecutive
+//! samples at once from its origin (`trace_visibility_fans`).
 
 use rayon::prelude::*;
 

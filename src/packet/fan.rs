@@ -134,6 +134,14 @@ impl Packet for FanPacket {
         self.active
     }
 
+    /// The child whose centre is nearer the shared origin first.
+    #[inline(always)]
+    fn right_first(&self, left: &BvhNode, right: &BvhNode) -> bool {
+        let o = Vec3::from_array(self.origin);
+        let centre_distance = |n: &BvhNode| (n.min() + n.max() - 2.0 * o).length_squared();
+        centre_distance(right) < centre_distance(left)
+    }
+
     /// `ray::intersect_box` lane by lane: `(bound - origin) * inv_dir`, the nearer and farther
     /// of the two planes per axis, entry no earlier than 0, exit widened and capped at `t_max`.
     #[inline(always)]

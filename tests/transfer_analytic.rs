@@ -8,6 +8,7 @@ use prt_gpu::bake::{bake, cpu, gpu, Backend, BakeOptions, DirectInputs, Mode, No
 use prt_gpu::bvh::Bvh;
 use prt_gpu::sampling::{stratified_sphere, Estimator};
 use prt_gpu::scene::builtin;
+use prt_gpu::sh::rotation::EulerShRotation;
 use prt_gpu::sh::{coeff_count, unshadowed_transfer, ShTable};
 
 /// Monte-Carlo transfer of an unoccluded vertex with its per-coefficient standard error.
@@ -32,6 +33,7 @@ fn estimate_with_error(
         samples: &set,
         table: &table,
         estimator: Estimator::Visible,
+        tangent_to_world: &EulerShRotation::new(bands),
     };
     let n = coeff_count(bands);
     let estimate: Vec<f64> = match backend {

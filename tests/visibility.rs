@@ -10,6 +10,7 @@ use prt_gpu::bvh::Bvh;
 use prt_gpu::ray::{Ray, RAY_T_MAX};
 use prt_gpu::sampling::{DirectionFrame, Estimator, Pcg32, SampleSet};
 use prt_gpu::scene::{builtin, prepare::prepare, Scene};
+use prt_gpu::sh::rotation::EulerShRotation;
 use prt_gpu::sh::ShTable;
 
 fn bake_both(scene: Scene, backend: &Backend) -> (Vec<f32>, Vec<f32>, u64) {
@@ -183,6 +184,7 @@ fn gpu_escapes(baker: &GpuBaker, bvh: &Bvh, origins: &[Vec3], directions: Vec<Ve
         samples: &samples,
         table: &table,
         estimator: Estimator::Visible,
+        tangent_to_world: &EulerShRotation::new(1),
     };
     let (bits, _) =
         visibility_bits_and_transfer(baker, &inputs, Mode::Shadowed, Chunking::default()).unwrap();

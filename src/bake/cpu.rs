@@ -16,7 +16,6 @@ use super::{DirectInputs, Mode, Progress};
 use crate::packet::{self, lane_mask, FanPacket, LaneMask, PacketOrigins, RayPacket, LANES};
 use crate::ray::{Ray, RAY_T_MAX};
 use crate::sampling::{tangent_frame, DirectionFrame, Estimator, VertexDirections};
-use crate::sh::rotation::ShRotation;
 use crate::sh::{coeff_count, unshadowed_transfer};
 
 /// Vertices handed to one rayon task: large enough to amortise scheduling, small enough for
@@ -232,9 +231,8 @@ pub fn finish_transfer(inputs: &DirectInputs, vertex: usize, sums: &mut [f64]) {
     sums.iter_mut().for_each(|t| *t *= scale);
     if inputs.samples.frame == DirectionFrame::Tangent {
         let [t, b, n] = tangent_frame(normal).map(|axis| axis.as_dvec3());
-        let to_world = ShRotation::new(bands, glam::DMat3::from_cols(t, b, n));
-        let world = to_world.apply(sums);
-        sums.copy_from_slice(&world);
+        let frame = glam::DMat3::from_cols(t, b, n);
+        inputs.tangent_to_world.apply(&frame, sums);
     }
     if inputs.estimator == Estimator::Blocked {
         let unoccluded = unshadowed_transfer(bands, normal.as_dvec3());

@@ -16,6 +16,7 @@ use crate::ray::offset_ray_origin;
 use crate::sampling::{Estimator, SampleSet, Sampling, MAX_SAMPLES};
 use crate::scene::prepare::{prepare, PrepareReport};
 use crate::scene::Scene;
+use crate::sh::rotation::EulerShRotation;
 use crate::sh::{coeff_count, ShTable, CONVENTION, MAX_BANDS};
 
 /// Which light transport the transfer vectors capture.
@@ -200,6 +201,8 @@ pub struct DirectInputs<'a> {
     /// SH of each sample direction, `[sample][k]` (in the tangent frame for tangent sets).
     pub table: &'a ShTable,
     pub estimator: Estimator,
+    /// Turns a tangent set's sums into the world, vertex by vertex (`table.bands` bands).
+    pub tangent_to_world: &'a EulerShRotation,
 }
 
 /// Where the transfer is computed.
@@ -389,6 +392,7 @@ pub struct BakeInputs {
     pub samples: SampleSet,
     pub table: ShTable,
     pub estimator: Estimator,
+    pub tangent_to_world: EulerShRotation,
 }
 
 impl BakeInputs {
@@ -430,6 +434,7 @@ impl BakeInputs {
             samples,
             table,
             estimator: sampling.estimator(),
+            tangent_to_world: EulerShRotation::new(bands),
         }
     }
 
@@ -442,6 +447,7 @@ impl BakeInputs {
             samples: &self.samples,
             table: &self.table,
             estimator: self.estimator,
+            tangent_to_world: &self.tangent_to_world,
         }
     }
 }

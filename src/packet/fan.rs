@@ -10,6 +10,8 @@
 //!
 //! Per lane remain the slab products with the lane's reciprocal direction, the lane's
 //! permutation and shear of the translated vertices, the edge functions and the hit distance.
+//! Where lanes meet both children of a node, the one whose centre is nearer the origin is
+//! entered first: a vertex is mostly blocked by its neighbours.
 
 use glam::Vec3;
 

@@ -17,7 +17,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{cpu, DirectInputs, Progress};
+use super::{cpu, DirectInputs, Mode, Progress};
 use crate::ray::{Ray, RAY_T_MAX};
 use crate::sampling::{DirectionFrame, VertexDirections};
 use crate::sh::coeff_count;
@@ -136,17 +136,24 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
 }
 
 /// Closest hits of the blocked rays of one vertex, on the CPU: `(sample, hit)` for every
-/// sample above the horizon that the scene blocks.
-pub fn vertex_hits(inputs: &DirectInputs, vertex: usize) -> Vec<(u32, Hit)> {
+/// sample above the horizon whose bit in `visible` (the vertex's visibility bits, from
+/// [`cpu::trace_visibility`] or its packets) is clear. The packets find which rays are blocked
+/// far faster than one closest-hit traversal per ray, and the open rays, most of them on a
+/// typical mesh and the ones that cross the whole tree, then need no closest hit at all.
+pub fn blocked_hits(inputs: &DirectInputs, vertex: usize, visible: &[u32]) -> Vec<(u32, Hit)> {
     let normal = inputs.normals[vertex];
     let to_world = VertexDirections::new(inputs.samples.frame, normal);
     let origin = inputs.origins[vertex];
     let mut hits = Vec::new();
     for (s, &sample) in inputs.samples.directions.iter().enumerate() {
+        if visible[s / 32] & (1 << (s % 32)) != 0 {
+            continue;
+        }
         let direction = to_world.world(sample);
         if normal.dot(direction) <= 0.0 {
             continue;
         }
+        // A blocked ray always has a closest hit: both queries run the same tests.
         if let Some((triangle, hit)) = inputs
             .bvh
             .closest_hit(&Ray::new(origin, direction), RAY_T_MAX)
@@ -164,49 +171,46 @@ pub fn vertex_hits(inputs: &DirectInputs, vertex: usize) -> Vec<(u32, Hit)> {
     hits
 }
 
-/// Albedo-free direct transfer `[vertex][k]` and the gather matrix, on the CPU, from one
-/// closest-hit traversal per ray: a ray is visible exactly when it hits nothing. Returns them
-/// and the rays cast.
+/// Albedo-free direct transfer `[vertex][k]` and the gather matrix, on the CPU: visibility
+/// from the packets of the shadowed bake, then one closest-hit traversal per blocked ray.
+/// Returns them and the rays cast (one per sample above the horizon, as in shadowed mode).
 pub fn direct_transfer_and_gather_matrix_cpu(
     inputs: &DirectInputs,
     progress: &dyn Progress,
 ) -> (Vec<f32>, GatherMatrix, u64) {
     let n = coeff_count(inputs.table.bands);
     let words = cpu::words_per_vertex(inputs.samples.len());
-    /// One vertex's direct transfer, gather row and rays cast.
-    type VertexResult = (Vec<f32>, Vec<(u32, f32)>, u64);
-    let per_vertex: Vec<VertexResult> = (0..inputs.origins.len())
+    let vertex_count = inputs.origins.len();
+    /// One task's direct transfer, gather rows and rays cast.
+    type TaskResult = (Vec<f32>, Vec<Vec<(u32, f32)>>, u64);
+    let per_task: Vec<TaskResult> = (0..vertex_count)
+        .step_by(cpu::VERTICES_PER_TASK)
+        .collect::<Vec<_>>()
         .into_par_iter()
-        .with_min_len(64)
-        .map(|v| {
-            let hits = vertex_hits(inputs, v);
-            let normal = inputs.normals[v];
-            let to_world = VertexDirections::new(inputs.samples.frame, normal);
-            let mut bits = vec![0u32; words];
-            let mut rays = 0;
-            for (s, &d) in inputs.samples.directions.iter().enumerate() {
-                if normal.dot(to_world.world(d)) > 0.0 {
-                    bits[s / 32] |= 1 << (s % 32);
-                    rays += 1;
-                }
-            }
-            for &(s, _) in &hits {
-                bits[s as usize / 32] &= !(1 << (s % 32));
-            }
+        .map(|first| {
+            let count = cpu::VERTICES_PER_TASK.min(vertex_count - first);
+            let mut bits = vec![0u32; count * words];
+            let rays = cpu::trace_visibility_of(inputs, Mode::Shadowed, first, &mut bits);
+            let mut transfer = Vec::with_capacity(count * n);
+            let mut rows = Vec::with_capacity(count);
             let mut sums = vec![0.0f64; n];
-            cpu::project_visibility(inputs, v, &bits, &mut sums);
-            cpu::finish_transfer(inputs, v, &mut sums);
-            let transfer = sums.iter().map(|&t| t as f32).collect();
-            progress.advance(1);
-            (transfer, gather_row(inputs, v, &hits), rays)
+            for (i, visible) in bits.chunks(words).enumerate() {
+                let v = first + i;
+                cpu::project_visibility(inputs, v, visible, &mut sums);
+                cpu::finish_transfer(inputs, v, &mut sums);
+                transfer.extend(sums.iter().map(|&t| t as f32));
+                rows.push(gather_row(inputs, v, &blocked_hits(inputs, v, visible)));
+            }
+            progress.advance(count as u64);
+            (transfer, rows, rays)
         })
         .collect();
-    let mut transfer = Vec::with_capacity(inputs.origins.len() * n);
-    let mut rows = Vec::with_capacity(per_vertex.len());
+    let mut transfer = Vec::with_capacity(vertex_count * n);
+    let mut rows = Vec::with_capacity(vertex_count);
     let mut rays = 0;
-    for (t, row, r) in per_vertex {
+    for (t, task_rows, r) in per_task {
         transfer.extend(t);
-        rows.push(row);
+        rows.extend(task_rows);
         rays += r;
     }
     (transfer, GatherMatrix::from_rows(rows), rays)
@@ -271,6 +275,59 @@ pub fn relative_energy(added: &[f32], total: &[f32], coeffs: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn packet_visibility_gives_the_single_ray_transfer_and_hits() {
+        use crate::bake::{BakeInputs, NoProgress};
+        use crate::sampling::Sampling;
+        use crate::scene::{self, prepare::prepare};
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny.obj");
+        let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
+        for sampling in [Sampling::Stratified, Sampling::Cosine] {
+            let owned = BakeInputs::with_sampling(&mesh, 3, 144, 2, sampling);
+            let inputs = owned.view();
+            let (transfer, matrix, rays) =
+                direct_transfer_and_gather_matrix_cpu(&inputs, &NoProgress);
+            let (shadowed, shadowed_rays) =
+                cpu::direct_transfer(&inputs, Mode::Shadowed, &NoProgress);
+            assert_eq!(transfer, shadowed, "{sampling:?}");
+            assert_eq!(rays, shadowed_rays, "{sampling:?}");
+            // Rows from closest hits of every ray above the horizon, one ray at a time.
+            let mut entries = 0;
+            for v in 0..inputs.origins.len() {
+                let normal = inputs.normals[v];
+                let to_world = VertexDirections::new(inputs.samples.frame, normal);
+                let hits: Vec<(u32, Hit)> = (0..inputs.samples.len())
+                    .filter_map(|s| {
+                        let direction = to_world.world(inputs.samples.directions[s]);
+                        if normal.dot(direction) <= 0.0 {
+                            return None;
+                        }
+                        let ray = Ray::new(inputs.origins[v], direction);
+                        let (triangle, hit) = inputs.bvh.closest_hit(&ray, RAY_T_MAX)?;
+                        Some((
+                            s as u32,
+                            Hit {
+                                triangle,
+                                u: hit.u,
+                                v: hit.v,
+                            },
+                        ))
+                    })
+                    .collect();
+                let row = gather_row(&inputs, v, &hits);
+                let (columns, weights) = matrix.row(v);
+                let expected: (Vec<u32>, Vec<f32>) = row.into_iter().unzip();
+                assert_eq!(
+                    (columns, weights),
+                    (&expected.0[..], &expected.1[..]),
+                    "vertex {v}"
+                );
+                entries += columns.len();
+            }
+            assert!(entries > 0, "{sampling:?}: nothing gathered");
+        }
+    }
 
     #[test]
     fn rows_merge_duplicate_columns_and_keep_them_sorted() {

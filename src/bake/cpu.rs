@@ -21,7 +21,7 @@ use crate::sh::{coeff_count, unshadowed_transfer};
 /// Vertices handed to one rayon task: large enough to amortise scheduling, small enough for
 /// smooth progress and load balance on scenes with uneven occlusion. A multiple of the packet
 /// width, so that only the last task has a partly filled packet.
-const VERTICES_PER_TASK: usize = 4 * LANES;
+pub const VERTICES_PER_TASK: usize = 4 * LANES;
 
 /// Words of visibility bits per vertex for `samples` samples.
 pub fn words_per_vertex(samples: usize) -> usize {
@@ -126,7 +126,12 @@ pub fn trace_visibility_fans(
 /// [`trace_visibility`] of the vertices `first..first + count` (`bits`: `count` rows): in
 /// parallel packets across vertices where all vertices share the directions, in fan packets
 /// per vertex where each vertex turns them into its own tangent frame.
-fn trace_visibility_of(inputs: &DirectInputs, mode: Mode, first: usize, bits: &mut [u32]) -> u64 {
+pub fn trace_visibility_of(
+    inputs: &DirectInputs,
+    mode: Mode,
+    first: usize,
+    bits: &mut [u32],
+) -> u64 {
     match inputs.samples.frame {
         DirectionFrame::World => trace_visibility_packets(inputs, mode, first, bits),
         DirectionFrame::Tangent => {

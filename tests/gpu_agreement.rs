@@ -167,6 +167,18 @@ fn many_small_chunks_equal_one_big_chunk() {
         "teapot in small chunks",
     );
     assert!(differing as f64 <= 1e-5 * rays as f64);
+    // The GPU counts its rays chunk by chunk; in total they are the CPU's.
+    for chunking in [Chunking::default(), small] {
+        let (_, run) = prt_gpu::bake::gpu::direct_transfer(
+            baker,
+            &inputs,
+            Mode::Shadowed,
+            chunking,
+            &prt_gpu::bake::NoProgress,
+        )
+        .unwrap();
+        assert_eq!(run.rays_cast, rays, "{chunking:?}");
+    }
 }
 
 #[test]

@@ -607,11 +607,14 @@ fn run(
         {
             let samples = sample_chunk.min(sample_count - sample_offset);
             stats.sample_chunks += (vertex_offset == 0) as u32;
-            let (lists, longest) = sample_lists_above_horizon(
+            let (lists, longest, listed) = sample_lists_above_horizon(
                 inputs,
                 vertex_offset as usize..(vertex_offset + vertices) as usize,
                 sample_offset as usize..(sample_offset + samples) as usize,
             );
+            if mode != Mode::Unshadowed {
+                stats.rays_cast += listed;
+            }
             ctx.queue
                 .write_buffer(&sample_lists, 0, bytemuck::cast_slice(&lists));
             ctx.queue.write_buffer(
@@ -715,11 +718,6 @@ fn run(
             exhausted_rays[0]
         )));
     }
-    stats.rays_cast = if mode == Mode::Unshadowed {
-        0
-    } else {
-        rays_above_horizon(inputs)
-    };
     Ok(RunOutput {
         sums,
         bits: all_bits,
@@ -733,7 +731,8 @@ const NO_SAMPLE: u32 = u32::MAX;
 
 /// For each vertex of `vertices`, the samples of `samples` above its horizon (by the CPU
 /// backend's test, so both trace the same rays) as indices from `samples.start`, ascending,
-/// padded with NO_SAMPLE to rows of `samples.len()`; and the longest list's length.
+/// padded with NO_SAMPLE to rows of `samples.len()`; the longest list's length; and the
+/// lists' total length (the rays a shadowed pass casts for this chunk).
 ///
 /// About half of all vertex–sample pairs are below the horizon. Listing the others first
 /// keeps llvmpipe's 8-wide SIMD groups full of rays (a group straddling the horizon would
@@ -742,10 +741,10 @@ fn sample_lists_above_horizon(
     inputs: &DirectInputs,
     vertices: std::ops::Range<usize>,
     samples: std::ops::Range<usize>,
-) -> (Vec<u32>, u32) {
+) -> (Vec<u32>, u32, u64) {
     let width = samples.len();
     let mut lists = vec![NO_SAMPLE; vertices.len() * width];
-    let longest = lists
+    let (longest, listed) = lists
         .par_chunks_mut(width.max(1))
         .zip(&inputs.normals[vertices])
         .map(|(row, &normal)| {
@@ -763,27 +762,9 @@ fn sample_lists_above_horizon(
             }
             count as u32
         })
-        .max()
-        .unwrap_or(0);
-    (lists, longest)
-}
-
-/// Rays a shadowed bake casts: vertex–sample pairs above the horizon (as the CPU counts them).
-fn rays_above_horizon(inputs: &DirectInputs) -> u64 {
-    let frame = inputs.samples.frame;
-    inputs
-        .normals
-        .par_iter()
-        .map(|&n| {
-            let to_world = VertexDirections::new(frame, n);
-            inputs
-                .samples
-                .directions
-                .iter()
-                .filter(|&&d| n.dot(to_world.world(d)) > 0.0)
-                .count() as u64
-        })
-        .sum()
+        .map(|count| (count, count as u64))
+        .reduce(|| (0, 0), |a, b| (a.0.max(b.0), a.1 + b.1));
+    (lists, longest, listed)
 }
 
 /// Transfer from the kernels' raw sums, finished per vertex as the CPU finishes its own.

@@ -15,9 +15,9 @@
 
 use glam::Vec3;
 
-use super::{max, min, Isa, LaneMask, Lanes, Packet, ALL_LANES, LANES};
+use super::{max, min, sheared_triangle_lanes, Isa, LaneMask, Lanes, Packet, ALL_LANES, LANES};
 use crate::bvh::{BvhNode, BvhTriangle};
-use crate::ray::{Ray, MIN_DIRECTION_COMPONENT, SLAB_WIDENING};
+use crate::ray::{MIN_DIRECTION_COMPONENT, SLAB_WIDENING};
 
 /// Up to [`LANES`] rays from one origin, with the per-ray constants of the box and triangle
 /// tests of each lane laid out by lane.
@@ -26,12 +26,11 @@ use crate::ray::{Ray, MIN_DIRECTION_COMPONENT, SLAB_WIDENING};
 pub struct FanPacket {
     /// Reciprocal directions by axis, `[axis][lane]`.
     inv_direction: [Lanes; 3],
-    /// Shear constants by lane, `[sx, sy, sz][lane]` (see [`Ray::shear`]).
+    /// Shear constants by lane, `[sx, sy, sz][lane]` (see [`crate::ray::Ray::shear`]).
     shear: [Lanes; 3],
     /// The triangle test's permutation by lane, `[axis_x, axis_y, axis_z][lane]`.
     axes: [[u32; LANES]; 3],
     origin: [f32; 3],
-    directions: [Vec3; LANES],
     /// Lanes that take part; the others never report a hit.
     pub active: LaneMask,
 }
@@ -54,7 +53,6 @@ impl FanPacket {
             shear: [[0.0; LANES]; 3],
             axes: [[0; LANES]; 3],
             origin: origin.to_array(),
-            directions,
             active: active & filled,
         };
         // `Ray::new`'s constants, step for step, in a loop over lanes that compiles to vector
@@ -92,11 +90,6 @@ impl FanPacket {
             packet.shear[2][lane] = 1.0 / dz;
         }
         packet
-    }
-
-    /// The single ray of one lane, as [`crate::bvh::Bvh::occluded`] would trace it.
-    pub fn lane_ray(&self, lane: usize) -> Ray {
-        Ray::new(Vec3::from_array(self.origin), self.directions[lane])
     }
 
     /// `v - origin`, the first step of both tests, shared by every lane.
@@ -182,48 +175,14 @@ impl Packet for FanPacket {
                 z,
             )
         };
-        let mut lowest = [0.0f32; LANES];
-        let mut highest = [0.0f32; LANES];
-        for lane in 0..LANES {
-            let (ax, ay, _) = shear(&a, lane);
-            let (bx, by, _) = shear(&b, lane);
-            let (cx, cy, _) = shear(&c, lane);
-            let u = cx * by - cy * bx;
-            let v = ax * cy - ay * cx;
-            let w = bx * ay - by * ax;
-            lowest[lane] = min(min(u, v), w);
-            highest[lane] = max(max(u, v), w);
-        }
-        const ZERO: Lanes = [0.0; LANES];
-        let outside = I::lt_mask(&lowest, &ZERO) & I::lt_mask(&ZERO, &highest);
-        let mut inside = lanes & !outside;
-        let mut hits = 0;
-        while inside != 0 {
-            let lane = inside.trailing_zeros() as usize;
-            inside &= inside - 1;
-            let (ax, ay, az) = shear(&a, lane);
-            let (bx, by, bz) = shear(&b, lane);
-            let (cx, cy, cz) = shear(&c, lane);
-            let u = cx * by - cy * bx;
-            let v = ax * cy - ay * cx;
-            let w = bx * ay - by * ax;
-            let det = u + v + w;
-            if det == 0.0 {
-                continue;
-            }
-            let s = sz[lane];
-            let t = (u * (s * az) + v * (s * bz) + w * (s * cz)) / det;
-            if t > 0.0 && t < t_max {
-                hits |= 1 << lane;
-            }
-        }
-        hits
+        sheared_triangle_lanes::<I>([&a, &b, &c], shear, |lane| sz[lane], lanes, t_max)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ray::Ray;
     use crate::sampling::Pcg32;
 
     #[test]

@@ -67,6 +67,57 @@ fn min(a: f32, b: f32) -> f32 {
     }
 }
 
+/// The lane work of the watertight triangle test (`ray::intersect_triangle`), shared by both
+/// packet kinds, which differ only in how a vertex reaches a lane's sheared frame:
+/// `shear(v, lane)` is vertex `v` translated to the lane's origin, permuted and sheared, as
+/// `(x, y, z)` with `z` not yet scaled; `z_scale(lane)` is the lane's `1 / d_z`. Edge
+/// functions are computed for all lanes at once; the few lanes inside (most triangles are
+/// missed by every lane) finish one by one. Returns the lanes of `lanes` that hit on
+/// `(0, t_max)`.
+#[inline(always)]
+fn sheared_triangle_lanes<I: Isa>(
+    [a, b, c]: [&[f32; 3]; 3],
+    shear: impl Fn(&[f32; 3], usize) -> (f32, f32, f32),
+    z_scale: impl Fn(usize) -> f32,
+    lanes: LaneMask,
+    t_max: f32,
+) -> LaneMask {
+    let edge_functions = |lane: usize| {
+        let (ax, ay, _) = shear(a, lane);
+        let (bx, by, _) = shear(b, lane);
+        let (cx, cy, _) = shear(c, lane);
+        (cx * by - cy * bx, ax * cy - ay * cx, bx * ay - by * ax)
+    };
+    // A lane is outside when its edge functions have mixed signs.
+    let mut lowest = [0.0f32; LANES];
+    let mut highest = [0.0f32; LANES];
+    for lane in 0..LANES {
+        let (u, v, w) = edge_functions(lane);
+        lowest[lane] = min(min(u, v), w);
+        highest[lane] = max(max(u, v), w);
+    }
+    const ZERO: Lanes = [0.0; LANES];
+    let outside = I::lt_mask(&lowest, &ZERO) & I::lt_mask(&ZERO, &highest);
+    let mut inside = lanes & !outside;
+    let mut hits = 0;
+    while inside != 0 {
+        let lane = inside.trailing_zeros() as usize;
+        inside &= inside - 1;
+        let (u, v, w) = edge_functions(lane);
+        let det = u + v + w;
+        if det == 0.0 {
+            continue;
+        }
+        let s = z_scale(lane);
+        let (az, bz, cz) = (shear(a, lane).2, shear(b, lane).2, shear(c, lane).2);
+        let t = (u * (s * az) + v * (s * bz) + w * (s * cz)) / det;
+        if t > 0.0 && t < t_max {
+            hits |= 1 << lane;
+        }
+    }
+    hits
+}
+
 /// What the traversal needs of a packet kind: its active lanes, and its box and triangle tests.
 trait Packet {
     /// Lanes that take part; the others never report a hit.
@@ -453,7 +504,7 @@ mod arm {
 mod tests {
     use super::*;
     use crate::bake::BakeInputs;
-    use crate::ray::RAY_T_MAX;
+    use crate::ray::{Ray, RAY_T_MAX};
     use crate::sampling::Pcg32;
     use crate::scene::{self, builtin, prepare::prepare};
     use glam::Vec3;
@@ -465,6 +516,27 @@ mod tests {
                 return v.normalize();
             }
         }
+    }
+
+    /// Runs every copy of the traversal on `packet`: they must agree with each other and never
+    /// report an inactive lane. Returns (lanes compared, lanes that differ from `expected`,
+    /// lanes blocked).
+    fn check_copies<P: Packet>(
+        copies: &[(&'static str, dispatch::Traversal<P>)],
+        bvh: &Bvh,
+        packet: &P,
+        above: LaneMask,
+        expected: LaneMask,
+    ) -> [usize; 3] {
+        let answers: Vec<LaneMask> = copies
+            .iter()
+            .map(|(_, f)| f(bvh, packet, RAY_T_MAX))
+            .collect();
+        for ((name, _), &got) in copies.iter().zip(&answers) {
+            assert_eq!(got, answers[0], "{name} differs from the portable copy");
+            assert_eq!(got & !above, 0, "{name}: an inactive lane reported a hit");
+        }
+        [above, answers[0] ^ expected, expected].map(|m| m.count_ones() as usize)
     }
 
     /// Every copy of the traversal against single rays, on packets of `width` consecutive
@@ -486,17 +558,8 @@ mod tests {
             let expected = lane_mask(|l| {
                 above & (1 << l) != 0 && inputs.bvh.occluded(&packet.lane_ray(l), RAY_T_MAX)
             });
-            let answers: Vec<LaneMask> = copies
-                .iter()
-                .map(|(_, f)| f(&inputs.bvh, &packet, RAY_T_MAX))
-                .collect();
-            for ((name, _), &got) in copies.iter().zip(&answers) {
-                assert_eq!(got, answers[0], "{name} differs from the portable copy");
-                assert_eq!(got & !above, 0, "{name}: an inactive lane reported a hit");
-            }
-            counts[0] += above.count_ones() as usize;
-            counts[1] += (answers[0] ^ expected).count_ones() as usize;
-            counts[2] += expected.count_ones() as usize;
+            let checked = check_copies(&copies, &inputs.bvh, &packet, above, expected);
+            counts.iter_mut().zip(checked).for_each(|(c, n)| *c += n);
         }
         counts
     }
@@ -557,19 +620,13 @@ mod tests {
             let above = lane_mask(|l| l < width && normal.dot(directions[l]) > 0.0);
             let packet = FanPacket::new(inputs.origins[vertex], &directions, above);
             let expected = lane_mask(|l| {
-                above & (1 << l) != 0 && inputs.bvh.occluded(&packet.lane_ray(l), RAY_T_MAX)
+                above & (1 << l) != 0
+                    && inputs
+                        .bvh
+                        .occluded(&Ray::new(inputs.origins[vertex], directions[l]), RAY_T_MAX)
             });
-            let answers: Vec<LaneMask> = copies
-                .iter()
-                .map(|(_, f)| f(&inputs.bvh, &packet, RAY_T_MAX))
-                .collect();
-            for ((name, _), &got) in copies.iter().zip(&answers) {
-                assert_eq!(got, answers[0], "{name} differs from the portable copy");
-                assert_eq!(got & !above, 0, "{name}: an inactive lane reported a hit");
-            }
-            counts[0] += above.count_ones() as usize;
-            counts[1] += (answers[0] ^ expected).count_ones() as usize;
-            counts[2] += expected.count_ones() as usize;
+            let checked = check_copies(&copies, &inputs.bvh, &packet, above, expected);
+            counts.iter_mut().zip(checked).for_each(|(c, n)| *c += n);
         }
         counts
     }

@@ -17,7 +17,7 @@
 
 use glam::Vec3;
 
-use super::{max, min, Isa, LaneMask, Lanes, Packet, ALL_LANES, LANES};
+use super::{max, min, sheared_triangle_lanes, Isa, LaneMask, Lanes, Packet, ALL_LANES, LANES};
 use crate::bvh::{BvhNode, BvhTriangle};
 use crate::ray::{Ray, SLAB_WIDENING};
 
@@ -153,43 +153,7 @@ fn triangle_lanes<I: Isa>(
         let (x, y, z) = (v[0] - o[0][lane], v[1] - o[1][lane], v[2] - o[2][lane]);
         (x - sx * z, y - sy * z, z)
     };
-    // Edge functions of all lanes; a lane is outside when they have mixed signs.
-    let mut lowest = [0.0f32; LANES];
-    let mut highest = [0.0f32; LANES];
-    for lane in 0..LANES {
-        let (ax, ay, _) = shear(&a, lane);
-        let (bx, by, _) = shear(&b, lane);
-        let (cx, cy, _) = shear(&c, lane);
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
-        lowest[lane] = min(min(u, v), w);
-        highest[lane] = max(max(u, v), w);
-    }
-    const ZERO: Lanes = [0.0; LANES];
-    let outside = I::lt_mask(&lowest, &ZERO) & I::lt_mask(&ZERO, &highest);
-    let mut inside = lanes & !outside;
-    // Most triangles are missed by every lane; the few lanes inside finish one by one.
-    let mut hits = 0;
-    while inside != 0 {
-        let lane = inside.trailing_zeros() as usize;
-        inside &= inside - 1;
-        let (ax, ay, az) = shear(&a, lane);
-        let (bx, by, bz) = shear(&b, lane);
-        let (cx, cy, cz) = shear(&c, lane);
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
-        let det = u + v + w;
-        if det == 0.0 {
-            continue;
-        }
-        let t = (u * (sz * az) + v * (sz * bz) + w * (sz * cz)) / det;
-        if t > 0.0 && t < t_max {
-            hits |= 1 << lane;
-        }
-    }
-    hits
+    sheared_triangle_lanes::<I>([&a, &b, &c], shear, |_| sz, lanes, t_max)
 }
 
 impl Packet for RayPacket<'_> {

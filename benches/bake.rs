@@ -12,9 +12,10 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::measurement::WallTime;
+use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
 use prt_gpu::bake::gpu::{self, Chunking, GpuBaker};
-use prt_gpu::bake::{cpu, BakeInputs, Mode, NoProgress};
+use prt_gpu::bake::{cpu, BakeInputs, DirectInputs, Mode, NoProgress};
 use prt_gpu::gpu::DeviceChoice;
 use prt_gpu::sampling::Sampling;
 use prt_gpu::scene::{self, prepare::prepare, Scene};
@@ -26,41 +27,41 @@ fn dragon() -> Scene {
         .0
 }
 
-fn cosine_dragon(c: &mut Criterion) {
-    let owned = BakeInputs::with_sampling(&dragon(), 4, 1024, 1, Sampling::Cosine);
-    let inputs = owned.view();
-    let (_, rays) = cpu::direct_transfer(&inputs, Mode::Shadowed, &NoProgress);
-    let mut group = c.benchmark_group("dragon_vrip_res3 shadowed 1024 cosine samples 4 bands");
+/// A group timing the CPU's direct pass on `inputs` in packets (`packets`: the entry's name)
+/// and in single rays, with rays/s as the throughput.
+fn cpu_group<'c>(
+    c: &'c mut Criterion,
+    name: &str,
+    inputs: &DirectInputs,
+    packets: &str,
+) -> BenchmarkGroup<'c, WallTime> {
+    let (_, rays) = cpu::direct_transfer(inputs, Mode::Shadowed, &NoProgress);
+    let mut group = c.benchmark_group(name);
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(30));
     group.throughput(Throughput::Elements(rays));
-    group.bench_function("cpu fans", |b| {
-        b.iter(|| cpu::direct_transfer(&inputs, Mode::Shadowed, &NoProgress))
+    group.bench_function(packets, |b| {
+        b.iter(|| cpu::direct_transfer(inputs, Mode::Shadowed, &NoProgress))
     });
     group.bench_function("cpu single rays", |b| {
-        b.iter(|| cpu::direct_transfer_single_rays(&inputs, Mode::Shadowed, &NoProgress))
+        b.iter(|| cpu::direct_transfer_single_rays(inputs, Mode::Shadowed, &NoProgress))
     });
-    group.finish();
+    group
+}
+
+fn cosine_dragon(c: &mut Criterion) {
+    let owned = BakeInputs::with_sampling(&dragon(), 4, 1024, 1, Sampling::Cosine);
+    let name = "dragon_vrip_res3 shadowed 1024 cosine samples 4 bands";
+    cpu_group(c, name, &owned.view(), "cpu fans").finish();
 }
 
 fn shadowed_dragon(c: &mut Criterion) {
     let mesh = dragon();
     let owned = BakeInputs::new(&mesh, 4, 1024, 1);
     let inputs = owned.view();
-    let (_, rays) = cpu::direct_transfer(&inputs, Mode::Shadowed, &NoProgress);
-
-    let mut group = c.benchmark_group("dragon_vrip_res3 shadowed 1024 samples 4 bands");
-    group.sample_size(10);
-    group.warm_up_time(Duration::from_secs(1));
-    group.measurement_time(Duration::from_secs(30));
-    group.throughput(Throughput::Elements(rays));
-    group.bench_function("cpu packets", |b| {
-        b.iter(|| cpu::direct_transfer(&inputs, Mode::Shadowed, &NoProgress))
-    });
-    group.bench_function("cpu single rays", |b| {
-        b.iter(|| cpu::direct_transfer_single_rays(&inputs, Mode::Shadowed, &NoProgress))
-    });
+    let name = "dragon_vrip_res3 shadowed 1024 samples 4 bands";
+    let mut group = cpu_group(c, name, &inputs, "cpu packets");
 
     if std::env::var_os("PRT_GPU_BENCH_SKIP_GPU").is_some() {
         group.finish();

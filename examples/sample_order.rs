@@ -23,14 +23,8 @@ use prt_gpu::sampling::{cosine_hemisphere, cosine_hemisphere_lattice_order, Samp
 use prt_gpu::scene::{self, prepare::morton_order, prepare::prepare};
 use prt_gpu::sh::ShTable;
 
-/// User + system CPU seconds of this process, all threads.
-fn cpu_seconds() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").expect("/proc/self/stat");
-    let rest = &stat[stat.rfind(')').unwrap() + 2..];
-    let fields: Vec<&str> = rest.split_whitespace().collect();
-    let ticks: u64 = fields[11].parse::<u64>().unwrap() + fields[12].parse::<u64>().unwrap();
-    ticks as f64 / 100.0
-}
+mod common;
+use common::cpu_seconds;
 
 fn main() {
     let rounds: usize = std::env::args()

@@ -20,15 +20,8 @@ use prt_gpu::bake::{cpu, BakeInputs, Mode, NoProgress};
 use prt_gpu::gpu::DeviceChoice;
 use prt_gpu::scene::{self, prepare::prepare};
 
-/// User + system CPU seconds of this process, all threads.
-fn cpu_seconds() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").expect("/proc/self/stat");
-    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
-    let rest = &stat[stat.rfind(')').unwrap() + 2..];
-    let fields: Vec<&str> = rest.split_whitespace().collect();
-    let ticks: u64 = fields[11].parse::<u64>().unwrap() + fields[12].parse::<u64>().unwrap();
-    ticks as f64 / 100.0
-}
+mod common;
+use common::cpu_seconds;
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();

@@ -16,7 +16,7 @@ use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
 use prt_gpu::bake::gpu::{self, Chunking, GpuBaker};
 use prt_gpu::bake::{cpu, BakeInputs, DirectInputs, Mode, NoProgress};
-use prt_gpu::gpu::DeviceChoice;
+use prt_gpu::device::DeviceChoice;
 use prt_gpu::sampling::Sampling;
 use prt_gpu::scene::{self, prepare::prepare, Scene};
 
@@ -68,7 +68,7 @@ fn shadowed_dragon(c: &mut Criterion) {
         return;
     }
     let adapter = std::env::var("PRT_GPU_BENCH_ADAPTER").ok();
-    match prt_gpu::gpu::open(DeviceChoice::Gpu, adapter.as_deref()) {
+    match prt_gpu::device::open(DeviceChoice::Gpu, adapter.as_deref()) {
         Ok(Some(context)) => {
             let name = format!("gpu {}", context.adapter.label());
             let baker = GpuBaker::new(context).expect("compile kernels");

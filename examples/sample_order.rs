@@ -18,9 +18,10 @@ use std::time::Instant;
 
 use prt_gpu::bake::gpu::{self, Chunking, GpuBaker};
 use prt_gpu::bake::{cpu, BakeInputs, Mode, NoProgress};
-use prt_gpu::gpu::DeviceChoice;
+use prt_gpu::device::DeviceChoice;
+use prt_gpu::morton::morton_order;
 use prt_gpu::sampling::{cosine_hemisphere, cosine_hemisphere_lattice_order, SampleSet, Sampling};
-use prt_gpu::scene::{self, prepare::morton_order, prepare::prepare};
+use prt_gpu::scene::{self, prepare::prepare};
 use prt_gpu::sh::ShTable;
 
 mod common;
@@ -58,7 +59,7 @@ fn main() {
         })
         .collect();
 
-    let baker = prt_gpu::gpu::open(DeviceChoice::Gpu, None)
+    let baker = prt_gpu::device::open(DeviceChoice::Gpu, None)
         .ok()
         .flatten()
         .map(|context| GpuBaker::new(context).expect("compile kernels"));

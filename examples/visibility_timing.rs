@@ -17,7 +17,7 @@ use std::time::Instant;
 
 use prt_gpu::bake::gpu::{self, Chunking, GpuBaker};
 use prt_gpu::bake::{cpu, BakeInputs, Mode, NoProgress};
-use prt_gpu::gpu::DeviceChoice;
+use prt_gpu::device::DeviceChoice;
 use prt_gpu::scene::{self, prepare::prepare};
 
 mod common;
@@ -41,7 +41,7 @@ fn main() {
 
     let mut bakers: Vec<(String, GpuBaker)> = Vec::new();
     let open = || {
-        prt_gpu::gpu::open(DeviceChoice::Gpu, None)
+        prt_gpu::device::open(DeviceChoice::Gpu, None)
             .expect("adapter")
             .expect("gpu")
     };

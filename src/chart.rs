@@ -16,7 +16,7 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::error::{Error, Result};
-use crate::output::write_atomically;
+use crate::fs::{format_by_extension, write_atomically};
 
 /// One bake: how long it took, how far its result is from the reference, and how many samples
 /// per vertex it used.
@@ -86,6 +86,7 @@ pub fn draw_chart(path: &Path, title: &str, x_label: &str, panels: &[ChartPanel]
     write_atomically(path, &bytes)
 }
 
+#[derive(Clone, Copy)]
 enum ChartFormat {
     Svg,
     Png,
@@ -93,19 +94,17 @@ enum ChartFormat {
 
 impl ChartFormat {
     fn of(path: &Path) -> Result<ChartFormat> {
-        let extension = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase);
-        match extension.as_deref() {
-            Some("svg") => Ok(ChartFormat::Svg),
-            Some("png") => Ok(ChartFormat::Png),
-            _ => Err(Error::Options(format!(
-                "{}: charts must end in .svg or .png",
-                path.display()
-            ))),
-        }
+        format_by_extension(
+            path,
+            &[("svg", ChartFormat::Svg), ("png", ChartFormat::Png)],
+            "charts",
+        )
     }
+}
+
+/// Checks that `path` names a chart format, before the sweep that the chart shows.
+pub fn check_chart_path(path: &Path) -> Result<()> {
+    ChartFormat::of(path).map(|_| ())
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -71,3 +71,9 @@ impl Error {
 }
 
 pub type Result<T> = std::result::Result<T, Error>;
+
+/// `message` on one line, every run of white space (line breaks included) made one space:
+/// errors of other libraries (wgpu, exr) span lines, ours never do.
+pub fn one_line(message: &str) -> String {
+    message.split_whitespace().collect::<Vec<_>>().join(" ")
+}

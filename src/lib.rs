@@ -8,10 +8,13 @@
 pub mod bake;
 pub mod bvh;
 pub mod chart;
+pub mod color;
+pub mod device;
 pub mod error;
-pub mod gpu;
+pub mod fs;
+pub mod glb;
 pub mod light;
-pub mod output;
+pub mod morton;
 pub mod packet;
 pub mod ray;
 pub mod render;

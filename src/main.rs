@@ -10,15 +10,16 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
 use prt_gpu::bake::{
-    self, Backend, BakeOptions, Mode, Progress, DEFAULT_SAMPLES, DEFAULT_SAMPLING,
+    self, Backend, BakeOptions, BakeReport, Mode, Progress, DEFAULT_SAMPLES, DEFAULT_SAMPLING,
 };
-use prt_gpu::gpu::{self, DeviceChoice};
+use prt_gpu::device::{self, DeviceChoice, GpuContext};
 use prt_gpu::light::{self, analytic, Mapping, ShLight};
 use prt_gpu::render::{self, Camera, ToneMap};
 use prt_gpu::sampling::Sampling;
 use prt_gpu::sh::window::Window;
+use prt_gpu::sh::MAX_BANDS;
 use prt_gpu::sweep::{self, SweepOptions};
-use prt_gpu::{chart, output, scene};
+use prt_gpu::{chart, fs, glb, scene, Error, Result};
 
 #[derive(Parser)]
 #[command(
@@ -282,9 +283,9 @@ struct BakeArgs {
     chunk_samples: Option<u32>,
 }
 
-fn parse_rgb(text: &str) -> Result<Vec3, String> {
+fn parse_rgb(text: &str) -> std::result::Result<Vec3, String> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-    let values: Result<Vec<f32>, _> = match parts.len() {
+    let values: std::result::Result<Vec<f32>, _> = match parts.len() {
         1 => parts[0].parse::<f32>().map(|v| vec![v; 3]),
         3 => parts.iter().map(|p| p.parse::<f32>()).collect(),
         _ => return Err("expected R,G,B (or one grey value)".into()),
@@ -304,7 +305,7 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => e.exit(),
         Err(e) => {
-            eprintln!("{}", one_line(&e.to_string()));
+            eprintln!("{}", usage_error_line(&e.to_string()));
             return ExitCode::from(2);
         }
     };
@@ -319,15 +320,15 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(message) => {
-            eprintln!("error: {message}");
+        Err(error) => {
+            eprintln!("error: {error}");
             ExitCode::FAILURE
         }
     }
 }
 
 /// clap's multi-line usage error as one line: the error, and the possible values if listed.
-fn one_line(message: &str) -> String {
+fn usage_error_line(message: &str) -> String {
     let mut lines = message.lines().map(str::trim).filter(|l| !l.is_empty());
     let mut line = lines
         .next()
@@ -340,7 +341,7 @@ fn one_line(message: &str) -> String {
     line
 }
 
-fn run_bake(args: BakeArgs) -> Result<(), String> {
+fn run_bake(args: BakeArgs) -> Result<()> {
     let options = BakeOptions {
         seed: args.seed,
         albedo: args.albedo,
@@ -348,15 +349,15 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
         bounce_tolerance: args.bounce_tolerance,
         ..args.transfer.options()
     };
-    options.validate().map_err(|e| e.to_string())?;
+    options.validate()?;
     let (scene, name) = load_scene(&args.mesh)?;
     let output_path = args
         .output
         .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
     // Fail before the long part, not after it.
-    output::check_destination(&output_path).map_err(|e| e.to_string())?;
+    fs::check_destination(&output_path)?;
     if let Some(preview) = &args.preview {
-        output::check_destination(preview).map_err(|e| e.to_string())?;
+        fs::check_destination(preview)?;
     }
     if options.samples_used() != options.samples {
         let side = (options.samples_used() as f64).sqrt() as u32;
@@ -367,17 +368,12 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
             options.samples_used()
         );
     }
-
-    let name_shown = args
-        .mesh
-        .as_ref()
-        .map_or_else(|| "built-in scene".to_string(), |p| p.display().to_string());
-    for (name, value) in [
+    for (flag, value) in [
         ("--chunk-vertices", args.chunk_vertices),
         ("--chunk-samples", args.chunk_samples),
     ] {
         if value == Some(0) {
-            return Err(format!("invalid option: {name} must be at least 1"));
+            return Err(Error::Options(format!("{flag} must be at least 1")));
         }
     }
     let baker = open_backend(args.device, args.adapter.as_deref())?;
@@ -393,27 +389,45 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
         None => Backend::Cpu,
     };
     let progress = BarProgress::default();
+    let shown = args
+        .mesh
+        .as_ref()
+        .map_or_else(|| "built-in scene".to_string(), |p| p.display().to_string());
     let (baked, report) =
-        bake::bake(scene, &options, &backend, &progress).map_err(|e| match e {
-            // Geometry errors come from preparation, which no longer knows the file: name it.
-            prt_gpu::Error::Geometry(_) => format!("{name_shown}: {e}"),
-            _ => e.to_string(),
-        })?;
+        bake::bake(scene, &options, &backend, &progress).map_err(|e| naming_the_mesh(e, &shown))?;
     progress.finish();
-    output::write_glb(&output_path, &baked).map_err(|e| e.to_string())?;
+    glb::write_glb(&output_path, &baked)?;
     if let Some(preview) = &args.preview {
-        let light = light::preview_light(options.bands).map_err(|e| e.to_string())?;
         let context = match baker {
             Some(baker) => baker.context,
             None => open_render_device(None)?,
         };
-        let image =
-            render::preview(&context, &baked, &light, None, 640, 480).map_err(|e| e.to_string())?;
-        render::write_image(preview, &image, 640, 480, ToneMap::Reinhard, 0.0)
-            .map_err(|e| e.to_string())?;
-        eprintln!("preview -> {}", preview.display());
+        write_preview(&context, &baked, preview)?;
     }
+    print_bake_report(&name, &options, &report, &output_path);
+    Ok(())
+}
 
+/// Geometry errors come from preparation, which no longer knows the file: name it.
+fn naming_the_mesh(error: Error, mesh: &str) -> Error {
+    match error {
+        Error::Geometry(_) => Error::mesh(mesh, error.to_string()),
+        other => other,
+    }
+}
+
+/// Renders `baked` under the default sky and sun to `path`.
+fn write_preview(context: &GpuContext, baked: &bake::BakedMesh, path: &Path) -> Result<()> {
+    let (width, height) = (640, 480);
+    let light = light::preview_light(baked.metadata.bands)?;
+    let image = render::preview(context, baked, &light, None, width, height)?;
+    render::write_image(path, &image, width, height, ToneMap::Reinhard, 0.0)?;
+    eprintln!("preview -> {}", path.display());
+    Ok(())
+}
+
+/// The bounces, the gather matrix and the one summary line of a finished bake.
+fn print_bake_report(name: &str, options: &BakeOptions, report: &BakeReport, output: &Path) {
     for (i, bounce) in report.bounces.iter().enumerate() {
         eprintln!(
             "bounce {}: +{:.2}% energy in {:.2} s",
@@ -447,95 +461,46 @@ fn run_bake(args: BakeArgs) -> Result<(), String> {
         rays_per_second / 1e6,
         seconds,
         report.backend,
-        output_path.display()
+        output.display()
     );
-    Ok(())
 }
 
-/// The GPU baker for `choice`, or `None` for the CPU backend (saying why when it was not asked for).
-fn open_backend(choice: DeviceChoice, adapter: Option<&str>) -> Result<Option<GpuBaker>, String> {
-    match gpu::open(choice, adapter).map_err(|e| e.to_string())? {
-        Some(context) => GpuBaker::new(context).map(Some).map_err(|e| e.to_string()),
-        None => {
-            if choice == DeviceChoice::Auto {
-                match gpu::list_adapters().first() {
-                    Some(best) => eprintln!(
-                        "note: only software GPU adapters ({}); the CPU backend is faster on the same \
-                         cores and bakes instead (--device gpu forces the adapter)",
-                        best.name
-                    ),
-                    None => eprintln!("note: no GPU adapter found; baking on the CPU backend"),
-                }
-            }
-            Ok(None)
+/// The GPU baker for `choice`, or `None` for the CPU backend (saying why when it was not asked
+/// for). `bake`, `chart` and `bench` all open their backend here.
+fn open_backend(choice: DeviceChoice, adapter: Option<&str>) -> Result<Option<GpuBaker>> {
+    let baker = GpuBaker::open(choice, adapter)?;
+    if baker.is_none() && choice == DeviceChoice::Auto {
+        match device::list_adapters().first() {
+            Some(best) => eprintln!(
+                "note: only software GPU adapters ({}); the CPU backend is faster on the same \
+                 cores and bakes instead (--device gpu forces the adapter)",
+                best.name
+            ),
+            None => eprintln!("note: no GPU adapter found; baking on the CPU backend"),
         }
     }
+    Ok(baker)
 }
 
 /// The mesh named on the command line, or the built-in scene; and a name for messages.
-fn load_scene(mesh: &Option<PathBuf>) -> Result<(scene::Scene, String), String> {
+fn load_scene(mesh: &Option<PathBuf>) -> Result<(scene::Scene, String)> {
     match mesh {
-        Some(path) => Ok((scene::load(path).map_err(|e| e.to_string())?, stem(path))),
+        Some(path) => Ok((scene::load(path)?, stem(path))),
         None => Ok((scene::builtin::default_scene(), "default-scene".to_string())),
     }
 }
 
-fn run_chart(args: ChartArgs) -> Result<(), String> {
-    let extension = args
-        .output
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    if !matches!(extension.as_deref(), Some("svg" | "png")) {
-        return Err(format!(
-            "{}: the chart is written as .svg or .png",
-            args.output.display()
-        ));
-    }
+fn run_chart(args: ChartArgs) -> Result<()> {
+    chart::check_chart_path(&args.output)?;
     let csv_path = args.output.with_extension("csv");
-    output::check_destination(&args.output).map_err(|e| e.to_string())?;
-    if args.samples.is_empty() || args.samples.contains(&0) {
-        return Err("invalid option: --samples needs counts of at least 1".into());
-    }
-    let options = SweepOptions {
-        bands: args.bands,
-        mode: args.mode,
-        strategies: if args.sampling.is_empty() {
-            Sampling::ALL.to_vec()
-        } else {
-            args.sampling.clone()
-        },
-        counts: args.samples.clone(),
-        reference_samples: args.reference_samples,
-        reference_sampling: args.reference_sampling,
-        seed: args.seed,
-    };
-    for &count in options.counts.iter().chain([&options.reference_samples]) {
-        BakeOptions {
-            bands: options.bands,
-            samples: count,
-            ..BakeOptions::default()
-        }
-        .validate()
-        .map_err(|e| e.to_string())?;
-    }
+    fs::check_destination(&args.output)?;
+    let options = sweep_options(&args)?;
     let light = match &args.light {
-        Some(path) => {
-            light::load(path, args.bands, None, false)
-                .map_err(|e| e.to_string())?
-                .light
-        }
-        None => light::preview_light(args.bands).map_err(|e| e.to_string())?,
+        Some(path) => light::load(path, args.bands, None, false)?.light,
+        None => light::preview_light(args.bands)?,
     };
     let (scene, name) = load_scene(&args.mesh)?;
-    let baker = match args.device {
-        DeviceChoice::Cpu => None,
-        choice => gpu::open(choice, args.adapter.as_deref())
-            .map_err(|e| e.to_string())?
-            .map(GpuBaker::new)
-            .transpose()
-            .map_err(|e| e.to_string())?,
-    };
+    let baker = open_backend(args.device, args.adapter.as_deref())?;
     let mut backends = vec![("cpu".to_string(), Backend::Cpu)];
     if let Some(baker) = &baker {
         eprintln!("gpu: {}", baker.context.adapter.label());
@@ -549,8 +514,7 @@ fn run_chart(args: ChartArgs) -> Result<(), String> {
     }
     let started = std::time::Instant::now();
     let progress = BarProgress::default();
-    let result =
-        sweep::run(&scene, &options, &backends, &light, &progress).map_err(|e| e.to_string())?;
+    let result = sweep::run(&scene, &options, &backends, &light, &progress)?;
     progress.finish();
     let panels = sweep::chart_panels(&result);
     let title = format!(
@@ -560,8 +524,8 @@ fn run_chart(args: ChartArgs) -> Result<(), String> {
         result.reference_samples,
         options.reference_sampling.name()
     );
-    chart::draw_chart(&args.output, &title, "bake time (s)", &panels).map_err(|e| e.to_string())?;
-    sweep::write_csv(&csv_path, &result).map_err(|e| e.to_string())?;
+    chart::draw_chart(&args.output, &title, "bake time (s)", &panels)?;
+    sweep::write_csv(&csv_path, &result)?;
     for p in &result.points {
         eprintln!(
             "{:>16} {:>3} {:>6} samples: {:>8.3} s, transfer rms {:.3e}, radiance rms {:.3e}",
@@ -585,37 +549,58 @@ fn run_chart(args: ChartArgs) -> Result<(), String> {
     Ok(())
 }
 
-fn run_bench(args: BenchArgs) -> Result<(), String> {
+/// The sweep `chart` asks for, every count checked as a bake would check it.
+fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
+    if args.samples.is_empty() || args.samples.contains(&0) {
+        return Err(Error::Options(
+            "--samples needs counts of at least 1".into(),
+        ));
+    }
+    let options = SweepOptions {
+        bands: args.bands,
+        mode: args.mode,
+        strategies: if args.sampling.is_empty() {
+            Sampling::ALL.to_vec()
+        } else {
+            args.sampling.clone()
+        },
+        counts: args.samples.clone(),
+        reference_samples: args.reference_samples,
+        reference_sampling: args.reference_sampling,
+        seed: args.seed,
+    };
+    for &count in options.counts.iter().chain([&options.reference_samples]) {
+        BakeOptions {
+            bands: options.bands,
+            samples: count,
+            ..BakeOptions::default()
+        }
+        .validate()?;
+    }
+    Ok(options)
+}
+
+fn run_bench(args: BenchArgs) -> Result<()> {
     let options = args.transfer.options();
-    options.validate().map_err(|e| e.to_string())?;
+    options.validate()?;
     if args.repeats == 0 {
-        return Err("invalid option: --repeats must be at least 1".into());
+        return Err(Error::Options("--repeats must be at least 1".into()));
     }
     let (scene, name) = load_scene(&args.mesh)?;
-    let (scene, _) = scene::prepare::prepare(scene).map_err(|e| format!("{name}: {e}"))?;
+    let (scene, _) = scene::prepare::prepare(scene).map_err(|e| naming_the_mesh(e, &name))?;
     let owned = bake::BakeInputs::for_options(&scene, &options);
     let inputs = owned.view();
-    let baker = match args.device {
-        DeviceChoice::Cpu => None,
-        choice => match gpu::open(choice, args.adapter.as_deref()) {
-            Ok(context) => context
-                .map(GpuBaker::new)
-                .transpose()
-                .map_err(|e| e.to_string())?,
-            Err(e) => {
-                eprintln!("note: no GPU entry: {e}");
-                None
-            }
-        },
-    };
+    let baker = open_backend(args.device, args.adapter.as_deref()).unwrap_or_else(|e| {
+        eprintln!("note: no GPU entry: {e}");
+        None
+    });
     let timing = sweep::time_backends(
         &inputs,
         options.mode,
         baker.as_ref(),
         args.repeats,
         |round| eprintln!("round {} of {}", round + 1, args.repeats),
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     let rays = timing.rays;
     println!(
         "{name}: {} vertices, {} bands, {} {} samples, {} mode, {rays} rays; median of {} runs",
@@ -643,8 +628,8 @@ fn run_bench(args: BenchArgs) -> Result<(), String> {
     Ok(())
 }
 
-fn run_devices() -> Result<(), String> {
-    let adapters = gpu::list_adapters();
+fn run_devices() -> Result<()> {
+    let adapters = device::list_adapters();
     if adapters.is_empty() {
         println!("no GPU adapters (bakes run on the CPU backend)");
         return Ok(());
@@ -670,40 +655,28 @@ fn run_devices() -> Result<(), String> {
     Ok(())
 }
 
-fn run_light(args: LightArgs) -> Result<(), String> {
+fn run_light(args: LightArgs) -> Result<()> {
     let bands = args.bands;
-    if bands == 0 || bands > prt_gpu::sh::MAX_BANDS {
-        return Err(format!(
-            "invalid option: --bands {bands} is out of range (1 to {})",
-            prt_gpu::sh::MAX_BANDS
-        ));
+    if bands == 0 || bands > MAX_BANDS {
+        return Err(Error::Options(format!(
+            "--bands {bands} is out of range (1 to {MAX_BANDS})"
+        )));
     }
-    output::check_destination(&args.output).map_err(|e| e.to_string())?;
-    let err = |e: prt_gpu::Error| e.to_string();
+    fs::check_destination(&args.output)?;
     let mut total = ShLight::constant(bands, [0.0; 3]);
     let mut parts = Vec::new();
     if let Some(path) = &args.envmap {
-        let loaded = light::load(path, bands, args.mapping, args.skip_invalid).map_err(err)?;
-        if loaded.skipped_pixels > 0 {
-            eprintln!(
-                "note: skipped {} NaN or infinite pixels",
-                loaded.skipped_pixels
-            );
-        }
+        let loaded = light::load(path, bands, args.mapping, args.skip_invalid)?;
+        note_skipped_pixels(loaded.skipped_pixels);
         if let Some(mapping) = loaded.mapping {
             parts.push(format!("{} ({mapping:?})", path.display()));
         }
-        total = total.plus(&loaded.light).map_err(err)?;
+        total = total.plus(&loaded.light)?;
     }
     if !args.faces.is_empty() {
-        let loaded = light::load_faces(&args.faces, bands, args.skip_invalid).map_err(err)?;
-        if loaded.skipped_pixels > 0 {
-            eprintln!(
-                "note: skipped {} NaN or infinite pixels",
-                loaded.skipped_pixels
-            );
-        }
-        total = total.plus(&loaded.light).map_err(err)?;
+        let loaded = light::load_faces(&args.faces, bands, args.skip_invalid)?;
+        note_skipped_pixels(loaded.skipped_pixels);
+        total = total.plus(&loaded.light)?;
         parts.push("six cube faces".into());
     }
     if let Some(direction) = args.directional {
@@ -711,9 +684,8 @@ fn run_light(args: LightArgs) -> Result<(), String> {
             bands,
             direction.as_dvec3(),
             args.directional_intensity.to_array(),
-        )
-        .map_err(err)?;
-        total = total.plus(&light).map_err(err)?;
+        )?;
+        total = total.plus(&light)?;
         parts.push("directional".into());
     }
     if let Some(direction) = args.sun {
@@ -722,34 +694,35 @@ fn run_light(args: LightArgs) -> Result<(), String> {
             direction.as_dvec3(),
             args.sun_angle.to_radians(),
             args.sun_irradiance.to_array(),
-        )
-        .map_err(err)?;
-        total = total.plus(&sun).map_err(err)?;
+        )?;
+        total = total.plus(&sun)?;
         parts.push("sun".into());
     }
     if let Some(sky) = args.sky {
-        let hemisphere =
-            analytic::hemisphere(bands, sky.to_array(), args.ground.to_array()).map_err(err)?;
-        total = total.plus(&hemisphere).map_err(err)?;
+        total = total.plus(&analytic::hemisphere(
+            bands,
+            sky.to_array(),
+            args.ground.to_array(),
+        )?)?;
         parts.push("sky".into());
     }
     if let Some(ambient) = args.ambient {
-        total = total
-            .plus(&ShLight::constant(bands, ambient.to_array()))
-            .map_err(err)?;
+        total = total.plus(&ShLight::constant(bands, ambient.to_array()))?;
         parts.push("ambient".into());
     }
     if args.tutorial {
-        total = total
-            .plus(&analytic::tutorial_two_lights(bands).map_err(err)?)
-            .map_err(err)?;
+        total = total.plus(&analytic::tutorial_two_lights(bands)?)?;
         parts.push("tutorial two lights".into());
     }
     if parts.is_empty() {
-        return Err("invalid option: give an environment map (or --faces) or at least one of --directional, --sun, --sky, --ambient, --tutorial".into());
+        return Err(Error::Options(
+            "give an environment map (or --faces) or at least one of --directional, --sun, \
+             --sky, --ambient, --tutorial"
+                .into(),
+        ));
     }
     let light = shape(total, &args.shaping);
-    light::write_json(&args.output, &light).map_err(err)?;
+    light::write_json(&args.output, &light)?;
     println!(
         "projected {} onto {bands} bands (DC {:.4} {:.4} {:.4}) -> {}",
         parts.join(" + "),
@@ -761,6 +734,12 @@ fn run_light(args: LightArgs) -> Result<(), String> {
     Ok(())
 }
 
+fn note_skipped_pixels(skipped: usize) {
+    if skipped > 0 {
+        eprintln!("note: skipped {skipped} NaN or infinite pixels");
+    }
+}
+
 /// Rotation first, then windowing, so the window sees the light as it will be used.
 fn shape(light: ShLight, shaping: &LightShaping) -> ShLight {
     let light = match shaping.rotate {
@@ -770,36 +749,28 @@ fn shape(light: ShLight, shaping: &LightShaping) -> ShLight {
     light.windowed(shaping.window)
 }
 
-fn run_render(args: RenderArgs) -> Result<(), String> {
-    output::check_destination(&args.output).map_err(|e| e.to_string())?;
-    let err = |e: prt_gpu::Error| e.to_string();
+fn run_render(args: RenderArgs) -> Result<()> {
+    fs::check_destination(&args.output)?;
     let context = open_render_device(args.adapter.as_deref())?;
     let mut panels = Vec::new();
     for path in &args.baked {
-        let baked = output::read_glb(path).map_err(err)?;
+        let baked = glb::read_glb(path)?;
         let bands = baked.metadata.bands;
         let light = match &args.light {
-            Some(light_path) => {
-                light::load(light_path, bands, args.mapping, false)
-                    .map_err(err)?
-                    .light
-            }
-            None => light::preview_light(bands).map_err(err)?,
+            Some(light_path) => light::load(light_path, bands, args.mapping, false)?.light,
+            None => light::preview_light(bands)?,
         };
         let light = shape(light, &args.shaping);
-        panels.push(
-            render::preview(
-                &context,
-                &baked,
-                &light,
-                args.camera.as_ref(),
-                args.width,
-                args.height,
-            )
-            .map_err(err)?,
-        );
+        panels.push(render::preview(
+            &context,
+            &baked,
+            &light,
+            args.camera.as_ref(),
+            args.width,
+            args.height,
+        )?);
     }
-    let image = render::side_by_side(&panels, args.width, args.height).map_err(err)?;
+    let image = render::side_by_side(&panels, args.width, args.height)?;
     let width = args.width * panels.len() as u32;
     render::write_image(
         &args.output,
@@ -808,8 +779,7 @@ fn run_render(args: RenderArgs) -> Result<(), String> {
         args.height,
         args.tone_map,
         args.exposure,
-    )
-    .map_err(err)?;
+    )?;
     println!(
         "rendered {} panel(s) of {}x{} on {} -> {}",
         panels.len(),
@@ -822,15 +792,13 @@ fn run_render(args: RenderArgs) -> Result<(), String> {
 }
 
 /// Any adapter, software ones included: rasterising a preview is cheap anywhere.
-fn open_render_device(adapter: Option<&str>) -> Result<gpu::GpuContext, String> {
-    match gpu::open(DeviceChoice::Gpu, adapter).map_err(|e| e.to_string())? {
-        Some(context) => Ok(context),
-        None => Err("gpu: no adapter to render with".to_string()),
-    }
+fn open_render_device(adapter: Option<&str>) -> Result<GpuContext> {
+    device::open(DeviceChoice::Gpu, adapter)?
+        .ok_or_else(|| Error::Gpu("no adapter to render with".into()))
 }
 
-fn run_info(path: &Path) -> Result<(), String> {
-    let (metadata, vertices, triangles) = output::read_metadata(path).map_err(|e| e.to_string())?;
+fn run_info(path: &Path) -> Result<()> {
+    let (metadata, vertices, triangles) = glb::read_metadata(path)?;
     println!("file:         {}", path.display());
     println!("vertices:     {vertices}");
     println!("triangles:    {triangles}");

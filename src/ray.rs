@@ -24,6 +24,10 @@ pub fn offset_ray_origin(p: Vec3, n: Vec3, scene_extent: f32) -> Vec3 {
 /// Far end of every ray: f32::MAX rather than infinity, which WGSL cannot write as a literal.
 pub const RAY_T_MAX: f32 = f32::MAX;
 
+/// The triangle index of no triangle: a ray that escaped or was never cast, and the
+/// placeholder triangle of an empty tree.
+pub const NO_HIT: u32 = u32::MAX;
+
 /// `1 + 2 gamma(3)` with `gamma(n) = n u / (1 - n u)`, u = 2^-24: widens the far slab distance of
 /// a box test so that rounding in `(bound - origin) * inv_dir` can never make a ray miss a box
 /// that it touches (pbrt-v4, "Robust ray–bounds intersections").

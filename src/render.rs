@@ -14,10 +14,11 @@ use rayon::prelude::*;
 use wgpu::util::DeviceExt;
 
 use crate::bake::Transfer;
+use crate::color::srgb_encode;
+use crate::device::GpuContext;
 use crate::error::{Error, Result};
-use crate::gpu::GpuContext;
+use crate::fs::{format_by_extension, write_atomically};
 use crate::light::ShLight;
-use crate::output::write_atomically;
 use crate::scene::Scene;
 use crate::shaders;
 
@@ -327,7 +328,7 @@ fn f16_to_f32(bits: u16) -> f32 {
 /// `None`): linear HDR RGBA, row 0 at the top.
 pub fn preview(
     ctx: &GpuContext,
-    baked: &crate::output::BakedMesh,
+    baked: &crate::bake::BakedMesh,
     light: &ShLight,
     camera: Option<&Camera>,
     width: u32,
@@ -725,15 +726,6 @@ pub fn tone_map(value: f32, tone: ToneMap, exposure_stops: f32) -> f32 {
     mapped.clamp(0.0, 1.0)
 }
 
-/// The sRGB transfer function (IEC 61966-2-1) for a display-linear value in [0, 1].
-pub fn srgb_encode(linear: f32) -> f32 {
-    if linear <= 0.003_130_8 {
-        12.92 * linear
-    } else {
-        1.055 * linear.powf(1.0 / 2.4) - 0.055
-    }
-}
-
 fn to_byte(unit: f32) -> u8 {
     // NaN clamps to NaN, which `as` turns into 0: a black pixel, not a panic.
     (unit.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
@@ -782,6 +774,7 @@ pub fn write_image(
     write_atomically(path, &bytes)
 }
 
+#[derive(Clone, Copy)]
 enum ImageFormat {
     Png,
     Exr,
@@ -789,18 +782,11 @@ enum ImageFormat {
 
 impl ImageFormat {
     fn of(path: &Path) -> Result<ImageFormat> {
-        let extension = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase);
-        match extension.as_deref() {
-            Some("png") => Ok(ImageFormat::Png),
-            Some("exr") => Ok(ImageFormat::Exr),
-            _ => Err(Error::Options(format!(
-                "{}: image files must end in .png or .exr",
-                path.display()
-            ))),
-        }
+        format_by_extension(
+            path,
+            &[("png", ImageFormat::Png), ("exr", ImageFormat::Exr)],
+            "image files",
+        )
     }
 }
 
@@ -847,7 +833,7 @@ fn encode_exr(
 mod tests {
     use super::*;
     use crate::bake::{bake, Backend, BakeOptions, Mode, NoProgress};
-    use crate::gpu::{self, DeviceChoice};
+    use crate::device;
     use crate::scene::builtin::icosphere;
     use crate::scene::prepare::prepare;
     use std::path::PathBuf;
@@ -858,18 +844,7 @@ mod tests {
     /// CI; under CI a missing adapter fails, as in tests/common.
     fn gpu_context() -> Option<&'static GpuContext> {
         static GPU: OnceLock<Option<GpuContext>> = OnceLock::new();
-        GPU.get_or_init(|| match gpu::open(DeviceChoice::Gpu, None) {
-            Ok(Some(context)) => Some(context),
-            Ok(None) => unreachable!("DeviceChoice::Gpu never falls back to the CPU"),
-            Err(e) if gpu::adapter_required() => {
-                panic!("no GPU adapter under CI (install mesa-vulkan-drivers): {e}")
-            }
-            Err(e) => {
-                eprintln!("skipping GPU test: {e}");
-                None
-            }
-        })
-        .as_ref()
+        GPU.get_or_init(device::any_adapter_or_skip).as_ref()
     }
 
     /// A scratch directory removed on drop.
@@ -1104,11 +1079,7 @@ mod tests {
     }
 
     #[test]
-    fn srgb_encoding_matches_the_standard() {
-        assert_eq!(srgb_encode(0.0), 0.0);
-        assert!((srgb_encode(1.0) - 1.0).abs() < 1e-6);
-        assert!((srgb_encode(0.5) - 0.735_357).abs() < 1e-5);
-        assert!((srgb_encode(0.002) - 0.02584).abs() < 1e-6);
+    fn rgba8_pixels_are_srgb_encoded_with_linear_alpha() {
         assert_eq!(
             to_rgba8(&[[0.5, 1.0, 0.0, 1.0]], ToneMap::None, 0.0),
             [188, 255, 0, 255]

@@ -276,7 +276,7 @@ pub fn cosine_hemisphere(count: u32, seed: u64) -> SampleSet {
         .iter()
         .map(|d| Vec3::new(d.x, d.y, 0.0))
         .collect();
-    let directions = crate::scene::prepare::morton_order(&on_disk)
+    let directions = crate::morton::morton_order(&on_disk)
         .into_iter()
         .map(|i| lattice.directions[i as usize])
         .collect();

@@ -1,13 +1,23 @@
 //! WGSL sources, assembled from `wgsl/` with the constants they share with Rust generated from
 //! the Rust definitions (no "keep in sync" comments).
 
-use crate::bake::bounce::NO_HIT;
-use crate::bake::gpu::{LAST_IN_LEAF, LEAF_FLAG};
+use crate::bvh::gpu::{LAST_IN_LEAF, LEAF_FLAG};
 use crate::bvh::STACK_SIZE;
-use crate::ray::{MIN_DIRECTION_COMPONENT, RAY_T_MAX, SLAB_WIDENING};
+use crate::ray::{MIN_DIRECTION_COMPONENT, NO_HIT, RAY_T_MAX, SLAB_WIDENING};
 
 /// Invocations per workgroup of every kernel.
 pub const WORKGROUP_SIZE: u32 = 64;
+
+/// End of a vertex's list in the visibility kernel's `sample_lists` (the host writes the lists,
+/// `bake::gpu::sample_lists_above_horizon`).
+pub const NO_SAMPLE: u32 = u32::MAX;
+
+/// `ProjectParams::estimator` flag: sum over the blocked samples above the horizon instead of
+/// the visible ones (`sampling::Estimator::Blocked`, the control variate).
+pub const ESTIMATOR_BLOCKED: u32 = 1;
+/// `ProjectParams::estimator` flag: directions in the tangent frame with cosine density, so the
+/// sum carries no cosine factor (`sampling::DirectionFrame::Tangent`).
+pub const ESTIMATOR_TANGENT: u32 = 2;
 
 const BVH_WGSL: &str = include_str!("../wgsl/bvh.wgsl");
 const VISIBILITY_WGSL: &str = include_str!("../wgsl/visibility.wgsl");
@@ -27,7 +37,10 @@ fn prelude() -> String {
          const RAY_T_MAX: f32 = {RAY_T_MAX:?};\n\
          const NO_HIT: u32 = {NO_HIT}u;\n\
          const LEAF_FLAG: u32 = {LEAF_FLAG}u;\n\
-         const LAST_IN_LEAF: u32 = {LAST_IN_LEAF}u;\n\n"
+         const LAST_IN_LEAF: u32 = {LAST_IN_LEAF}u;\n\
+         const NO_SAMPLE: u32 = {NO_SAMPLE}u;\n\
+         const ESTIMATOR_BLOCKED: u32 = {ESTIMATOR_BLOCKED}u;\n\
+         const ESTIMATOR_TANGENT: u32 = {ESTIMATOR_TANGENT}u;\n\n"
     )
 }
 
@@ -55,7 +68,8 @@ pub fn render_shader() -> String {
 mod tests {
     use super::*;
     use crate::bake::bounce::Hit;
-    use crate::bake::gpu::{GatherParams, GpuNode, ProjectParams, VisibilityParams};
+    use crate::bake::gpu::{GatherParams, ProjectParams, VisibilityParams};
+    use crate::bvh::gpu::GpuNode;
     use crate::bvh::BvhTriangle;
     use crate::render::RenderParams;
     use std::mem::{offset_of, size_of};
@@ -124,14 +138,14 @@ mod tests {
             )
         );
         assert_eq!(
-            rust_layout!(BvhTriangle, v0, source_index, v1, pad1, v2, pad2),
+            rust_layout!(BvhTriangle, v0, source_index, v1, last_in_leaf, v2, pad2),
             (
                 48,
                 vec![
                     ("v0".into(), 0),
                     ("source_index".into(), 12),
                     ("v1".into(), 16),
-                    ("pad1".into(), 28),
+                    ("last_in_leaf".into(), 28),
                     ("v2".into(), 32),
                     ("pad2".into(), 44)
                 ]
@@ -199,22 +213,40 @@ mod tests {
     fn generated_constants_are_exact() {
         let source = prelude();
         let module = parse(&source);
-        // The f32 constants must come back bit-identical after WGSL parsing.
+        // Every constant must come back bit-identical after WGSL parsing.
         let mut checked = 0;
         for (_, constant) in module.constants.iter() {
-            let value = match &module.global_expressions[constant.init] {
-                naga::Expression::Literal(naga::Literal::F32(v)) => *v,
-                _ => continue,
+            let name = constant.name.as_deref().unwrap_or_default();
+            let (value, expected) = match &module.global_expressions[constant.init] {
+                naga::Expression::Literal(naga::Literal::F32(v)) => (
+                    v.to_bits(),
+                    match name {
+                        "SLAB_WIDENING" => SLAB_WIDENING,
+                        "MIN_DIRECTION_COMPONENT" => MIN_DIRECTION_COMPONENT,
+                        "RAY_T_MAX" => RAY_T_MAX,
+                        other => panic!("unexpected f32 constant {other:?}"),
+                    }
+                    .to_bits(),
+                ),
+                naga::Expression::Literal(naga::Literal::U32(v)) => (
+                    *v,
+                    match name {
+                        "STACK_SIZE" => STACK_SIZE as u32,
+                        "WORKGROUP_SIZE" => WORKGROUP_SIZE,
+                        "NO_HIT" => NO_HIT,
+                        "LEAF_FLAG" => LEAF_FLAG,
+                        "LAST_IN_LEAF" => LAST_IN_LEAF,
+                        "NO_SAMPLE" => NO_SAMPLE,
+                        "ESTIMATOR_BLOCKED" => ESTIMATOR_BLOCKED,
+                        "ESTIMATOR_TANGENT" => ESTIMATOR_TANGENT,
+                        other => panic!("unexpected u32 constant {other:?}"),
+                    },
+                ),
+                other => panic!("constant {name} is not a literal: {other:?}"),
             };
-            let expected = match constant.name.as_deref() {
-                Some("SLAB_WIDENING") => SLAB_WIDENING,
-                Some("MIN_DIRECTION_COMPONENT") => MIN_DIRECTION_COMPONENT,
-                Some("RAY_T_MAX") => RAY_T_MAX,
-                other => panic!("unexpected constant {other:?}"),
-            };
-            assert_eq!(value.to_bits(), expected.to_bits());
+            assert_eq!(value, expected, "{name}");
             checked += 1;
         }
-        assert_eq!(checked, 3, "expected three f32 constants");
+        assert_eq!(checked, 11, "expected eleven generated constants");
     }
 }

@@ -286,7 +286,7 @@ fn bad_input_fails_with_one_line_and_no_output() {
             case: "chart-format",
             file: None,
             args: &["chart", "-o", "chart.txt"],
-            expect: "chart.txt: the chart is written as .svg or .png",
+            expect: "chart.txt: charts must end in .svg or .png",
         },
         BadInput {
             case: "chart-samples",
@@ -396,8 +396,11 @@ fn light_projects_a_real_map_and_refuses_a_wrong_forced_mapping() {
 
 #[test]
 fn bake_then_render_side_by_side() {
-    if prt_gpu::gpu::list_adapters().is_empty() {
-        assert!(!prt_gpu::gpu::adapter_required(), "no GPU adapter under CI");
+    if prt_gpu::device::list_adapters().is_empty() {
+        assert!(
+            !prt_gpu::device::adapter_required(),
+            "no GPU adapter under CI"
+        );
         eprintln!("skipping: no adapter to render with");
         return;
     }

@@ -202,9 +202,9 @@ fn a_traversal_past_its_step_budget_is_an_error_not_a_wrong_answer() {
 
 #[test]
 fn auto_never_picks_a_software_adapter() {
-    let adapters = prt_gpu::gpu::list_adapters();
+    let adapters = prt_gpu::device::list_adapters();
     let only_software = !adapters.is_empty() && adapters.iter().all(|a| a.is_software());
-    let opened = prt_gpu::gpu::open(prt_gpu::gpu::DeviceChoice::Auto, None).unwrap();
+    let opened = prt_gpu::device::open(prt_gpu::device::DeviceChoice::Auto, None).unwrap();
     if only_software || adapters.is_empty() {
         assert!(opened.is_none(), "auto opened a software adapter");
     } else {

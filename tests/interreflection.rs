@@ -5,8 +5,8 @@ mod common;
 use std::path::PathBuf;
 
 use glam::Vec3;
+use prt_gpu::bake::BakedMesh;
 use prt_gpu::bake::{bake, Backend, BakeOptions, BakeReport, Mode, NoProgress};
-use prt_gpu::output::BakedMesh;
 use prt_gpu::scene::{self, builtin, Scene};
 
 fn data(name: &str) -> PathBuf {

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use prt_gpu::bake::{bake, Backend, BakeOptions, Mode, NoProgress};
-use prt_gpu::output::encode_glb;
+use prt_gpu::glb::encode_glb;
 use prt_gpu::sampling::Sampling;
 use prt_gpu::scene;
 

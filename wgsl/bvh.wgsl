@@ -1,7 +1,8 @@
 // Shared include: the flattened BVH, rays, the watertight triangle test and any-hit traversal.
-// Mirrors src/ray.rs and src/bvh.rs function for function. The constants STACK_SIZE,
-// WORKGROUP_SIZE, SLAB_WIDENING and MIN_DIRECTION_COMPONENT are generated from their Rust
-// definitions (src/shaders.rs) and prepended to every kernel.
+// Mirrors src/ray.rs and src/bvh/ function for function. The constants (STACK_SIZE,
+// SLAB_WIDENING, MIN_DIRECTION_COMPONENT, NO_HIT, LEAF_FLAG, ...) are generated from their Rust
+// definitions (src/shaders.rs) and prepended to every kernel. Traversal reads nothing of the
+// including kernel but the `nodes` and `triangles` arrays; everything else is an argument.
 
 struct Ray {
     origin: vec3<f32>,
@@ -97,9 +98,9 @@ struct Trace {
     v: f32,
 }
 
-// The BVH as the visibility kernel reads it (built from bvh::Bvh by bake::gpu::GpuBvh), both
+// The BVH as the visibility kernel reads it (built from bvh::Bvh by bvh::gpu::GpuBvh), both
 // arrays as vec4<u32> so that every read is a 16-byte load.
-// `nodes`: 32 bytes (two vec4) per interior node of the CPU tree, Rust twin bake::gpu::GpuNode:
+// `nodes`: 32 bytes (two vec4) per interior node of the CPU tree, Rust twin bvh::gpu::GpuNode:
 //   [0].xyz  the left child's box, [0].w  the left child's reference,
 //   [1].xyz  the right child's box, [1].w  the right child's reference.
 // A box is (min.x, min.y), (min.z, max.x), (max.y, max.z) as pairs of u16 (low half first) on a
@@ -110,21 +111,29 @@ struct Trace {
 //   [0] = (v0, source_index), [1] = (v1, flags), [2] = (v2, 0), vertices as f32 bits;
 //   flags is LAST_IN_LEAF on the last triangle of a leaf.
 
+// The grid of the node boxes: world = origin + q * step (Rust: bvh::gpu::GpuBvh's grid_origin
+// and grid_step, passed by the kernel that traces).
+struct BoxGrid {
+    origin: vec3<f32>,
+    step: f32,
+}
+
 // A grid coordinate back to world space: exact, since the grid step is a power of two and
-// the grid is small enough that origin + q * step needs no rounding (bake::gpu::GpuBvh::new).
-fn grid_point(grid: vec3<f32>) -> vec3<f32> {
-    return params.grid_origin + grid * params.grid_step;
+// the grid is small enough that origin + q * step needs no rounding (bvh::gpu::GpuBvh::new).
+fn grid_point(q: vec3<f32>, grid: BoxGrid) -> vec3<f32> {
+    return grid.origin + q * grid.step;
 }
 
-fn box_min(q: vec3<u32>) -> vec3<f32> {
-    return grid_point(vec3<f32>(f32(q.x & 0xffffu), f32(q.x >> 16u), f32(q.y & 0xffffu)));
+fn box_min(q: vec3<u32>, grid: BoxGrid) -> vec3<f32> {
+    return grid_point(vec3<f32>(f32(q.x & 0xffffu), f32(q.x >> 16u), f32(q.y & 0xffffu)), grid);
 }
 
-fn box_max(q: vec3<u32>) -> vec3<f32> {
-    return grid_point(vec3<f32>(f32(q.y >> 16u), f32(q.z & 0xffffu), f32(q.z >> 16u)));
+fn box_max(q: vec3<u32>, grid: BoxGrid) -> vec3<f32> {
+    return grid_point(vec3<f32>(f32(q.y >> 16u), f32(q.z & 0xffffu), f32(q.z >> 16u)), grid);
 }
 
-// Closest-hit (any_hit false) or any-hit (any_hit true) traversal of `nodes`/`triangles`
+// Closest-hit (any_hit false) or any-hit (any_hit true) traversal of `nodes`/`triangles`,
+// whose boxes lie on `grid`
 // (declared by the kernel that includes this file); Rust twin: Bvh::traverse, which visits the
 // same nodes in the same order (with exact instead of grid-rounded boxes).
 // Every loop iteration counts against `max_steps`: llvmpipe silently ends any invocation's loops
@@ -136,7 +145,7 @@ fn box_max(q: vec3<u32>) -> vec3<f32> {
 // over the lanes with a bounds check per lane and per component. So an interior step reads
 // one 32-byte node (two vec4 loads) that holds both children's boxes and references, and a
 // leaf's triangles are read as three vec4 each.
-fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool) -> Trace {
+fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) -> Trace {
     var result = Trace(false, false, NO_HIT, 0.0, 0.0);
     var t_max = t_max_in;
     var stack: array<u32, STACK_SIZE>;
@@ -182,10 +191,10 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool) -> Trace {
         } else {
             let l = nodes[2u * node];
             let r = nodes[2u * node + 1u];
-            let t0l = (box_min(l.xyz) - ray.origin) * ray.inv_direction;
-            let t1l = (box_max(l.xyz) - ray.origin) * ray.inv_direction;
-            let t0r = (box_min(r.xyz) - ray.origin) * ray.inv_direction;
-            let t1r = (box_max(r.xyz) - ray.origin) * ray.inv_direction;
+            let t0l = (box_min(l.xyz, grid) - ray.origin) * ray.inv_direction;
+            let t1l = (box_max(l.xyz, grid) - ray.origin) * ray.inv_direction;
+            let t0r = (box_min(r.xyz, grid) - ray.origin) * ray.inv_direction;
+            let t1r = (box_max(r.xyz, grid) - ray.origin) * ray.inv_direction;
             let near_l = box_near(t0l, t1l);
             let near_r = box_near(t0r, t1r);
             let hit_l = near_l <= box_far(t0l, t1l, t_max);

@@ -17,10 +17,9 @@ struct ProjectParams {
 
 // Flags of `estimator`; Rust twin: bake::gpu::estimator_flags. Without flags: sum over
 // visible samples of the cosine times y_k.
-// Sum over samples above the horizon that are blocked (sampling::Estimator::Blocked).
-const ESTIMATOR_BLOCKED: u32 = 1u;
-// Directions in the tangent frame with cosine density: no cosine factor.
-const ESTIMATOR_TANGENT: u32 = 2u;
+// ESTIMATOR_BLOCKED: sum over samples above the horizon that are blocked
+// (sampling::Estimator::Blocked). ESTIMATOR_TANGENT: directions in the tangent frame with cosine
+// density, no cosine factor. Both are generated from src/shaders.rs.
 
 @group(0) @binding(0) var<uniform> params: ProjectParams;
 @group(0) @binding(1) var<storage, read> normals: array<vec4<f32>>;

@@ -1,6 +1,6 @@
 // Visibility pass: one invocation per (vertex, sample) of a chunk; sets the bit of every ray
 // that is above the vertex's horizon and unblocked, and, for interreflection, records where a
-// blocked ray hits. Rust twins: bake::cpu::trace_visibility, bake::bounce::vertex_hits.
+// blocked ray hits. Rust twins: bake::cpu::trace_visibility, bake::bounce::blocked_hits.
 // Dispatch: x over the slots of the vertices' sample lists (WORKGROUP_SIZE per group), y over
 // vertices: a workgroup casts consecutive above-horizon sample directions from one vertex. Measured on lavapipe against
 // workgroups of 64 Morton-adjacent vertices sharing one direction: 0.72x the CPU time
@@ -50,7 +50,6 @@ struct VisibilityParams {
 // indices, ascending), then NO_SAMPLE.
 @group(0) @binding(9) var<storage, read> sample_lists: array<u32>;
 
-const NO_SAMPLE: u32 = 0xffffffffu;
 
 // Rust twin: sampling::tangent_frame (Duff et al. 2017), step for step.
 fn tangent_frame(n: vec3<f32>) -> mat3x3<f32> {
@@ -85,7 +84,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var visible = true;
     if (params.shadowed != 0u) {
         let closest = params.record_hits != 0u;
-        let found = trace(make_ray(origins[vertex].xyz, direction), RAY_T_MAX, params.max_steps, !closest);
+        let grid = BoxGrid(params.grid_origin, params.grid_step);
+        let found = trace(make_ray(origins[vertex].xyz, direction), RAY_T_MAX, params.max_steps, !closest, grid);
         if (found.exhausted) {
             atomicAdd(&exhausted_rays[0], 1u);
             return;

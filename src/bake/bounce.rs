@@ -18,13 +18,12 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{cpu, DirectInputs, Mode, Progress};
-use crate::ray::{Ray, RAY_T_MAX};
+use crate::ray::{Ray, NO_HIT, RAY_T_MAX};
 use crate::sampling::{DirectionFrame, VertexDirections};
 use crate::sh::coeff_count;
 
-/// The closest hit of one ray, 12 bytes. WGSL twin in wgsl/hits.wgsl:
-/// `struct Hit { triangle: u32, u: f32, v: f32 }`. `u`, `v`: barycentrics of the triangle's
-/// second and third vertices.
+/// The closest hit of one ray, 12 bytes; WGSL twin `Hit` in wgsl/visibility.wgsl. `u`, `v`:
+/// barycentrics of the triangle's second and third vertices.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct Hit {
@@ -34,9 +33,6 @@ pub struct Hit {
     pub v: f32,
 }
 const _: () = assert!(std::mem::size_of::<Hit>() == 12);
-
-/// `Hit::triangle` of a ray that escaped or was not cast.
-pub const NO_HIT: u32 = u32::MAX;
 
 /// Compressed sparse rows: row p holds `columns[row_offsets[p]..row_offsets[p+1]]` and their
 /// `weights`, columns ascending and distinct.

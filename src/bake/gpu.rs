@@ -12,14 +12,15 @@
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 
-use super::bounce::{GatherMatrix, Hit, NO_HIT};
+use super::bounce::{GatherMatrix, Hit};
 use super::{DirectInputs, Mode, Progress};
-use crate::bvh::{Bvh, BvhTriangle};
+use crate::bvh::gpu::{GpuBvh, LEAF_FLAG};
+use crate::device::{self, DeviceChoice, GpuContext};
 use crate::error::{Error, Result};
-use crate::gpu::GpuContext;
+use crate::ray::NO_HIT;
 use crate::sampling::{DirectionFrame, Estimator, VertexDirections};
 use crate::sh::coeff_count;
-use crate::shaders::{self, WORKGROUP_SIZE};
+use crate::shaders::{self, ESTIMATOR_BLOCKED, ESTIMATOR_TANGENT, NO_SAMPLE, WORKGROUP_SIZE};
 
 /// Uniforms of the visibility kernel, 64 bytes; WGSL twin in wgsl/visibility.wgsl.
 #[repr(C)]
@@ -57,14 +58,23 @@ pub struct ProjectParams {
     pub words_per_vertex: u32,
     pub coeff_count: u32,
     pub accumulate: u32,
-    /// `ESTIMATOR_*` flags of wgsl/project.wgsl: which samples enter the sum, their weight.
+    /// `shaders::ESTIMATOR_*` flags: which samples enter the sum, and their weight.
     pub estimator: u32,
 }
 
-/// The project kernel's flags (its `ESTIMATOR_*` constants): bit 0 sums blocked rays, bit 1
-/// drops the cosine (tangent-frame sets with cosine density).
+/// The project kernel's `estimator` flags for a strategy's estimator and direction frame.
 fn estimator_flags(estimator: Estimator, frame: DirectionFrame) -> u32 {
-    (estimator == Estimator::Blocked) as u32 | ((frame == DirectionFrame::Tangent) as u32) << 1
+    let blocked = if estimator == Estimator::Blocked {
+        ESTIMATOR_BLOCKED
+    } else {
+        0
+    };
+    let tangent = if frame == DirectionFrame::Tangent {
+        ESTIMATOR_TANGENT
+    } else {
+        0
+    };
+    blocked | tangent
 }
 
 /// Uniforms of the bounce (gather) kernel, 32 bytes; WGSL twin in wgsl/gather.wgsl.
@@ -117,273 +127,71 @@ pub struct GpuRun {
 }
 
 /// An open device with the bake's kernels compiled (once; compiling is slow on lavapipe).
+///
+/// Each pipeline's bind-group layout is derived from its kernel's WGSL declarations, so a
+/// binding is declared once, in the shader; the host binds buffers in binding order.
 pub struct GpuBaker {
     pub context: GpuContext,
     visibility: wgpu::ComputePipeline,
-    visibility_layout: wgpu::BindGroupLayout,
     project: wgpu::ComputePipeline,
-    project_layout: wgpu::BindGroupLayout,
     gather: wgpu::ComputePipeline,
-    gather_layout: wgpu::BindGroupLayout,
 }
 
 impl GpuBaker {
     pub fn new(context: GpuContext) -> Result<Self> {
         let ctx = &context;
-
-        let ((visibility, visibility_layout), (project, project_layout), (gather, gather_layout)) =
-            ctx.checked("compiling the kernels", || {
-                let visibility = pipeline(
-                    ctx,
-                    "visibility",
-                    shaders::visibility_kernel(),
-                    &[
-                        uniform_entry(0),
-                        storage_entry(1, true),
-                        storage_entry(2, true),
-                        storage_entry(3, true),
-                        storage_entry(4, true),
-                        storage_entry(5, true),
-                        storage_entry(6, false),
-                        storage_entry(7, false),
-                        storage_entry(8, false),
-                        storage_entry(9, true),
-                    ],
-                );
-                let project = pipeline(
-                    ctx,
-                    "project",
-                    shaders::project_kernel(),
-                    &[
-                        uniform_entry(0),
-                        storage_entry(1, true),
-                        storage_entry(2, true),
-                        storage_entry(3, true),
-                        storage_entry(4, true),
-                        storage_entry(5, false),
-                    ],
-                );
-                let gather = pipeline(
-                    ctx,
-                    "gather",
-                    shaders::gather_kernel(),
-                    &[
-                        uniform_entry(0),
-                        storage_entry(1, true),
-                        storage_entry(2, true),
-                        storage_entry(3, true),
-                        storage_entry(4, true),
-                        storage_entry(5, true),
-                        storage_entry(6, false),
-                    ],
-                );
-                (visibility, project, gather)
-            })?;
+        let (visibility, project, gather) = ctx.checked("compiling the kernels", || {
+            (
+                pipeline(ctx, "visibility", shaders::visibility_kernel()),
+                pipeline(ctx, "project", shaders::project_kernel()),
+                pipeline(ctx, "gather", shaders::gather_kernel()),
+            )
+        })?;
         Ok(GpuBaker {
             context,
             visibility,
-            visibility_layout,
             project,
-            project_layout,
             gather,
-            gather_layout,
         })
     }
-}
 
-fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
+    /// Opens the device for `choice` (see [`device::open`]) and compiles the kernels; `None`
+    /// means the CPU backend bakes.
+    pub fn open(choice: DeviceChoice, adapter: Option<&str>) -> Result<Option<GpuBaker>> {
+        device::open(choice, adapter)?
+            .map(GpuBaker::new)
+            .transpose()
+    }
+
+    /// A bind group for `pipeline` with `buffers` at bindings 0, 1, 2, ... of group 0.
+    fn bind(
+        &self,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        buffers: &[&wgpu::Buffer],
+    ) -> wgpu::BindGroup {
+        let layout = pipeline.get_bind_group_layout(0);
+        self.context.bind_buffers(label, &layout, buffers)
     }
 }
 
-fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-fn pipeline(
-    ctx: &GpuContext,
-    label: &str,
-    source: String,
-    entries: &[wgpu::BindGroupLayoutEntry],
-) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
-    let device = &ctx.device;
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some(label),
-        entries,
-    });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(label),
-        bind_group_layouts: &[Some(&layout)],
-        immediate_size: 0,
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(label),
-        layout: Some(&pipeline_layout),
-        module: &module,
-        entry_point: Some("main"),
-        compilation_options: wgpu::PipelineCompilationOptions::default(),
-        cache: None,
-    });
-    (pipeline, layout)
-}
-
-/// Marks a child reference in a [`GpuNode`] as a leaf (the rest is its first triangle).
-pub const LEAF_FLAG: u32 = 1 << 31;
-/// `BvhTriangle::pad1` of the last triangle of a leaf in [`GpuBvh::triangles`].
-pub const LAST_IN_LEAF: u32 = 1;
-
-/// One interior node of the CPU tree as the visibility kernel reads it, 32 bytes (WGSL layout
-/// in wgsl/bvh.wgsl): both children's boxes on the grid of [`GpuBvh`], and their references
-/// (an interior child's index in [`GpuBvh::nodes`], or `LEAF_FLAG | first triangle`).
-///
-/// A traversal step on llvmpipe pays per storage-buffer load (a loop over the SIMD lanes with
-/// a bounds check per lane and component): this layout gives a step two 16-byte loads where
-/// `BvhNode`s take six loads (the node, then both children's corners).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuNode {
-    /// (min.x, min.y), (min.z, max.x), (max.y, max.z) as pairs of u16, low half first.
-    pub left_box: [u32; 3],
-    pub left: u32,
-    pub right_box: [u32; 3],
-    pub right: u32,
-}
-const _: () = assert!(std::mem::size_of::<GpuNode>() == 32);
-
-/// The BVH in the visibility kernel's layout. Boxes are quantized to 16 bits per coordinate
-/// on a grid whose step is a power of two and whose points `grid_origin + q * grid_step` are
-/// all exact f32 values, rounded outwards: every box holds its exact box, so the kernel tests
-/// the triangles the CPU tests (and perhaps a few more, which cannot change an answer).
-/// Nodes come in the CPU tree's order and the near child is chosen the same way, so a
-/// closest-hit query finds the same triangle.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct GpuBvh {
-    pub nodes: Vec<GpuNode>,
-    /// `bvh.triangles` with [`LAST_IN_LEAF`] in `pad1` of each leaf's last triangle.
-    pub triangles: Vec<BvhTriangle>,
-    pub grid_origin: [f32; 3],
-    pub grid_step: f32,
-}
-
-const GRID_MAX: f64 = 65535.0;
-
-impl GpuBvh {
-    pub fn new(bvh: &Bvh) -> Self {
-        let Some(root) = bvh.nodes.first() else {
-            // No triangles: one node whose children are a leaf holding a degenerate triangle
-            // (zero determinant: never hit).
-            return GpuBvh {
-                nodes: vec![GpuNode {
-                    left: LEAF_FLAG,
-                    right: LEAF_FLAG,
-                    ..GpuNode::default()
-                }],
-                triangles: vec![BvhTriangle {
-                    source_index: super::bounce::NO_HIT,
-                    pad1: LAST_IN_LEAF,
-                    ..BvhTriangle::default()
-                }],
-                grid_origin: [0.0; 3],
-                grid_step: 1.0,
-            };
-        };
-        let (lo, hi) = (root.min.map(f64::from), root.max.map(f64::from));
-        let magnitude = (0..3).fold(0.0f64, |m, a| m.max(lo[a].abs()).max(hi[a].abs()));
-        let extent = (0..3).fold(0.0f64, |m, a| m.max(hi[a] - lo[a]));
-        // The smallest power of two that spans the scene in GRID_MAX steps (plus one for the
-        // origin's rounding down) and keeps origin + q * step exact in f32 (24-bit mantissa).
-        let mut step = f64::from(f32::MIN_POSITIVE);
-        while extent > (GRID_MAX - 1.0) * step || magnitude + extent >= step * (1u64 << 23) as f64 {
-            step *= 2.0;
-        }
-        let origin = lo.map(|v| (v / step).floor() * step);
-        let grid = |v: f32, axis: usize, up: bool| -> u32 {
-            let q = (f64::from(v) - origin[axis]) / step;
-            (if up { q.ceil() } else { q.floor() }).clamp(0.0, GRID_MAX) as u32
-        };
-        let quantize = |index: u32| -> [u32; 3] {
-            let n = &bvh.nodes[index as usize];
-            let q = [
-                grid(n.min[0], 0, false),
-                grid(n.min[1], 1, false),
-                grid(n.min[2], 2, false),
-                grid(n.max[0], 0, true),
-                grid(n.max[1], 1, true),
-                grid(n.max[2], 2, true),
-            ];
-            [q[0] | q[1] << 16, q[2] | q[3] << 16, q[4] | q[5] << 16]
-        };
-
-        let mut triangles = bvh.triangles.clone();
-        let mut gpu_index = vec![u32::MAX; bvh.nodes.len()];
-        let mut interior = Vec::new();
-        if root.is_leaf() {
-            // A one-leaf tree: a node whose two children are that leaf.
-            interior.push((0, 0));
-        } else {
-            // Interior nodes in the CPU tree's order.
-            for (i, n) in bvh.nodes.iter().enumerate() {
-                if !n.is_leaf() {
-                    gpu_index[i] = interior.len() as u32;
-                    interior.push((n.left_or_first, n.left_or_first + 1));
-                }
-            }
-        }
-        let reference = |child: u32, triangles: &mut Vec<BvhTriangle>| -> u32 {
-            let n = &bvh.nodes[child as usize];
-            if n.is_leaf() {
-                triangles[(n.left_or_first + n.triangle_count - 1) as usize].pad1 = LAST_IN_LEAF;
-                LEAF_FLAG | n.left_or_first
-            } else {
-                gpu_index[child as usize]
-            }
-        };
-        let nodes = interior
-            .iter()
-            .map(|&(left, right)| GpuNode {
-                left_box: quantize(left),
-                left: reference(left, &mut triangles),
-                right_box: quantize(right),
-                right: reference(right, &mut triangles),
-            })
-            .collect();
-        GpuBvh {
-            nodes,
-            triangles,
-            grid_origin: origin.map(|v| v as f32),
-            grid_step: step as f32,
-        }
-    }
-
-    /// A box of `nodes` back in world space, as the kernel computes it.
-    pub fn decode(&self, q: [u32; 3]) -> ([f32; 3], [f32; 3]) {
-        let g = |v: u32, a: usize| self.grid_origin[a] + (v as f32) * self.grid_step;
-        (
-            [g(q[0] & 0xffff, 0), g(q[0] >> 16, 1), g(q[1] & 0xffff, 2)],
-            [g(q[1] >> 16, 0), g(q[2] & 0xffff, 1), g(q[2] >> 16, 2)],
-        )
-    }
+/// A compute pipeline for the kernel's `main`, its layout derived from the WGSL.
+fn pipeline(ctx: &GpuContext, label: &str, source: String) -> wgpu::ComputePipeline {
+    let module = ctx
+        .device
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+    ctx.device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            cache: None,
+        })
 }
 
 /// Chunk sizes that respect the adapter's limits and the per-submission budget.
@@ -473,6 +281,32 @@ struct RunOutput {
     stats: GpuRun,
 }
 
+/// What a run computes: the inputs, and which of the outputs are kept.
+struct RunSpec<'i, 'a> {
+    inputs: &'i DirectInputs<'a>,
+    mode: Mode,
+    keep_bits: bool,
+    max_steps: u32,
+    coeffs: u32,
+}
+
+impl RunSpec<'_, '_> {
+    fn record_hits(&self) -> bool {
+        self.mode == Mode::Interreflected
+    }
+}
+
+/// One chunk of a run: vertices `vertex_offset..+vertices`, samples `sample_offset..+samples`.
+#[derive(Clone, Copy, Debug)]
+struct Chunk {
+    vertex_offset: u32,
+    vertices: u32,
+    sample_offset: u32,
+    samples: u32,
+    /// Later sample chunks of the same vertices add to the projected sums.
+    accumulate: bool,
+}
+
 /// Runs both passes over every chunk.
 fn run(
     baker: &GpuBaker,
@@ -483,21 +317,54 @@ fn run(
     progress: &dyn Progress,
 ) -> Result<RunOutput> {
     let ctx = &baker.context;
-    let record_hits = mode == Mode::Interreflected;
+    let spec = RunSpec {
+        inputs,
+        mode,
+        keep_bits,
+        max_steps: chunking.max_steps.unwrap_or(MAX_TRAVERSAL_STEPS),
+        coeffs: coeff_count(inputs.table.bands) as u32,
+    };
     let vertex_count = inputs.origins.len() as u32;
     let sample_count = inputs.samples.len() as u32;
-    let coeffs = coeff_count(inputs.table.bands) as u32;
-    let total_words = sample_count.div_ceil(32) as usize;
     let (vertex_chunk, sample_chunk) = plan_chunks(
         ctx,
         vertex_count,
         sample_count,
-        coeffs,
-        record_hits,
+        spec.coeffs,
+        spec.record_hits(),
         chunking,
     );
-    let chunk_words = sample_chunk / 32;
+    let gpu_bvh = GpuBvh::new(inputs.bvh);
+    check_bindings(ctx, inputs, &gpu_bvh)?;
+    let buffers = RunBuffers::new(baker, &spec, &gpu_bvh, vertex_chunk, sample_chunk)?;
+    let mut out = RunOutput::empty(&spec);
+    for vertex_offset in (0..vertex_count).step_by(vertex_chunk as usize) {
+        let vertices = vertex_chunk.min(vertex_count - vertex_offset);
+        out.stats.vertex_chunks += 1;
+        for (index, sample_offset) in (0..sample_count).step_by(sample_chunk as usize).enumerate() {
+            let chunk = Chunk {
+                vertex_offset,
+                vertices,
+                sample_offset,
+                samples: sample_chunk.min(sample_count - sample_offset),
+                accumulate: index > 0,
+            };
+            out.stats.sample_chunks += (vertex_offset == 0) as u32;
+            let lists = buffers.dispatch(baker, &spec, chunk, &mut out.stats)?;
+            out.collect_chunk(ctx, &spec, &buffers, chunk, &lists)?;
+        }
+        let chunk_sums: Vec<f32> =
+            ctx.read_back(&buffers.transfer, vertices as u64 * spec.coeffs as u64 * 4)?;
+        let first = vertex_offset as usize * spec.coeffs as usize;
+        out.sums[first..][..chunk_sums.len()].copy_from_slice(&chunk_sums);
+        progress.advance(vertices as u64);
+    }
+    buffers.check_no_ray_exhausted(ctx, spec.max_steps)?;
+    Ok(out)
+}
 
+/// Fails early when a whole-run array does not fit one storage binding of the adapter.
+fn check_bindings(ctx: &GpuContext, inputs: &DirectInputs, gpu_bvh: &GpuBvh) -> Result<()> {
     let needs_binding = |name: &str, bytes: u64| -> Result<()> {
         if bytes > ctx.limits.max_storage_buffer_binding_size {
             return Err(Error::Gpu(format!(
@@ -507,7 +374,6 @@ fn run(
         }
         Ok(())
     };
-    let gpu_bvh = GpuBvh::new(inputs.bvh);
     needs_binding(
         "the BVH triangles",
         std::mem::size_of_val(gpu_bvh.triangles.as_slice()) as u64,
@@ -522,212 +388,277 @@ fn run(
             inputs.bvh.triangles.len()
         )));
     }
-    needs_binding("the SH table", (inputs.table.values.len() * 4) as u64)?;
+    needs_binding("the SH table", (inputs.table.values.len() * 4) as u64)
+}
 
-    let nodes = ctx.storage("bvh nodes", &gpu_bvh.nodes);
-    let triangles = ctx.storage("bvh triangles", &gpu_bvh.triangles);
-    let origins = ctx.storage("origins", &as_vec4(inputs.origins));
-    let normals = ctx.storage("normals", &as_vec4(inputs.normals));
-    let directions = ctx.storage("directions", &as_vec4(&inputs.samples.directions));
-    let sh_table = ctx.storage("sh table", &inputs.table.values);
-    let bits_bytes = vertex_chunk as u64 * chunk_words as u64 * 4;
-    let transfer_bytes = vertex_chunk as u64 * coeffs as u64 * 4;
-    let bits = ctx.output("visibility bits", bits_bytes);
-    let transfer = ctx.output("transfer", transfer_bytes);
-    let exhausted = ctx.output("exhausted rays", 4);
-    let hit_size = std::mem::size_of::<Hit>() as u64;
-    let hits = ctx.output(
-        "hits",
-        if record_hits {
-            vertex_chunk as u64 * sample_chunk as u64 * hit_size
-        } else {
-            hit_size
-        },
-    );
-    let sample_lists = ctx.output(
-        "sample lists",
-        vertex_chunk as u64 * sample_chunk as u64 * 4,
-    );
-    let visibility_params = ctx.uniform("visibility params", &VisibilityParams::default());
-    let project_params = ctx.uniform("project params", &ProjectParams::default());
+/// The device buffers of one run, sized for its chunks, and the two passes' bind groups.
+struct RunBuffers {
+    bits: wgpu::Buffer,
+    transfer: wgpu::Buffer,
+    exhausted: wgpu::Buffer,
+    hits: wgpu::Buffer,
+    sample_lists: wgpu::Buffer,
+    visibility_params: wgpu::Buffer,
+    project_params: wgpu::Buffer,
+    visibility_group: wgpu::BindGroup,
+    project_group: wgpu::BindGroup,
+    grid_origin: [f32; 3],
+    grid_step: f32,
+    /// Bit words per vertex row of a chunk.
+    chunk_words: u32,
+}
 
-    let (visibility_group, project_group) = ctx.checked("binding the buffers", || {
-        let bind = |layout: &wgpu::BindGroupLayout, buffers: &[&wgpu::Buffer]| {
-            ctx.bind_buffers("bake", layout, buffers)
-        };
-        (
-            bind(
-                &baker.visibility_layout,
-                &[
-                    &visibility_params,
-                    &nodes,
-                    &triangles,
-                    &origins,
-                    &normals,
-                    &directions,
-                    &bits,
-                    &exhausted,
-                    &hits,
-                    &sample_lists,
-                ],
-            ),
-            bind(
-                &baker.project_layout,
-                &[
-                    &project_params,
-                    &normals,
-                    &directions,
-                    &sh_table,
-                    &bits,
-                    &transfer,
-                ],
-            ),
-        )
-    })?;
+impl RunBuffers {
+    fn new(
+        baker: &GpuBaker,
+        spec: &RunSpec,
+        gpu_bvh: &GpuBvh,
+        vertex_chunk: u32,
+        sample_chunk: u32,
+    ) -> Result<RunBuffers> {
+        let ctx = &baker.context;
+        let inputs = spec.inputs;
+        let chunk_words = sample_chunk / 32;
+        let pairs = vertex_chunk as u64 * sample_chunk as u64;
+        let hit_size = std::mem::size_of::<Hit>() as u64;
 
-    let mut sums = vec![0.0f32; vertex_count as usize * coeffs as usize];
-    let mut all_bits = if keep_bits {
-        vec![0u32; vertex_count as usize * total_words]
-    } else {
-        Vec::new()
-    };
-    let mut vertex_hits: Vec<Vec<(u32, Hit)>> = if record_hits {
-        vec![Vec::new(); vertex_count as usize]
-    } else {
-        Vec::new()
-    };
-    let mut stats = GpuRun::default();
-    let max_steps = chunking.max_steps.unwrap_or(MAX_TRAVERSAL_STEPS);
+        let nodes = ctx.storage("bvh nodes", &gpu_bvh.nodes);
+        let triangles = ctx.storage("bvh triangles", &gpu_bvh.triangles);
+        let origins = ctx.storage("origins", &as_vec4(inputs.origins));
+        let normals = ctx.storage("normals", &as_vec4(inputs.normals));
+        let directions = ctx.storage("directions", &as_vec4(&inputs.samples.directions));
+        let sh_table = ctx.storage("sh table", &inputs.table.values);
+        let bits = ctx.output(
+            "visibility bits",
+            vertex_chunk as u64 * chunk_words as u64 * 4,
+        );
+        let transfer = ctx.output("transfer", vertex_chunk as u64 * spec.coeffs as u64 * 4);
+        let exhausted = ctx.output("exhausted rays", 4);
+        let hits = ctx.output(
+            "hits",
+            if spec.record_hits() {
+                pairs * hit_size
+            } else {
+                hit_size
+            },
+        );
+        let sample_lists = ctx.output("sample lists", pairs * 4);
+        let visibility_params = ctx.uniform("visibility params", &VisibilityParams::default());
+        let project_params = ctx.uniform("project params", &ProjectParams::default());
 
-    for vertex_offset in (0..vertex_count).step_by(vertex_chunk as usize) {
-        let vertices = vertex_chunk.min(vertex_count - vertex_offset);
-        stats.vertex_chunks += 1;
-        for (chunk_index, sample_offset) in
-            (0..sample_count).step_by(sample_chunk as usize).enumerate()
-        {
-            let samples = sample_chunk.min(sample_count - sample_offset);
-            stats.sample_chunks += (vertex_offset == 0) as u32;
-            let (lists, longest, listed) = sample_lists_above_horizon(
-                inputs,
-                vertex_offset as usize..(vertex_offset + vertices) as usize,
-                sample_offset as usize..(sample_offset + samples) as usize,
-            );
-            if mode != Mode::Unshadowed {
-                stats.rays_cast += listed;
-            }
-            ctx.queue
-                .write_buffer(&sample_lists, 0, bytemuck::cast_slice(&lists));
-            ctx.queue.write_buffer(
-                &visibility_params,
-                0,
-                bytemuck::bytes_of(&VisibilityParams {
-                    vertex_offset,
-                    vertex_count: vertices,
-                    sample_offset,
-                    sample_count: samples,
-                    words_per_vertex: chunk_words,
-                    max_steps,
-                    shadowed: (mode != Mode::Unshadowed) as u32,
-                    record_hits: record_hits as u32,
-                    grid_origin: gpu_bvh.grid_origin,
-                    grid_step: gpu_bvh.grid_step,
-                    tangent_frames: (inputs.samples.frame == DirectionFrame::Tangent) as u32,
-                    ..Default::default()
-                }),
-            );
-            ctx.queue.write_buffer(
-                &project_params,
-                0,
-                bytemuck::bytes_of(&ProjectParams {
-                    vertex_offset,
-                    vertex_count: vertices,
-                    sample_offset,
-                    sample_count: samples,
-                    // The row stride of the bits; words past the chunk's samples are zero.
-                    words_per_vertex: chunk_words,
-                    coeff_count: coeffs,
-                    accumulate: (chunk_index > 0) as u32,
-                    estimator: estimator_flags(inputs.estimator, inputs.samples.frame),
-                }),
-            );
-            ctx.checked("running the kernels", || {
-                let mut encoder =
-                    ctx.device
-                        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                            label: Some("bake chunk"),
-                        });
-                encoder.clear_buffer(&bits, 0, None);
-                encode_pass(
-                    &mut encoder,
+        let (visibility_group, project_group) = ctx.checked("binding the buffers", || {
+            (
+                baker.bind(
                     "visibility",
                     &baker.visibility,
-                    &visibility_group,
-                    [longest.div_ceil(WORKGROUP_SIZE), vertices, 1],
-                );
-                encode_pass(
-                    &mut encoder,
+                    &[
+                        &visibility_params,
+                        &nodes,
+                        &triangles,
+                        &origins,
+                        &normals,
+                        &directions,
+                        &bits,
+                        &exhausted,
+                        &hits,
+                        &sample_lists,
+                    ],
+                ),
+                baker.bind(
                     "project",
                     &baker.project,
-                    &project_group,
-                    [(vertices * coeffs).div_ceil(WORKGROUP_SIZE), 1, 1],
-                );
-                ctx.queue.submit([encoder.finish()]);
-            })?;
-            ctx.wait()?;
-            stats.submissions += 1;
-            if keep_bits {
-                let chunk_bits: Vec<u32> =
-                    ctx.read_back(&bits, vertices as u64 * chunk_words as u64 * 4)?;
-                let first_word = (sample_offset / 32) as usize;
-                let words = samples.div_ceil(32) as usize;
-                for v in 0..vertices as usize {
-                    let row = (vertex_offset as usize + v) * total_words + first_word;
-                    all_bits[row..row + words]
-                        .copy_from_slice(&chunk_bits[v * chunk_words as usize..][..words]);
-                }
+                    &[
+                        &project_params,
+                        &normals,
+                        &directions,
+                        &sh_table,
+                        &bits,
+                        &transfer,
+                    ],
+                ),
+            )
+        })?;
+        Ok(RunBuffers {
+            bits,
+            transfer,
+            exhausted,
+            hits,
+            sample_lists,
+            visibility_params,
+            project_params,
+            visibility_group,
+            project_group,
+            grid_origin: gpu_bvh.grid_origin,
+            grid_step: gpu_bvh.grid_step,
+            chunk_words,
+        })
+    }
+
+    /// Uploads the chunk's sample lists and parameters, runs both passes on it and waits.
+    /// Returns the sample lists (the hits are read through them).
+    fn dispatch(
+        &self,
+        baker: &GpuBaker,
+        spec: &RunSpec,
+        chunk: Chunk,
+        stats: &mut GpuRun,
+    ) -> Result<Vec<u32>> {
+        let ctx = &baker.context;
+        let inputs = spec.inputs;
+        let (lists, longest, listed) = sample_lists_above_horizon(
+            inputs,
+            chunk.vertex_offset as usize..(chunk.vertex_offset + chunk.vertices) as usize,
+            chunk.sample_offset as usize..(chunk.sample_offset + chunk.samples) as usize,
+        );
+        if spec.mode != Mode::Unshadowed {
+            stats.rays_cast += listed;
+        }
+        ctx.queue
+            .write_buffer(&self.sample_lists, 0, bytemuck::cast_slice(&lists));
+        let visibility = VisibilityParams {
+            vertex_offset: chunk.vertex_offset,
+            vertex_count: chunk.vertices,
+            sample_offset: chunk.sample_offset,
+            sample_count: chunk.samples,
+            words_per_vertex: self.chunk_words,
+            max_steps: spec.max_steps,
+            shadowed: (spec.mode != Mode::Unshadowed) as u32,
+            record_hits: spec.record_hits() as u32,
+            grid_origin: self.grid_origin,
+            grid_step: self.grid_step,
+            tangent_frames: (inputs.samples.frame == DirectionFrame::Tangent) as u32,
+            ..Default::default()
+        };
+        let project = ProjectParams {
+            vertex_offset: chunk.vertex_offset,
+            vertex_count: chunk.vertices,
+            sample_offset: chunk.sample_offset,
+            sample_count: chunk.samples,
+            // The row stride of the bits; words past the chunk's samples are zero.
+            words_per_vertex: self.chunk_words,
+            coeff_count: spec.coeffs,
+            accumulate: chunk.accumulate as u32,
+            estimator: estimator_flags(inputs.estimator, inputs.samples.frame),
+        };
+        ctx.queue
+            .write_buffer(&self.visibility_params, 0, bytemuck::bytes_of(&visibility));
+        ctx.queue
+            .write_buffer(&self.project_params, 0, bytemuck::bytes_of(&project));
+        ctx.checked("running the kernels", || {
+            let mut encoder = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("bake chunk"),
+                });
+            encoder.clear_buffer(&self.bits, 0, None);
+            encode_pass(
+                &mut encoder,
+                "visibility",
+                &baker.visibility,
+                &self.visibility_group,
+                [longest.div_ceil(WORKGROUP_SIZE), chunk.vertices, 1],
+            );
+            encode_pass(
+                &mut encoder,
+                "project",
+                &baker.project,
+                &self.project_group,
+                [
+                    (chunk.vertices * spec.coeffs).div_ceil(WORKGROUP_SIZE),
+                    1,
+                    1,
+                ],
+            );
+            ctx.queue.submit([encoder.finish()]);
+        })?;
+        ctx.wait()?;
+        stats.submissions += 1;
+        Ok(lists)
+    }
+
+    /// The error a run must end with when any ray ran out of traversal steps.
+    fn check_no_ray_exhausted(&self, ctx: &GpuContext, max_steps: u32) -> Result<()> {
+        let exhausted_rays: Vec<u32> = ctx.read_back(&self.exhausted, 4)?;
+        if exhausted_rays[0] > 0 {
+            return Err(Error::Gpu(format!(
+                "{} rays needed more than {max_steps} traversal steps; the GPU result would be \
+                 wrong (use --device cpu)",
+                exhausted_rays[0]
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl RunOutput {
+    fn empty(spec: &RunSpec) -> RunOutput {
+        let vertices = spec.inputs.origins.len();
+        let words = spec.inputs.samples.len().div_ceil(32);
+        RunOutput {
+            sums: vec![0.0; vertices * spec.coeffs as usize],
+            bits: if spec.keep_bits {
+                vec![0; vertices * words]
+            } else {
+                Vec::new()
+            },
+            hits: if spec.record_hits() {
+                vec![Vec::new(); vertices]
+            } else {
+                Vec::new()
+            },
+            stats: GpuRun::default(),
+        }
+    }
+
+    /// Reads back what the run keeps of a finished chunk: its bits and its hits.
+    fn collect_chunk(
+        &mut self,
+        ctx: &GpuContext,
+        spec: &RunSpec,
+        buffers: &RunBuffers,
+        chunk: Chunk,
+        lists: &[u32],
+    ) -> Result<()> {
+        let samples = chunk.samples as usize;
+        if spec.keep_bits {
+            let chunk_words = buffers.chunk_words as usize;
+            let chunk_bits: Vec<u32> = ctx.read_back(
+                &buffers.bits,
+                chunk.vertices as u64 * chunk_words as u64 * 4,
+            )?;
+            let total_words = spec.inputs.samples.len().div_ceil(32);
+            let first_word = (chunk.sample_offset / 32) as usize;
+            let words = samples.div_ceil(32);
+            for v in 0..chunk.vertices as usize {
+                let row = (chunk.vertex_offset as usize + v) * total_words + first_word;
+                self.bits[row..row + words]
+                    .copy_from_slice(&chunk_bits[v * chunk_words..][..words]);
             }
-            if record_hits {
-                let chunk_hits: Vec<Hit> =
-                    ctx.read_back(&hits, vertices as u64 * samples as u64 * hit_size)?;
-                // Only listed samples were written.
-                for (v, (row, list)) in chunk_hits
-                    .chunks(samples as usize)
-                    .zip(lists.chunks(samples as usize))
-                    .enumerate()
-                {
-                    let own = &mut vertex_hits[(vertex_offset as usize) + v];
-                    for &s in list.iter().take_while(|&&s| s != NO_SAMPLE) {
-                        let hit = row[s as usize];
-                        if hit.triangle != NO_HIT {
-                            own.push((sample_offset + s, hit));
-                        }
+        }
+        if spec.record_hits() {
+            let hit_size = std::mem::size_of::<Hit>() as u64;
+            let chunk_hits: Vec<Hit> = ctx.read_back(
+                &buffers.hits,
+                chunk.vertices as u64 * chunk.samples as u64 * hit_size,
+            )?;
+            // Only listed samples were written.
+            for (v, (row, list)) in chunk_hits
+                .chunks(samples)
+                .zip(lists.chunks(samples))
+                .enumerate()
+            {
+                let own = &mut self.hits[chunk.vertex_offset as usize + v];
+                for &s in list.iter().take_while(|&&s| s != NO_SAMPLE) {
+                    let hit = row[s as usize];
+                    if hit.triangle != NO_HIT {
+                        own.push((chunk.sample_offset + s, hit));
                     }
                 }
             }
         }
-        let chunk_sums: Vec<f32> = ctx.read_back(&transfer, vertices as u64 * coeffs as u64 * 4)?;
-        sums[(vertex_offset * coeffs) as usize..][..chunk_sums.len()].copy_from_slice(&chunk_sums);
-        progress.advance(vertices as u64);
+        Ok(())
     }
-
-    let exhausted_rays: Vec<u32> = ctx.read_back(&exhausted, 4)?;
-    if exhausted_rays[0] > 0 {
-        return Err(Error::Gpu(format!(
-            "{} rays needed more than {max_steps} traversal steps; the GPU result would be wrong \
-             (use --device cpu)",
-            exhausted_rays[0]
-        )));
-    }
-    Ok(RunOutput {
-        sums,
-        bits: all_bits,
-        hits: vertex_hits,
-        stats,
-    })
 }
-
-/// End of a vertex's list in [`sample_lists_above_horizon`].
-const NO_SAMPLE: u32 = u32::MAX;
 
 /// For each vertex of `vertices`, the samples of `samples` above its horizon (by the CPU
 /// backend's test, so both trace the same rays) as indices from `samples.start`, ascending,
@@ -921,7 +852,7 @@ impl GpuBaker {
                     &previous,
                     &next,
                 ];
-                ctx.bind_buffers("gather", &self.gather_layout, &buffers)
+                self.bind("gather", &self.gather, &buffers)
             })?;
             let passes = chunk.max_row_len.div_ceil(GATHER_ENTRIES_PER_PASS).max(1);
             for pass_index in 0..passes {
@@ -958,139 +889,5 @@ impl GpuBaker {
             }
         }
         ctx.read_back(&next, bytes)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::ray::{intersect_box, intersect_triangle, Ray, RAY_T_MAX};
-    use crate::sampling::Pcg32;
-    use crate::scene::builtin;
-    use glam::Vec3;
-
-    fn default_bvh() -> Bvh {
-        let scene = builtin::default_scene();
-        Bvh::build(&scene.positions, &scene.triangles)
-    }
-
-    /// The kernel's traversal (wgsl/bvh.wgsl `trace`), step for step, on the CPU.
-    fn gpu_closest_hit(g: &GpuBvh, ray: &Ray, any_hit: bool) -> Option<(u32, f32)> {
-        let mut t_max = RAY_T_MAX;
-        let mut best = None;
-        let mut stack = Vec::new();
-        let mut node = 0u32;
-        loop {
-            let mut descend = false;
-            if node & LEAF_FLAG != 0 {
-                let mut i = (node & !LEAF_FLAG) as usize;
-                loop {
-                    let t = &g.triangles[i];
-                    let [v0, v1, v2] = t.vertices();
-                    if let Some(hit) = intersect_triangle(ray, v0, v1, v2, 0.0, t_max) {
-                        best = Some((t.source_index, hit.t));
-                        if any_hit {
-                            return best;
-                        }
-                        t_max = hit.t;
-                    }
-                    if t.pad1 != 0 {
-                        break;
-                    }
-                    i += 1;
-                }
-            } else {
-                let n = &g.nodes[node as usize];
-                let test = |q| {
-                    let (lo, hi) = g.decode(q);
-                    intersect_box(ray, Vec3::from(lo), Vec3::from(hi), 0.0, t_max)
-                };
-                match (test(n.left_box), test(n.right_box)) {
-                    (Some(a), Some(b)) => {
-                        let (near, far) = if a <= b {
-                            (n.left, n.right)
-                        } else {
-                            (n.right, n.left)
-                        };
-                        stack.push(far);
-                        node = near;
-                        descend = true;
-                    }
-                    (Some(_), None) => (node, descend) = (n.left, true),
-                    (None, Some(_)) => (node, descend) = (n.right, true),
-                    (None, None) => {}
-                }
-            }
-            if !descend {
-                match stack.pop() {
-                    Some(next) => node = next,
-                    None => return best,
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn grid_boxes_hold_the_exact_boxes() {
-        let bvh = default_bvh();
-        let g = GpuBvh::new(&bvh);
-        let interior: Vec<_> = bvh.nodes.iter().filter(|n| !n.is_leaf()).collect();
-        assert_eq!(interior.len(), g.nodes.len());
-        for (n, gn) in interior.iter().zip(&g.nodes) {
-            for (child, q) in [
-                (n.left_or_first, gn.left_box),
-                (n.left_or_first + 1, gn.right_box),
-            ] {
-                let exact = &bvh.nodes[child as usize];
-                let (lo, hi) = g.decode(q);
-                for a in 0..3 {
-                    assert!(lo[a] <= exact.min[a] && hi[a] >= exact.max[a]);
-                    // Rounded outwards by less than two grid steps.
-                    assert!(exact.min[a] - lo[a] <= 2.0 * g.grid_step);
-                    assert!(hi[a] - exact.max[a] <= 2.0 * g.grid_step);
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn gpu_layout_traversal_matches_the_cpu_tree() {
-        let bvh = default_bvh();
-        let g = GpuBvh::new(&bvh);
-        let mut rng = Pcg32::new(3);
-        let root = &bvh.nodes[0];
-        for _ in 0..20_000 {
-            let mut r = || rng.next_f32();
-            let origin = Vec3::from(root.min)
-                + (Vec3::from(root.max) - Vec3::from(root.min)) * Vec3::new(r(), r(), r());
-            let direction = (Vec3::new(r(), r(), r()) * 2.0 - 1.0).normalize_or(Vec3::Y);
-            let ray = Ray::new(origin, direction);
-            assert_eq!(
-                gpu_closest_hit(&g, &ray, true).is_some(),
-                bvh.occluded(&ray, RAY_T_MAX)
-            );
-            assert_eq!(
-                gpu_closest_hit(&g, &ray, false),
-                bvh.closest_hit(&ray, RAY_T_MAX).map(|(i, h)| (i, h.t))
-            );
-        }
-    }
-
-    #[test]
-    fn an_empty_or_one_leaf_tree_has_a_gpu_layout() {
-        let empty = GpuBvh::new(&Bvh::default());
-        assert_eq!(empty.nodes.len(), 1);
-        let ray = Ray::new(Vec3::ZERO, Vec3::Y);
-        assert_eq!(gpu_closest_hit(&empty, &ray, true), None);
-        let one = Bvh::build(
-            &[
-                Vec3::new(-1.0, 1.0, -1.0),
-                Vec3::new(1.0, 1.0, -1.0),
-                Vec3::new(0.0, 1.0, 1.0),
-            ],
-            &[[0, 1, 2]],
-        );
-        let g = GpuBvh::new(&one);
-        assert_eq!(gpu_closest_hit(&g, &ray, false).map(|h| h.0), Some(0));
     }
 }

@@ -11,7 +11,6 @@ use serde::{Deserialize, Serialize};
 
 use crate::bvh::Bvh;
 use crate::error::{Error, Result};
-use crate::output::BakedMesh;
 use crate::ray::offset_ray_origin;
 use crate::sampling::{Estimator, SampleSet, Sampling, MAX_SAMPLES};
 use crate::scene::prepare::{prepare, PrepareReport};
@@ -68,6 +67,14 @@ impl Transfer {
         let start = (vertex * self.channels as usize + channel) * n;
         &self.coeffs[start..start + n]
     }
+}
+
+/// A baked mesh: the prepared scene (normals `Some`), its transfer and how it was made.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakedMesh {
+    pub scene: Scene,
+    pub transfer: Transfer,
+    pub metadata: BakeMetadata,
 }
 
 /// Everything a baked file records about how it was made (glTF mesh extras `prt`).

@@ -1,7 +1,8 @@
 //! Environment maps as linear RGB f32 images: OpenEXR through `exr`, Radiance .hdr and
 //! sRGB PNG/JPEG through `image`. The format is told by the file's magic bytes, not its name.
 
-use crate::error::{Error, Result};
+use crate::color::srgb_to_linear;
+use crate::error::{one_line, Error, Result};
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
@@ -125,22 +126,15 @@ fn decode_with_image(bytes: &[u8], path: &Path) -> Result<EnvImage> {
     let linear = format == image::ImageFormat::Hdr;
     let pixels = rgb
         .pixels()
-        .map(|p| if linear { p.0 } else { p.0.map(srgb_to_linear) })
+        .map(|p| {
+            if linear {
+                p.0
+            } else {
+                p.0.map(|c| srgb_to_linear(c as f64) as f32)
+            }
+        })
         .collect();
     EnvImage::new(width, height, pixels, path)
-}
-
-/// The sRGB transfer function inverted (IEC 61966-2-1).
-pub fn srgb_to_linear(encoded: f32) -> f32 {
-    if encoded <= 0.04045 {
-        encoded / 12.92
-    } else {
-        ((encoded + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-fn one_line(message: &str) -> String {
-    message.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
 #[cfg(test)]

@@ -28,7 +28,7 @@ pub fn write_json(path: &Path, light: &ShLight) -> Result<()> {
     };
     let text =
         serde_json::to_string_pretty(&file).map_err(|e| Error::light(path, e.to_string()))?;
-    crate::output::write_atomically(path, format!("{text}\n").as_bytes())
+    crate::fs::write_atomically(path, format!("{text}\n").as_bytes())
 }
 
 /// Reads and checks a light.json: our convention, `bands^2` coefficients, all finite.

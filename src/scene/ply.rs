@@ -12,6 +12,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use super::{Scene, DEFAULT_ALBEDO};
+use crate::color::srgb_to_linear;
 use crate::error::{Error, Result};
 
 /// Internal result: a one-line message that `parse` attaches to the file name.
@@ -562,14 +563,6 @@ fn colour_to_albedo(colour: [f64; 3], types: [Scalar; 3]) -> Vec3 {
         channel(colour[1], types[1]),
         channel(colour[2], types[2]),
     )
-}
-
-fn srgb_to_linear(c: f64) -> f64 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
 }
 
 /// Runs `read_item` for each item of `element`, adding where it failed to any error.

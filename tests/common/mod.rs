@@ -10,22 +10,15 @@ use std::sync::OnceLock;
 
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
 use prt_gpu::bake::Backend;
-use prt_gpu::gpu::{self, DeviceChoice};
+use prt_gpu::device;
 
 static GPU: OnceLock<Option<GpuBaker>> = OnceLock::new();
 
 /// The GPU baker, or `None` (with the reason printed) where there is no adapter outside CI.
 pub fn gpu_baker() -> Option<&'static GpuBaker> {
-    GPU.get_or_init(|| match gpu::open(DeviceChoice::Gpu, None) {
-        Ok(Some(context)) => Some(GpuBaker::new(context).expect("compile the kernels")),
-        Ok(None) => unreachable!("DeviceChoice::Gpu never falls back to the CPU"),
-        Err(e) if gpu::adapter_required() => {
-            panic!("no GPU adapter under CI (install mesa-vulkan-drivers): {e}")
-        }
-        Err(e) => {
-            eprintln!("skipping GPU half of the test: {e}");
-            None
-        }
+    GPU.get_or_init(|| {
+        device::any_adapter_or_skip()
+            .map(|context| GpuBaker::new(context).expect("compile the kernels"))
     })
     .as_ref()
 }

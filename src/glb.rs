@@ -18,23 +18,16 @@
 
 use std::collections::BTreeMap;
 use std::fs::{self, File};
-use std::io::{self, Read, Write};
+use std::io::{self, Read};
 use std::path::Path;
 
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use crate::bake::{BakeMetadata, Transfer};
+use crate::bake::{BakeMetadata, BakedMesh, Transfer};
 use crate::error::{Error, Result};
+use crate::fs::{check_destination, write_atomically};
 use crate::scene::Scene;
-
-/// A baked mesh: the prepared scene (normals `Some`), its transfer and how it was made.
-#[derive(Clone, Debug, PartialEq)]
-pub struct BakedMesh {
-    pub scene: Scene,
-    pub transfer: Transfer,
-    pub metadata: BakeMetadata,
-}
 
 /// How the transfer buffer view is laid out; written into `extras.prt.transfer_layout` and
 /// checked on reading, so a future layout change cannot be misread silently.
@@ -81,75 +74,6 @@ pub fn write_glb(path: &Path, baked: &BakedMesh) -> Result<()> {
     check_destination(path)?;
     let bytes = encode_valid(baked)?;
     write_atomically(path, &bytes)
-}
-
-/// Writes `bytes` to `path` through a temporary file in the same directory that is synced and
-/// renamed over the target; on failure the temporary file is removed. Every output format of
-/// the crate goes through here, so none can leave a half-written file.
-pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = check_destination(path)?;
-    let Some(file_name) = path.file_name() else {
-        return Err(Error::io(
-            path,
-            io::Error::new(io::ErrorKind::InvalidInput, "output path names no file"),
-        ));
-    };
-    let mut tmp_name = file_name.to_os_string();
-    tmp_name.push(format!(".tmp-{}", std::process::id()));
-    let tmp = dir.join(tmp_name);
-    let result = write_then_rename(&tmp, path, bytes);
-    if result.is_err() {
-        // Best effort: the error being reported matters more than a failure to clean up.
-        let _ = fs::remove_file(&tmp);
-    } else {
-        sync_dir(dir);
-    }
-    result
-}
-
-/// Checks that `path` can be written to: its directory exists. Returns that directory.
-///
-/// Called by `write_glb`, and by the CLI before a long bake so a typo fails in a second.
-pub fn check_destination(path: &Path) -> Result<&Path> {
-    let dir = match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir,
-        _ => Path::new("."),
-    };
-    if dir.is_dir() {
-        return Ok(dir);
-    }
-    let problem = if dir.exists() {
-        "is not a directory"
-    } else {
-        "does not exist"
-    };
-    Err(Error::io(
-        path,
-        io::Error::new(
-            io::ErrorKind::NotFound,
-            format!("output directory {} {problem}", dir.display()),
-        ),
-    ))
-}
-
-fn write_then_rename(tmp: &Path, path: &Path, bytes: &[u8]) -> Result<()> {
-    let mut file = File::create(tmp).map_err(|e| Error::io(tmp, e))?;
-    file.write_all(bytes).map_err(|e| Error::io(tmp, e))?;
-    file.flush().map_err(|e| Error::io(tmp, e))?;
-    // Without the sync a crash right after the rename could leave a renamed but empty file.
-    file.sync_all().map_err(|e| Error::io(tmp, e))?;
-    drop(file);
-    fs::rename(tmp, path).map_err(|e| Error::io(path, e))
-}
-
-/// Makes the rename itself durable where the platform allows syncing a directory.
-fn sync_dir(dir: &Path) {
-    #[cfg(unix)]
-    if let Ok(d) = File::open(dir) {
-        let _ = d.sync_all();
-    }
-    #[cfg(not(unix))]
-    let _ = dir;
 }
 
 /// Reads and fully validates a baked file.

@@ -6,7 +6,7 @@
 
 use wgpu::util::DeviceExt;
 
-use crate::error::{Error, Result};
+use crate::error::{one_line, Error, Result};
 
 /// Which adapter a bake may use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -291,20 +291,9 @@ impl GpuContext {
         let value = work();
         match pollster::block_on(scope.pop()) {
             None => Ok(value),
-            Some(e) => Err(Error::Gpu(format!(
-                "{what}: {}",
-                first_line(&e.to_string())
-            ))),
+            Some(e) => Err(Error::Gpu(format!("{what}: {}", one_line(&e.to_string())))),
         }
     }
-}
-
-fn first_line(text: &str) -> String {
-    text.lines()
-        .map(str::trim)
-        .filter(|l| !l.is_empty())
-        .collect::<Vec<_>>()
-        .join(" ")
 }
 
 /// Whether a missing adapter must fail tests instead of skipping them: under CI, or when
@@ -313,4 +302,21 @@ pub fn adapter_required() -> bool {
     let set =
         |name: &str| std::env::var(name).is_ok_and(|v| !v.is_empty() && v != "0" && v != "false");
     set("CI") || set("PRT_GPU_REQUIRE_ADAPTER")
+}
+
+/// Any adapter, for a check that needs one (the test suites): `None`, with the reason on
+/// stderr, where there is none; a panic where one is required ([`adapter_required`]), so that
+/// GPU tests never skip silently under CI.
+pub fn any_adapter_or_skip() -> Option<GpuContext> {
+    match open(DeviceChoice::Gpu, None) {
+        Ok(Some(context)) => Some(context),
+        Ok(None) => unreachable!("DeviceChoice::Gpu never falls back to the CPU"),
+        Err(e) if adapter_required() => {
+            panic!("no GPU adapter under CI (install mesa-vulkan-drivers): {e}")
+        }
+        Err(e) => {
+            eprintln!("skipping the GPU check: {e}");
+            None
+        }
+    }
 }

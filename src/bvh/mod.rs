@@ -1,7 +1,7 @@
-//! Bounding volume hierarchy: a binned-SAH build, flattened into the exact bytes the GPU reads,
-//! and the CPU traversal over those same bytes.
+//! Bounding volume hierarchy: a binned-SAH build into flat arrays, and the CPU traversal over
+//! them. [`gpu`] turns the same tree into the GPU kernels' layout (quantized child boxes).
 //!
-//! Layout (both arrays are uploaded as they are):
+//! Layout:
 //! - `nodes[0]` is the root. An interior node's children are `nodes[left_or_first]` and
 //!   `nodes[left_or_first + 1]`; each child carries its own box, so a traversal step tests both
 //!   children of the node it stands on. A leaf (`triangle_count > 0`) owns
@@ -12,11 +12,11 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
+pub mod gpu;
+
 use crate::ray::{intersect_box, intersect_triangle, Ray, TriangleHit};
 
-/// One BVH node, 32 bytes. WGSL twin (`wgsl/bvh.wgsl`):
-/// `struct BvhNode { min: vec3<f32>, left_or_first: u32, max: vec3<f32>, triangle_count: u32 }`
-/// (each `vec3<f32>` is 16-byte aligned and the `u32` fills its fourth lane).
+/// One BVH node, 32 bytes. The GPU reads the tree as [`gpu::GpuNode`]s instead.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct BvhNode {
@@ -43,8 +43,8 @@ impl BvhNode {
     }
 }
 
-/// One triangle in leaf order, 48 bytes. WGSL twin:
-/// `struct BvhTriangle { v0: vec3<f32>, source_index: u32, v1: vec3<f32>, pad1: u32, v2: vec3<f32>, pad2: u32 }`.
+/// One triangle in leaf order, 48 bytes; the GPU reads these bytes as three `vec4<u32>`
+/// (wgsl/bvh.wgsl): `(v0, source_index)`, `(v1, last_in_leaf)`, `(v2, 0)`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct BvhTriangle {
@@ -52,7 +52,9 @@ pub struct BvhTriangle {
     /// Index of this triangle in the scene's triangle list.
     pub source_index: u32,
     pub v1: [f32; 3],
-    pub pad1: u32,
+    /// [`gpu::LAST_IN_LEAF`] on the last triangle of a leaf in [`gpu::GpuBvh::triangles`];
+    /// 0 in the CPU tree, whose nodes count their triangles.
+    pub last_in_leaf: u32,
     pub v2: [f32; 3],
     pub pad2: u32,
 }
@@ -213,7 +215,7 @@ impl Bvh {
                     v0: positions[a as usize].to_array(),
                     source_index: t,
                     v1: positions[b as usize].to_array(),
-                    pad1: 0,
+                    last_in_leaf: 0,
                     v2: positions[c as usize].to_array(),
                     pad2: 0,
                 }

@@ -471,11 +471,49 @@ fn put_f32s(bin: &mut Vec<u8>, values: impl IntoIterator<Item = f32>) {
 }
 
 fn encode_valid(baked: &BakedMesh) -> Result<Vec<u8>> {
+    let (bin, views) = encode_bin(baked);
+    let (accessors, attributes) = accessors_and_attributes(baked);
+    let doc = Document {
+        asset: AssetJson {
+            version: "2.0".into(),
+            generator: Some(format!("prt-gpu {}", env!("CARGO_PKG_VERSION"))),
+        },
+        scene: Some(0),
+        scenes: vec![SceneJson { nodes: vec![0] }],
+        nodes: vec![NodeJson { mesh: Some(0) }],
+        meshes: vec![MeshJson {
+            primitives: vec![PrimitiveJson {
+                attributes,
+                indices: Some(3),
+                mode: Some(TRIANGLES),
+            }],
+            extras: Some(MeshExtras {
+                prt: PrtExtras {
+                    metadata: &baked.metadata,
+                    vertices: baked.scene.positions.len(),
+                    transfer_buffer_view: TRANSFER_VIEW,
+                    transfer_layout: TRANSFER_LAYOUT,
+                },
+            }),
+        }],
+        accessors,
+        buffer_views: views,
+        buffers: vec![BufferJson {
+            byte_length: bin.len() as u64,
+            uri: None,
+        }],
+    };
+    let json = serde_json::to_vec(&doc)
+        .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))?;
+    glb_container(json, bin)
+}
+
+/// The BIN chunk (positions, normals, albedo, indices, transfer) and its five buffer views.
+fn encode_bin(baked: &BakedMesh) -> (Vec<u8>, Vec<BufferViewJson>) {
     let (scene, transfer) = (&baked.scene, &baked.transfer);
     let normals = scene.normals.as_deref().unwrap_or_default();
     let v = scene.positions.len();
     let t = scene.triangles.len();
-    let channels = transfer.channels as usize;
     let groups = groups(transfer.bands);
     let mut bin = Vec::with_capacity(bin_len(v, t, transfer.channels, transfer.bands).unwrap_or(0));
     let mut views = Vec::new();
@@ -500,7 +538,7 @@ fn encode_valid(baked: &BakedMesh) -> Result<Vec<u8>> {
     }
     view(&bin, start, None, ELEMENT_ARRAY_BUFFER);
     let start = bin.len();
-    for channel in 0..channels {
+    for channel in 0..transfer.channels as usize {
         for group in 0..groups {
             for vertex in 0..v {
                 let coeffs = transfer.vertex_channel(vertex, channel);
@@ -514,7 +552,14 @@ fn encode_valid(baked: &BakedMesh) -> Result<Vec<u8>> {
     // Several accessors share this view, so the spec requires an explicit stride.
     view(&bin, start, Some(16), ARRAY_BUFFER);
     debug_assert_eq!(views.len(), TRANSFER_VIEW + 1);
+    (bin, views)
+}
 
+/// The accessors of the views [`encode_bin`] lays out, and the primitive's attributes.
+fn accessors_and_attributes(baked: &BakedMesh) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
+    let (scene, transfer) = (&baked.scene, &baked.transfer);
+    let v = scene.positions.len();
+    let groups = groups(transfer.bands);
     let (min, max) = scene.positions.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
         |(lo, hi), &p| (lo.min(p), hi.max(p)),
@@ -537,13 +582,13 @@ fn encode_valid(baked: &BakedMesh) -> Result<Vec<u8>> {
         },
         accessor(1, 0, FLOAT, v, "VEC3"),
         accessor(2, 0, FLOAT, v, "VEC3"),
-        accessor(3, 0, UNSIGNED_INT, 3 * t, "SCALAR"),
+        accessor(3, 0, UNSIGNED_INT, 3 * scene.triangles.len(), "SCALAR"),
     ];
     let mut attributes: BTreeMap<String, usize> = [("POSITION", 0), ("NORMAL", 1), ("COLOR_0", 2)]
         .into_iter()
         .map(|(name, index)| (name.to_string(), index))
         .collect();
-    for channel in 0..channels {
+    for channel in 0..transfer.channels as usize {
         for group in 0..groups {
             let block = channel * groups + group;
             let name = transfer_attribute_name(transfer.channels, channel as u32, group);
@@ -551,42 +596,13 @@ fn encode_valid(baked: &BakedMesh) -> Result<Vec<u8>> {
             accessors.push(accessor(TRANSFER_VIEW, block * v * 16, FLOAT, v, "VEC4"));
         }
     }
+    (accessors, attributes)
+}
 
-    let doc = Document {
-        asset: AssetJson {
-            version: "2.0".into(),
-            generator: Some(format!("prt-gpu {}", env!("CARGO_PKG_VERSION"))),
-        },
-        scene: Some(0),
-        scenes: vec![SceneJson { nodes: vec![0] }],
-        nodes: vec![NodeJson { mesh: Some(0) }],
-        meshes: vec![MeshJson {
-            primitives: vec![PrimitiveJson {
-                attributes,
-                indices: Some(3),
-                mode: Some(TRIANGLES),
-            }],
-            extras: Some(MeshExtras {
-                prt: PrtExtras {
-                    metadata: &baked.metadata,
-                    vertices: v,
-                    transfer_buffer_view: TRANSFER_VIEW,
-                    transfer_layout: TRANSFER_LAYOUT,
-                },
-            }),
-        }],
-        accessors,
-        buffer_views: views,
-        buffers: vec![BufferJson {
-            byte_length: bin.len() as u64,
-            uri: None,
-        }],
-    };
-    let mut json = serde_json::to_vec(&doc)
-        .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))?;
+/// The glTF binary container: header, JSON chunk (space-padded), BIN chunk (zero-padded).
+fn glb_container(mut json: Vec<u8>, mut bin: Vec<u8>) -> Result<Vec<u8>> {
     json.resize(json.len().next_multiple_of(4), b' ');
     bin.resize(bin.len().next_multiple_of(4), 0);
-
     let total = 12 + 8 + json.len() + 8 + bin.len();
     let total32 = u32::try_from(total)
         .map_err(|_| Error::Geometry("the baked file would exceed the 4 GiB .glb limit".into()))?;
@@ -697,29 +713,7 @@ struct Plan {
 
 fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Result<Plan> {
     let bad = |message: String| Error::baked(path, message);
-    if doc.asset.version.split('.').next() != Some("2") {
-        return Err(bad(format!(
-            "glTF version {} is not 2.x",
-            doc.asset.version
-        )));
-    }
-    let [buffer] = &doc.buffers[..] else {
-        return Err(bad(format!(
-            "{} buffers, expected exactly one (the BIN chunk)",
-            doc.buffers.len()
-        )));
-    };
-    if buffer.uri.is_some() {
-        return Err(bad("the buffer refers to an external file".into()));
-    }
-    if buffer.byte_length > bin_len as u64 {
-        return Err(bad(format!(
-            "the buffer declares {} bytes but the BIN chunk has {bin_len}",
-            buffer.byte_length
-        )));
-    }
-    let buffer_len = buffer.byte_length;
-
+    let buffer_len = check_buffer(doc, bin_len).map_err(bad)?;
     let mesh = doc
         .meshes
         .first()
@@ -731,33 +725,7 @@ fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Resul
     if primitive.mode.unwrap_or(TRIANGLES) != TRIANGLES {
         return Err(bad("the primitive is not a triangle list".into()));
     }
-    let prt = mesh
-        .extras
-        .as_ref()
-        .and_then(|extras| extras.get("prt"))
-        .ok_or_else(|| bad("not a prt-gpu file: the mesh has no extras.prt".into()))?;
-    let prt: PrtExtrasIn =
-        serde_json::from_value(prt.clone()).map_err(|e| bad(format!("invalid extras.prt: {e}")))?;
-    if prt.transfer_layout != TRANSFER_LAYOUT {
-        return Err(bad(format!(
-            "unsupported transfer layout \"{}\"",
-            prt.transfer_layout
-        )));
-    }
-    let meta = prt.metadata;
-    if meta.bands == 0 || meta.bands > crate::sh::MAX_BANDS {
-        return Err(bad(format!(
-            "extras.prt.bands is {}, expected 1 to {}",
-            meta.bands,
-            crate::sh::MAX_BANDS
-        )));
-    }
-    if meta.channels != 1 && meta.channels != 3 {
-        return Err(bad(format!(
-            "extras.prt.channels is {}, expected 1 or 3",
-            meta.channels
-        )));
-    }
+    let prt = prt_extras(mesh).map_err(bad)?;
 
     let locate = |what: &str, index: Option<usize>, component: u32, kind: &str, comps: u64| {
         locate(doc, buffer_len, what, index, component, kind, comps).map_err(bad)
@@ -765,24 +733,18 @@ fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Resul
     let attribute = |name: &str| primitive.attributes.get(name).copied();
     let positions = locate("POSITION", attribute("POSITION"), FLOAT, "VEC3", 3)?;
     let v = positions.count;
-    let same_count = |span: Span, what: &str| {
-        if span.count == v {
-            Ok(span)
-        } else {
-            Err(bad(format!(
-                "{what} has {} elements but POSITION has {v}",
-                span.count
-            )))
-        }
-    };
     let normals = same_count(
         locate("NORMAL", attribute("NORMAL"), FLOAT, "VEC3", 3)?,
+        v,
         "NORMAL",
-    )?;
+    )
+    .map_err(bad)?;
     let albedo = same_count(
         locate("COLOR_0", attribute("COLOR_0"), FLOAT, "VEC3", 3)?,
+        v,
         "COLOR_0",
-    )?;
+    )
+    .map_err(bad)?;
     let indices = locate("indices", primitive.indices, UNSIGNED_INT, "SCALAR", 1)?;
     if indices.count % 3 != 0 {
         return Err(bad(format!(
@@ -796,45 +758,13 @@ fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Resul
             prt.vertices
         )));
     }
-
-    let groups = groups(meta.bands);
-    let view = doc
-        .buffer_views
-        .get(prt.transfer_buffer_view)
-        .ok_or_else(|| bad("extras.prt.transfer_buffer_view does not exist".into()))?;
-    let expected = transfer_bytes(v, meta.channels, meta.bands);
-    if expected.map(|n| n as u64) != Some(view.byte_length) {
-        return Err(bad(format!(
-            "the transfer buffer view has {} bytes, expected {v} vertices x {} channels x {groups} groups x 16",
-            view.byte_length, meta.channels
-        )));
-    }
-    let mut transfer = Vec::with_capacity(meta.channels as usize * groups);
-    for channel in 0..meta.channels {
-        for group in 0..groups {
-            let name = transfer_attribute_name(meta.channels, channel, group);
-            let index = attribute(&name);
-            let span = same_count(locate(&name, index, FLOAT, "VEC4", 4)?, &name)?;
-            // The planar layout promised in extras.prt is what non-glTF readers rely on.
-            let block = channel as usize * groups + group;
-            let accessor = &doc.accessors[index.unwrap_or_default()];
-            if accessor.buffer_view != Some(prt.transfer_buffer_view)
-                || accessor.byte_offset != (block * v * 16) as u64
-                || span.stride != 16
-            {
-                return Err(bad(format!(
-                    "attribute {name} does not follow the planar transfer layout"
-                )));
-            }
-            transfer.push(span);
-        }
-    }
-
+    let transfer = transfer_spans(doc, buffer_len, primitive, &prt, v).map_err(bad)?;
+    let meta = prt.metadata;
     Ok(Plan {
         vertices: v,
         triangles: indices.count / 3,
         coeffs_per_channel: (meta.bands * meta.bands) as usize,
-        groups,
+        groups: groups(meta.bands),
         metadata: meta,
         positions,
         normals,
@@ -842,6 +772,121 @@ fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Resul
         indices,
         transfer,
     })
+}
+
+/// Checks the document's one buffer against the BIN chunk; returns the buffer's length.
+fn check_buffer(
+    doc: &Document<serde_json::Value>,
+    bin_len: usize,
+) -> std::result::Result<u64, String> {
+    if doc.asset.version.split('.').next() != Some("2") {
+        return Err(format!("glTF version {} is not 2.x", doc.asset.version));
+    }
+    let [buffer] = &doc.buffers[..] else {
+        return Err(format!(
+            "{} buffers, expected exactly one (the BIN chunk)",
+            doc.buffers.len()
+        ));
+    };
+    if buffer.uri.is_some() {
+        return Err("the buffer refers to an external file".into());
+    }
+    if buffer.byte_length > bin_len as u64 {
+        return Err(format!(
+            "the buffer declares {} bytes but the BIN chunk has {bin_len}",
+            buffer.byte_length
+        ));
+    }
+    Ok(buffer.byte_length)
+}
+
+/// The mesh's `extras.prt`, with a layout, band count and channel count this reader knows.
+fn prt_extras(mesh: &MeshJson<serde_json::Value>) -> std::result::Result<PrtExtrasIn, String> {
+    let prt = mesh
+        .extras
+        .as_ref()
+        .and_then(|extras| extras.get("prt"))
+        .ok_or("not a prt-gpu file: the mesh has no extras.prt")?;
+    let prt: PrtExtrasIn =
+        serde_json::from_value(prt.clone()).map_err(|e| format!("invalid extras.prt: {e}"))?;
+    if prt.transfer_layout != TRANSFER_LAYOUT {
+        return Err(format!(
+            "unsupported transfer layout \"{}\"",
+            prt.transfer_layout
+        ));
+    }
+    let meta = &prt.metadata;
+    if meta.bands == 0 || meta.bands > crate::sh::MAX_BANDS {
+        return Err(format!(
+            "extras.prt.bands is {}, expected 1 to {}",
+            meta.bands,
+            crate::sh::MAX_BANDS
+        ));
+    }
+    if meta.channels != 1 && meta.channels != 3 {
+        return Err(format!(
+            "extras.prt.channels is {}, expected 1 or 3",
+            meta.channels
+        ));
+    }
+    Ok(prt)
+}
+
+/// `span` if it has the `vertices` elements every vertex attribute must have.
+fn same_count(span: Span, vertices: usize, what: &str) -> std::result::Result<Span, String> {
+    if span.count == vertices {
+        Ok(span)
+    } else {
+        Err(format!(
+            "{what} has {} elements but POSITION has {vertices}",
+            span.count
+        ))
+    }
+}
+
+/// The spans of the `_PRT_*` attributes, one per `(channel, group)`, checked to follow the
+/// planar layout that `extras.prt` promises (what non-glTF readers rely on).
+fn transfer_spans(
+    doc: &Document<serde_json::Value>,
+    buffer_len: u64,
+    primitive: &PrimitiveJson,
+    prt: &PrtExtrasIn,
+    v: usize,
+) -> std::result::Result<Vec<Span>, String> {
+    let meta = &prt.metadata;
+    let groups = groups(meta.bands);
+    let view = doc
+        .buffer_views
+        .get(prt.transfer_buffer_view)
+        .ok_or("extras.prt.transfer_buffer_view does not exist")?;
+    let expected = transfer_bytes(v, meta.channels, meta.bands);
+    if expected.map(|n| n as u64) != Some(view.byte_length) {
+        return Err(format!(
+            "the transfer buffer view has {} bytes, expected {v} vertices x {} channels x {groups} groups x 16",
+            view.byte_length, meta.channels
+        ));
+    }
+    let mut transfer = Vec::with_capacity(meta.channels as usize * groups);
+    for channel in 0..meta.channels {
+        for group in 0..groups {
+            let name = transfer_attribute_name(meta.channels, channel, group);
+            let index = primitive.attributes.get(&name).copied();
+            let span = locate(doc, buffer_len, &name, index, FLOAT, "VEC4", 4)?;
+            let span = same_count(span, v, &name)?;
+            let block = channel as usize * groups + group;
+            let accessor = &doc.accessors[index.unwrap_or_default()];
+            if accessor.buffer_view != Some(prt.transfer_buffer_view)
+                || accessor.byte_offset != (block * v * 16) as u64
+                || span.stride != 16
+            {
+                return Err(format!(
+                    "attribute {name} does not follow the planar transfer layout"
+                ));
+            }
+            transfer.push(span);
+        }
+    }
+    Ok(transfer)
 }
 
 /// Resolves accessor `index` to a span of `count` elements of `comps` 4-byte components,

@@ -8,7 +8,7 @@
 //! Per-lane work is done on `[f32; LANES]` arrays walked by plain loops, which LLVM turns into
 //! SIMD (one AVX-512 register, two AVX2 or four NEON/SSE registers per array). The one step
 //! LLVM does not vectorize well from plain loops, turning 16 lane comparisons into a 16-bit
-//! mask, is a per-instruction-set primitive ([`Isa`]). The traversal is one function for both
+//! mask, is a per-instruction-set primitive (`Isa`). The traversal is one function for both
 //! kinds; [`occluded`] and [`occluded_fan`] run, chosen at run time, a copy of it compiled for
 //! the widest vector unit of the machine (`mod dispatch`).
 //!
@@ -36,7 +36,7 @@ pub type LaneMask = u32;
 pub const ALL_LANES: LaneMask = (1 << LANES) - 1;
 
 /// Mask of the lanes for which `pred` holds, lane by lane: for code outside the hot loop (LLVM
-/// compiles it to scalar compares; the traversal uses [`Isa`] instead).
+/// compiles it to scalar compares; the traversal uses `Isa` instead).
 #[inline(always)]
 pub fn lane_mask(pred: impl Fn(usize) -> bool) -> LaneMask {
     let mut mask = 0;

@@ -19,7 +19,7 @@ if [ ${#need_packages[@]} -gt 0 ]; then
     fi
 fi
 
-# The Python reader test (output::PYTHON_READER) needs numpy.
+# The Python reader test (glb::PYTHON_READER) needs numpy.
 if ! python3 -c "import numpy" >/dev/null 2>&1; then
     python3 -m pip install --quiet --disable-pip-version-check numpy || echo "ci/test.sh: numpy not installed" >&2
 fi

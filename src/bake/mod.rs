@@ -473,7 +473,7 @@ pub fn ray_origins(positions: &[Vec3], normals: &[Vec3], bvh: &Bvh) -> Vec<Vec3>
 pub const RADIOMETRY: &str = "exit radiance L_o = sum_k l_k t_k per channel, \
 l_k = integral L_in(w) y_k(w) dw, t_k = (albedo/pi) integral V(w) max(0, n.w) y_k(w) dw";
 
-/// RGB transfer from albedo-free scalar transfer: channel c of vertex v is albedo[v][c] times it.
+/// RGB transfer from albedo-free scalar transfer: channel c of vertex v is `albedo[v][c]` times it.
 pub fn tint_by_albedo(scalar: &[f32], albedo: &[Vec3], bands: u32) -> Transfer {
     let n = coeff_count(bands);
     let mut coeffs = Vec::with_capacity(scalar.len() * 3);

@@ -2,9 +2,9 @@
 //!
 //! - [`envmap`] reads environment-map files as linear RGB images;
 //! - [`mapping`] says how each parameterization maps pixels to directions and solid angles;
-//! - [`project`] turns an environment map into SH coefficients;
+//! - [`mod@project`] turns an environment map into SH coefficients;
 //! - [`analytic`] gives closed-form projections of analytic lights;
-//! - [`file`] reads and writes light.json.
+//! - [`mod@file`] reads and writes light.json.
 
 pub mod analytic;
 pub mod envmap;

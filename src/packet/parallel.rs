@@ -86,7 +86,7 @@ impl<'a> RayPacket<'a> {
         }
     }
 
-    /// The single ray of one lane, as [`Bvh::occluded`] would trace it.
+    /// The single ray of one lane, as [`crate::bvh::Bvh::occluded`] would trace it.
     pub fn lane_ray(&self, lane: usize) -> Ray {
         let o = &self.origins.origin;
         Ray::new(

@@ -579,36 +579,15 @@ fn sample_label(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::path::PathBuf;
 
-    /// A directory of its own for one test's output, removed when the test ends.
-    struct Scratch(PathBuf);
-
-    impl Scratch {
-        fn new(test: &str) -> Self {
-            let dir =
-                std::env::temp_dir().join(format!("prt-gpu-chart-{}-{test}", std::process::id()));
-            let _ = std::fs::remove_dir_all(&dir);
-            std::fs::create_dir_all(&dir).unwrap();
-            Scratch(dir)
-        }
-
-        fn file(&self, name: &str) -> PathBuf {
-            self.0.join(name)
-        }
-
-        fn entries(&self) -> Vec<String> {
-            std::fs::read_dir(&self.0)
-                .unwrap()
-                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-                .collect()
-        }
-    }
-
-    impl Drop for Scratch {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
+    /// The sorted names in a directory.
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
     }
 
     /// Error falling as 1/sqrt(samples), time growing with samples, per strategy and backend.
@@ -650,8 +629,8 @@ mod tests {
 
     #[test]
     fn svg_names_every_series_and_sample_count() {
-        let dir = Scratch::new("chart-svg");
-        let path = dir.file("chart.svg");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("chart.svg");
         draw_chart(&path, "Speed vs accuracy", "bake time (s)", &two_panels()).unwrap();
         let svg = std::fs::read_to_string(&path).unwrap();
         assert!(svg.starts_with("<svg"), "{}", &svg[..60.min(svg.len())]);
@@ -679,8 +658,8 @@ mod tests {
 
     #[test]
     fn png_has_the_chart_size_and_is_not_blank() {
-        let dir = Scratch::new("chart-png");
-        let path = dir.file("chart.png");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("chart.png");
         draw_chart(&path, "Speed vs accuracy", "bake time (s)", &two_panels()).unwrap();
         let image = image::open(&path).unwrap().to_rgb8();
         assert_eq!(image.dimensions(), (1400, 600));
@@ -701,18 +680,22 @@ mod tests {
 
     #[test]
     fn unknown_extension_is_an_option_error_and_writes_nothing() {
-        let dir = Scratch::new("chart-pdf");
-        let path = dir.file("chart.pdf");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("chart.pdf");
         let err = draw_chart(&path, "t", "x", &two_panels()).unwrap_err();
         assert!(matches!(err, Error::Options(_)), "{err}");
         assert!(err.to_string().contains(".svg or .png"), "{err}");
-        assert!(dir.entries().is_empty(), "left behind: {:?}", dir.entries());
+        assert!(
+            entries(dir.path()).is_empty(),
+            "left behind: {:?}",
+            entries(dir.path())
+        );
     }
 
     #[test]
     fn panel_without_a_drawable_point_is_a_clear_error() {
-        let dir = Scratch::new("empty-panel-svg");
-        let path = dir.file("empty-panel.svg");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("empty-panel.svg");
         let mut panels = two_panels();
         for series in &mut panels[1].series {
             for point in &mut series.points {
@@ -725,13 +708,17 @@ mod tests {
         let message = err.to_string();
         assert!(message.contains("Relit colour"), "{message}");
         assert!(message.contains("positive, finite"), "{message}");
-        assert!(dir.entries().is_empty(), "left behind: {:?}", dir.entries());
+        assert!(
+            entries(dir.path()).is_empty(),
+            "left behind: {:?}",
+            entries(dir.path())
+        );
     }
 
     #[test]
     fn a_series_with_nothing_to_draw_says_so_in_the_legend() {
-        let dir = Scratch::new("no-data-svg");
-        let path = dir.file("no-data.svg");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("no-data.svg");
         let mut panels = two_panels();
         for point in &mut panels[0].series[2].points {
             point.seconds = 0.0;
@@ -743,10 +730,14 @@ mod tests {
 
     #[test]
     fn no_panels_is_an_error() {
-        let dir = Scratch::new("none-svg");
-        let path = dir.file("none.svg");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("none.svg");
         assert!(draw_chart(&path, "t", "x", &[]).is_err());
-        assert!(dir.entries().is_empty(), "left behind: {:?}", dir.entries());
+        assert!(
+            entries(dir.path()).is_empty(),
+            "left behind: {:?}",
+            entries(dir.path())
+        );
     }
 
     #[test]
@@ -846,8 +837,8 @@ mod tests {
             assert!(range.start > 0.0 && range.end.is_finite(), "{range:?}");
         }
         assert!(!layout.x_ticks.is_empty() && layout.x_ticks.len() <= MAX_TICKS);
-        let dir = Scratch::new("extreme-png");
-        let path = dir.file("extreme.png");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("extreme.png");
         draw_chart(&path, "t", "x", &[panel]).unwrap();
         assert!(path.exists());
     }

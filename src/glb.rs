@@ -977,7 +977,6 @@ fn span_bytes<'a>(bin: &'a [u8], span: &Span, element: usize, path: &Path) -> Re
 mod tests {
     use super::*;
     use crate::bake::Mode;
-    use std::path::PathBuf;
     use std::process::Command;
 
     /// Three vertices, one triangle; bands 3 (9 coefficients, not a multiple of 4), RGB, every
@@ -1024,32 +1023,14 @@ mod tests {
         }
     }
 
-    /// A fresh directory under the system temp dir, removed on drop.
-    struct TempDir(PathBuf);
-
-    impl TempDir {
-        fn new(name: &str) -> Self {
-            let dir =
-                std::env::temp_dir().join(format!("prt-gpu-output-{}-{name}", std::process::id()));
-            let _ = fs::remove_dir_all(&dir);
-            fs::create_dir_all(&dir).unwrap();
-            TempDir(dir)
-        }
-
-        fn entries(&self) -> Vec<String> {
-            let mut names: Vec<String> = fs::read_dir(&self.0)
-                .unwrap()
-                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-                .collect();
-            names.sort();
-            names
-        }
-    }
-
-    impl Drop for TempDir {
-        fn drop(&mut self) {
-            let _ = fs::remove_dir_all(&self.0);
-        }
+    /// The sorted names in a directory.
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
     }
 
     fn json_of(bytes: &[u8]) -> serde_json::Value {
@@ -1194,23 +1175,23 @@ mod tests {
 
     #[test]
     fn write_into_missing_directory_fails_cleanly() {
-        let tmp = TempDir::new("missing");
-        let target = tmp.0.join("nope").join("out.glb");
+        let tmp = tempfile::tempdir().unwrap();
+        let target = tmp.path().join("nope").join("out.glb");
         let err = write_glb(&target, &sample(3)).unwrap_err().to_string();
         assert!(err.contains("does not exist"), "{err}");
         assert!(!target.exists());
-        assert!(tmp.entries().is_empty());
+        assert!(entries(tmp.path()).is_empty());
     }
 
     #[test]
     fn write_then_read_round_trip() {
-        let tmp = TempDir::new("roundtrip");
-        let target = tmp.0.join("mesh.glb");
+        let tmp = tempfile::tempdir().unwrap();
+        let target = tmp.path().join("mesh.glb");
         let baked = sample(3);
         write_glb(&target, &baked).unwrap();
         // Overwriting an existing file goes through the same rename.
         write_glb(&target, &baked).unwrap();
-        assert_eq!(tmp.entries(), ["mesh.glb"]);
+        assert_eq!(entries(tmp.path()), ["mesh.glb"]);
         assert_eq!(read_glb(&target).unwrap(), baked);
         assert_eq!(fs::read(&target).unwrap(), encode_glb(&baked).unwrap());
         let (metadata, vertices, triangles) = read_metadata(&target).unwrap();
@@ -1219,29 +1200,29 @@ mod tests {
 
     #[test]
     fn failed_write_leaves_no_temporary_file() {
-        let tmp = TempDir::new("failed");
+        let tmp = tempfile::tempdir().unwrap();
         // Renaming a file over a directory fails after the temporary file is complete.
-        let target = tmp.0.join("taken.glb");
+        let target = tmp.path().join("taken.glb");
         fs::create_dir(&target).unwrap();
         let err = write_glb(&target, &sample(3)).unwrap_err();
         assert!(
             matches!(err, Error::Io { ref path, .. } if path == &target),
             "{err}"
         );
-        assert_eq!(tmp.entries(), ["taken.glb"]);
+        assert_eq!(entries(tmp.path()), ["taken.glb"]);
         assert!(target.is_dir());
 
         // Invalid input fails before anything is created.
         let mut bad = sample(3);
         bad.transfer.coeffs.clear();
-        assert!(write_glb(&tmp.0.join("bad.glb"), &bad).is_err());
-        assert_eq!(tmp.entries(), ["taken.glb"]);
+        assert!(write_glb(&tmp.path().join("bad.glb"), &bad).is_err());
+        assert_eq!(entries(tmp.path()), ["taken.glb"]);
     }
 
     #[test]
     fn read_metadata_rejects_truncated_files() {
-        let tmp = TempDir::new("metadata");
-        let target = tmp.0.join("cut.glb");
+        let tmp = tempfile::tempdir().unwrap();
+        let target = tmp.path().join("cut.glb");
         let bytes = encode_glb(&sample(1)).unwrap();
         for len in [0, 10, 30, bytes.len() - 4] {
             fs::write(&target, &bytes[..len]).unwrap();
@@ -1274,8 +1255,8 @@ mod tests {
         }
         let line_count = PYTHON_READER.lines().count();
         assert!(line_count <= 12, "{line_count} lines");
-        let tmp = TempDir::new("python");
-        let target = tmp.0.join("mesh.glb");
+        let tmp = tempfile::tempdir().unwrap();
+        let target = tmp.path().join("mesh.glb");
         let baked = sample(3);
         write_glb(&target, &baked).unwrap();
         let out = Command::new("python3")

@@ -83,17 +83,11 @@ fn validate(light: &ShLight) -> std::result::Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::path::PathBuf;
-
-    fn scratch(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("prt-light-json-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        dir.join(name)
-    }
 
     #[test]
     fn round_trips_with_the_convention() {
-        let path = scratch("light.json");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("light.json");
         let light = ShLight {
             bands: 2,
             coeffs: vec![
@@ -141,8 +135,9 @@ mod tests {
                 "",
             ),
         ];
+        let dir = tempfile::tempdir().unwrap();
         for (name, text, needle) in cases {
-            let path = scratch(name);
+            let path = dir.path().join(name);
             std::fs::write(&path, text).unwrap();
             let e = read_json(&path).unwrap_err().to_string();
             assert!(e.contains(needle) && !e.contains('\n'), "{name}: {e}");
@@ -151,7 +146,7 @@ mod tests {
             bands: 1,
             coeffs: vec![[f32::NAN, 0.0, 0.0]],
         };
-        let path = scratch("nan.json");
+        let path = dir.path().join("nan.json");
         assert!(write_json(&path, &nan)
             .unwrap_err()
             .to_string()

@@ -87,28 +87,11 @@ mod tests {
     use super::*;
     use std::path::PathBuf;
 
-    /// A scratch directory removed when the test ends, pass or fail.
-    struct Scratch(PathBuf);
-
-    impl Scratch {
-        fn new(name: &str) -> Self {
-            let dir =
-                std::env::temp_dir().join(format!("prt-gpu-obj-{}-{name}", std::process::id()));
-            std::fs::create_dir_all(&dir).unwrap();
-            Scratch(dir)
-        }
-
-        fn write(&self, name: &str, text: &str) -> PathBuf {
-            let path = self.0.join(name);
-            std::fs::write(&path, text).unwrap();
-            path
-        }
-    }
-
-    impl Drop for Scratch {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
+    /// Writes `text` to `name` in `dir`; returns the path.
+    fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path
     }
 
     /// `usemtl` holds across `o` lines, so the object without a material comes first.
@@ -132,9 +115,9 @@ mod tests {
 
     #[test]
     fn objects_are_merged_with_their_material_albedo() {
-        let dir = Scratch::new("materials");
-        dir.write("colours.mtl", MTL);
-        let scene = load(&dir.write("scene.obj", THREE_OBJECTS)).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), "colours.mtl", MTL);
+        let scene = load(&write(dir.path(), "scene.obj", THREE_OBJECTS)).unwrap();
         // The quad is triangulated; each object has its own vertices.
         assert_eq!(scene.triangle_count(), 4);
         assert_eq!(scene.vertex_count(), 4 + 3 + 3);
@@ -152,28 +135,32 @@ mod tests {
 
     #[test]
     fn missing_mtl_gives_default_albedo() {
-        let dir = Scratch::new("no-mtl");
-        let scene = load(&dir.write("scene.obj", THREE_OBJECTS)).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let scene = load(&write(dir.path(), "scene.obj", THREE_OBJECTS)).unwrap();
         assert_eq!(scene.albedo, vec![DEFAULT_ALBEDO; scene.vertex_count()]);
     }
 
     #[test]
     fn normals_are_kept_only_when_every_object_has_them() {
-        let dir = Scratch::new("normals");
+        let dir = tempfile::tempdir().unwrap();
         let with =
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\no a\nf 1//1 2//1 3//1\no b\nf 3//1 2//1 1//1\n";
-        let scene = load(&dir.write("with.obj", with)).unwrap();
+        let scene = load(&write(dir.path(), "with.obj", with)).unwrap();
         assert_eq!(scene.normals, Some(vec![Vec3::Z; 6]));
         let mixed = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\no a\nf 1//1 2//1 3//1\no b\nf 3 2 1\n";
-        let scene = load(&dir.write("mixed.obj", mixed)).unwrap();
+        let scene = load(&write(dir.path(), "mixed.obj", mixed)).unwrap();
         assert_eq!(scene.normals, None);
         assert_eq!(scene.vertex_count(), 6);
     }
 
     #[test]
     fn no_faces_is_an_error() {
-        let dir = Scratch::new("no-faces");
-        let path = dir.write("lines.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2\np 3\n");
+        let dir = tempfile::tempdir().unwrap();
+        let path = write(
+            dir.path(),
+            "lines.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2\np 3\n",
+        );
         let error = load(&path).unwrap_err();
         assert!(matches!(error, Error::Mesh { .. }));
         assert!(error.to_string().ends_with(": no faces"), "{error}");
@@ -181,13 +168,13 @@ mod tests {
 
     #[test]
     fn parse_errors_are_one_line_mesh_errors() {
-        let dir = Scratch::new("bad");
+        let dir = tempfile::tempdir().unwrap();
         for text in ["v 0 0 0\nv 1 0 0\nf 1 2 3\n", "v 0 0 zero\nf 1 1 1\n"] {
-            let error = load(&dir.write("bad.obj", text)).unwrap_err();
+            let error = load(&write(dir.path(), "bad.obj", text)).unwrap_err();
             assert!(matches!(error, Error::Mesh { .. }), "{error:?}");
             assert!(!error.to_string().contains('\n'));
         }
-        let missing = load(&dir.0.join("absent.obj")).unwrap_err();
+        let missing = load(&dir.path().join("absent.obj")).unwrap_err();
         assert!(matches!(missing, Error::Io { .. }));
     }
 }

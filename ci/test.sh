@@ -8,6 +8,10 @@ need_packages=()
 for package in mesa-vulkan-drivers libvulkan1; do
     dpkg -s "$package" >/dev/null 2>&1 || need_packages+=("$package")
 done
+# node and npm run the Khronos glTF-Validator (below).
+if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+    need_packages+=(nodejs npm)
+fi
 if [ ${#need_packages[@]} -gt 0 ]; then
     if [ "$(id -u)" -eq 0 ] && command -v apt-get >/dev/null; then
         echo "ci/test.sh: installing ${need_packages[*]}"
@@ -15,13 +19,26 @@ if [ ${#need_packages[@]} -gt 0 ]; then
         apt-get update -qq
         apt-get install -y -qq --no-install-recommends "${need_packages[@]}" >/dev/null
     else
-        echo "ci/test.sh: missing ${need_packages[*]} (install them, or GPU tests will skip)" >&2
+        echo "ci/test.sh: missing ${need_packages[*]} (install them, or GPU and glTF-Validator tests will skip)" >&2
     fi
 fi
 
 # The Python reader test (glb::PYTHON_READER) needs numpy.
 if ! python3 -c "import numpy" >/dev/null 2>&1; then
     python3 -m pip install --quiet --disable-pip-version-check numpy || echo "ci/test.sh: numpy not installed" >&2
+fi
+
+# The Khronos glTF-Validator, which every written file must pass (src/gltf_validator.rs), at the
+# version pinned in its package-lock.json. Installed again only when the lock file changed since.
+validator=ci/gltf-validator
+installed_lock="$validator/node_modules/.installed-package-lock.json"
+if command -v npm >/dev/null && ! cmp -s "$validator/package-lock.json" "$installed_lock"; then
+    echo "ci/test.sh: installing the glTF-Validator (npm ci --prefix $validator)"
+    if npm ci --prefix "$validator" --no-audit --no-fund --loglevel=error >/dev/null; then
+        cp "$validator/package-lock.json" "$installed_lock"
+    else
+        echo "ci/test.sh: the glTF-Validator is not installed" >&2
+    fi
 fi
 
 # Mesa's drivers complain on stderr without a runtime directory (headless machines).

@@ -15,6 +15,7 @@ pub mod device;
 pub mod error;
 pub mod fs;
 pub mod glb;
+pub mod gltf_validator;
 pub mod light;
 pub mod morton;
 pub mod packet;

@@ -1,5 +1,6 @@
 //! Environment maps as linear RGB f32 images: OpenEXR through `exr`, Radiance .hdr and
-//! sRGB PNG/JPEG through `image`. The format is told by the file's magic bytes, not its name.
+//! sRGB PNG/JPEG through `image` (Radiance files signed `#?RGBE` or by any other program too).
+//! The format is told by the file's magic bytes, not its name.
 
 use crate::color::srgb_to_linear;
 use crate::error::{one_line, Error, Result};
@@ -78,7 +79,28 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<EnvImage> {
     if bytes.starts_with(&EXR_MAGIC) {
         return decode_exr(bytes, path);
     }
-    decode_with_image(bytes, path)
+    match radiance_renamed(bytes) {
+        Some(renamed) => decode_with_image(&renamed, path),
+        None => decode_with_image(bytes, path),
+    }
+}
+
+/// The signature the `image` crate's Radiance decoder requires as the first line.
+const RADIANCE_SIGNATURE: &[u8] = b"#?RADIANCE";
+
+/// A Radiance file whose first line names another program (`#?RGBE`, as Mitsuba writes), with
+/// that line rewritten to `#?RADIANCE`, the only one `image` reads; the format allows any program
+/// name after `#?`. `None` for everything else, signed `#?RADIANCE` files included.
+fn radiance_renamed(bytes: &[u8]) -> Option<Vec<u8>> {
+    let rest = bytes.strip_prefix(b"#?")?;
+    // A program name: a short word, then the end of the line.
+    let name_len = rest.iter().take(65).position(|&b| b == b'\n')?;
+    let name = &rest[..name_len];
+    let word = |b: &u8| b.is_ascii_alphanumeric() || b"_-.+".contains(b);
+    if name.is_empty() || !name.iter().all(word) || bytes.starts_with(RADIANCE_SIGNATURE) {
+        return None;
+    }
+    Some([RADIANCE_SIGNATURE, &rest[name_len..]].concat())
 }
 
 /// Pixels of the first valid layer, largest resolution level; R, G, B must be present and any
@@ -218,6 +240,67 @@ mod tests {
         // sRGB 188 is about linear 0.5; 128 about 0.2158.
         assert!((r - 0.5029).abs() < 1e-3 && g == 0.0 && (b - 0.2158).abs() < 1e-3);
         assert_eq!(image.pixel(0, 0)[0], 1.0);
+    }
+
+    /// A 3x2 Radiance file written by hand: flat (not run-length encoded) RGBE pixels, first
+    /// line `#?{program}`.
+    fn hand_written_hdr(program: &str) -> Vec<u8> {
+        let mut hdr =
+            format!("#?{program}\n# a comment\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 3\n").into_bytes();
+        // RGBE: value = mantissa * 2^(exponent - 136).
+        for (x, y) in [(0, 0), (1, 0), (2, 0), (0, 1), (1, 1), (2, 1)] {
+            hdr.extend_from_slice(&[128 + 40 * x, 64 * y, 200, 129 + x]);
+        }
+        hdr
+    }
+
+    #[test]
+    fn radiance_files_signed_by_another_program_are_read() {
+        let radiance = hand_written_hdr("RADIANCE");
+        let rgbe = hand_written_hdr("RGBE");
+        let tmp = tempfile::tempdir().unwrap();
+        let (radiance_path, rgbe_path) = (tmp.path().join("r.hdr"), tmp.path().join("m.hdr"));
+        std::fs::write(&radiance_path, &radiance).unwrap();
+        std::fs::write(&rgbe_path, &rgbe).unwrap();
+
+        let expected = load(&radiance_path).unwrap();
+        assert_eq!((expected.width, expected.height), (3, 2));
+        // (2, 1): mantissas 208, 64, 200 with exponent 131, a scale of 2^-5.
+        assert_eq!(expected.pixel(2, 1), [6.5, 2.0, 6.25]);
+        let read = load(&rgbe_path).unwrap();
+        assert_eq!(read.pixels, expected.pixels);
+        assert_eq!(read.source, rgbe_path);
+
+        // What the image crate's encoder writes (run-length encoded rows), renamed likewise.
+        let from_crate_encoder = {
+            let mut hdr = Vec::new();
+            let source = image::Rgb32FImage::from_fn(4, 2, |x, y| {
+                image::Rgb([x as f32 + 0.25, y as f32 * 3.0, 0.5])
+            });
+            image::DynamicImage::ImageRgb32F(source)
+                .write_to(&mut Cursor::new(&mut hdr), image::ImageFormat::Hdr)
+                .unwrap();
+            hdr
+        };
+        let line_end = from_crate_encoder.iter().position(|&b| b == b'\n').unwrap();
+        assert_eq!(&from_crate_encoder[..line_end], RADIANCE_SIGNATURE);
+        let renamed = [b"#?RGBE", &from_crate_encoder[line_end..]].concat();
+        let a = decode(&from_crate_encoder, Path::new("a.hdr")).unwrap();
+        let b = decode(&renamed, Path::new("b.hdr")).unwrap();
+        assert_eq!(a.pixels, b.pixels);
+    }
+
+    #[test]
+    fn a_radiance_file_with_garbage_after_the_signature_is_an_error() {
+        let good = hand_written_hdr("RGBE");
+        let garbage = [b"#?\xff\x00 not a name", &good[6..]].concat();
+        let e = decode(&garbage, Path::new("g.hdr")).unwrap_err();
+        assert!(assert_one_line(&e).contains("not an environment map"));
+        // A program name, but no header after it.
+        let e = decode(b"#?RGBE\n-Y 2 +X 3", Path::new("h.hdr")).unwrap_err();
+        assert!(assert_one_line(&e).starts_with("h.hdr: "));
+        // No end of line after the name.
+        assert!(decode(b"#?RGBE", Path::new("i.hdr")).is_err());
     }
 
     #[test]

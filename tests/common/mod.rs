@@ -3,14 +3,19 @@
 //! The GPU backend is opened once per test binary on any adapter (lavapipe in CI). Without an
 //! adapter the GPU half of a test is skipped with a printed reason, except under CI (or with
 //! PRT_GPU_REQUIRE_ADAPTER=1), where that is a failure: GPU tests must never silently skip.
+//!
+//! [`validate_gltf`] runs the Khronos glTF-Validator on a written file (the same runner the unit
+//! tests use); it skips likewise where node or the validator is missing, except under CI.
 
 #![allow(dead_code)]
 
+use std::path::Path;
 use std::sync::OnceLock;
 
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
 use prt_gpu::bake::Backend;
 use prt_gpu::device;
+use prt_gpu::gltf_validator::{self, ValidatorReport};
 
 static GPU: OnceLock<Option<GpuBaker>> = OnceLock::new();
 
@@ -33,4 +38,10 @@ pub fn backends() -> Vec<Backend<'static>> {
         });
     }
     all
+}
+
+/// The Khronos glTF-Validator's report on the file at `path`, or `None` (with the reason
+/// printed) where node or the validator is not installed outside CI.
+pub fn validate_gltf(path: &Path) -> Option<ValidatorReport> {
+    gltf_validator::validate_or_skip(path)
 }

@@ -8,6 +8,7 @@ pub mod builtin;
 pub mod obj;
 pub mod ply;
 pub mod prepare;
+pub mod texture;
 
 use std::path::Path;
 

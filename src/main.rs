@@ -244,8 +244,9 @@ struct RenderArgs {
 
 #[derive(clap::Args)]
 struct BakeArgs {
-    /// Mesh to bake: .obj, .ply or .ply.gz. Without it, the built-in scene (a sphere and a box
-    /// on a ground plane beside a wall).
+    /// Mesh to bake: a glTF scene (.gltf, .glb: written back with its transfer added), .obj,
+    /// .ply or .ply.gz. Without it, the built-in scene (a sphere and a box on a ground plane
+    /// beside a wall).
     mesh: Option<PathBuf>,
     #[command(flatten)]
     transfer: TransferArgs,
@@ -350,7 +351,9 @@ fn run_bake(args: BakeArgs) -> Result<()> {
         ..args.transfer.options()
     };
     options.validate()?;
-    let (scene, name) = load_scene(&args.mesh)?;
+    let loading = std::time::Instant::now();
+    let (scene, gltf, name) = load_bake_input(&args.mesh)?;
+    let seconds_load = loading.elapsed().as_secs_f64();
     let output_path = args
         .output
         .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
@@ -396,7 +399,20 @@ fn run_bake(args: BakeArgs) -> Result<()> {
     let (baked, report) =
         bake::bake(scene, &options, &backend, &progress).map_err(|e| naming_the_mesh(e, &shown))?;
     progress.finish();
-    glb::write_glb(&output_path, &baked)?;
+    let writing = std::time::Instant::now();
+    let written = match &gltf {
+        Some(gltf) => Some(glb::scene::write_scene_glb(
+            &output_path,
+            gltf,
+            &baked,
+            &report.vertex_map,
+        )?),
+        None => {
+            glb::write_glb(&output_path, &baked)?;
+            None
+        }
+    };
+    let seconds_write = writing.elapsed().as_secs_f64();
     if let Some(preview) = &args.preview {
         let context = match baker {
             Some(baker) => baker.context,
@@ -404,8 +420,42 @@ fn run_bake(args: BakeArgs) -> Result<()> {
         };
         write_preview(&context, &baked, preview)?;
     }
+    if let Some(written) = written {
+        eprintln!(
+            "baked in place: {} primitive(s), read in {seconds_load:.2} s, written in \
+             {seconds_write:.2} s{}",
+            written.primitives_baked,
+            match written.mesh_copies {
+                0 => String::new(),
+                n => format!(
+                    "; {n} mesh(es) shown by several nodes copied, one per placement \
+                     (each place sees its own occlusion)"
+                ),
+            }
+        );
+    }
     print_bake_report(&name, &options, &report, &output_path);
     Ok(())
+}
+
+/// What `bake` bakes: the mesh named on the command line (a glTF scene keeps its document,
+/// to be written back with its transfer), or the built-in scene; and a name for messages.
+fn load_bake_input(
+    mesh: &Option<PathBuf>,
+) -> Result<(scene::Scene, Option<scene::gltf::GltfScene>, String)> {
+    match mesh {
+        Some(path) if scene::is_gltf(path) => {
+            let (gltf, loaded) = scene::gltf::load(path)?;
+            for note in &gltf.notes {
+                eprintln!("note: {note}");
+            }
+            Ok((loaded, Some(gltf), stem(path)))
+        }
+        _ => {
+            let (loaded, name) = load_scene(mesh)?;
+            Ok((loaded, None, name))
+        }
+    }
 }
 
 /// Geometry errors come from preparation, which no longer knows the file: name it.

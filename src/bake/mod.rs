@@ -13,7 +13,7 @@ use crate::bvh::Bvh;
 use crate::error::{Error, Result};
 use crate::ray::offset_ray_origin;
 use crate::sampling::{Estimator, SampleSet, Sampling, MAX_SAMPLES};
-use crate::scene::prepare::{prepare, PrepareReport};
+use crate::scene::prepare::{prepare_mapped, PrepareReport, VertexMap};
 use crate::scene::Scene;
 use crate::sh::rotation::EulerShRotation;
 use crate::sh::{coeff_count, ShTable, CONVENTION, MAX_BANDS};
@@ -235,6 +235,8 @@ impl Backend<'_> {
 #[derive(Clone, Debug)]
 pub struct BakeReport {
     pub prepare: PrepareReport,
+    /// For every vertex of the scene as given, its vertex in the baked (prepared) mesh.
+    pub vertex_map: VertexMap,
     pub samples_used: u32,
     pub rays_cast: u64,
     pub bvh_nodes: usize,
@@ -311,7 +313,7 @@ pub fn bake(
 ) -> Result<(BakedMesh, BakeReport)> {
     options.validate()?;
     let started = Instant::now();
-    let (mut scene, prepare_report) = prepare(scene)?;
+    let (mut scene, prepare_report, vertex_map) = prepare_mapped(scene)?;
     if let Some(albedo) = options.albedo {
         scene.albedo.iter_mut().for_each(|a| *a = albedo);
     }
@@ -371,6 +373,7 @@ pub fn bake(
     };
     let report = BakeReport {
         prepare: prepare_report,
+        vertex_map,
         samples_used: inputs.samples.len() as u32,
         rays_cast,
         bvh_nodes: inputs.bvh.nodes.len(),

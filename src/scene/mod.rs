@@ -5,6 +5,7 @@
 //! vertices spatially, giving the [`Scene`] that is baked and written out.
 
 pub mod builtin;
+pub mod gltf;
 pub mod obj;
 pub mod ply;
 pub mod prepare;
@@ -41,7 +42,15 @@ impl Scene {
 /// Albedo given to surfaces whose file says nothing about their colour.
 pub const DEFAULT_ALBEDO: Vec3 = Vec3::splat(0.8);
 
-/// Loads a mesh file, choosing the reader by extension (`.obj`, `.ply`, `.ply.gz`).
+/// Whether `path` names a glTF scene (`.gltf` or `.glb`), which can be baked in place.
+pub fn is_gltf(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
+}
+
+/// Loads a mesh file, choosing the reader by extension (`.gltf`, `.glb`, `.obj`, `.ply`,
+/// `.ply.gz`). A glTF scene comes flattened to world space; `gltf::load` keeps the document.
 pub fn load(path: &Path) -> Result<Scene> {
     let name = path
         .file_name()
@@ -57,10 +66,12 @@ pub fn load(path: &Path) -> Result<Scene> {
         obj::load(path)
     } else if name.ends_with(".ply") || name.ends_with(".ply.gz") {
         ply::load(path)
+    } else if is_gltf(path) {
+        gltf::load(path).map(|(_, scene)| scene)
     } else {
         Err(Error::mesh(
             path,
-            "unknown mesh format (expected .obj, .ply or .ply.gz)",
+            "unknown mesh format (expected .gltf, .glb, .obj, .ply or .ply.gz)",
         ))
     }
 }

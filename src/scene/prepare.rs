@@ -39,6 +39,20 @@ pub struct PrepareReport {
 /// (angle-weighted), and vertices are reordered along a Morton curve for ray coherence.
 /// Triangle order is kept.
 pub fn prepare(scene: Scene) -> Result<(Scene, PrepareReport)> {
+    prepare_mapped(scene).map(|(scene, report, _)| (scene, report))
+}
+
+/// Where each input vertex went: its index in the prepared scene, or [`DROPPED`].
+pub type VertexMap = Vec<u32>;
+
+/// An input vertex that is in no prepared triangle (unreferenced, or only in degenerate
+/// triangles): it has no prepared vertex.
+pub const DROPPED: u32 = u32::MAX;
+
+/// [`prepare`], and for every input vertex the prepared vertex it became (welded vertices share
+/// one), so that values computed on the prepared scene can be scattered back to the input's
+/// own vertices (bake in place).
+pub fn prepare_mapped(scene: Scene) -> Result<(Scene, PrepareReport, VertexMap)> {
     validate(&scene)?;
     let mut report = PrepareReport {
         input_vertices: scene.positions.len(),
@@ -47,8 +61,8 @@ pub fn prepare(scene: Scene) -> Result<(Scene, PrepareReport)> {
     };
 
     let scene = remove_degenerate_triangles(scene, &mut report)?;
-    let scene = remove_unreferenced_vertices(scene, &mut report);
-    let scene = match usable_normals(&scene) {
+    let (scene, referenced) = remove_unreferenced_vertices(scene, &mut report);
+    let (scene, welded) = match usable_normals(&scene) {
         Some(normals) => weld_with_normals(scene, normals),
         None => {
             report.invalid_normals_replaced = scene.normals.is_some();
@@ -58,11 +72,26 @@ pub fn prepare(scene: Scene) -> Result<(Scene, PrepareReport)> {
     };
     report.vertices_welded =
         report.input_vertices - report.unreferenced_vertices_removed - scene.positions.len();
-    let scene = sort_vertices_morton(scene);
+    let (scene, sorted) = sort_vertices_morton(scene);
 
     report.vertices = scene.positions.len();
     report.triangles = scene.triangles.len();
-    Ok((scene, report))
+    let map = compose(&compose(&referenced, &welded), &sorted);
+    Ok((scene, report, map))
+}
+
+/// The map of `first` then `second`.
+fn compose(first: &[u32], second: &[u32]) -> VertexMap {
+    first
+        .iter()
+        .map(|&i| {
+            if i == DROPPED {
+                DROPPED
+            } else {
+                second[i as usize]
+            }
+        })
+        .collect()
 }
 
 /// Per-vertex normals as the sum of adjacent unit face normals, each weighted by the
@@ -262,7 +291,7 @@ fn two_sum(a: f64, b: f64) -> (f64, f64) {
 }
 
 /// Keeps only referenced vertices, in their original relative order.
-fn remove_unreferenced_vertices(scene: Scene, report: &mut PrepareReport) -> Scene {
+fn remove_unreferenced_vertices(scene: Scene, report: &mut PrepareReport) -> (Scene, VertexMap) {
     let mut referenced = vec![false; scene.positions.len()];
     for &i in scene.triangles.iter().flatten() {
         referenced[i as usize] = true;
@@ -275,14 +304,20 @@ fn remove_unreferenced_vertices(scene: Scene, report: &mut PrepareReport) -> Sce
 }
 
 /// Builds the scene made of the vertices `kept` (old indices, in new order); a triangle
-/// index `i` becomes the new index of `representative(i)`, which must be in `kept`.
-fn select_vertices(scene: &Scene, kept: &[u32], representative: impl Fn(u32) -> u32) -> Scene {
+/// index `i` becomes the new index of `representative(i)`, which must be in `kept` for every
+/// referenced `i`. Also returns, for every old vertex, the new index of its representative
+/// ([`DROPPED`] where that is not kept).
+fn select_vertices(
+    scene: &Scene,
+    kept: &[u32],
+    representative: impl Fn(u32) -> u32,
+) -> (Scene, VertexMap) {
     let mut new_index = vec![u32::MAX; scene.positions.len()];
     for (new, &old) in kept.iter().enumerate() {
         new_index[old as usize] = new as u32;
     }
     let pick = |values: &[Vec3]| kept.iter().map(|&i| values[i as usize]).collect::<Vec<_>>();
-    Scene {
+    let selected = Scene {
         positions: pick(&scene.positions),
         normals: scene.normals.as_deref().map(pick),
         albedo: pick(&scene.albedo),
@@ -291,7 +326,11 @@ fn select_vertices(scene: &Scene, kept: &[u32], representative: impl Fn(u32) -> 
             .iter()
             .map(|t| t.map(|i| new_index[representative(i) as usize]))
             .collect(),
-    }
+    };
+    let map = (0..scene.positions.len() as u32)
+        .map(|old| new_index[representative(old) as usize])
+        .collect();
+    (selected, map)
 }
 
 /// The scene's normals, normalized, if every one is finite and non-zero.
@@ -318,14 +357,14 @@ fn first_with_same_key<K: std::hash::Hash + Eq>(keys: impl Iterator<Item = K>) -
 }
 
 /// Merges vertices whose (position, albedo) or (position, normal, albedo) are identical.
-fn weld(scene: &Scene, representative: &[u32]) -> Scene {
+fn weld(scene: &Scene, representative: &[u32]) -> (Scene, VertexMap) {
     let kept: Vec<u32> = (0..representative.len() as u32)
         .filter(|&i| representative[i as usize] == i)
         .collect();
     select_vertices(scene, &kept, |old| representative[old as usize])
 }
 
-fn weld_with_normals(mut scene: Scene, normals: Vec<Vec3>) -> Scene {
+fn weld_with_normals(mut scene: Scene, normals: Vec<Vec3>) -> (Scene, VertexMap) {
     let representative = first_with_same_key((0..scene.positions.len()).map(|i| {
         (
             key(scene.positions[i]),
@@ -337,37 +376,39 @@ fn weld_with_normals(mut scene: Scene, normals: Vec<Vec3>) -> Scene {
     weld(&scene, &representative)
 }
 
-/// Computes normals over the mesh welded by position alone, then welds by (position, albedo).
-///
-/// Computing on the position-welded mesh means a colour seam (same position, different
-/// albedo) does not also become a shading seam.
-fn weld_and_compute_normals(mut scene: Scene) -> Result<Scene> {
-    let same_position = first_with_same_key(scene.positions.iter().map(|&p| key(p)));
-    let position_triangles: Vec<[u32; 3]> = scene
-        .triangles
+/// The normals `prepare` computes for a mesh without them: angle-weighted over the mesh
+/// welded by position alone, so a seam of UVs or colours is not also a shading seam.
+/// `Vec3::ZERO` for vertices in no non-degenerate triangle.
+pub fn smooth_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    let same_position = first_with_same_key(positions.iter().map(|&p| key(p)));
+    let position_triangles: Vec<[u32; 3]> = triangles
         .iter()
         .map(|t| t.map(|i| same_position[i as usize]))
         .collect();
     // Non-representative vertices are referenced by no triangle here, so their normal is
-    // read from their representative below.
-    let by_position = angle_weighted_normals(&scene.positions, &position_triangles);
+    // read from their representative.
+    let by_position = angle_weighted_normals(positions, &position_triangles);
+    same_position
+        .iter()
+        .map(|&rep| by_position[rep as usize])
+        .collect()
+}
+
+/// Computes normals over the mesh welded by position alone, then welds by (position, albedo).
+///
+/// Computing on the position-welded mesh means a colour seam (same position, different
+/// albedo) does not also become a shading seam.
+fn weld_and_compute_normals(mut scene: Scene) -> Result<(Scene, VertexMap)> {
+    let normals = smooth_normals(&scene.positions, &scene.triangles);
     // Every triangle left is exactly non-degenerate, but its f64 cross product could still
     // round to zero for extreme coordinates; that vertex has no usable normal.
-    if let Some(v) = same_position
-        .iter()
-        .position(|&rep| by_position[rep as usize] == Vec3::ZERO)
-    {
+    if let Some(v) = normals.iter().position(|&n| n == Vec3::ZERO) {
         return Err(Error::Geometry(format!(
             "cannot compute a normal for vertex at {}: its triangles are too small",
             show(scene.positions[v])
         )));
     }
-    scene.normals = Some(
-        same_position
-            .iter()
-            .map(|&rep| by_position[rep as usize])
-            .collect(),
-    );
+    scene.normals = Some(normals);
     let representative = first_with_same_key(
         scene
             .positions
@@ -378,7 +419,7 @@ fn weld_and_compute_normals(mut scene: Scene) -> Result<Scene> {
     Ok(weld(&scene, &representative))
 }
 
-fn sort_vertices_morton(scene: Scene) -> Scene {
+fn sort_vertices_morton(scene: Scene) -> (Scene, VertexMap) {
     let order = crate::morton::morton_order(&scene.positions);
     select_vertices(&scene, &order, |old| old)
 }
@@ -387,6 +428,7 @@ fn sort_vertices_morton(scene: Scene) -> Scene {
 mod tests {
     use super::*;
     use crate::scene::DEFAULT_ALBEDO;
+    use std::path::Path;
 
     fn scene(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Scene {
         Scene {
@@ -647,6 +689,42 @@ mod tests {
         let (prepared, report) = prepare(s).unwrap();
         assert_eq!(report.vertices_welded, 1);
         assert_eq!(prepared.vertex_count(), 4);
+    }
+
+    #[test]
+    fn the_vertex_map_sends_every_input_vertex_to_its_prepared_twin() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/teapot.obj");
+        let mut loaded = crate::scene::obj::load(&path).unwrap();
+        // An unreferenced vertex and one used only by a degenerate triangle are dropped.
+        loaded.positions.push(Vec3::splat(9.0));
+        loaded.albedo.push(Vec3::ONE);
+        let lonely = loaded.positions.len() as u32;
+        loaded.positions.push(Vec3::splat(7.0));
+        loaded.albedo.push(Vec3::ONE);
+        loaded.triangles.push([lonely, lonely, 0]);
+        if let Some(normals) = &mut loaded.normals {
+            normals.extend([Vec3::Y, Vec3::Y]);
+        }
+        let (prepared, report, map) = prepare_mapped(loaded.clone()).unwrap();
+        assert_eq!(map.len(), loaded.positions.len());
+        assert_eq!(map[lonely as usize - 1], DROPPED);
+        assert_eq!(map[lonely as usize], DROPPED);
+        let dropped = map.iter().filter(|&&m| m == DROPPED).count();
+        assert_eq!(dropped, report.unreferenced_vertices_removed);
+        for (input, &to) in map.iter().enumerate() {
+            if to != DROPPED {
+                assert_eq!(prepared.positions[to as usize], loaded.positions[input]);
+                assert_eq!(prepared.albedo[to as usize], loaded.albedo[input]);
+            }
+        }
+        // Every input triangle that survives is the prepared triangle through the map.
+        let kept: Vec<[u32; 3]> = loaded
+            .triangles
+            .iter()
+            .filter(|t| t[0] != lonely)
+            .map(|t| t.map(|i| map[i as usize]))
+            .collect();
+        assert_eq!(kept, prepared.triangles);
     }
 
     #[test]

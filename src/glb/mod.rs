@@ -27,6 +27,8 @@ use serde::{Deserialize, Serialize};
 use crate::bake::{BakeMetadata, BakedMesh, Transfer};
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
+
+pub mod scene;
 use crate::scene::Scene;
 
 /// How the transfer buffer view is laid out; written into `extras.prt.transfer_layout` and
@@ -79,7 +81,22 @@ pub fn write_glb(path: &Path, baked: &BakedMesh) -> Result<()> {
 /// Reads and fully validates a baked file.
 pub fn read_glb(path: &Path) -> Result<BakedMesh> {
     let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
+    if is_scene_file(&bytes) {
+        return scene::read_scene_glb(path);
+    }
     decode_glb(&bytes, path)
+}
+
+/// Whether `bytes` are a glTF scene baked in place ([`scene`]) rather than a single mesh.
+fn is_scene_file(bytes: &[u8]) -> bool {
+    let Some(head) = bytes.get(..20) else {
+        return false;
+    };
+    let Ok(json_len) = check_head(head, bytes.len() as u64, Path::new("")) else {
+        return false;
+    };
+    serde_json::from_slice::<serde_json::Value>(&bytes[20..20 + json_len])
+        .is_ok_and(|doc| doc["extras"]["prt"]["baked_in_place"] == serde_json::json!(true))
 }
 
 /// Reads only the header and JSON of a baked file: metadata, vertex count, triangle count.
@@ -87,6 +104,12 @@ pub fn read_glb(path: &Path) -> Result<BakedMesh> {
 /// The layout is validated against the BIN chunk's length, but its contents are not read, so
 /// this stays fast on large bakes.
 pub fn read_metadata(path: &Path) -> Result<(BakeMetadata, usize, usize)> {
+    let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
+    if is_scene_file(&bytes) {
+        let baked = scene::read_scene_glb(path)?;
+        let (vertices, triangles) = (baked.scene.positions.len(), baked.scene.triangles.len());
+        return Ok((baked.metadata, vertices, triangles));
+    }
     let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
     let file_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut read = |buf: &mut [u8], what: &str| -> Result<()> {
@@ -448,7 +471,7 @@ fn transfer_len(v: usize, channels: u32, bands: u32) -> Option<usize> {
         .checked_mul((bands as usize).checked_mul(bands as usize)?)
 }
 
-fn groups(bands: u32) -> usize {
+pub(crate) fn groups(bands: u32) -> usize {
     (bands as usize * bands as usize).div_ceil(4)
 }
 
@@ -600,7 +623,7 @@ fn accessors_and_attributes(baked: &BakedMesh) -> (Vec<AccessorJson>, BTreeMap<S
 }
 
 /// The glTF binary container: header, JSON chunk (space-padded), BIN chunk (zero-padded).
-fn glb_container(mut json: Vec<u8>, mut bin: Vec<u8>) -> Result<Vec<u8>> {
+pub(crate) fn glb_container(mut json: Vec<u8>, mut bin: Vec<u8>) -> Result<Vec<u8>> {
     json.resize(json.len().next_multiple_of(4), b' ');
     bin.resize(bin.len().next_multiple_of(4), 0);
     let total = 12 + 8 + json.len() + 8 + bin.len();
@@ -1247,7 +1270,7 @@ mod tests {
 
     #[test]
     fn readme_quotes_the_python_reader_verbatim() {
-        let readme = include_str!("../README.md");
+        let readme = include_str!("../../README.md");
         assert!(
             readme.contains(PYTHON_READER),
             "README.md's Python snippet differs from PYTHON_READER"

@@ -1,0 +1,861 @@
+//! glTF scenes in, the same scene out with its transfer baked in: the assimp test models bake
+//! or fail clearly, placements bake like the mesh transformed by hand, textures average, the
+//! scene survives the round trip and passes the Khronos validator, CPU and GPU agree.
+
+mod common;
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use base64::Engine;
+use glam::{Mat3, Mat4, Quat, Vec3};
+use prt_gpu::bake::{bake, Backend, BakeOptions, BakeReport, BakedMesh, Mode, NoProgress};
+use prt_gpu::glb::scene::{encode_scene_glb, read_scene_glb, write_scene_glb};
+use prt_gpu::sampling::Sampling;
+use prt_gpu::scene::gltf::{self as gltf_scene, GltfScene};
+use prt_gpu::scene::{self, builtin, Scene};
+use serde_json::{json, Value};
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/gltf")
+        .join(name)
+}
+
+fn quick() -> BakeOptions {
+    BakeOptions {
+        samples: 64,
+        ..BakeOptions::default()
+    }
+}
+
+fn bake_gltf(
+    path: &Path,
+    options: &BakeOptions,
+    backend: &Backend,
+) -> (GltfScene, BakedMesh, BakeReport) {
+    let (gltf, scene) = gltf_scene::load(path).unwrap_or_else(|e| panic!("{e}"));
+    let (baked, report) = bake(scene, options, backend, &NoProgress).unwrap();
+    (gltf, baked, report)
+}
+
+/// The JSON chunk of a .glb.
+fn glb_json(bytes: &[u8]) -> Value {
+    let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    serde_json::from_slice(&bytes[20..20 + n]).unwrap()
+}
+
+/// The JSON of a glTF file as read, .gltf or .glb.
+fn input_json(path: &Path) -> Value {
+    let bytes = std::fs::read(path).unwrap();
+    if bytes.starts_with(b"glTF") {
+        glb_json(&bytes)
+    } else {
+        serde_json::from_slice(&bytes).unwrap()
+    }
+}
+
+fn names(doc: &Value, array: &str) -> Vec<Value> {
+    doc[array]
+        .as_array()
+        .map(|items| items.iter().map(|i| i["name"].clone()).collect())
+        .unwrap_or_default()
+}
+
+fn count(doc: &Value, array: &str) -> usize {
+    doc[array].as_array().map_or(0, Vec::len)
+}
+
+fn assert_valid(path: &Path) {
+    if let Some(report) = common::validate_gltf(path) {
+        assert_eq!(
+            report.num_errors,
+            0,
+            "{}: {}",
+            path.display(),
+            report.listing()
+        );
+    }
+}
+
+#[test]
+fn the_assimp_scenes_bake_and_pass_the_validator() {
+    let out = tempfile::tempdir().unwrap();
+    for name in [
+        "BoxTextured/BoxTextured.gltf",
+        "BoxTextured.glb",
+        "BoxTextured-Embedded.gltf",
+        "TextureTransformTest/TextureTransformTest.gltf",
+        "Mesh_PrimitiveMode/Mesh_PrimitiveMode_04.gltf",
+        "Mesh_PrimitiveMode/Mesh_PrimitiveMode_05.gltf",
+        "Mesh_PrimitiveMode/Mesh_PrimitiveMode_06.gltf",
+        "Mesh_PrimitiveMode/Mesh_PrimitiveMode_11.gltf",
+        "Mesh_PrimitiveMode/Mesh_PrimitiveMode_12.gltf",
+        "Mesh_PrimitiveMode/Mesh_PrimitiveMode_13.gltf",
+        "Mesh_PrimitiveMode/Mesh_PrimitiveMode_14.gltf",
+        "Mesh_PrimitiveMode/Mesh_PrimitiveMode_15.gltf",
+        "2CylinderEngine.glb",
+    ] {
+        let (gltf, baked, report) = bake_gltf(&data(name), &quick(), &Backend::Cpu);
+        let target = out
+            .path()
+            .join(name.replace('/', "_"))
+            .with_extension("glb");
+        let written = write_scene_glb(&target, &gltf, &baked, &report.vertex_map).unwrap();
+        let primitives: usize = gltf.instances.iter().map(|i| i.primitives.len()).sum();
+        assert_eq!(written.primitives_baked, primitives, "{name}");
+        assert_valid(&target);
+        // What `info` and `render` read: every placement, with its transfer.
+        let back = prt_gpu::glb::read_glb(&target).unwrap();
+        assert_eq!(back.metadata, baked.metadata, "{name}");
+        assert_eq!(
+            back.transfer.vertex_count,
+            report.vertex_map.len(),
+            "{name}"
+        );
+        assert!(back.transfer.coeffs.iter().any(|&c| c != 0.0), "{name}");
+    }
+}
+
+#[test]
+fn points_lines_and_compressed_or_broken_files_fail_in_one_line() {
+    for (name, expect) in [
+        (
+            "Mesh_PrimitiveMode/Mesh_PrimitiveMode_00.gltf",
+            "no triangles (only points or lines)",
+        ),
+        (
+            "Mesh_PrimitiveMode/Mesh_PrimitiveMode_01.gltf",
+            "no triangles (only points or lines)",
+        ),
+        (
+            "Mesh_PrimitiveMode/Mesh_PrimitiveMode_10.gltf",
+            "no triangles (only points or lines)",
+        ),
+        ("draco/2CylinderEngine.gltf", "KHR_draco_mesh_compression"),
+        (
+            "broken/IndexOutOfRange/IndexOutOfRange.gltf",
+            "uses vertex 255 but has only 24 vertices",
+        ),
+        (
+            "broken/IndexOutOfRange/AllIndicesOutOfRange.gltf",
+            "but has only 24 vertices",
+        ),
+        ("broken/MissingBin/BoxTextured.gltf", "cannot read a buffer"),
+        ("broken/BoxWithInfinites.glb", "invalid glTF"),
+        ("broken/wrongTypes/badArray.gltf", "invalid type"),
+        ("broken/wrongTypes/badExtension.gltf", "invalid type"),
+        ("broken/wrongTypes/badNumber.gltf", "invalid type"),
+        ("broken/wrongTypes/badObject.gltf", "invalid type"),
+        ("broken/wrongTypes/badString.gltf", "invalid type"),
+        ("broken/wrongTypes/badUint.gltf", "invalid type"),
+        ("broken/RecursiveNodes.gltf", "recursive nodes"),
+        ("broken/NoScene.gltf", "scene: Index out of bounds"),
+        ("broken/SceneWithoutNodes.gltf", "missing field `nodes`"),
+    ] {
+        let path = data(name);
+        let error = match gltf_scene::load(&path) {
+            Ok(_) => panic!("{name} loaded"),
+            Err(e) => e.to_string(),
+        };
+        assert!(!error.contains('\n'), "{name}: {error}");
+        assert!(
+            error.starts_with(&path.display().to_string()),
+            "{name}: {error}"
+        );
+        assert!(error.contains(expect), "{name}: {error}");
+    }
+}
+
+#[test]
+fn the_cli_refuses_a_broken_scene_without_leaving_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in [
+        "broken/RecursiveNodes.gltf",
+        "draco/2CylinderEngine.gltf",
+        "broken/BoxWithInfinites.glb",
+    ] {
+        let output = dir.path().join("out.glb");
+        let run = Command::new(env!("CARGO_BIN_EXE_prt-gpu"))
+            .args(["bake", "--device", "cpu", "-o"])
+            .arg(&output)
+            .arg(data(name))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(!run.status.success(), "{name}");
+        let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+        assert_eq!(errors.len(), 1, "{name}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{name}: {stderr}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "{name}");
+    }
+}
+
+#[test]
+fn strips_and_fans_are_the_triangles_they_describe() {
+    let load = |n: &str| {
+        gltf_scene::load(&data(&format!(
+            "Mesh_PrimitiveMode/Mesh_PrimitiveMode_{n}.gltf"
+        )))
+        .unwrap()
+        .1
+    };
+    for (strip, fan, list) in [("04", "05", "06"), ("11", "12", "13")] {
+        let reference = load(list);
+        let area_normal = |s: &Scene| {
+            s.triangles.iter().fold(Vec3::ZERO, |sum, t| {
+                let [a, b, c] = t.map(|i| s.positions[i as usize]);
+                sum + (b - a).cross(c - a)
+            })
+        };
+        for other in [load(strip), load(fan)] {
+            assert_eq!(other.triangles.len(), reference.triangles.len());
+            // Same area, facing the same way: the winding survived the conversion.
+            assert!((area_normal(&other) - area_normal(&reference)).length() < 1e-6);
+        }
+    }
+}
+
+/// A .gltf whose buffer is a base64 `data:` URI, built in the tests.
+#[derive(Default)]
+struct GltfBuilder {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl GltfBuilder {
+    fn floats(&mut self, values: &[f32], kind: &str, bounds: bool) -> usize {
+        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let components = match kind {
+            "VEC2" => 2,
+            "VEC3" => 3,
+            _ => 4,
+        };
+        let mut accessor = json!({
+            "bufferView": self.view(&bytes, 34962),
+            "componentType": 5126,
+            "count": values.len() / components,
+            "type": kind,
+        });
+        if bounds {
+            let column = |c: usize, pick: fn(f32, f32) -> f32| {
+                values
+                    .iter()
+                    .skip(c)
+                    .step_by(components)
+                    .copied()
+                    .reduce(pick)
+                    .unwrap()
+            };
+            accessor["min"] = json!((0..components)
+                .map(|c| column(c, f32::min))
+                .collect::<Vec<_>>());
+            accessor["max"] = json!((0..components)
+                .map(|c| column(c, f32::max))
+                .collect::<Vec<_>>());
+        }
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    fn indices(&mut self, triangles: &[[u32; 3]]) -> usize {
+        let bytes: Vec<u8> = triangles
+            .iter()
+            .flatten()
+            .flat_map(|i| (*i as u16).to_le_bytes())
+            .collect();
+        let view = self.view(&bytes, 34963);
+        self.accessors.push(json!({
+            "bufferView": view, "componentType": 5123, "count": triangles.len() * 3, "type": "SCALAR"
+        }));
+        self.accessors.len() - 1
+    }
+
+    fn view(&mut self, bytes: &[u8], target: u32) -> usize {
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+        self.views.push(json!({
+            "buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len(), "target": target
+        }));
+        self.bin.extend_from_slice(bytes);
+        self.views.len() - 1
+    }
+
+    /// A primitive of `mesh` (positions, normals, optional UVs) as glTF attributes.
+    fn primitive(&mut self, mesh: &Scene, uvs: Option<&[[f32; 2]]>) -> Value {
+        let positions: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
+        let normals: Vec<f32> = mesh
+            .normals
+            .as_ref()
+            .unwrap()
+            .iter()
+            .flat_map(|n| n.to_array())
+            .collect();
+        let mut attributes = json!({
+            "POSITION": self.floats(&positions, "VEC3", true),
+            "NORMAL": self.floats(&normals, "VEC3", false),
+        });
+        if let Some(uvs) = uvs {
+            let flat: Vec<f32> = uvs.iter().flatten().copied().collect();
+            attributes["TEXCOORD_0"] = json!(self.floats(&flat, "VEC2", false));
+        }
+        json!({ "attributes": attributes, "indices": self.indices(&mesh.triangles) })
+    }
+
+    fn finish(self, mut doc: Value, dir: &Path, name: &str) -> PathBuf {
+        let uri = format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&self.bin)
+        );
+        doc["asset"] = json!({ "version": "2.0" });
+        doc["buffers"] = json!([{ "byteLength": self.bin.len(), "uri": uri }]);
+        doc["bufferViews"] = json!(self.views);
+        doc["accessors"] = json!(self.accessors);
+        let path = dir.join(name);
+        std::fs::write(&path, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
+        path
+    }
+}
+
+/// A sphere shown by two nodes — one translated and turned, one mirrored by a negative scale —
+/// over a ground mesh: bake it as glTF, and bake the same geometry transformed by hand as an
+/// OBJ. Placement for placement, vertex for vertex, the transfer must be the same.
+#[test]
+fn two_placements_bake_like_the_mesh_transformed_by_hand() {
+    let dir = tempfile::tempdir().unwrap();
+    let sphere = builtin::icosphere(Vec3::ZERO, 0.5, 2);
+    let sphere = scene::prepare::prepare(sphere).unwrap().0;
+    let ground = builtin::grid_plane(Vec3::ZERO, Vec3::X * 3.0, Vec3::NEG_Z * 3.0, 6, Vec3::ONE);
+    let ground = scene::prepare::prepare(ground).unwrap().0;
+    let placements = [
+        Mat4::from_scale_rotation_translation(
+            Vec3::ONE,
+            Quat::from_rotation_y(0.7),
+            Vec3::new(-0.6, 0.55, 0.1),
+        ),
+        Mat4::from_scale_rotation_translation(
+            Vec3::new(-1.0, 1.0, 1.0),
+            Quat::IDENTITY,
+            Vec3::new(0.6, 0.5, 0.0),
+        ),
+        Mat4::IDENTITY,
+    ];
+    let mut builder = GltfBuilder::default();
+    let sphere_primitive = builder.primitive(&sphere, None);
+    let ground_primitive = builder.primitive(&ground, None);
+    let node = |mesh: usize, m: &Mat4| json!({ "mesh": mesh, "matrix": m.to_cols_array() });
+    let doc = json!({
+        "scene": 0,
+        "scenes": [{ "nodes": [0, 1, 2] }],
+        "nodes": [node(0, &placements[0]), node(0, &placements[1]), node(1, &placements[2])],
+        "meshes": [{ "name": "sphere", "primitives": [sphere_primitive] }, { "name": "ground", "primitives": [ground_primitive] }],
+    });
+    let gltf_path = builder.finish(doc, dir.path(), "placed.gltf");
+
+    // The same geometry placed by hand, mirrored winding flipped, in the glTF's vertex order.
+    let mut obj = String::new();
+    let mut first = 1;
+    for (mesh, world) in [
+        (&sphere, placements[0]),
+        (&sphere, placements[1]),
+        (&ground, placements[2]),
+    ] {
+        let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
+        for (p, n) in mesh.positions.iter().zip(mesh.normals.as_ref().unwrap()) {
+            let p = world.transform_point3(*p);
+            let n = (normal_matrix * *n).normalize_or_zero();
+            obj += &format!(
+                "v {:?} {:?} {:?}\nvn {:?} {:?} {:?}\n",
+                p.x, p.y, p.z, n.x, n.y, n.z
+            );
+        }
+        let mirrored = Mat3::from_mat4(world).determinant() < 0.0;
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|i| i + first);
+            let [b, c] = if mirrored { [c, b] } else { [b, c] };
+            obj += &format!("f {a}//{a} {b}//{b} {c}//{c}\n");
+        }
+        first += mesh.positions.len() as u32;
+    }
+    let obj_path = dir.path().join("placed.obj");
+    std::fs::write(&obj_path, obj).unwrap();
+
+    // A shared direction set: every vertex's estimate is independent of vertex order.
+    let options = BakeOptions {
+        samples: 256,
+        sampling: Sampling::Fibonacci,
+        albedo: Some(Vec3::splat(0.5)),
+        ..BakeOptions::default()
+    };
+    let (gltf, baked, report) = bake_gltf(&gltf_path, &options, &Backend::Cpu);
+    assert_eq!(gltf.instances.len(), 3);
+    let out = dir.path().join("placed.prt.glb");
+    let written = write_scene_glb(&out, &gltf, &baked, &report.vertex_map).unwrap();
+    assert_eq!(
+        written.mesh_copies, 1,
+        "the second sphere gets its own mesh"
+    );
+    assert_valid(&out);
+
+    let (by_hand, _) = bake(
+        scene::load(&obj_path).unwrap(),
+        &options,
+        &Backend::Cpu,
+        &NoProgress,
+    )
+    .unwrap();
+    let key = |p: Vec3| p.to_array().map(f32::to_bits);
+    let expected: HashMap<[u32; 3], usize> = by_hand
+        .scene
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, &p)| (key(p), i))
+        .collect();
+    let back = read_scene_glb(&out).unwrap();
+    assert_eq!(
+        back.scene.positions.len(),
+        2 * sphere.positions.len() + ground.positions.len()
+    );
+    let mut compared = 0;
+    for (v, p) in back.scene.positions.iter().enumerate() {
+        let twin = expected[&key(*p)];
+        for channel in 0..3 {
+            let ours = back.transfer.vertex_channel(v, channel);
+            let theirs = by_hand.transfer.vertex_channel(twin, channel);
+            for (a, b) in ours.iter().zip(theirs) {
+                assert!(
+                    (a - b).abs() <= 1e-6,
+                    "vertex {v} channel {channel}: {a} vs {b}"
+                );
+            }
+        }
+        compared += 1;
+    }
+    assert_eq!(compared, back.scene.positions.len());
+    // The two spheres are not the same: each sees the other and the ground from its own place.
+    let n = sphere.positions.len();
+    let differs = (0..n)
+        .any(|v| back.transfer.vertex_channel(v, 0) != back.transfer.vertex_channel(v + n, 0));
+    assert!(differs);
+}
+
+fn png(width: u32, height: u32, texel: impl Fn(u32, u32) -> u8) -> Vec<u8> {
+    let image = image::GrayImage::from_fn(width, height, |x, y| image::Luma([texel(x, y)]));
+    let mut bytes = Vec::new();
+    image
+        .write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )
+        .unwrap();
+    bytes
+}
+
+/// A plane with UVs = position, textured by `image`, loaded: its per-vertex albedo.
+fn textured_plane_albedo(image: Vec<u8>, cells: u32) -> (Scene, Vec<[f32; 2]>) {
+    let dir = tempfile::tempdir().unwrap();
+    let plane = builtin::grid_plane(
+        Vec3::new(0.5, 0.0, 0.5),
+        Vec3::X * 0.5,
+        Vec3::Z * 0.5,
+        cells,
+        Vec3::ONE,
+    );
+    let plane = scene::prepare::prepare(plane).unwrap().0;
+    let uvs: Vec<[f32; 2]> = plane.positions.iter().map(|p| [p.x, p.z]).collect();
+    let mut builder = GltfBuilder::default();
+    let primitive = builder.primitive(&plane, Some(&uvs));
+    let uri = format!(
+        "data:image/png;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(image)
+    );
+    let mut primitive = primitive;
+    primitive["material"] = json!(0);
+    let doc = json!({
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "mesh": 0 }],
+        "meshes": [{ "primitives": [primitive] }],
+        "materials": [{ "pbrMetallicRoughness": { "baseColorTexture": { "index": 0 } } }],
+        "textures": [{ "source": 0, "sampler": 0 }],
+        "samplers": [{ "wrapS": 33071, "wrapT": 33071 }],
+        "images": [{ "uri": uri }],
+    });
+    let path = builder.finish(doc, dir.path(), "plane.gltf");
+    let (_, loaded) = gltf_scene::load(&path).unwrap();
+    (loaded, uvs)
+}
+
+#[test]
+fn a_texture_half_black_half_white_gives_albedo_zero_and_one() {
+    let (plane, uvs) = textured_plane_albedo(png(64, 64, |x, _| if x < 32 { 0 } else { 255 }), 8);
+    let mut seen = (0, 0);
+    for (albedo, uv) in plane.albedo.iter().zip(&uvs) {
+        // Vertices whose surrounding triangles lie in one half (cells are 1/8 wide).
+        if uv[0] < 0.5 - 0.125 - 1e-3 {
+            assert!(albedo.max_element() < 1e-3, "{uv:?}: {albedo}");
+            seen.0 += 1;
+        } else if uv[0] > 0.5 + 0.125 + 1e-3 {
+            assert!(albedo.min_element() > 1.0 - 1e-3, "{uv:?}: {albedo}");
+            seen.1 += 1;
+        }
+    }
+    assert!(seen.0 > 10 && seen.1 > 10, "{seen:?}");
+}
+
+#[test]
+fn a_checkerboard_finer_than_the_triangles_averages_to_its_mean() {
+    // One-texel checks of sRGB 0 and 255, triangles 32 texels across: every vertex is grey
+    // (linear 0.5), though a point sample at its UV would be black or white.
+    let checks = png(128, 128, |x, y| if (x + y) % 2 == 0 { 0 } else { 255 });
+    let (plane, uvs) = textured_plane_albedo(checks.clone(), 4);
+    let texture = prt_gpu::scene::texture::Texture::decode(&checks, "checks").unwrap();
+    for (albedo, uv) in plane.albedo.iter().zip(&uvs) {
+        assert!((albedo.x - 0.5).abs() < 0.02, "{albedo}");
+        // The texel the vertex's UV falls in, sampled at its centre, is black or white.
+        let texel = uv.map(|c| ((c * 128.0).floor().min(127.0) + 0.5) / 128.0);
+        let point = texture.sample(texel)[0];
+        assert!(
+            !(0.01..=0.99).contains(&point),
+            "the texel at {uv:?} is {point}"
+        );
+    }
+}
+
+#[test]
+fn the_round_trip_keeps_nodes_meshes_materials_textures_names_and_indices() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in [
+        "BoxTextured/BoxTextured.gltf",
+        "2CylinderEngine.glb",
+        "TextureTransformTest/TextureTransformTest.gltf",
+    ] {
+        let input = data(name);
+        let (gltf, baked, report) = bake_gltf(&input, &quick(), &Backend::Cpu);
+        let (bytes, written) = encode_scene_glb(&gltf, &baked, &report.vertex_map).unwrap();
+        let before = input_json(&input);
+        let after = glb_json(&bytes);
+        for array in [
+            "nodes",
+            "materials",
+            "textures",
+            "images",
+            "samplers",
+            "cameras",
+        ] {
+            assert_eq!(
+                count(&after, array),
+                count(&before, array),
+                "{name} {array}"
+            );
+            assert_eq!(
+                names(&after, array),
+                names(&before, array),
+                "{name} {array}"
+            );
+        }
+        let meshes = count(&before, "meshes");
+        assert_eq!(
+            count(&after, "meshes"),
+            meshes + written.mesh_copies,
+            "{name}"
+        );
+        assert_eq!(
+            names(&after, "meshes")[..meshes],
+            names(&before, "meshes")[..],
+            "{name}"
+        );
+        // Index buffers hold the input's indices, vertex for vertex.
+        let (root, buffers) = (&gltf.root, &gltf.buffers);
+        let target = dir.path().join("round.glb");
+        std::fs::write(&target, &bytes).unwrap();
+        assert_valid(&target);
+        let (reread, _) = gltf_scene::load(&target).unwrap();
+        for (mesh_index, mesh) in root.meshes.iter().enumerate() {
+            for (p, primitive) in mesh.primitives.iter().enumerate() {
+                let Some(indices) = primitive.indices else {
+                    continue;
+                };
+                let original = gltf_scene::accessor::dense(root, buffers, indices.value())
+                    .unwrap()
+                    .indices()
+                    .unwrap();
+                let again = reread.root.meshes[mesh_index].primitives[p]
+                    .indices
+                    .unwrap();
+                let again =
+                    gltf_scene::accessor::dense(&reread.root, &reread.buffers, again.value())
+                        .unwrap()
+                        .indices()
+                        .unwrap();
+                assert_eq!(original, again, "{name} mesh {mesh_index}");
+            }
+        }
+    }
+}
+
+#[test]
+fn the_numpy_recipe_reads_a_scene_baked_in_place() {
+    let numpy = Command::new("python3")
+        .args(["-c", "import numpy"])
+        .output();
+    if !numpy.is_ok_and(|o| o.status.success()) {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "python3 with numpy is missing under CI"
+        );
+        eprintln!("skipping: python3 with numpy is not available");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (gltf, baked, report) = bake_gltf(&data("BoxTextured.glb"), &quick(), &Backend::Cpu);
+    let target = dir.path().join("box.prt.glb");
+    write_scene_glb(&target, &gltf, &baked, &report.vertex_map).unwrap();
+    let out = Command::new("python3")
+        .arg("-c")
+        .arg(prt_gpu::glb::PYTHON_READER)
+        .arg(&target)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let printed: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(printed["positions"], json!([24, 3]));
+    assert_eq!(printed["indices"], json!([12, 3]));
+    assert_eq!(printed["transfer"], json!([24, 3, 16]));
+    let back = read_scene_glb(&target).unwrap();
+    let last: Vec<Vec<f32>> = serde_json::from_value(printed["last_vertex"].clone()).unwrap();
+    for (channel, row) in last.iter().enumerate() {
+        assert_eq!(row[..], back.transfer.vertex_channel(23, channel)[..]);
+    }
+}
+
+#[test]
+fn cpu_and_gpu_bake_a_scene_alike() {
+    let options = quick();
+    let mut results = Vec::new();
+    for backend in common::backends() {
+        let (_, baked, _) = bake_gltf(
+            &data("TextureTransformTest/TextureTransformTest.gltf"),
+            &options,
+            &backend,
+        );
+        results.push(baked.transfer.coeffs);
+    }
+    if let [cpu, gpu] = &results[..] {
+        let worst = cpu
+            .iter()
+            .zip(gpu)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-5, "CPU and GPU differ by {worst}");
+    }
+}
+
+#[test]
+fn interreflected_scenes_bake_in_place_too() {
+    let options = BakeOptions {
+        mode: Mode::Interreflected,
+        bounces: 2,
+        ..quick()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (gltf, baked, report) = bake_gltf(
+        &data("BoxTextured/BoxTextured.gltf"),
+        &options,
+        &Backend::Cpu,
+    );
+    let target = dir.path().join("box.glb");
+    write_scene_glb(&target, &gltf, &baked, &report.vertex_map).unwrap();
+    assert_valid(&target);
+    assert_eq!(prt_gpu::glb::read_metadata(&target).unwrap().0.bounces, 2);
+}
+
+/// Little-endian bytes of `values` through `to_bytes`.
+fn le<T: Copy, const N: usize>(values: &[T], to_bytes: impl Fn(T) -> [u8; N]) -> Vec<u8> {
+    values.iter().flat_map(|&v| to_bytes(v)).collect()
+}
+
+/// KHR_mesh_quantization positions and normals interleaved in one view, and a sparse COLOR_0
+/// with no view at all: read as the specification says, written back as floats.
+#[test]
+fn quantized_interleaved_and_sparse_accessors_are_read_as_specified() {
+    let dir = tempfile::tempdir().unwrap();
+    // A unit quad in z = 0: positions as normalized i16 (32767 = 1.0), normals as normalized
+    // i8, interleaved: [x y z pad | nx ny nz pad] = 12 bytes a vertex.
+    let corners: [[i16; 3]; 4] = [[0, 0, 0], [32767, 0, 0], [32767, 32767, 0], [0, 32767, 0]];
+    let mut interleaved = Vec::new();
+    for c in corners {
+        interleaved.extend(le(&c, i16::to_le_bytes));
+        interleaved.extend([0, 0]);
+        interleaved.extend([0u8, 0, 127, 0]);
+    }
+    let indices = le(&[0u16, 1, 2, 0, 2, 3], u16::to_le_bytes);
+    let sparse_indices = le(&[2u8], |v| [v]);
+    let sparse_values = le(&[0.25f32, 0.5, 0.75], f32::to_le_bytes);
+    let mut bin = interleaved.clone();
+    let indices_at = bin.len();
+    bin.extend(&indices);
+    let sparse_at = bin.len();
+    bin.extend(&sparse_indices);
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let values_at = bin.len();
+    bin.extend(&sparse_values);
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bin)
+    );
+    let doc = json!({
+        "asset": { "version": "2.0" },
+        "extensionsUsed": ["KHR_mesh_quantization"],
+        "extensionsRequired": ["KHR_mesh_quantization"],
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "mesh": 0, "scale": [2.0, 2.0, 2.0] }],
+        "meshes": [{ "primitives": [{
+            "attributes": { "POSITION": 0, "NORMAL": 1, "COLOR_0": 3 },
+            "indices": 2,
+        }] }],
+        "buffers": [{ "byteLength": bin.len(), "uri": uri }],
+        "bufferViews": [
+            { "buffer": 0, "byteOffset": 0, "byteLength": interleaved.len(), "byteStride": 12, "target": 34962 },
+            { "buffer": 0, "byteOffset": indices_at, "byteLength": indices.len(), "target": 34963 },
+            { "buffer": 0, "byteOffset": sparse_at, "byteLength": sparse_indices.len() },
+            { "buffer": 0, "byteOffset": values_at, "byteLength": sparse_values.len() },
+        ],
+        "accessors": [
+            { "bufferView": 0, "componentType": 5122, "normalized": true, "count": 4, "type": "VEC3",
+              "min": [0, 0, 0], "max": [32767, 32767, 0] },
+            { "bufferView": 0, "byteOffset": 8, "componentType": 5120, "normalized": true, "count": 4, "type": "VEC3" },
+            { "bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR" },
+            { "componentType": 5126, "count": 4, "type": "VEC3",
+              "sparse": { "count": 1, "indices": { "bufferView": 2, "componentType": 5121 },
+                          "values": { "bufferView": 3 } } },
+        ],
+    });
+    let path = dir.path().join("quantized.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let (gltf, loaded) = gltf_scene::load(&path).unwrap();
+    let expected = [
+        [0.0, 0.0, 0.0],
+        [2.0, 0.0, 0.0],
+        [2.0, 2.0, 0.0],
+        [0.0, 2.0, 0.0],
+    ];
+    assert_eq!(
+        loaded
+            .positions
+            .iter()
+            .map(|p| p.to_array())
+            .collect::<Vec<_>>(),
+        expected
+    );
+    assert_eq!(loaded.normals.as_ref().unwrap(), &vec![Vec3::Z; 4]);
+    // COLOR_0 is zero but where the sparse value replaces vertex 2.
+    let albedo: Vec<[f32; 3]> = loaded.albedo.iter().map(|a| a.to_array()).collect();
+    assert_eq!(albedo, [[0.0; 3], [0.0; 3], [0.25, 0.5, 0.75], [0.0; 3]]);
+
+    let (baked, report) = bake(loaded, &quick(), &Backend::Cpu, &NoProgress).unwrap();
+    let target = dir.path().join("quantized.prt.glb");
+    write_scene_glb(&target, &gltf, &baked, &report.vertex_map).unwrap();
+    assert_valid(&target);
+    let written = glb_json(&std::fs::read(&target).unwrap());
+    let accessors = &written["accessors"];
+    assert_eq!(
+        accessors[0]["componentType"],
+        json!(5126),
+        "POSITION becomes float"
+    );
+    assert_eq!(accessors[0]["max"], json!([1.0, 1.0, 0.0]));
+    assert_eq!(
+        accessors[2]["componentType"],
+        json!(5125),
+        "indices become u32"
+    );
+    assert!(
+        accessors[3].get("sparse").is_none(),
+        "sparse accessors are written dense"
+    );
+    let (_, reread) = gltf_scene::load(&target).unwrap();
+    assert_eq!(
+        reread
+            .positions
+            .iter()
+            .map(|p| p.to_array())
+            .collect::<Vec<_>>(),
+        expected
+    );
+}
+
+#[test]
+fn skinned_and_morphing_meshes_bake_in_their_rest_pose_with_a_note() {
+    let out = tempfile::tempdir().unwrap();
+    for (name, expect) in [
+        (
+            "simple_skin.gltf",
+            "1 skinned node(s) (0) baked in their rest pose",
+        ),
+        (
+            "AnimatedMorphCube/AnimatedMorphCube.gltf",
+            "1 morphing mesh(es) (0) baked in their rest pose",
+        ),
+    ] {
+        let (gltf, baked, report) = bake_gltf(&data(name), &quick(), &Backend::Cpu);
+        assert!(
+            gltf.notes.iter().any(|n| n == expect),
+            "{name}: {:?}",
+            gltf.notes
+        );
+        let target = out.path().join("out.glb");
+        write_scene_glb(&target, &gltf, &baked, &report.vertex_map).unwrap();
+        assert_valid(&target);
+        // Skins, joints, morph targets and animations travel with the scene.
+        let (before, after) = (
+            input_json(&data(name)),
+            glb_json(&std::fs::read(&target).unwrap()),
+        );
+        for array in ["skins", "animations"] {
+            assert_eq!(
+                count(&after, array),
+                count(&before, array),
+                "{name} {array}"
+            );
+        }
+        assert_eq!(
+            after["meshes"][0]["primitives"][0]["targets"]
+                .as_array()
+                .map(Vec::len),
+            before["meshes"][0]["primitives"][0]["targets"]
+                .as_array()
+                .map(Vec::len),
+            "{name}"
+        );
+    }
+}
+
+#[test]
+fn masked_materials_are_named_in_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    let quad = builtin::grid_plane(Vec3::ZERO, Vec3::X, Vec3::Z, 1, Vec3::ONE);
+    let mut builder = GltfBuilder::default();
+    let mut primitive = builder.primitive(&quad, None);
+    primitive["material"] = json!(0);
+    let doc = json!({
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "mesh": 0 }],
+        "meshes": [{ "primitives": [primitive] }],
+        "materials": [{ "name": "leaves", "alphaMode": "MASK" }],
+    });
+    let path = builder.finish(doc, dir.path(), "masked.gltf");
+    let (gltf, _) = gltf_scene::load(&path).unwrap();
+    assert!(
+        gltf.notes
+            .iter()
+            .any(|n| n.contains("\"leaves\"") && n.contains("opaque")),
+        "{:?}",
+        gltf.notes
+    );
+}

@@ -579,16 +579,7 @@ fn sample_label(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The sorted names in a directory.
-    fn entries(dir: &Path) -> Vec<String> {
-        let mut names: Vec<String> = std::fs::read_dir(dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        names.sort();
-        names
-    }
+    use crate::testing::entries;
 
     /// Error falling as 1/sqrt(samples), time growing with samples, per strategy and backend.
     fn series(label: &str, seconds_per_sample: f64, error_scale: f64) -> ChartSeries {

@@ -26,5 +26,6 @@ pub mod scene;
 pub mod sh;
 pub mod shaders;
 pub mod sweep;
+pub mod testing;
 
 pub use error::{Error, Result};

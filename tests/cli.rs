@@ -1,5 +1,6 @@
 //! The command line end to end: a bake, `info`, and every kind of bad input failing cleanly.
 
+use prt_gpu::testing::entries;
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -9,15 +10,6 @@ fn prt_gpu(args: &[&str], dir: &Path) -> Output {
         .current_dir(dir)
         .output()
         .expect("run prt-gpu")
-}
-
-fn files_in(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 #[test]
@@ -34,7 +26,7 @@ fn bakes_the_builtin_scene_and_reports_it() {
         stdout.contains("vertices") && stdout.contains("rays/s"),
         "{stdout}"
     );
-    assert_eq!(files_in(dir.path()), ["scene.glb"]);
+    assert_eq!(entries(dir.path()), ["scene.glb"]);
 
     let info = prt_gpu(&["info", "scene.glb"], dir.path());
     let text = String::from_utf8_lossy(&info.stdout);
@@ -112,7 +104,7 @@ fn assert_clean_failure(input: &BadInput) {
     if let Some((name, contents)) = input.file {
         std::fs::write(dir.path().join(name), contents).unwrap();
     }
-    let before = files_in(dir.path());
+    let before = entries(dir.path());
     let out = prt_gpu(input.args, dir.path());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{case}: succeeded");
@@ -136,7 +128,7 @@ fn assert_clean_failure(input: &BadInput) {
         input.expect
     );
     assert_eq!(
-        files_in(dir.path()),
+        entries(dir.path()),
         before,
         "{case}: files were left behind"
     );
@@ -512,7 +504,7 @@ fn chart_at_default_settings_writes_one_csv_row_per_point() {
     );
     // Printed, not asserted (timings never are): the issue asks for under a minute.
     println!("{}", String::from_utf8_lossy(&out.stdout));
-    assert_eq!(files_in(dir.path()), ["chart.csv", "chart.svg"]);
+    assert_eq!(entries(dir.path()), ["chart.csv", "chart.svg"]);
     let rows = csv_rows(&dir.path().join("chart.csv"));
     // Five strategies, three counts, one backend.
     assert_eq!(rows.len(), 5 * 3);
@@ -599,6 +591,6 @@ fn bench_times_both_backends_and_names_the_adapter() {
             "{stdout}"
         );
     }
-    assert!(files_in(dir.path()).is_empty(), "bench writes no files");
+    assert!(entries(dir.path()).is_empty(), "bench writes no files");
     dir.close().unwrap();
 }

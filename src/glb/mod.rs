@@ -1000,7 +1000,7 @@ fn span_bytes<'a>(bin: &'a [u8], span: &Span, element: usize, path: &Path) -> Re
 mod tests {
     use super::*;
     use crate::bake::Mode;
-    use std::process::Command;
+    use crate::testing::entries;
 
     /// Three vertices, one triangle; bands 3 (9 coefficients, not a multiple of 4), RGB, every
     /// coefficient distinct and not exactly representable in decimal.
@@ -1044,16 +1044,6 @@ mod tests {
                 bounces: 0,
             },
         }
-    }
-
-    /// The sorted names in a directory.
-    fn entries(dir: &Path) -> Vec<String> {
-        let mut names: Vec<String> = fs::read_dir(dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        names.sort();
-        names
     }
 
     fn json_of(bytes: &[u8]) -> serde_json::Value {
@@ -1279,36 +1269,15 @@ mod tests {
 
     #[test]
     fn python_reader_reads_the_file() {
-        let numpy = Command::new("python3")
-            .args(["-c", "import numpy"])
-            .output();
-        if !numpy.is_ok_and(|o| o.status.success()) {
-            // CI installs numpy (ci/test.sh): there the check must run.
-            assert!(
-                std::env::var_os("CI").is_none(),
-                "python3 with numpy is missing under CI"
-            );
-            eprintln!("skipping: python3 with numpy is not available");
-            return;
-        }
         let line_count = PYTHON_READER.lines().count();
         assert!(line_count <= 12, "{line_count} lines");
         let tmp = tempfile::tempdir().unwrap();
         let target = tmp.path().join("mesh.glb");
         let baked = sample(3);
         write_glb(&target, &baked).unwrap();
-        let out = Command::new("python3")
-            .arg("-c")
-            .arg(PYTHON_READER)
-            .arg(&target)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let printed: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let Some(printed) = crate::testing::numpy_reader_output(&target) else {
+            return;
+        };
         assert_eq!(printed["positions"], serde_json::json!([3, 3]));
         assert_eq!(printed["indices"], serde_json::json!([1, 3]));
         assert_eq!(printed["transfer"], serde_json::json!([3, 3, 9]));

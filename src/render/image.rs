@@ -160,7 +160,7 @@ fn encode_exr(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::test_support::entries;
+    use crate::testing::entries;
 
     #[test]
     fn tone_maps_behave_at_their_landmarks() {

@@ -421,10 +421,11 @@ fn unpad_rows(padded: &[u8], target: &Target) -> Vec<[f32; 4]> {
 mod tests {
     use super::*;
     use crate::device;
-    use crate::render::test_support::{entries, transfer};
+    use crate::render::test_support::transfer;
     use crate::render::{write_image, ToneMap};
     use crate::scene::builtin::icosphere;
     use crate::scene::prepare::prepare;
+    use crate::testing::entries;
     use std::sync::OnceLock;
     use std::time::Instant;
 

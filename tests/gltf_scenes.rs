@@ -839,3 +839,42 @@ fn masked_materials_are_named_in_a_note() {
         gltf.notes
     );
 }
+
+/// Damaged bytes — every truncation of a .glb, and single corrupted bytes throughout its JSON —
+/// are errors or readable scenes, never a panic.
+#[test]
+fn damaged_glb_files_never_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = std::fs::read(data("BoxTextured.glb")).unwrap();
+    let json_end = 20 + u32::from_le_bytes(original[12..16].try_into().unwrap()) as usize;
+    let mut variants: Vec<Vec<u8>> = (0..original.len())
+        .step_by(7)
+        .map(|n| original[..n].to_vec())
+        .collect();
+    for at in (12..json_end).step_by(3) {
+        for byte in [b'0', b'[', b'"', b'-', 0xff] {
+            let mut damaged = original.clone();
+            damaged[at] = byte;
+            variants.push(damaged);
+        }
+    }
+    let path = dir.path().join("damaged.glb");
+    let mut errors = 0;
+    for bytes in &variants {
+        std::fs::write(&path, bytes).unwrap();
+        let outcome = std::panic::catch_unwind(|| gltf_scene::load(&path).map(|_| ()));
+        match outcome {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => {
+                assert!(!e.to_string().contains('\n'), "{e}");
+                errors += 1;
+            }
+            Err(_) => panic!("loading {} damaged bytes panicked", bytes.len()),
+        }
+    }
+    assert!(
+        errors > variants.len() / 2,
+        "{errors} of {}",
+        variants.len()
+    );
+}

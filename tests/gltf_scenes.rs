@@ -878,3 +878,37 @@ fn damaged_glb_files_never_panic() {
         variants.len()
     );
 }
+
+/// A scene where one primitive has normals and another has none: the first keeps its own, the
+/// second gets the smooth normals `prepare` computes, over its own triangles.
+#[test]
+fn primitives_without_normals_get_the_computed_ones_beside_those_with() {
+    let dir = tempfile::tempdir().unwrap();
+    let sphere = scene::prepare::prepare(builtin::icosphere(Vec3::ZERO, 0.5, 1))
+        .unwrap()
+        .0;
+    let ground = builtin::grid_plane(Vec3::NEG_Y, Vec3::X * 2.0, Vec3::NEG_Z * 2.0, 2, Vec3::ONE);
+    let mut builder = GltfBuilder::default();
+    let with_normals = builder.primitive(&ground, None);
+    let mut without_normals = builder.primitive(&sphere, None);
+    without_normals["attributes"]
+        .as_object_mut()
+        .unwrap()
+        .remove("NORMAL");
+    let doc = json!({
+        "scenes": [{ "nodes": [0, 1] }],
+        "nodes": [{ "mesh": 0 }, { "mesh": 1 }],
+        "meshes": [{ "primitives": [with_normals] }, { "primitives": [without_normals] }],
+    });
+    let path = builder.finish(doc, dir.path(), "mixed.gltf");
+    let (_, loaded) = gltf_scene::load(&path).unwrap();
+    let normals = loaded.normals.unwrap();
+    let split = ground.positions.len();
+    assert_eq!(&normals[..split], ground.normals.as_deref().unwrap());
+    let computed = scene::prepare::smooth_normals(&sphere.positions, &sphere.triangles);
+    assert_eq!(&normals[split..], &computed[..]);
+    // Outward: the computed normals agree with the sphere's own.
+    for (n, own) in computed.iter().zip(sphere.normals.as_deref().unwrap()) {
+        assert!(n.dot(*own) > 0.9, "{n} vs {own}");
+    }
+}

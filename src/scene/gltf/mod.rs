@@ -321,7 +321,8 @@ fn local_transform(node: &gltf_json::Node) -> Mat4 {
 fn assemble(gltf: &mut GltfScene) -> std::result::Result<Scene, String> {
     let mut scene = Scene::default();
     let mut normals = Vec::new();
-    let mut any_normals = false;
+    // Primitives without normals, as (first vertex, first triangle) spans of `scene`.
+    let mut without_normals = Vec::new();
     let mut notes = Notes::default();
     let mut textures = albedo::Textures::default();
     for (node_index, world) in shown_nodes(&gltf.root) {
@@ -358,7 +359,12 @@ fn assemble(gltf: &mut GltfScene) -> std::result::Result<Scene, String> {
                 first,
                 count: part.positions.len(),
             });
-            any_normals |= part.normals.is_some();
+            if part.normals.is_none() {
+                without_normals.push((
+                    first..first + part.positions.len(),
+                    scene.triangles.len()..scene.triangles.len() + part.triangles.len(),
+                ));
+            }
             append(&mut scene, &mut normals, part, first);
         }
         if !instance.primitives.is_empty() {
@@ -371,7 +377,20 @@ fn assemble(gltf: &mut GltfScene) -> std::result::Result<Scene, String> {
             None => "the scene shows no meshes".into(),
         });
     }
-    scene.normals = any_normals.then_some(normals);
+    // Where no primitive has normals, `prepare` computes them all, as for OBJ and PLY; where
+    // some do, the others get the normals `prepare` would give them, primitive by primitive.
+    if without_normals.len() < gltf.instances.iter().map(|i| i.primitives.len()).sum() {
+        for (vertices, triangles) in without_normals {
+            let local: Vec<[u32; 3]> = scene.triangles[triangles]
+                .iter()
+                .map(|t| t.map(|i| i - vertices.start as u32))
+                .collect();
+            let computed =
+                super::prepare::smooth_normals(&scene.positions[vertices.clone()], &local);
+            normals[vertices].copy_from_slice(&computed);
+        }
+        scene.normals = Some(normals);
+    }
     gltf.notes = notes.lines(gltf);
     Ok(scene)
 }
@@ -382,12 +401,10 @@ fn append(scene: &mut Scene, normals: &mut Vec<Vec3>, part: Part, first: usize) 
     scene
         .triangles
         .extend(part.triangles.iter().map(|t| t.map(|i| i + offset)));
+    // Placeholders where the primitive has none: filled by `assemble` if they are needed.
     match part.normals {
         Some(own) => normals.extend(own),
-        None => normals.extend(super::prepare::smooth_normals(
-            &part.positions,
-            &part.triangles,
-        )),
+        None => normals.extend(std::iter::repeat_n(Vec3::ZERO, part.positions.len())),
     }
     scene.positions.extend(part.positions);
     scene.albedo.extend(part.albedo);

@@ -20,6 +20,7 @@ pub mod light;
 pub mod morton;
 pub mod packet;
 pub mod ray;
+pub mod receivers;
 pub mod render;
 pub mod sampling;
 pub mod scene;

@@ -10,10 +10,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
 use prt_gpu::bake::{
-    self, Backend, BakeOptions, BakeReport, Mode, Progress, DEFAULT_SAMPLES, DEFAULT_SAMPLING,
+    self, Backend, BakeOptions, BakeReport, Fit, Mode, Progress, DEFAULT_SAMPLES, DEFAULT_SAMPLING,
 };
 use prt_gpu::device::{self, DeviceChoice, GpuContext};
 use prt_gpu::light::{self, analytic, Mapping, ShLight};
+use prt_gpu::receivers::PointDensity;
 use prt_gpu::render::{self, Camera, ToneMap};
 use prt_gpu::sampling::Sampling;
 use prt_gpu::sh::window::Window;
@@ -93,6 +94,13 @@ struct ChartArgs {
     /// Seed of the sweep's sample directions (the reference uses another).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Vertex fits to chart, comma-separated (default: point,least-squares); each is baked
+    /// with every strategy and count.
+    #[arg(long, value_enum, value_delimiter = ',')]
+    fit: Vec<Fit>,
+    /// Held-out surface points of the surface error (default: four per vertex, at most 20,000).
+    #[arg(long, default_value_t = 0)]
+    surface_points: usize,
 }
 
 /// What `bake` and `bench` compute per vertex.
@@ -260,6 +268,16 @@ struct BakeArgs {
     /// Seed of the sample directions: the same seed gives the same file.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// How vertex values are made: `point` bakes at the vertices (exact there); `least-squares`
+    /// bakes at points spread over every triangle and fits the vertex values whose
+    /// interpolation matches them best over the surface (Kavan et al. 2011), at the cost of
+    /// `--fit-points` times the vertices' rays per sample.
+    #[arg(long, value_enum, default_value_t = Fit::Point)]
+    fit: Fit,
+    /// Least-squares fit: surface points baked per vertex of the mesh, on average (every
+    /// triangle gets at least three).
+    #[arg(long, default_value_t = PointDensity::default().per_vertex)]
+    fit_points: f32,
     /// Override every material's albedo, as linear R,G,B in [0, 1].
     #[arg(long, value_parser = parse_rgb)]
     albedo: Option<Vec3>,
@@ -348,6 +366,11 @@ fn run_bake(args: BakeArgs) -> Result<()> {
         albedo: args.albedo,
         bounces: args.bounces,
         bounce_tolerance: args.bounce_tolerance,
+        fit: args.fit,
+        point_density: PointDensity {
+            per_vertex: args.fit_points,
+            ..PointDensity::default()
+        },
         ..args.transfer.options()
     };
     options.validate()?;
@@ -494,8 +517,20 @@ fn print_bake_report(name: &str, options: &BakeOptions, report: &BakeReport, out
             (report.gather_entries * 8) as f64 / (1u64 << 20) as f64
         );
     }
+    if let Some(fit) = &report.fit {
+        eprintln!(
+            "least-squares fit: {} surface points, solved in {:.2} s ({} iterations, residual \
+             {:.1e}, {} matrix entries)",
+            report.receivers,
+            report.seconds_fit,
+            fit.iterations,
+            fit.relative_residual,
+            fit.matrix_entries
+        );
+    }
     let seconds_bounces: f64 = report.bounces.iter().map(|b| b.seconds).sum();
-    let seconds = report.seconds_prepare + report.seconds_transfer + seconds_bounces;
+    let seconds =
+        report.seconds_prepare + report.seconds_transfer + report.seconds_fit + seconds_bounces;
     let rays_per_second = report.rays_cast as f64 / report.seconds_transfer.max(1e-9);
     println!(
         "baked {name}: {} vertices, {} triangles, {} bands, {} {} samples, {} mode; {} rays in {:.2} s \
@@ -578,20 +613,26 @@ fn run_chart(args: ChartArgs) -> Result<()> {
     sweep::write_csv(&csv_path, &result)?;
     for p in &result.points {
         eprintln!(
-            "{:>16} {:>3} {:>6} samples: {:>8.3} s, transfer rms {:.3e}, radiance rms {:.3e}",
+            "{:>16} {:>13} {:>3} {:>6} samples: {:>8.3} s, transfer rms {:.3e}, radiance rms \
+             {:.3e}, surface {:.2}%",
             p.sampling.name(),
+            p.fit.name(),
             p.backend,
             p.samples,
             p.seconds,
             p.transfer_rms,
-            p.radiance_rms
+            p.radiance_rms,
+            100.0 * p.surface_rms / result.surface.rms.max(1e-30)
         );
     }
     println!(
-        "charted {name}: {} points, reference {} samples in {:.2} s, {:.1} s in all -> {}, {}",
+        "charted {name}: {} points, reference {} samples in {:.2} s (and {} surface points in \
+         {:.2} s), {:.1} s in all -> {}, {}",
         result.points.len(),
         result.reference_samples,
         result.reference_seconds,
+        result.surface.points.len(),
+        result.surface.seconds,
         started.elapsed().as_secs_f64(),
         args.output.display(),
         csv_path.display()
@@ -618,6 +659,12 @@ fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
         reference_samples: args.reference_samples,
         reference_sampling: args.reference_sampling,
         seed: args.seed,
+        fits: if args.fit.is_empty() {
+            SweepOptions::default().fits
+        } else {
+            args.fit.clone()
+        },
+        surface_points: args.surface_points,
     };
     for &count in options.counts.iter().chain([&options.reference_samples]) {
         BakeOptions {
@@ -862,6 +909,13 @@ fn run_info(path: &Path) -> Result<()> {
     println!("samples:      {} ({})", metadata.samples, metadata.sampling);
     println!("seed:         {}", metadata.seed);
     println!("bounces:      {}", metadata.bounces);
+    match metadata.fit_points {
+        Some(points) => println!(
+            "fit:          {} ({points} surface points)",
+            metadata.fit.name()
+        ),
+        None => println!("fit:          {}", metadata.fit.name()),
+    }
     println!("backend:      {}", metadata.backend);
     println!("made by:      {} {}", metadata.tool, metadata.tool_version);
     println!("sh basis:     {}", metadata.sh_convention);

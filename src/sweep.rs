@@ -7,7 +7,9 @@ use std::time::Instant;
 
 use crate::bake::gpu::{Chunking, GpuBaker};
 use crate::bake::Transfer;
-use crate::bake::{bake, cpu, gpu, Backend, BakeOptions, DirectInputs, Mode, NoProgress, Progress};
+use crate::bake::{
+    bake, cpu, gpu, Backend, BakeOptions, DirectInputs, Fit, Mode, NoProgress, Progress,
+};
 use crate::chart::{ChartPanel, ChartPoint, ChartSeries};
 use crate::error::{Error, Result};
 use crate::fs::write_atomically;
@@ -15,6 +17,7 @@ use crate::light::ShLight;
 use crate::render::relight;
 use crate::sampling::Sampling;
 use crate::scene::Scene;
+use crate::surface::{surface_reference, surface_rms, SurfaceReference};
 
 /// What to sweep.
 #[derive(Clone, Debug)]
@@ -27,6 +30,10 @@ pub struct SweepOptions {
     pub reference_samples: u32,
     pub reference_sampling: Sampling,
     pub seed: u64,
+    /// How vertex values are made; every strategy and count is baked with each.
+    pub fits: Vec<Fit>,
+    /// Held-out surface points of the surface error (0: four per vertex, at most 20,000).
+    pub surface_points: usize,
 }
 
 impl Default for SweepOptions {
@@ -39,6 +46,8 @@ impl Default for SweepOptions {
             reference_samples: 16_384,
             reference_sampling: Sampling::ControlVariate,
             seed: 1,
+            fits: vec![Fit::Point, Fit::LeastSquares],
+            surface_points: 0,
         }
     }
 }
@@ -47,6 +56,7 @@ impl Default for SweepOptions {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SweepPoint {
     pub sampling: Sampling,
+    pub fit: Fit,
     /// "cpu" or "gpu".
     pub backend: String,
     /// Samples actually used.
@@ -58,6 +68,9 @@ pub struct SweepPoint {
     pub transfer_rms: f64,
     /// RMS over vertices and channels of the relit radiance's difference.
     pub radiance_rms: f64,
+    /// RMS over held-out surface points and channels of the relit radiance's difference, the
+    /// vertex values interpolated there (crate::surface).
+    pub surface_rms: f64,
 }
 
 /// A finished sweep.
@@ -68,6 +81,8 @@ pub struct Sweep {
     pub reference_seconds: f64,
     /// RMS of the reference's relit radiance: the scale the radiance errors compare with.
     pub reference_radiance_rms: f64,
+    /// The high-sample bake at held-out surface points.
+    pub surface: SurfaceReference,
 }
 
 /// Root mean square of the differences of two equally long arrays.
@@ -126,18 +141,43 @@ pub fn run(
     progress.advance(1);
     let reference_radiance = radiance(&reference.transfer, light)?;
     let zero = vec![0.0f32; reference_radiance.len()];
+    progress.stage("surface reference", 1);
+    let surface_count = match options.surface_points {
+        0 => (4 * reference.scene.vertex_count()).min(20_000),
+        n => n,
+    };
+    let surface = surface_reference(
+        &reference.scene,
+        surface_count,
+        options.seed.wrapping_add(0x5eed_0001),
+        &reference_options,
+        &backends[0].1,
+        light,
+        Some(&reference.transfer),
+    )?;
+    progress.advance(1);
 
+    let fits = if options.fits.is_empty() {
+        vec![Fit::Point]
+    } else {
+        options.fits.clone()
+    };
     progress.stage(
         "sweep",
-        (options.strategies.len() * options.counts.len() * backends.len()) as u64,
+        (options.strategies.len() * options.counts.len() * backends.len() * fits.len()) as u64,
     );
     let mut points = Vec::new();
-    for &sampling in &options.strategies {
+    for (&sampling, &fit) in options
+        .strategies
+        .iter()
+        .flat_map(|s| fits.iter().map(move |f| (s, f)))
+    {
         for (label, backend) in backends {
             for &count in &options.counts {
                 let point_options = BakeOptions {
                     samples: count,
                     sampling,
+                    fit,
                     ..base.clone()
                 };
                 let started = Instant::now();
@@ -145,6 +185,7 @@ pub fn run(
                 let seconds = started.elapsed().as_secs_f64();
                 points.push(SweepPoint {
                     sampling,
+                    fit,
                     backend: label.clone(),
                     samples: report.samples_used,
                     seconds,
@@ -157,6 +198,7 @@ pub fn run(
                         &radiance(&baked.transfer, light)?,
                         &reference_radiance,
                     ),
+                    surface_rms: surface_rms(&surface, &baked.scene, &baked.transfer, light)?,
                 });
                 progress.advance(1);
             }
@@ -167,11 +209,13 @@ pub fn run(
         reference_samples: reference_options.samples_used(),
         reference_seconds,
         reference_radiance_rms: rms_difference(&reference_radiance, &zero),
+        surface,
     })
 }
 
 /// The CSV header: one row per point follows.
-pub const CSV_HEADER: &str = "sampling,backend,samples,seconds,rays,transfer_rms,radiance_rms";
+pub const CSV_HEADER: &str =
+    "sampling,fit,backend,samples,seconds,rays,transfer_rms,radiance_rms,surface_rms";
 
 /// The sweep as CSV text, one row per point.
 pub fn to_csv(sweep: &Sweep) -> String {
@@ -179,14 +223,16 @@ pub fn to_csv(sweep: &Sweep) -> String {
     text.push('\n');
     for p in &sweep.points {
         text.push_str(&format!(
-            "{},{},{},{:.6},{},{:.6e},{:.6e}\n",
+            "{},{},{},{},{:.6},{},{:.6e},{:.6e},{:.6e}\n",
             p.sampling.name(),
+            p.fit.name(),
             p.backend,
             p.samples,
             p.seconds,
             p.rays,
             p.transfer_rms,
-            p.radiance_rms
+            p.radiance_rms,
+            p.surface_rms
         ));
     }
     text
@@ -197,11 +243,15 @@ pub fn write_csv(path: &Path, sweep: &Sweep) -> Result<()> {
     write_atomically(path, to_csv(sweep).as_bytes())
 }
 
-/// Two panels: transfer error and relit-radiance error, one line per strategy and backend.
+/// Three panels: transfer and relit-radiance error at the vertices, and relit-radiance error
+/// over the surface; one line per strategy, fit and backend.
 pub fn chart_panels(result: &Sweep) -> Vec<ChartPanel> {
     let mut lines: Vec<(String, Vec<&SweepPoint>)> = Vec::new();
     for p in &result.points {
-        let label = format!("{} {}", p.sampling.name(), p.backend);
+        let label = match p.fit {
+            Fit::Point => format!("{} {}", p.sampling.name(), p.backend),
+            fit => format!("{} {} {}", p.sampling.name(), fit.name(), p.backend),
+        };
         match lines.iter_mut().find(|(l, _)| *l == label) {
             Some((_, points)) => points.push(p),
             None => lines.push((label, vec![p])),
@@ -230,6 +280,11 @@ pub fn chart_panels(result: &Sweep) -> Vec<ChartPanel> {
         panel("relit radiance", "RMS error of the relit radiance", |p| {
             p.radiance_rms
         }),
+        panel(
+            "over the surface",
+            "RMS error of the relit radiance at surface points",
+            |p| p.surface_rms,
+        ),
     ]
 }
 
@@ -285,12 +340,14 @@ mod tests {
     fn point(sampling: Sampling, backend: &str, samples: u32) -> SweepPoint {
         SweepPoint {
             sampling,
+            fit: Fit::Point,
             backend: backend.to_string(),
             samples,
             seconds: samples as f64 * 1e-3,
             rays: samples as u64 * 10,
             transfer_rms: 1.0 / samples as f64,
             radiance_rms: 2.0 / samples as f64,
+            surface_rms: 3.0 / samples as f64,
         }
     }
 
@@ -308,13 +365,20 @@ mod tests {
             reference_samples: 4096,
             reference_seconds: 1.0,
             reference_radiance_rms: 1.0,
+            surface: SurfaceReference {
+                points: Vec::new(),
+                radiance: Vec::new(),
+                rms: 1.0,
+                rays: 0,
+                seconds: 0.0,
+            },
         }
     }
 
     #[test]
     fn panels_hold_one_series_per_strategy_and_backend() {
         let panels = chart_panels(&sweep());
-        assert_eq!(panels.len(), 2);
+        assert_eq!(panels.len(), 3);
         let labels: Vec<&str> = panels[0].series.iter().map(|s| s.label.as_str()).collect();
         assert_eq!(
             labels,
@@ -328,9 +392,10 @@ mod tests {
         for series in &panels[1].series {
             let samples: Vec<u32> = series.points.iter().map(|p| p.samples).collect();
             assert_eq!(samples, [64, 256]);
-            // The right panel charts the radiance error.
+            // The middle panel charts the radiance error.
             assert_eq!(series.points[0].error, 2.0 / 64.0);
         }
+        assert_eq!(panels[2].series[0].points[1].error, 3.0 / 256.0);
     }
 
     #[test]
@@ -340,7 +405,7 @@ mod tests {
         assert_eq!(lines[0], CSV_HEADER);
         assert_eq!(lines.len(), 1 + 8);
         assert!(
-            lines[1].starts_with("stratified,cpu,64,0.064000,640,"),
+            lines[1].starts_with("stratified,point,cpu,64,0.064000,640,"),
             "{}",
             lines[1]
         );

@@ -43,6 +43,38 @@ fn bakes_the_builtin_scene_and_reports_it() {
 }
 
 #[test]
+fn a_least_squares_bake_says_so_in_its_report_and_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "bake",
+        "--samples",
+        "32",
+        "--fit",
+        "least-squares",
+        "--fit-points",
+        "4",
+        "-o",
+        "ls.glb",
+    ];
+    let out = prt_gpu(&args, dir.path());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("least-squares fit:") && stderr.contains("surface points"),
+        "{stderr}"
+    );
+    let info = prt_gpu(&["info", "ls.glb"], dir.path());
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(text.contains("fit:          least-squares ("), "{text}");
+    // A point bake's file keeps its old form: no fit recorded.
+    let out = prt_gpu(&["bake", "--samples", "32", "-o", "p.glb"], dir.path());
+    assert!(out.status.success());
+    let info = prt_gpu(&["info", "p.glb"], dir.path());
+    assert!(String::from_utf8_lossy(&info.stdout).contains("fit:          point\n"));
+    dir.close().unwrap();
+}
+
+#[test]
 fn a_non_square_sample_count_is_rounded_and_said() {
     let dir = tempfile::tempdir().unwrap();
     let out = prt_gpu(
@@ -272,6 +304,26 @@ fn bad_input_fails_with_one_line_and_no_output() {
             expect: "no-such-adapter-xyz",
         },
         BadInput {
+            case: "fit-points",
+            file: None,
+            args: &[
+                "bake",
+                "--fit",
+                "least-squares",
+                "--fit-points",
+                "0",
+                "-o",
+                "o.glb",
+            ],
+            expect: "--fit-points 0",
+        },
+        BadInput {
+            case: "fit",
+            file: None,
+            args: &["bake", "--fit", "cubic", "-o", "o.glb"],
+            expect: "cubic",
+        },
+        BadInput {
             case: "chart-format",
             file: None,
             args: &["chart", "-o", "chart.txt"],
@@ -486,7 +538,7 @@ fn csv_rows(path: &Path) -> Vec<Vec<String>> {
     let mut lines = text.lines();
     assert_eq!(
         lines.next(),
-        Some("sampling,backend,samples,seconds,rays,transfer_rms,radiance_rms")
+        Some("sampling,fit,backend,samples,seconds,rays,transfer_rms,radiance_rms,surface_rms")
     );
     lines
         .map(|l| l.split(',').map(str::to_string).collect())
@@ -506,24 +558,25 @@ fn chart_at_default_settings_writes_one_csv_row_per_point() {
     println!("{}", String::from_utf8_lossy(&out.stdout));
     assert_eq!(entries(dir.path()), ["chart.csv", "chart.svg"]);
     let rows = csv_rows(&dir.path().join("chart.csv"));
-    // Five strategies, three counts, one backend.
-    assert_eq!(rows.len(), 5 * 3);
+    // Five strategies, two fits, three counts, one backend.
+    assert_eq!(rows.len(), 5 * 2 * 3);
     for row in &rows {
-        assert_eq!(row[1], "cpu");
-        let seconds: f64 = row[3].parse().unwrap();
-        let transfer: f64 = row[5].parse().unwrap();
-        let radiance: f64 = row[6].parse().unwrap();
-        assert!(seconds > 0.0 && transfer > 0.0 && radiance > 0.0, "{row:?}");
+        assert_eq!(row[2], "cpu");
+        let seconds: f64 = row[4].parse().unwrap();
+        let errors: Vec<f64> = row[6..9].iter().map(|e| e.parse().unwrap()).collect();
+        assert!(seconds > 0.0 && errors.iter().all(|&e| e > 0.0), "{row:?}");
     }
+    assert_eq!(rows.iter().filter(|r| r[1] == "least-squares").count(), 15);
     // More samples, less error, for the low-discrepancy set (one line of the chart).
     let fibonacci: Vec<f64> = rows
         .iter()
-        .filter(|r| r[0] == "fibonacci")
-        .map(|r| r[5].parse().unwrap())
+        .filter(|r| r[0] == "fibonacci" && r[1] == "point")
+        .map(|r| r[6].parse().unwrap())
         .collect();
     assert!(fibonacci.windows(2).all(|w| w[1] < w[0]), "{fibonacci:?}");
     let svg = std::fs::read_to_string(dir.path().join("chart.svg")).unwrap();
     assert!(svg.contains("control-variate cpu") && svg.contains("1024"));
+    assert!(svg.contains("cosine least-squares cpu") && svg.contains("over the surface"));
     dir.close().unwrap();
 }
 
@@ -541,6 +594,8 @@ fn chart_runs_each_backend_and_draws_png() {
             "stratified,cosine",
             "--reference-samples",
             "1024",
+            "--fit",
+            "point,least-squares",
             "-o",
             "small.png",
         ],
@@ -553,18 +608,21 @@ fn chart_runs_each_backend_and_draws_png() {
     }
     assert!(out.status.success(), "{stderr}");
     let rows = csv_rows(&dir.path().join("small.csv"));
-    assert_eq!(rows.len(), 2 * 2 * 2, "{rows:?}");
+    assert_eq!(rows.len(), 2 * 2 * 2 * 2, "{rows:?}");
     for backend in ["cpu", "gpu"] {
-        assert_eq!(rows.iter().filter(|r| r[1] == backend).count(), 4);
+        assert_eq!(rows.iter().filter(|r| r[2] == backend).count(), 8);
     }
-    // Both backends bake the same estimates: their errors agree closely point for point.
-    for cpu in rows.iter().filter(|r| r[1] == "cpu") {
+    // Both backends bake the same estimates: their errors, at the vertices and over the
+    // surface, agree closely point for point.
+    for cpu in rows.iter().filter(|r| r[2] == "cpu") {
         let gpu = rows
             .iter()
-            .find(|r| r[1] == "gpu" && r[0] == cpu[0] && r[2] == cpu[2])
+            .find(|r| r[2] == "gpu" && r[0] == cpu[0] && r[1] == cpu[1] && r[3] == cpu[3])
             .unwrap();
-        let (c, g): (f64, f64) = (cpu[5].parse().unwrap(), gpu[5].parse().unwrap());
-        assert!((c - g).abs() <= 0.02 * c, "{cpu:?} vs {gpu:?}");
+        for column in [6, 8] {
+            let (c, g): (f64, f64) = (cpu[column].parse().unwrap(), gpu[column].parse().unwrap());
+            assert!((c - g).abs() <= 0.02 * c, "{cpu:?} vs {gpu:?}");
+        }
     }
     let png = image::open(dir.path().join("small.png")).unwrap();
     assert!(png.width() > 400 && png.height() > 200);

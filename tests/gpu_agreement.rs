@@ -211,3 +211,37 @@ fn auto_never_picks_a_software_adapter() {
         assert!(!opened.unwrap().adapter.is_software());
     }
 }
+
+#[test]
+fn surface_points_agree() {
+    use prt_gpu::bake::BakeOptions;
+    use prt_gpu::receivers::{spread_points, PointDensity, Receivers};
+    use prt_gpu::sampling::Sampling;
+    let Some(baker) = common::gpu_baker() else {
+        return;
+    };
+    // Points inside the bunny's triangles, their normals interpolated: the receivers of the
+    // least-squares fit, checked ray for ray as the vertices are.
+    let (scene, _) = prepare(scene::load(&data("bunny.obj")).unwrap()).unwrap();
+    let density = PointDensity {
+        per_vertex: 2.0,
+        min_per_triangle: 1,
+    };
+    let receivers = Receivers::at_points(&scene, &spread_points(&scene, density, 3));
+    let options = BakeOptions {
+        bands: 4,
+        samples: 256,
+        sampling: Sampling::Stratified,
+        seed: 7,
+        ..BakeOptions::default()
+    };
+    let prepared = BakeInputs::for_receivers(&scene, &receivers, &options);
+    for mode in [Mode::Shadowed, Mode::Unshadowed] {
+        let (rays, differing) = compare(baker, &prepared, mode, Chunking::default(), "points");
+        eprintln!("bunny surface points, {mode:?}: {differing} of {rays} rays differ");
+        assert!(
+            differing as f64 <= 1e-5 * (rays.max(1)) as f64,
+            "{mode:?}: {differing} of {rays} rays differ"
+        );
+    }
+}

@@ -29,6 +29,7 @@ fn estimate_with_error(
         origins: &[Vec3::ZERO],
         normals: &[normal],
         triangles: &[],
+        vertex_normals: &[],
         bvh: &bvh,
         samples: &set,
         table: &table,

@@ -180,6 +180,7 @@ fn gpu_escapes(baker: &GpuBaker, bvh: &Bvh, origins: &[Vec3], directions: Vec<Ve
         origins: &doubled,
         normals: &normals,
         triangles: &[],
+        vertex_normals: &[],
         bvh,
         samples: &samples,
         table: &table,

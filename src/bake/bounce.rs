@@ -79,7 +79,7 @@ impl GatherMatrix {
     }
 }
 
-/// The gather row of `vertex` from the hits of its blocked rays, `(sample, hit)`.
+/// The gather row of receiver `vertex` from the hits of its blocked rays, `(sample, hit)`.
 ///
 /// Each front-facing hit adds `(w / pi) cos(n_p, w_s) b_j` (without the cosine when the
 /// sample density carries it) to the weight of each hit-triangle vertex j with barycentric
@@ -101,7 +101,7 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
         let shading_normal: Vec3 = corners
             .iter()
             .zip(barycentrics)
-            .map(|(&j, b)| inputs.normals[j as usize] * b)
+            .map(|(&j, b)| inputs.vertex_normals[j as usize] * b)
             .sum();
         if cosine <= 0.0 || shading_normal.dot(direction) >= 0.0 {
             continue;

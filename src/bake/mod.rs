@@ -12,6 +12,8 @@ use serde::{Deserialize, Serialize};
 use crate::bvh::Bvh;
 use crate::error::{Error, Result};
 use crate::ray::offset_ray_origin;
+use crate::receivers::fit::{fit_vertices, FitOptions, FitReport};
+use crate::receivers::{spread_points, PointDensity, Receivers};
 use crate::sampling::{Estimator, SampleSet, Sampling, MAX_SAMPLES};
 use crate::scene::prepare::{prepare_mapped, PrepareReport, VertexMap};
 use crate::scene::Scene;
@@ -98,6 +100,38 @@ pub struct BakeMetadata {
     /// Interreflection bounces added to the direct transfer (0 for the other modes).
     #[serde(default)]
     pub bounces: u32,
+    /// How vertex values were obtained from the baked receivers (absent: `point`).
+    #[serde(default, skip_serializing_if = "Fit::is_point")]
+    pub fit: Fit,
+    /// Least-squares fit: the surface points baked.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit_points: Option<u32>,
+}
+
+/// How a bake turns transfer baked at receivers into the per-vertex values a renderer
+/// interpolates.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Fit {
+    /// Bake at the vertices: exact there, whatever lies between them.
+    #[default]
+    Point,
+    /// Bake at points spread over every triangle and fit the vertex values whose
+    /// interpolation matches them best over the surface (Kavan et al. 2011).
+    LeastSquares,
+}
+
+impl Fit {
+    pub fn name(self) -> &'static str {
+        match self {
+            Fit::Point => "point",
+            Fit::LeastSquares => "least-squares",
+        }
+    }
+
+    fn is_point(&self) -> bool {
+        *self == Fit::Point
+    }
 }
 
 /// The strategy a bake uses when none is asked for; chosen from `prt-gpu chart` (README): the
@@ -124,6 +158,9 @@ pub struct BakeOptions {
     pub bounces: u32,
     /// Interreflected mode: stop once a bounce adds less than this fraction of the energy.
     pub bounce_tolerance: f64,
+    pub fit: Fit,
+    /// Least-squares fit: how many surface points to bake.
+    pub point_density: PointDensity,
 }
 
 impl Default for BakeOptions {
@@ -137,6 +174,8 @@ impl Default for BakeOptions {
             albedo: None,
             bounces: 3,
             bounce_tolerance: 0.0,
+            fit: Fit::Point,
+            point_density: PointDensity::default(),
         }
     }
 }
@@ -165,6 +204,17 @@ impl BakeOptions {
             return Err(Error::Options(format!(
                 "--bounce-tolerance {} must lie in [0, 1)",
                 self.bounce_tolerance
+            )));
+        }
+        let density = self.point_density;
+        if !(density.per_vertex.is_finite()
+            && density.per_vertex > 0.0
+            && density.per_vertex <= 1e4)
+            || density.min_per_triangle == 0
+        {
+            return Err(Error::Options(format!(
+                "--fit-points {} must be a number of points per vertex in (0, 10000]",
+                density.per_vertex
             )));
         }
         if let Some(a) = self.albedo {
@@ -198,11 +248,16 @@ impl Progress for NoProgress {}
 
 /// The flattened inputs every backend reads: the same arrays the GPU uploads.
 pub struct DirectInputs<'a> {
-    /// Ray origins: vertex positions moved off the surface (`ray::offset_ray_origin`).
+    /// Ray origins, one per receiver: its position moved off the surface
+    /// (`ray::offset_ray_origin`).
     pub origins: &'a [Vec3],
+    /// The receivers' unit shading normals.
     pub normals: &'a [Vec3],
     /// The scene's triangles (what hit triangles' `source_index` refers to).
     pub triangles: &'a [[u32; 3]],
+    /// The scene's vertex normals (for the shading normal at a hit); the same as `normals`
+    /// when the receivers are the vertices.
+    pub vertex_normals: &'a [Vec3],
     pub bvh: &'a Bvh,
     pub samples: &'a SampleSet,
     /// SH of each sample direction, `[sample][k]` (in the tangent frame for tangent sets).
@@ -237,13 +292,19 @@ pub struct BakeReport {
     pub prepare: PrepareReport,
     /// For every vertex of the scene as given, its vertex in the baked (prepared) mesh.
     pub vertex_map: VertexMap,
+    /// Points the transfer was computed at (the vertices, or the fit's surface points).
+    pub receivers: usize,
     pub samples_used: u32,
     pub rays_cast: u64,
     pub bvh_nodes: usize,
     pub seconds_prepare: f64,
     /// The direct pass (and, interreflected, the hits and the gather matrix).
     pub seconds_transfer: f64,
-    /// One entry per bounce performed.
+    /// The least-squares fit of the direct pass (zero for point values).
+    pub seconds_fit: f64,
+    /// The fit's solve, when the vertex values were fitted.
+    pub fit: Option<FitReport>,
+    /// One entry per bounce performed (each including its fit).
     pub bounces: Vec<BounceStat>,
     /// Non-zero entries of the gather matrix (interreflected mode).
     pub gather_entries: usize,
@@ -258,12 +319,20 @@ pub struct BounceStat {
     pub seconds: f64,
 }
 
-/// Adds `options.bounces` bounces to `transfer` in place (stopping early below
-/// `options.bounce_tolerance`), on the backend's device.
+/// What a bounce reads: the gather matrix (rows: receivers), the receivers' albedo, and the
+/// map from values at the receivers to vertex values (the identity, or the fit).
+struct Gather<'a> {
+    matrix: &'a bounce::GatherMatrix,
+    albedo: &'a [Vec3],
+    to_vertices: &'a mut dyn FnMut(Vec<f32>) -> Result<Vec<f32>>,
+}
+
+/// Adds `options.bounces` bounces to the vertex `transfer` in place (stopping early below
+/// `options.bounce_tolerance`), on the backend's device. Each bounce gathers the previous
+/// one's vertex values at the receivers and takes them back to the vertices.
 fn add_bounces(
     transfer: &mut Transfer,
-    matrix: &bounce::GatherMatrix,
-    albedo: &[Vec3],
+    gather: Gather,
     options: &BakeOptions,
     backend: &Backend,
     progress: &dyn Progress,
@@ -272,7 +341,7 @@ fn add_bounces(
     let uploaded = match backend {
         Backend::Gpu { baker, .. } => Some((
             baker,
-            baker.upload_gather_matrix(matrix, albedo, transfer.bands)?,
+            baker.upload_gather_matrix(gather.matrix, gather.albedo, transfer.bands)?,
         )),
         Backend::Cpu => None,
     };
@@ -281,10 +350,11 @@ fn add_bounces(
     let mut stats = Vec::new();
     for _ in 0..options.bounces {
         let started = Instant::now();
-        let next = match &uploaded {
+        let at_receivers = match &uploaded {
             Some((baker, gpu_matrix)) => baker.bounce(gpu_matrix, &previous)?,
-            None => bounce::apply_cpu(matrix, &previous, albedo, coeffs),
+            None => bounce::apply_cpu(gather.matrix, &previous, gather.albedo, coeffs),
         };
+        let next = (gather.to_vertices)(at_receivers)?;
         let relative_energy = bounce::relative_energy(&next, &transfer.coeffs, coeffs);
         transfer
             .coeffs
@@ -304,7 +374,9 @@ fn add_bounces(
     Ok(stats)
 }
 
-/// The whole bake: prepare the mesh, build the BVH, draw samples, compute transfer.
+/// The whole bake: prepare the mesh, build the BVH, choose the receivers, draw samples,
+/// compute transfer at the receivers and, for the least-squares fit, the vertex values that
+/// best match it.
 pub fn bake(
     scene: Scene,
     options: &BakeOptions,
@@ -317,46 +389,55 @@ pub fn bake(
     if let Some(albedo) = options.albedo {
         scene.albedo.iter_mut().for_each(|a| *a = albedo);
     }
-    let owned = BakeInputs::for_options(&scene, options);
+    let (receivers, points) = match options.fit {
+        Fit::Point => (Receivers::vertices(&scene), Vec::new()),
+        Fit::LeastSquares => {
+            let points = spread_points(&scene, options.point_density, options.seed);
+            (Receivers::at_points(&scene, &points), points)
+        }
+    };
+    let owned = BakeInputs::for_receivers(&scene, &receivers, options);
     let inputs = owned.view();
     let seconds_prepare = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
-    progress.stage("transfer", scene.vertex_count() as u64);
-    let (scalar, matrix, rays_cast) = match (backend, options.mode) {
-        (Backend::Cpu, Mode::Interreflected) => {
-            let (scalar, matrix, rays) =
-                bounce::direct_transfer_and_gather_matrix_cpu(&inputs, progress);
-            (scalar, Some(matrix), rays)
-        }
-        (Backend::Cpu, mode) => {
-            let (scalar, rays) = cpu::direct_transfer(&inputs, mode, progress);
-            (scalar, None, rays)
-        }
-        (Backend::Gpu { baker, chunking }, Mode::Interreflected) => {
-            let (scalar, matrix, run) =
-                gpu::direct_transfer_and_gather_matrix(baker, &inputs, *chunking, progress)?;
-            (scalar, Some(matrix), run.rays_cast)
-        }
-        (Backend::Gpu { baker, chunking }, mode) => {
-            let (scalar, run) = gpu::direct_transfer(baker, &inputs, mode, *chunking, progress)?;
-            (scalar, None, run.rays_cast)
-        }
-    };
+    let direct = direct_pass(&inputs, options.mode, backend, progress)?;
     let seconds_transfer = started.elapsed().as_secs_f64();
 
-    let mut transfer = tint_by_albedo(&scalar, &scene.albedo, options.bands);
-    let bounces = match &matrix {
-        Some(matrix) => add_bounces(
-            &mut transfer,
-            matrix,
-            &scene.albedo,
-            options,
-            backend,
-            progress,
-        )?,
+    let started = Instant::now();
+    let columns = 3 * coeff_count(options.bands);
+    let mut fit_report = None;
+    let mut to_vertices = |values: Vec<f32>| -> Result<Vec<f32>> {
+        if options.fit == Fit::Point {
+            return Ok(values);
+        }
+        let (fitted, report) =
+            fit_vertices(&scene, &points, &values, columns, &FitOptions::default())?;
+        fit_report = Some(report);
+        Ok(fitted)
+    };
+    let at_receivers = tint_by_albedo(&direct.scalar, &receivers.albedo, options.bands);
+    let mut transfer = Transfer {
+        bands: options.bands,
+        channels: 3,
+        vertex_count: scene.vertex_count(),
+        coeffs: to_vertices(at_receivers.coeffs)?,
+    };
+    let mut seconds_fit = started.elapsed().as_secs_f64();
+    let bounces = match &direct.matrix {
+        Some(matrix) => {
+            let gather = Gather {
+                matrix,
+                albedo: &receivers.albedo,
+                to_vertices: &mut to_vertices,
+            };
+            add_bounces(&mut transfer, gather, options, backend, progress)?
+        }
         None => Vec::new(),
     };
+    if options.fit == Fit::Point {
+        seconds_fit = 0.0;
+    }
     let metadata = BakeMetadata {
         tool: env!("CARGO_PKG_NAME").to_string(),
         tool_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -370,17 +451,22 @@ pub fn bake(
         sh_convention: CONVENTION.to_string(),
         radiometry: RADIOMETRY.to_string(),
         bounces: bounces.len() as u32,
+        fit: options.fit,
+        fit_points: (options.fit == Fit::LeastSquares).then_some(points.len() as u32),
     };
     let report = BakeReport {
         prepare: prepare_report,
         vertex_map,
+        receivers: receivers.len(),
         samples_used: inputs.samples.len() as u32,
-        rays_cast,
+        rays_cast: direct.rays_cast,
         bvh_nodes: inputs.bvh.nodes.len(),
         seconds_prepare,
         seconds_transfer,
+        seconds_fit,
+        fit: fit_report,
         bounces,
-        gather_entries: matrix.map_or(0, |m| m.columns.len()),
+        gather_entries: direct.matrix.map_or(0, |m| m.columns.len()),
         backend: backend.describe(),
     };
     Ok((
@@ -393,11 +479,103 @@ pub fn bake(
     ))
 }
 
+/// Transfer at `receivers` on a prepared `scene` (RGB, `[receiver][channel][k]`; the
+/// receivers' albedo unless `options.albedo` replaces it), and the rays cast. Interreflected mode adds one final gather of `vertex_transfer` (the scene's baked
+/// vertex transfer, bounces included) where each receiver's blocked rays land, as lightmappers
+/// gather from a coarser solution: the receivers then carry one bounce more than the vertices.
+pub fn bake_at(
+    scene: &Scene,
+    receivers: &Receivers,
+    options: &BakeOptions,
+    backend: &Backend,
+    vertex_transfer: Option<&Transfer>,
+    progress: &dyn Progress,
+) -> Result<(Transfer, u64)> {
+    options.validate()?;
+    let owned = BakeInputs::for_receivers(scene, receivers, options);
+    let direct = direct_pass(&owned.view(), options.mode, backend, progress)?;
+    let albedo = match options.albedo {
+        Some(albedo) => vec![albedo; receivers.len()],
+        None => receivers.albedo.clone(),
+    };
+    let mut transfer = tint_by_albedo(&direct.scalar, &albedo, options.bands);
+    if let Some(matrix) = &direct.matrix {
+        let vertices = vertex_transfer
+            .filter(|t| t.vertex_count == scene.vertex_count() && t.bands == options.bands)
+            .ok_or_else(|| {
+                Error::Options(
+                    "interreflected transfer at surface points gathers from the vertices' \
+                     transfer, and none of this scene and band count was given"
+                        .into(),
+                )
+            })?;
+        let coeffs = coeff_count(options.bands);
+        let gathered = match backend {
+            Backend::Gpu { baker, .. } => {
+                let uploaded =
+                    baker.upload_gather_matrix(matrix, &receivers.albedo, options.bands)?;
+                baker.bounce(&uploaded, &vertices.coeffs)?
+            }
+            Backend::Cpu => bounce::apply_cpu(matrix, &vertices.coeffs, &receivers.albedo, coeffs),
+        };
+        transfer
+            .coeffs
+            .iter_mut()
+            .zip(gathered)
+            .for_each(|(t, g)| *t += g);
+    }
+    Ok((transfer, direct.rays_cast))
+}
+
+/// What the direct pass gives: albedo-free transfer `[receiver][k]`, the gather matrix
+/// (interreflected mode: rows are receivers, columns the scene's vertices) and the rays cast.
+pub struct DirectPass {
+    pub scalar: Vec<f32>,
+    pub matrix: Option<bounce::GatherMatrix>,
+    pub rays_cast: u64,
+}
+
+/// The direct pass over the receivers of `inputs` on either backend.
+pub fn direct_pass(
+    inputs: &DirectInputs,
+    mode: Mode,
+    backend: &Backend,
+    progress: &dyn Progress,
+) -> Result<DirectPass> {
+    progress.stage("transfer", inputs.origins.len() as u64);
+    let (scalar, matrix, rays_cast) = match (backend, mode) {
+        (Backend::Cpu, Mode::Interreflected) => {
+            let (scalar, matrix, rays) =
+                bounce::direct_transfer_and_gather_matrix_cpu(inputs, progress);
+            (scalar, Some(matrix), rays)
+        }
+        (Backend::Cpu, mode) => {
+            let (scalar, rays) = cpu::direct_transfer(inputs, mode, progress);
+            (scalar, None, rays)
+        }
+        (Backend::Gpu { baker, chunking }, Mode::Interreflected) => {
+            let (scalar, matrix, run) =
+                gpu::direct_transfer_and_gather_matrix(baker, inputs, *chunking, progress)?;
+            (scalar, Some(matrix), run.rays_cast)
+        }
+        (Backend::Gpu { baker, chunking }, mode) => {
+            let (scalar, run) = gpu::direct_transfer(baker, inputs, mode, *chunking, progress)?;
+            (scalar, None, run.rays_cast)
+        }
+    };
+    Ok(DirectPass {
+        scalar,
+        matrix,
+        rays_cast,
+    })
+}
+
 /// The arrays [`DirectInputs`] borrows, built from a prepared scene: what both backends read.
 pub struct BakeInputs {
     pub origins: Vec<Vec3>,
     pub normals: Vec<Vec3>,
     pub triangles: Vec<[u32; 3]>,
+    pub vertex_normals: Vec<Vec3>,
     pub bvh: Bvh,
     pub samples: SampleSet,
     pub table: ShTable,
@@ -412,10 +590,16 @@ impl BakeInputs {
         Self::with_sampling(scene, bands, samples, seed, Sampling::Stratified)
     }
 
-    /// What a bake with `options` reads.
+    /// What a bake of the vertices with `options` reads.
     pub fn for_options(scene: &Scene, options: &BakeOptions) -> Self {
-        Self::with_sampling(
+        Self::for_receivers(scene, &Receivers::vertices(scene), options)
+    }
+
+    /// What a bake with `options` at `receivers` on `scene` reads.
+    pub fn for_receivers(scene: &Scene, receivers: &Receivers, options: &BakeOptions) -> Self {
+        Self::at_receivers(
             scene,
+            receivers,
             options.bands,
             options.samples_used(),
             options.seed,
@@ -431,15 +615,28 @@ impl BakeInputs {
         seed: u64,
         sampling: Sampling,
     ) -> Self {
-        let normals = scene.normals.clone().expect("a prepared scene has normals");
+        let receivers = Receivers::vertices(scene);
+        Self::at_receivers(scene, &receivers, bands, samples, seed, sampling)
+    }
+
+    fn at_receivers(
+        scene: &Scene,
+        receivers: &Receivers,
+        bands: u32,
+        samples: u32,
+        seed: u64,
+        sampling: Sampling,
+    ) -> Self {
+        let vertex_normals = scene.normals.clone().expect("a prepared scene has normals");
         let bvh = Bvh::build(&scene.positions, &scene.triangles);
-        let origins = ray_origins(&scene.positions, &normals, &bvh);
+        let origins = ray_origins(&receivers.positions, &receivers.normals, &bvh);
         let samples = sampling.directions(samples, seed);
         let table = ShTable::new(bands, &samples.directions);
         BakeInputs {
             origins,
-            normals,
+            normals: receivers.normals.clone(),
             triangles: scene.triangles.clone(),
+            vertex_normals,
             bvh,
             samples,
             table,
@@ -453,6 +650,7 @@ impl BakeInputs {
             origins: &self.origins,
             normals: &self.normals,
             triangles: &self.triangles,
+            vertex_normals: &self.vertex_normals,
             bvh: &self.bvh,
             samples: &self.samples,
             table: &self.table,
@@ -462,7 +660,7 @@ impl BakeInputs {
     }
 }
 
-/// Every vertex moved off its surface along its normal, where its rays start.
+/// Every receiver moved off its surface along its normal, where its rays start.
 pub fn ray_origins(positions: &[Vec3], normals: &[Vec3], bvh: &Bvh) -> Vec<Vec3> {
     let extent = bvh.extent();
     positions

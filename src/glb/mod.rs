@@ -1042,6 +1042,8 @@ mod tests {
                 sh_convention: crate::sh::CONVENTION.into(),
                 radiometry: "L_o = sum_k l_k t_k".into(),
                 bounces: 0,
+                fit: crate::bake::Fit::Point,
+                fit_points: None,
             },
         }
     }

@@ -1,0 +1,236 @@
+//! Receivers on the surface, not at the vertices: the shadow-terminator rule, the least-squares
+//! vertex fit against point-sampled vertices over the surface, and both backends.
+
+mod common;
+
+use glam::Vec3;
+use prt_gpu::bake::{bake, bake_at, Backend, BakeOptions, Fit, Mode, NoProgress};
+use prt_gpu::light::ShLight;
+use prt_gpu::receivers::{spread_points, PointDensity, Receivers, SurfacePoint};
+use prt_gpu::sampling::Sampling;
+use prt_gpu::scene::{builtin, prepare::prepare, Scene};
+use prt_gpu::surface::{surface_reference, surface_rms};
+
+/// The rule at a point whose shading normal leans past its flat face: a direction below the
+/// face's plane is blocked by the face, as a path tracer sees it. On a convex shape nothing
+/// else blocks, so of cosine-distributed directions about the shading normal n_s exactly
+/// `(1 + cos theta) / 2` are open, theta the angle between n_s and the face normal (the sky
+/// view factor of a tilted plane): shadowed DC transfer is `albedo * Y00 * (1 + cos theta) / 2`
+/// where trusting the shading hemisphere would give `albedo * Y00`.
+#[test]
+fn a_coarse_sphere_blocks_directions_below_the_face() {
+    // An icosahedron: vertex normals lean 37 degrees from the faces.
+    let (sphere, _) = prepare(builtin::icosphere(Vec3::ZERO, 1.0, 0)).unwrap();
+    let points: Vec<SurfacePoint> = (0..sphere.triangle_count() as u32)
+        .flat_map(|t| {
+            [[0.8, 0.1, 0.1], [0.1, 0.45, 0.45], [1.0 / 3.0; 3]].map(|barycentrics| SurfacePoint {
+                triangle: t,
+                barycentrics,
+            })
+        })
+        .collect();
+    let receivers = Receivers::at_points(&sphere, &points);
+    let samples = 4096;
+    let options = BakeOptions {
+        bands: 1,
+        samples,
+        sampling: Sampling::Cosine,
+        mode: Mode::Shadowed,
+        albedo: Some(Vec3::ONE),
+        ..BakeOptions::default()
+    };
+    let mut leaning = 0;
+    for backend in common::backends() {
+        let (transfer, _) =
+            bake_at(&sphere, &receivers, &options, &backend, None, &NoProgress).unwrap();
+        for (i, point) in points.iter().enumerate() {
+            let corners = sphere.triangles[point.triangle as usize];
+            let face = prt_gpu::receivers::face_normal(&sphere.positions, corners).normalize();
+            let cos_theta = receivers.normals[i].dot(face) as f64;
+            let open = (1.0 + cos_theta) / 2.0;
+            // Each sample is open with probability `open`: a binomial fraction.
+            let sigma = (open * (1.0 - open) / samples as f64).sqrt();
+            let measured = transfer.vertex_channel(i, 0)[0] as f64 / Y00;
+            assert!(
+                (measured - open).abs() <= 5.0 * sigma + 1e-6,
+                "{}: point {i}: open fraction {measured}, expected {open} (sigma {sigma})",
+                backend.describe()
+            );
+            if open < 1.0 - 10.0 * sigma {
+                leaning += 1;
+            }
+        }
+    }
+    assert!(
+        leaning > 0,
+        "no point leans past its face: the test shows nothing"
+    );
+}
+
+/// The constant SH basis function, 1 / (2 sqrt(pi)).
+const Y00: f64 = 0.282_094_791_773_878_14;
+
+/// A plane with a thin box standing on it, coarse enough that its contact shadow falls between
+/// the plane's vertices.
+fn plane_with_thin_box() -> Scene {
+    let plane = builtin::grid_plane(Vec3::ZERO, Vec3::X * 2.0, Vec3::NEG_Z * 2.0, 4, Vec3::ONE);
+    let wall = builtin::closed_box(Vec3::new(-0.9, 0.0, -0.05), Vec3::new(0.9, 0.8, 0.05), 2);
+    builtin::merge(&[plane, wall])
+}
+
+/// Surface error (relative RMS of relit radiance at held-out points) of point-sampled vertices
+/// and of the least-squares fit at equal rays, each with several seeds: the spread between
+/// seeds is the noise the ordering must clear.
+#[test]
+fn the_least_squares_fit_beats_point_vertices_over_the_surface_at_equal_rays() {
+    let scene = plane_with_thin_box();
+    let (prepared, _) = prepare(scene.clone()).unwrap();
+    let light = sky_light(3);
+    let base = BakeOptions {
+        bands: 3,
+        mode: Mode::Shadowed,
+        ..BakeOptions::default()
+    };
+    let reference_options = BakeOptions {
+        samples: 16_384,
+        seed: 999,
+        ..base.clone()
+    };
+    let reference = surface_reference(
+        &prepared,
+        2000,
+        77,
+        &reference_options,
+        &Backend::Cpu,
+        &light,
+        None,
+    )
+    .unwrap();
+    let density = PointDensity::default();
+    let errors = |fit: Fit, samples: u32| -> Vec<f64> {
+        (1..=4)
+            .map(|seed| {
+                let options = BakeOptions {
+                    samples,
+                    fit,
+                    seed,
+                    point_density: density,
+                    ..base.clone()
+                };
+                let (baked, _) = bake(scene.clone(), &options, &Backend::Cpu, &NoProgress).unwrap();
+                surface_rms(&reference, &baked.scene, &baked.transfer, &light).unwrap()
+                    / reference.rms
+            })
+            .collect()
+    };
+    // Equal rays: the fit bakes `per_vertex` times as many receivers with that many times
+    // fewer samples.
+    let point = errors(Fit::Point, 1024);
+    let fitted = errors(Fit::LeastSquares, (1024.0 / density.per_vertex) as u32);
+    let (point_mean, point_spread) = mean_and_spread(&point);
+    let (fit_mean, fit_spread) = mean_and_spread(&fitted);
+    eprintln!("surface error: point {point:?}, least squares {fitted:?}");
+    assert!(
+        fit_mean + 3.0 * (fit_spread + point_spread) < point_mean,
+        "least squares {fit_mean:.4} (spread {fit_spread:.4}) not below point {point_mean:.4} \
+         (spread {point_spread:.4})"
+    );
+}
+
+/// Mean and sample standard deviation.
+fn mean_and_spread(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, variance.sqrt())
+}
+
+/// A sky brighter overhead than at the horizon, white: enough for shadows to matter.
+fn sky_light(bands: u32) -> ShLight {
+    prt_gpu::light::preview_light(bands).unwrap()
+}
+
+/// Unshadowed transfer on a flat plane is the same at every point (one normal, one sample
+/// set): a field linear over each triangle, which the fit must give back exactly.
+#[test]
+fn the_fit_gives_back_the_constant_transfer_of_an_open_plane() {
+    let plane = builtin::grid_plane(Vec3::ZERO, Vec3::X, Vec3::NEG_Z, 3, Vec3::splat(0.5));
+    for mode in [Mode::Unshadowed, Mode::Shadowed] {
+        let options = |fit| BakeOptions {
+            bands: 3,
+            samples: 64,
+            mode,
+            fit,
+            ..BakeOptions::default()
+        };
+        let (points, _) = bake(
+            plane.clone(),
+            &options(Fit::Point),
+            &Backend::Cpu,
+            &NoProgress,
+        )
+        .unwrap();
+        let (fitted, report) = bake(
+            plane.clone(),
+            &options(Fit::LeastSquares),
+            &Backend::Cpu,
+            &NoProgress,
+        )
+        .unwrap();
+        assert!(report.receivers > points.transfer.vertex_count);
+        assert_eq!(fitted.metadata.fit, Fit::LeastSquares);
+        for (a, b) in fitted.transfer.coeffs.iter().zip(&points.transfer.coeffs) {
+            assert!(
+                (a - b).abs() <= 1e-5 * b.abs().max(1e-3),
+                "{mode:?}: {a} vs {b}"
+            );
+        }
+    }
+}
+
+/// The fit with bounces on both backends: the direct pass and the gather at the surface points
+/// run on each backend, the fit on the CPU for both; they agree as the vertex bakes do (a few
+/// rays in 10^5 may differ, moving at most 1e-4 of the gather weight).
+#[test]
+fn least_squares_interreflection_agrees_on_cpu_and_gpu() {
+    if common::gpu_baker().is_none() {
+        return;
+    }
+    let options = BakeOptions {
+        bands: 3,
+        samples: 128,
+        mode: Mode::Interreflected,
+        fit: Fit::LeastSquares,
+        ..BakeOptions::default()
+    };
+    let scene = plane_with_thin_box();
+    let results: Vec<_> = common::backends()
+        .iter()
+        .map(|backend| bake(scene.clone(), &options, backend, &NoProgress).unwrap())
+        .collect();
+    let (cpu, gpu) = (&results[0].0.transfer, &results[1].0.transfer);
+    let rms = |values: &mut dyn Iterator<Item = f64>| {
+        let (sum, n) = values.fold((0.0, 0), |(s, n), x| (s + x * x, n + 1));
+        (sum / n as f64).sqrt()
+    };
+    let size = rms(&mut cpu.coeffs.iter().map(|&x| x as f64));
+    let difference = rms(&mut cpu
+        .coeffs
+        .iter()
+        .zip(&gpu.coeffs)
+        .map(|(&a, &b)| (a - b) as f64));
+    eprintln!(
+        "least-squares interreflection: CPU and GPU differ by {difference:.2e} of {size:.2e}"
+    );
+    assert!(results[0].1.bounces.len() == 3 && results[1].1.bounces.len() == 3);
+    assert!(difference <= 1e-3 * size, "{difference} of {size}");
+}
+
+#[test]
+fn spread_points_give_every_triangle_support() {
+    let (scene, _) = prepare(plane_with_thin_box()).unwrap();
+    let points = spread_points(&scene, PointDensity::default(), 1);
+    let mut seen = vec![false; scene.triangle_count()];
+    points.iter().for_each(|p| seen[p.triangle as usize] = true);
+    assert!(seen.iter().all(|&s| s));
+}

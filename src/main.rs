@@ -231,6 +231,10 @@ struct RenderArgs {
     /// three-quarter view that frames the mesh.
     #[arg(long, allow_hyphen_values = true)]
     camera: Option<Camera>,
+    /// Draw the light behind the model as a sky dome (the SH light the model is lit by, so
+    /// as smooth as its band count); without it the background is transparent black.
+    #[arg(long)]
+    sky: bool,
     /// Exposure in stops (PNG only).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     exposure: f32,
@@ -858,14 +862,21 @@ fn run_render(args: RenderArgs) -> Result<()> {
             None => light::preview_light(bands)?,
         };
         let light = shape(light, &args.shaping);
-        panels.push(render::preview(
+        let camera = args
+            .camera
+            .unwrap_or_else(|| Camera::framing_scene(&baked.scene));
+        let mut panel = render::preview(
             &context,
             &baked,
             &light,
-            args.camera.as_ref(),
+            Some(&camera),
             args.width,
             args.height,
-        )?);
+        )?;
+        if args.sky {
+            render::draw_sky(&mut panel, args.width, args.height, &camera, &light);
+        }
+        panels.push(panel);
     }
     let image = render::side_by_side(&panels, args.width, args.height)?;
     let width = args.width * panels.len() as u32;

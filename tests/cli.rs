@@ -504,6 +504,58 @@ fn bake_then_render_side_by_side() {
             "panel {panel} corner is covered"
         );
     }
+    // With the sky behind it, the corners show the light: opaque, and the light's colour.
+    let out = prt_gpu(
+        &[
+            "render",
+            "shadowed.glb",
+            "--light",
+            studio,
+            "--sky",
+            "--width",
+            "160",
+            "--height",
+            "120",
+            "-o",
+            "sky.exr",
+        ],
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let sky = exr::prelude::read_first_rgba_layer_from_file(
+        dir.path().join("sky.exr"),
+        |size, _| (size.0, vec![[0.0f32; 4]; size.0 * size.1]),
+        |out: &mut (usize, Vec<[f32; 4]>), pos, (r, g, b, a): (f32, f32, f32, f32)| {
+            out.1[pos.1 * out.0 + pos.0] = [r, g, b, a];
+        },
+    )
+    .unwrap()
+    .layer_data
+    .channel_data
+    .pixels
+    .1;
+    let light = prt_gpu::light::load(std::path::Path::new(studio), 4, None, false).unwrap();
+    let camera = prt_gpu::render::Camera::framing_scene(
+        &prt_gpu::glb::read_glb(&dir.path().join("shadowed.glb"))
+            .unwrap()
+            .scene,
+    );
+    let expected = prt_gpu::render::sky_radiance(
+        &light.light,
+        prt_gpu::render::pixel_ray(&camera, 160, 120, 1, 1),
+    );
+    let corner = sky[160 + 1];
+    assert_eq!(corner[3], 1.0);
+    for c in 0..3 {
+        assert!(
+            (corner[c] - expected[c]).abs() <= 1e-4 * expected[c].max(1.0),
+            "{corner:?} vs {expected:?}"
+        );
+    }
 
     let out = prt_gpu(
         &[

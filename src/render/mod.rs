@@ -11,11 +11,13 @@
 //! - `raster`: the wgpu render pipeline, its colour target and the read-back (`preview`,
 //!   `render`).
 //! - `image`: side-by-side panels, tone mapping, sRGB bytes and the PNG and EXR files.
+//! - `sky`: the light drawn behind the model, as a sky dome.
 
 mod camera;
 mod image;
 mod raster;
 mod relight;
+mod sky;
 #[cfg(test)]
 mod test_support;
 
@@ -23,3 +25,4 @@ pub use self::image::{side_by_side, to_rgba8, tone_map, write_image, ToneMap};
 pub use camera::{bounds, Camera, DEFAULT_FOV_DEG};
 pub use raster::{preview, render, RenderParams};
 pub use relight::relight;
+pub use sky::{draw_sky, pixel_ray, sky_radiance};

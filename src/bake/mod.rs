@@ -77,6 +77,21 @@ pub struct BakedMesh {
     pub scene: Scene,
     pub transfer: Transfer,
     pub metadata: BakeMetadata,
+    /// Per-texel transfer, when a lightmap was baked (the scene is then split so that every
+    /// triangle corner has its own vertex and lightmap coordinates).
+    pub lightmap: Option<Lightmap>,
+}
+
+/// Transfer per texel of a lightmap atlas.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Lightmap {
+    pub width: u32,
+    pub height: u32,
+    /// Lightmap coordinates of every vertex of the scene, in [0, 1] as glTF's `TEXCOORD_n`:
+    /// texel (x, y) (row y from the top) has its centre at `((x + 0.5) / width, (y + 0.5) / height)`.
+    pub texcoords: Vec<[f32; 2]>,
+    /// The texels' transfer, row-major: `vertex_count` is `width * height`.
+    pub transfer: Transfer,
 }
 
 /// Everything a baked file records about how it was made (glTF mesh extras `prt`).
@@ -474,6 +489,7 @@ pub fn bake(
             scene,
             transfer,
             metadata,
+            lightmap: None,
         },
         report,
     ))

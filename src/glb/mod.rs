@@ -224,6 +224,7 @@ pub fn decode_glb(bytes: &[u8], path: &Path) -> Result<BakedMesh> {
             coeffs,
         },
         metadata: plan.metadata,
+        lightmap: None,
     })
 }
 
@@ -1045,6 +1046,7 @@ mod tests {
                 fit: crate::bake::Fit::Point,
                 fit_points: None,
             },
+            lightmap: None,
         }
     }
 

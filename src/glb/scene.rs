@@ -433,6 +433,7 @@ pub fn read_scene_glb(path: &Path) -> Result<BakedMesh> {
         scene,
         transfer,
         metadata,
+        lightmap: None,
     })
 }
 

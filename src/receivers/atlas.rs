@@ -1,0 +1,436 @@
+//! A lightmap atlas generated for a prepared scene: meshes need not carry UVs, so every triangle
+//! gets its own chart.
+//!
+//! A chart is the triangle laid flat at its true shape (edge lengths kept, times the texel
+//! density), its longest edge along +x and its third corner above it, so its bounding box is as
+//! low as the triangle allows. A tiny triangle is scaled up until its longest edge spans
+//! [`MIN_CHART_EDGE`] texels, so every triangle gets texels of its own.
+//!
+//! Charts are packed on shelves (rows): sorted by height, tallest first, ties by triangle index,
+//! each shelf filled left to right up to the atlas width. The width is chosen so the atlas comes
+//! out about square. Every chart is kept [`GUTTER`] empty texels away from the others and from
+//! the border, so neither bilinear filtering nor dilation ([`super::texels::dilate`]) mixes two
+//! charts.
+//!
+//! Texel `(x, y)` covers `[x, x+1) x [y, y+1)` in the atlas' texel units; its centre is
+//! `(x + 0.5, y + 0.5)`.
+
+use glam::{DVec3, Vec2};
+
+use crate::error::{Error, Result};
+use crate::scene::Scene;
+
+/// The largest atlas side accepted (texels): larger would not fit a GPU texture.
+pub const MAX_ATLAS_SIZE: u32 = 16384;
+
+/// Empty texels kept between any two charts and between a chart and the border. Two: the ring
+/// one texel around a chart (the reach of bilinear filtering) is then filled by dilation from
+/// that chart alone, never from a neighbour.
+pub const GUTTER: u32 = 2;
+
+/// The shortest a chart's longest edge may be, in texels.
+pub const MIN_CHART_EDGE: f32 = 2.0;
+
+/// A packed atlas: its size and every triangle's corners in it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Atlas {
+    pub width: u32,
+    pub height: u32,
+    /// Per triangle (in the scene's order), the atlas positions of its three corners, in texel
+    /// units.
+    pub corners: Vec<[Vec2; 3]>,
+}
+
+/// A triangle laid flat: its corners (in the triangle's own order) with the bounding box's
+/// lower corner at the origin, already scaled to texels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Chart {
+    corners: [Vec2; 3],
+    /// Texels the chart's footprint spans (see [`footprint`]).
+    size: [u32; 2],
+}
+
+/// Lays out and packs a chart for every triangle of `scene` at `texels_per_unit` texels per
+/// scene unit of length. Refuses densities that are not positive and finite, scenes without
+/// triangles or with non-finite positions, and atlases over [`MAX_ATLAS_SIZE`] a side.
+pub fn generate_atlas(scene: &Scene, texels_per_unit: f32) -> Result<Atlas> {
+    let charts = lay_out_charts(scene, texels_per_unit)?;
+    let packing = pack_square(&charts)?;
+    let corners = charts
+        .iter()
+        .zip(&packing.origins)
+        .map(|(chart, &[x, y])| {
+            // Half a texel in, so that a corner sits on a texel centre, never on a texel edge:
+            // which texels the chart touches is then unambiguous (see `footprint`).
+            let offset = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            chart.corners.map(|c| c + offset)
+        })
+        .collect();
+    Ok(Atlas {
+        width: packing.width,
+        height: packing.height,
+        corners,
+    })
+}
+
+/// The texel density that makes the atlas of `scene` about `target_size` texels on its longer
+/// side (within a few percent; never over it unless the smallest charts alone need more).
+/// Refuses a target of zero or over [`MAX_ATLAS_SIZE`], and scenes [`generate_atlas`] refuses.
+pub fn texels_per_unit_for_size(scene: &Scene, target_size: u32) -> Result<f32> {
+    if target_size == 0 || target_size > MAX_ATLAS_SIZE {
+        return Err(Error::Options(format!(
+            "lightmap size must be between 1 and {MAX_ATLAS_SIZE} texels, not {target_size}"
+        )));
+    }
+    check_scene(scene)?;
+    let total_area: f64 = scene
+        .triangles
+        .iter()
+        .map(|&t| twice_area(corner_positions(scene, t)) * 0.5)
+        .sum();
+    // Charts' boxes are about twice the triangles' area: a first guess to bisect around.
+    let guess = (target_size as f64 / (2.0 * total_area).sqrt().max(1e-30)) as f32;
+    let side = |density: f32| -> Option<u32> {
+        let charts = lay_out_charts(scene, density).ok()?;
+        pack_square(&charts).ok().map(|p| p.width.max(p.height))
+    };
+    // Bracket on a log scale, then bisect: the side grows with the density, in steps.
+    let (mut low, mut high) = (guess, guess);
+    for _ in 0..64 {
+        if side(low).is_some_and(|s| s <= target_size) || !is_positive(low * 0.5) {
+            break;
+        }
+        low *= 0.5;
+    }
+    for _ in 0..64 {
+        if side(high).is_none_or(|s| s > target_size) || !is_positive(high * 2.0) {
+            break;
+        }
+        high *= 2.0;
+    }
+    for _ in 0..24 {
+        let middle = (low * high).sqrt();
+        if side(middle).is_some_and(|s| s <= target_size) {
+            low = middle;
+        } else {
+            high = middle;
+        }
+    }
+    Ok(low)
+}
+
+fn is_positive(x: f32) -> bool {
+    x.is_finite() && x > 0.0
+}
+
+fn check_scene(scene: &Scene) -> Result<()> {
+    if scene.triangles.is_empty() {
+        return Err(Error::Geometry(
+            "the scene has no triangles to lay out in a lightmap".into(),
+        ));
+    }
+    let vertices = scene.positions.len();
+    for (t, corners) in scene.triangles.iter().enumerate() {
+        if corners.iter().any(|&c| c as usize >= vertices) {
+            return Err(Error::Geometry(format!(
+                "triangle {t} has a corner index past the {vertices} vertices"
+            )));
+        }
+    }
+    if let Some(v) = scene.positions.iter().position(|p| !p.is_finite()) {
+        return Err(Error::Geometry(format!("vertex {v} is not finite")));
+    }
+    Ok(())
+}
+
+fn lay_out_charts(scene: &Scene, texels_per_unit: f32) -> Result<Vec<Chart>> {
+    if !is_positive(texels_per_unit) {
+        return Err(Error::Options(format!(
+            "lightmap texel density must be positive and finite, not {texels_per_unit}"
+        )));
+    }
+    check_scene(scene)?;
+    Ok(scene
+        .triangles
+        .iter()
+        .map(|&t| lay_flat(scene, t, texels_per_unit as f64))
+        .collect())
+}
+
+/// A triangle's corners in f64 (lengths of needles and tiny triangles stay exact enough).
+fn corner_positions(scene: &Scene, t: [u32; 3]) -> [DVec3; 3] {
+    t.map(|i| scene.positions[i as usize].as_dvec3())
+}
+
+fn twice_area([a, b, c]: [DVec3; 3]) -> f64 {
+    (b - a).cross(c - a).length()
+}
+
+/// One triangle flat in the plane, scaled to texels: its longest edge on the x axis from the
+/// origin, the third corner above it. Both base angles of the longest edge are acute, so the
+/// third corner projects inside the edge and the bounding box is `[0, longest] x [0, height]`.
+fn lay_flat(scene: &Scene, t: [u32; 3], texels_per_unit: f64) -> Chart {
+    let p = corner_positions(scene, t);
+    let lengths = [0, 1, 2].map(|i| (p[(i + 1) % 3] - p[i]).length());
+    // The edge from corner `first` to the next; ties keep the lowest index (determinism).
+    let first = (0..3).fold(0, |best, i| if lengths[i] > lengths[best] { i } else { best });
+    let longest = lengths[first];
+    let (second, third) = ((first + 1) % 3, (first + 2) % 3);
+    let mut flat = [[0.0f64; 2]; 3];
+    if longest > 0.0 {
+        let along = (p[third] - p[first]).dot(p[second] - p[first]) / longest;
+        flat[second] = [longest, 0.0];
+        flat[third] = [along.clamp(0.0, longest), twice_area(p) / longest];
+    }
+    // A tiny triangle is enlarged so that it still gets texels of its own.
+    let scale = if longest > 0.0 {
+        texels_per_unit.max(MIN_CHART_EDGE as f64 / longest)
+    } else {
+        texels_per_unit
+    };
+    let corners = flat.map(|[x, y]| Vec2::new((x * scale) as f32, (y * scale) as f32));
+    let extent = corners
+        .iter()
+        .fold(Vec2::ZERO, |m, &c| m.max(c))
+        .to_array();
+    Chart {
+        corners,
+        size: extent.map(footprint),
+    }
+}
+
+/// Texels spanned by an extent `[0, e]` placed half a texel into its first texel: the texels
+/// whose closed squares meet `[0.5, 0.5 + e]`, from the first to `floor(0.5 + e)`.
+fn footprint(extent: f32) -> u32 {
+    // Saturates for absurd extents; the packer then refuses the atlas as too large.
+    (0.5 + extent as f64).floor().min(u32::MAX as f64 / 4.0) as u32 + 1
+}
+
+/// Charts placed: each chart's lower-left texel, and the atlas size.
+#[derive(Clone, Debug, PartialEq)]
+struct Packing {
+    origins: Vec<[u32; 2]>,
+    width: u32,
+    height: u32,
+}
+
+/// Packs with the shelf width that makes the atlas closest to square (a few trials, as the
+/// shelves' waste depends on the width), refusing atlases over [`MAX_ATLAS_SIZE`].
+fn pack_square(charts: &[Chart]) -> Result<Packing> {
+    let cell = |c: &Chart| c.size.map(|s| s as u64 + GUTTER as u64);
+    let area: u64 = charts.iter().map(|c| cell(c)[0] * cell(c)[1]).sum();
+    let widest = charts.iter().map(|c| cell(c)[0]).max().unwrap_or(0) + GUTTER as u64;
+    let limit = MAX_ATLAS_SIZE as u64;
+    if area > limit * limit || widest > limit {
+        return Err(too_large(area.isqrt(), widest));
+    }
+    let order = shelf_order(charts);
+    let mut width = (area as f64).sqrt().ceil() as u64 + GUTTER as u64;
+    let mut best: Option<Packing> = None;
+    for _ in 0..8 {
+        let packing = pack_shelves(charts, &order, width.clamp(widest, limit) as u32);
+        let side = |p: &Packing| p.width.max(p.height);
+        let (w, h) = (packing.width as u64, packing.height as u64);
+        if best.as_ref().is_none_or(|b| side(&packing) < side(b)) {
+            best = Some(packing);
+        }
+        if h <= w {
+            break;
+        }
+        // Too tall: widen towards the square of the same area.
+        width = ((w * h) as f64).sqrt().ceil() as u64 + 1;
+    }
+    let best = best.expect("at least one packing");
+    if best.width > MAX_ATLAS_SIZE || best.height > MAX_ATLAS_SIZE {
+        return Err(too_large(best.width as u64, best.height as u64));
+    }
+    Ok(best)
+}
+
+fn too_large(width: u64, height: u64) -> Error {
+    Error::Options(format!(
+        "lightmap atlas of about {width} x {height} texels exceeds {MAX_ATLAS_SIZE} a side; \
+         lower the texel density"
+    ))
+}
+
+/// The packing order: tallest first, ties by triangle index.
+fn shelf_order(charts: &[Chart]) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..charts.len() as u32).collect();
+    // A stable sort keeps equal heights in index order.
+    order.sort_by_key(|&i| std::cmp::Reverse(charts[i as usize].size[1]));
+    order
+}
+
+/// Shelf packing in `order` into rows at most `max_width` texels wide (gutters included).
+/// Each shelf is as tall as its first (tallest) chart.
+fn pack_shelves(charts: &[Chart], order: &[u32], max_width: u32) -> Packing {
+    let mut origins = vec![[0u32; 2]; charts.len()];
+    let (mut x, mut y, mut shelf_height, mut width) = (GUTTER, GUTTER, 0, 0);
+    for &i in order {
+        let [w, h] = charts[i as usize].size;
+        if x > GUTTER && x.saturating_add(w).saturating_add(GUTTER) > max_width {
+            y = y.saturating_add(shelf_height).saturating_add(GUTTER);
+            x = GUTTER;
+            shelf_height = 0;
+        }
+        origins[i as usize] = [x, y];
+        x = x.saturating_add(w).saturating_add(GUTTER);
+        width = width.max(x);
+        shelf_height = shelf_height.max(h);
+    }
+    Packing {
+        origins,
+        width,
+        height: y.saturating_add(shelf_height).saturating_add(GUTTER),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    pub(crate) fn scene_of(triangles: &[[Vec3; 3]]) -> Scene {
+        let positions: Vec<Vec3> = triangles.iter().flatten().copied().collect();
+        Scene {
+            normals: Some(vec![Vec3::Z; positions.len()]),
+            albedo: vec![Vec3::ONE; positions.len()],
+            triangles: (0..triangles.len() as u32)
+                .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+                .collect(),
+            positions,
+        }
+    }
+
+    /// Triangles of many shapes and sizes, some far from one another, one a needle, one tiny.
+    pub(crate) fn assorted_scene() -> Scene {
+        let mut triangles = Vec::new();
+        for i in 0..40 {
+            let f = i as f32;
+            let a = Vec3::new(f * 3.0, (f * 0.7).sin(), f * 0.1);
+            let b = a + Vec3::new(1.0 + (f * 1.3).cos().abs(), 0.2 * f.sin(), 0.5);
+            let c = a + Vec3::new(0.3 * f.cos(), 0.4 + (f * 0.37).sin().abs(), -0.2);
+            triangles.push([a, b, c]);
+        }
+        triangles.push([Vec3::ZERO, Vec3::new(5.0, 0.0, 0.0), Vec3::new(2.5, 0.001, 0.0)]);
+        triangles.push([Vec3::ZERO, Vec3::new(1e-4, 0.0, 0.0), Vec3::new(0.0, 1e-4, 1e-5)]);
+        scene_of(&triangles)
+    }
+
+    fn edge_lengths_2d(c: [Vec2; 3]) -> [f32; 3] {
+        [0, 1, 2].map(|i| (c[(i + 1) % 3] - c[i]).length())
+    }
+
+    #[test]
+    fn charts_keep_edge_lengths_at_the_density() {
+        let scene = assorted_scene();
+        let density = 7.0;
+        let atlas = generate_atlas(&scene, density).unwrap();
+        for (t, corners) in scene.triangles.iter().enumerate() {
+            let p = corners.map(|i| scene.positions[i as usize]);
+            let lengths_3d = [0, 1, 2].map(|i| (p[(i + 1) % 3] - p[i]).length());
+            let longest = lengths_3d.iter().copied().fold(0.0, f32::max);
+            let scale = density.max(MIN_CHART_EDGE / longest);
+            for (flat, real) in edge_lengths_2d(atlas.corners[t]).iter().zip(lengths_3d) {
+                assert!(
+                    (flat - real * scale).abs() <= 1e-3 * (1.0 + real * scale),
+                    "triangle {t}: {flat} vs {}",
+                    real * scale
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn charts_lie_inside_with_gutters_between_their_boxes() {
+        let scene = assorted_scene();
+        let atlas = generate_atlas(&scene, 5.0).unwrap();
+        // Each chart's texel box: the texels its closed bounding box meets.
+        let boxes: Vec<[i64; 4]> = atlas
+            .corners
+            .iter()
+            .map(|c| {
+                let lo = c.iter().fold(Vec2::INFINITY, |m, &p| m.min(p));
+                let hi = c.iter().fold(Vec2::NEG_INFINITY, |m, &p| m.max(p));
+                [
+                    lo.x.ceil() as i64 - 1,
+                    lo.y.ceil() as i64 - 1,
+                    hi.x.floor() as i64,
+                    hi.y.floor() as i64,
+                ]
+            })
+            .collect();
+        let g = GUTTER as i64;
+        for (i, a) in boxes.iter().enumerate() {
+            assert!(a[0] >= g && a[1] >= g, "chart {i} too near the border");
+            assert!(a[2] < atlas.width as i64 - g && a[3] < atlas.height as i64 - g);
+            for b in &boxes[i + 1..] {
+                let apart = a[2] + g < b[0] || b[2] + g < a[0] || a[3] + g < b[1] || b[3] + g < a[1];
+                assert!(apart, "boxes {a:?} and {b:?} closer than the gutter");
+            }
+        }
+    }
+
+    #[test]
+    fn atlas_is_about_square_and_deterministic() {
+        let scene = assorted_scene();
+        let atlas = generate_atlas(&scene, 20.0).unwrap();
+        let (w, h) = (atlas.width as f32, atlas.height as f32);
+        assert!(w / h < 1.5 && h / w < 1.5, "{w} x {h}");
+        assert_eq!(atlas, generate_atlas(&scene, 20.0).unwrap());
+    }
+
+    #[test]
+    fn tiny_triangles_get_a_minimum_chart() {
+        let scene = assorted_scene();
+        let atlas = generate_atlas(&scene, 1.0).unwrap();
+        for corners in &atlas.corners {
+            let longest = edge_lengths_2d(*corners).into_iter().fold(0.0, f32::max);
+            assert!(longest >= MIN_CHART_EDGE * 0.999, "{longest}");
+        }
+    }
+
+    #[test]
+    fn density_for_size_hits_the_target() {
+        let scene = assorted_scene();
+        for target in [256, 1000, 4096] {
+            let density = texels_per_unit_for_size(&scene, target).unwrap();
+            let atlas = generate_atlas(&scene, density).unwrap();
+            let side = atlas.width.max(atlas.height);
+            assert!(side <= target, "{side} > {target}");
+            assert!(side as f32 >= 0.95 * target as f32, "{side} << {target}");
+        }
+    }
+
+    #[test]
+    fn absurd_requests_are_one_line_errors() {
+        let scene = assorted_scene();
+        let errors = [
+            generate_atlas(&scene, 1e6).unwrap_err(),
+            generate_atlas(&scene, 0.0).unwrap_err(),
+            generate_atlas(&scene, f32::NAN).unwrap_err(),
+            generate_atlas(&scene, f32::INFINITY).unwrap_err(),
+            texels_per_unit_for_size(&scene, 0).unwrap_err(),
+            texels_per_unit_for_size(&scene, MAX_ATLAS_SIZE + 1).unwrap_err(),
+            generate_atlas(&Scene::default(), 1.0).unwrap_err(),
+            generate_atlas(&scene_of(&[[Vec3::NAN, Vec3::X, Vec3::Y]]), 1.0).unwrap_err(),
+        ];
+        for e in errors {
+            let message = e.to_string();
+            assert!(!message.contains('\n'), "{message}");
+        }
+        let mut bad_index = scene_of(&[[Vec3::ZERO, Vec3::X, Vec3::Y]]);
+        bad_index.triangles[0][2] = 7;
+        assert!(generate_atlas(&bad_index, 1.0).is_err());
+    }
+
+    #[test]
+    fn a_point_triangle_gets_a_texel() {
+        let scene = scene_of(&[[Vec3::ONE, Vec3::ONE, Vec3::ONE]]);
+        let atlas = generate_atlas(&scene, 4.0).unwrap();
+        let g = GUTTER as f32 + 0.5;
+        assert_eq!(atlas.corners[0], [Vec2::splat(g); 3]);
+        assert_eq!((atlas.width, atlas.height), (2 * GUTTER + 1, 2 * GUTTER + 1));
+    }
+}

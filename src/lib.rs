@@ -17,6 +17,7 @@ pub mod fs;
 pub mod glb;
 pub mod gltf_validator;
 pub mod light;
+pub mod lightmap;
 pub mod morton;
 pub mod packet;
 pub mod ray;

@@ -173,7 +173,10 @@ fn lay_flat(scene: &Scene, t: [u32; 3], texels_per_unit: f64) -> Chart {
     let p = corner_positions(scene, t);
     let lengths = [0, 1, 2].map(|i| (p[(i + 1) % 3] - p[i]).length());
     // The edge from corner `first` to the next; ties keep the lowest index (determinism).
-    let first = (0..3).fold(0, |best, i| if lengths[i] > lengths[best] { i } else { best });
+    let first = (0..3).fold(
+        0,
+        |best, i| if lengths[i] > lengths[best] { i } else { best },
+    );
     let longest = lengths[first];
     let (second, third) = ((first + 1) % 3, (first + 2) % 3);
     let mut flat = [[0.0f64; 2]; 3];
@@ -189,10 +192,7 @@ fn lay_flat(scene: &Scene, t: [u32; 3], texels_per_unit: f64) -> Chart {
         texels_per_unit
     };
     let corners = flat.map(|[x, y]| Vec2::new((x * scale) as f32, (y * scale) as f32));
-    let extent = corners
-        .iter()
-        .fold(Vec2::ZERO, |m, &c| m.max(c))
-        .to_array();
+    let extent = corners.iter().fold(Vec2::ZERO, |m, &c| m.max(c)).to_array();
     Chart {
         corners,
         size: extent.map(footprint),
@@ -313,8 +313,16 @@ mod tests {
             let c = a + Vec3::new(0.3 * f.cos(), 0.4 + (f * 0.37).sin().abs(), -0.2);
             triangles.push([a, b, c]);
         }
-        triangles.push([Vec3::ZERO, Vec3::new(5.0, 0.0, 0.0), Vec3::new(2.5, 0.001, 0.0)]);
-        triangles.push([Vec3::ZERO, Vec3::new(1e-4, 0.0, 0.0), Vec3::new(0.0, 1e-4, 1e-5)]);
+        triangles.push([
+            Vec3::ZERO,
+            Vec3::new(5.0, 0.0, 0.0),
+            Vec3::new(2.5, 0.001, 0.0),
+        ]);
+        triangles.push([
+            Vec3::ZERO,
+            Vec3::new(1e-4, 0.0, 0.0),
+            Vec3::new(0.0, 1e-4, 1e-5),
+        ]);
         scene_of(&triangles)
     }
 
@@ -366,7 +374,8 @@ mod tests {
             assert!(a[0] >= g && a[1] >= g, "chart {i} too near the border");
             assert!(a[2] < atlas.width as i64 - g && a[3] < atlas.height as i64 - g);
             for b in &boxes[i + 1..] {
-                let apart = a[2] + g < b[0] || b[2] + g < a[0] || a[3] + g < b[1] || b[3] + g < a[1];
+                let apart =
+                    a[2] + g < b[0] || b[2] + g < a[0] || a[3] + g < b[1] || b[3] + g < a[1];
                 assert!(apart, "boxes {a:?} and {b:?} closer than the gutter");
             }
         }
@@ -431,6 +440,9 @@ mod tests {
         let atlas = generate_atlas(&scene, 4.0).unwrap();
         let g = GUTTER as f32 + 0.5;
         assert_eq!(atlas.corners[0], [Vec2::splat(g); 3]);
-        assert_eq!((atlas.width, atlas.height), (2 * GUTTER + 1, 2 * GUTTER + 1));
+        assert_eq!(
+            (atlas.width, atlas.height),
+            (2 * GUTTER + 1, 2 * GUTTER + 1)
+        );
     }
 }

@@ -9,7 +9,7 @@
 //! trusted, [`mark_invalid`]) from their valid neighbours, so filtering near a chart's edge
 //! never reads an unbaked texel.
 
-use glam::{DVec2, Vec2};
+use glam::DVec2;
 
 use super::atlas::Atlas;
 use super::SurfacePoint;
@@ -190,19 +190,24 @@ fn square_meets_triangle(origin: DVec2, corners: [DVec2; 3]) -> bool {
         origin + DVec2::ONE,
     ];
     let edge_normals = [0, 1, 2].map(|i| (corners[(i + 1) % 3] - corners[i]).perp());
-    [DVec2::X, DVec2::Y].iter().chain(&edge_normals).all(|&axis| {
-        let (a_lo, a_hi) = project(&square, axis);
-        let (b_lo, b_hi) = project(&corners, axis);
-        let slack = SLACK * axis.length().max(1.0);
-        a_lo <= b_hi + slack && b_lo <= a_hi + slack
-    })
+    [DVec2::X, DVec2::Y]
+        .iter()
+        .chain(&edge_normals)
+        .all(|&axis| {
+            let (a_lo, a_hi) = project(&square, axis);
+            let (b_lo, b_hi) = project(&corners, axis);
+            let slack = SLACK * axis.length().max(1.0);
+            a_lo <= b_hi + slack && b_lo <= a_hi + slack
+        })
 }
 
 fn project(points: &[DVec2], axis: DVec2) -> (f64, f64) {
-    points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-        let d = p.dot(axis);
-        (lo.min(d), hi.max(d))
-    })
+    points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            let d = p.dot(axis);
+            (lo.min(d), hi.max(d))
+        })
 }
 
 /// The point of the closed triangle nearest `p`: its barycentrics (non-negative, summing to
@@ -211,8 +216,12 @@ fn closest_point(corners: [DVec2; 3], p: DVec2) -> ([f32; 3], f64) {
     let [a, b, c] = corners;
     let area2 = (b - a).perp_dot(c - a);
     if area2.abs() > 1e-12 * (b - a).length_squared().max((c - a).length_squared()) {
-        let w = [(c - b).perp_dot(p - b), (a - c).perp_dot(p - c), (b - a).perp_dot(p - a)]
-            .map(|x| x / area2);
+        let w = [
+            (c - b).perp_dot(p - b),
+            (a - c).perp_dot(p - c),
+            (b - a).perp_dot(p - a),
+        ]
+        .map(|x| x / area2);
         if w.iter().all(|&x| x >= 0.0) {
             return (normalized(w), 0.0);
         }
@@ -267,7 +276,9 @@ pub fn dilate(
 ) -> Result<()> {
     let (w, h) = (width as usize, height as usize);
     let texels = w.checked_mul(h);
-    if texels != Some(valid.len()) || texels.and_then(|n| n.checked_mul(channels)) != Some(values.len()) {
+    if texels != Some(valid.len())
+        || texels.and_then(|n| n.checked_mul(channels)) != Some(values.len())
+    {
         return Err(Error::Options(format!(
             "dilation of a {width} x {height} image of {channels} channels given {} values and {} flags",
             values.len(),
@@ -327,7 +338,7 @@ mod tests {
     use super::super::atlas::{generate_atlas, GUTTER};
     use super::*;
     use crate::scene::Scene;
-    use glam::Vec3;
+    use glam::{Vec2, Vec3};
 
     fn scene_of(triangles: &[[Vec3; 3]]) -> Scene {
         let positions: Vec<Vec3> = triangles.iter().flatten().copied().collect();
@@ -353,9 +364,21 @@ mod tests {
             let p = [(); 3].map(|_| Vec3::new(next(), next(), next()) * 3.0);
             triangles.push(p);
         }
-        triangles.push([Vec3::ZERO, Vec3::new(5.0, 0.0, 0.0), Vec3::new(2.5, 0.001, 0.0)]);
-        triangles.push([Vec3::ZERO, Vec3::new(3.0, 0.0, 0.0), Vec3::new(6.0, 1e-7, 0.0)]);
-        triangles.push([Vec3::ZERO, Vec3::new(1e-4, 0.0, 0.0), Vec3::new(0.0, 1e-4, 1e-5)]);
+        triangles.push([
+            Vec3::ZERO,
+            Vec3::new(5.0, 0.0, 0.0),
+            Vec3::new(2.5, 0.001, 0.0),
+        ]);
+        triangles.push([
+            Vec3::ZERO,
+            Vec3::new(3.0, 0.0, 0.0),
+            Vec3::new(6.0, 1e-7, 0.0),
+        ]);
+        triangles.push([
+            Vec3::ZERO,
+            Vec3::new(1e-4, 0.0, 0.0),
+            Vec3::new(0.0, 1e-4, 1e-5),
+        ]);
         triangles.push([Vec3::ZERO, Vec3::X, Vec3::Y]);
         scene_of(&triangles)
     }
@@ -409,7 +432,10 @@ mod tests {
         let atlas = generate_atlas(&scene, 6.0).unwrap();
         let texels = rasterize(&atlas);
         let keys: Vec<(u32, u32)> = texels.texels.iter().map(|&(x, y)| (y, x)).collect();
-        assert!(keys.windows(2).all(|w| w[0] < w[1]), "not strictly row-major");
+        assert!(
+            keys.windows(2).all(|w| w[0] < w[1]),
+            "not strictly row-major"
+        );
         for (&(x, y), p) in texels.texels.iter().zip(&texels.points) {
             let b = p.barycentrics;
             assert!(b.iter().all(|&w| w >= 0.0) && (b.iter().sum::<f32>() - 1.0).abs() < 1e-5);
@@ -440,7 +466,10 @@ mod tests {
         }
         // Every triangle has texels.
         let mut seen = vec![false; scene.triangles.len()];
-        texels.points.iter().for_each(|p| seen[p.triangle as usize] = true);
+        texels
+            .points
+            .iter()
+            .for_each(|p| seen[p.triangle as usize] = true);
         assert!(seen.iter().all(|&s| s));
     }
 
@@ -472,8 +501,16 @@ mod tests {
     #[test]
     fn overlapping_charts_pick_one_owner_by_the_rules() {
         // Two charts laid over one another by hand: the centre-inside one wins, then the nearer.
-        let big = [Vec2::new(0.5, 0.5), Vec2::new(8.5, 0.5), Vec2::new(0.5, 8.5)];
-        let small = [Vec2::new(0.5, 0.5), Vec2::new(2.5, 0.5), Vec2::new(0.5, 2.5)];
+        let big = [
+            Vec2::new(0.5, 0.5),
+            Vec2::new(8.5, 0.5),
+            Vec2::new(0.5, 8.5),
+        ];
+        let small = [
+            Vec2::new(0.5, 0.5),
+            Vec2::new(2.5, 0.5),
+            Vec2::new(0.5, 2.5),
+        ];
         let atlas = Atlas {
             width: 10,
             height: 10,
@@ -486,8 +523,16 @@ mod tests {
         };
         assert_eq!(owner(0, 0), 0, "both inside: the lower index");
         assert_eq!(owner(5, 1), 1, "only the big one");
-        assert_eq!(owner(2, 0), 0, "centre on the small one's edge: inside both");
-        assert_eq!(owner(2, 1), 1, "met by both, centre inside the big one only");
+        assert_eq!(
+            owner(2, 0),
+            0,
+            "centre on the small one's edge: inside both"
+        );
+        assert_eq!(
+            owner(2, 1),
+            1,
+            "met by both, centre inside the big one only"
+        );
         assert_eq!(texels.texels.len(), texels.points.len());
     }
 

@@ -10,6 +10,7 @@
 //! never reads an unbaked texel.
 
 use glam::DVec2;
+use rayon::prelude::*;
 
 use super::atlas::Atlas;
 use super::SurfacePoint;
@@ -286,51 +287,84 @@ pub fn dilate(
         )));
     }
     for _ in 0..passes {
-        let filled = dilation_pass(w, h, values, channels, valid);
+        let (filled, averages) = dilation_pass(w, h, values, channels, valid);
         if filled.is_empty() {
             break;
         }
-        for (texel, average) in filled {
-            values[texel * channels..(texel + 1) * channels].copy_from_slice(&average);
+        for (i, &texel) in filled.iter().enumerate() {
+            values[texel * channels..(texel + 1) * channels]
+                .copy_from_slice(&averages[i * channels..(i + 1) * channels]);
             valid[texel] = true;
         }
     }
     Ok(())
 }
 
-/// One pass of [`dilate`]: the texels it fills and their new values, not yet written.
+/// The texels one pass of [`dilate`] fills and their new values (`[filled][channel]`), not
+/// yet written. Rows in parallel: a texel's average reads only the values before the pass, so
+/// the result does not depend on the threads.
 fn dilation_pass(
     w: usize,
     h: usize,
     values: &[f32],
     channels: usize,
     valid: &[bool],
-) -> Vec<(usize, Vec<f32>)> {
-    let mut filled = Vec::new();
-    for y in 0..h {
-        for x in 0..w {
-            if valid[y * w + x] {
-                continue;
-            }
-            let mut sum = vec![0.0f32; channels];
-            let mut count = 0;
-            for ny in y.saturating_sub(1)..(y + 2).min(h) {
-                for nx in x.saturating_sub(1)..(x + 2).min(w) {
-                    let n = ny * w + nx;
-                    if valid[n] {
-                        count += 1;
-                        let neighbour = &values[n * channels..(n + 1) * channels];
-                        sum.iter_mut().zip(neighbour).for_each(|(s, v)| *s += v);
-                    }
-                }
-            }
-            if count > 0 {
-                sum.iter_mut().for_each(|s| *s /= count as f32);
-                filled.push((y * w + x, sum));
-            }
-        }
+) -> (Vec<usize>, Vec<f32>) {
+    let rows: Vec<(Vec<usize>, Vec<f32>)> = (0..h)
+        .into_par_iter()
+        .map(|y| fill_row(w, h, y, values, channels, valid))
+        .collect();
+    let mut texels = Vec::new();
+    let mut averages = Vec::new();
+    for (row_texels, row_averages) in rows {
+        texels.extend(row_texels);
+        averages.extend(row_averages);
     }
-    filled
+    (texels, averages)
+}
+
+/// The invalid texels of row `y` with a valid 8-neighbour, and the averages of those
+/// neighbours (summed in a fixed order).
+fn fill_row(
+    w: usize,
+    h: usize,
+    y: usize,
+    values: &[f32],
+    channels: usize,
+    valid: &[bool],
+) -> (Vec<usize>, Vec<f32>) {
+    let mut texels = Vec::new();
+    let mut averages = Vec::new();
+    for x in 0..w {
+        if valid[y * w + x] {
+            continue;
+        }
+        let neighbours = || {
+            (y.saturating_sub(1)..(y + 2).min(h))
+                .flat_map(move |ny| {
+                    (x.saturating_sub(1)..(x + 2).min(w)).map(move |nx| ny * w + nx)
+                })
+                .filter(|&n| valid[n])
+        };
+        let count = neighbours().count();
+        if count == 0 {
+            continue;
+        }
+        let start = averages.len();
+        averages.resize(start + channels, 0.0);
+        for n in neighbours() {
+            let neighbour = &values[n * channels..(n + 1) * channels];
+            averages[start..]
+                .iter_mut()
+                .zip(neighbour)
+                .for_each(|(a, v)| *a += v);
+        }
+        averages[start..]
+            .iter_mut()
+            .for_each(|a| *a /= count as f32);
+        texels.push(y * w + x);
+    }
+    (texels, averages)
 }
 
 #[cfg(test)]
@@ -534,6 +568,48 @@ mod tests {
             "met by both, centre inside the big one only"
         );
         assert_eq!(texels.texels.len(), texels.points.len());
+    }
+
+    #[test]
+    fn receivers_are_as_far_apart_on_the_surface_as_in_the_atlas() {
+        use super::super::atlas::MIN_CHART_EDGE;
+        use super::super::Receivers;
+        use crate::scene::{builtin, prepare::prepare};
+        let parts = [
+            builtin::icosphere(Vec3::ZERO, 1.0, 2),
+            builtin::closed_box(Vec3::splat(-2.0), Vec3::new(2.0, 0.5, 3.0), 3),
+        ];
+        let scene = prepare(builtin::merge(&parts)).unwrap().0;
+        let density = 20.0;
+        let atlas = generate_atlas(&scene, density).unwrap();
+        let texels = rasterize(&atlas);
+        let receivers = Receivers::at_points(&scene, &texels.points);
+        let mut first_of = vec![None; scene.triangles.len()];
+        for (i, p) in texels.points.iter().enumerate() {
+            let t = p.triangle as usize;
+            let c = atlas.corners[t];
+            let b = p.barycentrics;
+            let flat = c[0] * b[0] + c[1] * b[1] + c[2] * b[2];
+            let Some((first_flat, first_3d)) = first_of[t] else {
+                first_of[t] = Some((flat, receivers.positions[i]));
+                continue;
+            };
+            let corners = scene.triangles[t].map(|v| scene.positions[v as usize]);
+            let longest = (0..3)
+                .map(|k| corners[k].distance(corners[(k + 1) % 3]))
+                .fold(0.0, f32::max);
+            let scale = density.max(MIN_CHART_EDGE / longest);
+            let in_atlas = flat.distance(first_flat);
+            let on_surface = receivers.positions[i].distance(first_3d) * scale;
+            assert!(
+                (in_atlas - on_surface).abs() < 1e-3 * (1.0 + in_atlas),
+                "triangle {t}"
+            );
+        }
+        assert!(
+            first_of.iter().all(Option::is_some),
+            "a triangle without texels"
+        );
     }
 
     #[test]

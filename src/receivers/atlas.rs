@@ -74,8 +74,9 @@ pub fn generate_atlas(scene: &Scene, texels_per_unit: f32) -> Result<Atlas> {
 }
 
 /// The texel density that makes the atlas of `scene` about `target_size` texels on its longer
-/// side (within a few percent; never over it unless the smallest charts alone need more).
-/// Refuses a target of zero or over [`MAX_ATLAS_SIZE`], and scenes [`generate_atlas`] refuses.
+/// side (within a few percent, never over). Refuses a target of zero or over
+/// [`MAX_ATLAS_SIZE`], a target too small for the charts' minimum size and gutters at any
+/// density, and scenes [`generate_atlas`] refuses.
 pub fn texels_per_unit_for_size(scene: &Scene, target_size: u32) -> Result<f32> {
     if target_size == 0 || target_size > MAX_ATLAS_SIZE {
         return Err(Error::Options(format!(
@@ -116,7 +117,15 @@ pub fn texels_per_unit_for_size(scene: &Scene, target_size: u32) -> Result<f32> 
             high = middle;
         }
     }
-    Ok(low)
+    match side(low) {
+        Some(s) if s <= target_size => Ok(low),
+        smallest => Err(Error::Options(format!(
+            "a lightmap of {target_size} texels a side is too small for {} triangles \
+             (they need at least {} with their gutters)",
+            scene.triangles.len(),
+            smallest.map_or("more".to_string(), |s| s.to_string())
+        ))),
+    }
 }
 
 fn is_positive(x: f32) -> bool {
@@ -422,6 +431,8 @@ mod tests {
             generate_atlas(&scene, f32::INFINITY).unwrap_err(),
             texels_per_unit_for_size(&scene, 0).unwrap_err(),
             texels_per_unit_for_size(&scene, MAX_ATLAS_SIZE + 1).unwrap_err(),
+            // 42 charts of at least 3 x 1 texels, 5 x 3 with gutters, do not fit in 16 x 16.
+            texels_per_unit_for_size(&scene, 16).unwrap_err(),
             generate_atlas(&Scene::default(), 1.0).unwrap_err(),
             generate_atlas(&scene_of(&[[Vec3::NAN, Vec3::X, Vec3::Y]]), 1.0).unwrap_err(),
         ];

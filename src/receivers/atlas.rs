@@ -3,10 +3,14 @@
 //!
 //! A chart is the triangle laid flat at its true shape (edge lengths kept, times the texel
 //! density), its longest edge along +x and its third corner above it, so its bounding box is as
-//! low as the triangle allows. A tiny triangle is scaled up until its longest edge spans
+//! low as the triangle allows. Two triangles whose longest edge is the same shared edge (the two
+//! halves of a quad, split along its diagonal) share one chart, unfolded about that edge and
+//! turned to the smallest bounding box: half the texels of two charts for a rectangle, and no
+//! seam along the diagonal. A tiny triangle is scaled up until its longest edge spans
 //! [`MIN_CHART_EDGE`] texels, so every triangle gets texels of its own.
 //!
-//! Charts are packed on shelves (rows): sorted by height, tallest first, ties by triangle index,
+//! Charts are packed on shelves (rows): sorted by height, tallest first, ties by chart order
+//! (that of their lowest triangle index),
 //! each shelf filled left to right up to the atlas width. The width is chosen so the atlas comes
 //! out about square. Every chart is kept [`GUTTER`] empty texels away from the others and from
 //! the border, so neither bilinear filtering nor dilation ([`super::texels::dilate`]) mixes two
@@ -15,7 +19,9 @@
 //! Texel `(x, y)` covers `[x, x+1) x [y, y+1)` in the atlas' texel units; its centre is
 //! `(x + 0.5, y + 0.5)`.
 
-use glam::{DVec3, Vec2};
+use std::collections::HashMap;
+
+use glam::{DVec2, DVec3, Vec2};
 
 use crate::error::{Error, Result};
 use crate::scene::Scene;
@@ -39,13 +45,15 @@ pub struct Atlas {
     /// Per triangle (in the scene's order), the atlas positions of its three corners, in texel
     /// units.
     pub corners: Vec<[Vec2; 3]>,
+    /// Per triangle, the chart it lies in (two triangles of a quad share one).
+    pub chart_of: Vec<u32>,
 }
 
-/// A triangle laid flat: its corners (in the triangle's own order) with the bounding box's
-/// lower corner at the origin, already scaled to texels.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// One triangle, or two sharing an edge, laid flat: each one's corners (in the triangle's own
+/// order), the bounding box's lower corner at the origin, scaled to texels.
+#[derive(Clone, Debug, PartialEq)]
 struct Chart {
-    corners: [Vec2; 3],
+    members: Vec<(u32, [Vec2; 3])>,
     /// Texels the chart's footprint spans (see [`footprint`]).
     size: [u32; 2],
 }
@@ -56,20 +64,22 @@ struct Chart {
 pub fn generate_atlas(scene: &Scene, texels_per_unit: f32) -> Result<Atlas> {
     let charts = lay_out_charts(scene, texels_per_unit)?;
     let packing = pack_square(&charts)?;
-    let corners = charts
-        .iter()
-        .zip(&packing.origins)
-        .map(|(chart, &[x, y])| {
-            // Half a texel in, so that a corner sits on a texel centre, never on a texel edge:
-            // which texels the chart touches is then unambiguous (see `footprint`).
-            let offset = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-            chart.corners.map(|c| c + offset)
-        })
-        .collect();
+    let mut corners = vec![[Vec2::ZERO; 3]; scene.triangles.len()];
+    let mut chart_of = vec![0; scene.triangles.len()];
+    for (c, (chart, &[x, y])) in charts.iter().zip(&packing.origins).enumerate() {
+        // Half a texel in, so that a corner sits on a texel centre, never on a texel edge:
+        // which texels the chart touches is then unambiguous (see `footprint`).
+        let offset = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+        for &(t, flat) in &chart.members {
+            corners[t as usize] = flat.map(|p| p + offset);
+            chart_of[t as usize] = c as u32;
+        }
+    }
     Ok(Atlas {
         width: packing.width,
         height: packing.height,
         corners,
+        chart_of,
     })
 }
 
@@ -84,10 +94,8 @@ pub fn texels_per_unit_for_size(scene: &Scene, target_size: u32) -> Result<f32> 
         )));
     }
     check_scene(scene)?;
-    let total_area: f64 = scene
-        .triangles
-        .iter()
-        .map(|&t| twice_area(corner_positions(scene, t)) * 0.5)
+    let total_area: f64 = (0..scene.triangles.len() as u32)
+        .map(|t| twice_area(corner_positions(scene, t)) * 0.5)
         .sum();
     // Charts' boxes are about twice the triangles' area: a first guess to bisect around.
     let guess = (target_size as f64 / (2.0 * total_area).sqrt().max(1e-30)) as f32;
@@ -159,51 +167,191 @@ fn lay_out_charts(scene: &Scene, texels_per_unit: f32) -> Result<Vec<Chart>> {
         )));
     }
     check_scene(scene)?;
-    Ok(scene
-        .triangles
-        .iter()
-        .map(|&t| lay_flat(scene, t, texels_per_unit as f64))
-        .collect())
+    let density = texels_per_unit as f64;
+    let partners = partners(scene);
+    let mut charts = Vec::with_capacity(scene.triangles.len());
+    for (t, partner) in partners.into_iter().enumerate() {
+        let t = t as u32;
+        match partner {
+            // Laid out with the lower index of the two.
+            Some(p) if p < t => {}
+            Some(p) => match lay_flat_pair(scene, t, p, density) {
+                Some(chart) => charts.push(chart),
+                None => {
+                    charts.push(lay_flat(scene, t, density));
+                    charts.push(lay_flat(scene, p, density));
+                }
+            },
+            None => charts.push(lay_flat(scene, t, density)),
+        }
+    }
+    Ok(charts)
 }
 
 /// A triangle's corners in f64 (lengths of needles and tiny triangles stay exact enough).
-fn corner_positions(scene: &Scene, t: [u32; 3]) -> [DVec3; 3] {
-    t.map(|i| scene.positions[i as usize].as_dvec3())
+fn corner_positions(scene: &Scene, t: u32) -> [DVec3; 3] {
+    scene.triangles[t as usize].map(|i| scene.positions[i as usize].as_dvec3())
 }
 
 fn twice_area([a, b, c]: [DVec3; 3]) -> f64 {
     (b - a).cross(c - a).length()
 }
 
-/// One triangle flat in the plane, scaled to texels: its longest edge on the x axis from the
-/// origin, the third corner above it. Both base angles of the longest edge are acute, so the
-/// third corner projects inside the edge and the bounding box is `[0, longest] x [0, height]`.
-fn lay_flat(scene: &Scene, t: [u32; 3], texels_per_unit: f64) -> Chart {
-    let p = corner_positions(scene, t);
+/// The corner that starts the longest edge (to the next corner; ties keep the lowest, for
+/// determinism), and that edge's length.
+fn longest_edge(p: [DVec3; 3]) -> (usize, f64) {
     let lengths = [0, 1, 2].map(|i| (p[(i + 1) % 3] - p[i]).length());
-    // The edge from corner `first` to the next; ties keep the lowest index (determinism).
     let first = (0..3).fold(
         0,
         |best, i| if lengths[i] > lengths[best] { i } else { best },
     );
-    let longest = lengths[first];
-    let (second, third) = ((first + 1) % 3, (first + 2) % 3);
-    let mut flat = [[0.0f64; 2]; 3];
-    if longest > 0.0 {
-        let along = (p[third] - p[first]).dot(p[second] - p[first]) / longest;
-        flat[second] = [longest, 0.0];
-        flat[third] = [along.clamp(0.0, longest), twice_area(p) / longest];
+    (first, lengths[first])
+}
+
+/// For each triangle, the one it shares its longest edge with when that edge is the other's
+/// longest too and no third triangle has it (a quad's diagonal on a manifold mesh).
+fn partners(scene: &Scene) -> Vec<Option<u32>> {
+    let mut by_edge: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
+    for (t, corners) in scene.triangles.iter().enumerate() {
+        let p = corner_positions(scene, t as u32);
+        let (first, longest) = longest_edge(p);
+        if longest > 0.0 && twice_area(p) > 0.0 {
+            let (u, v) = (corners[first], corners[(first + 1) % 3]);
+            by_edge
+                .entry((u.min(v), u.max(v)))
+                .or_default()
+                .push(t as u32);
+        }
     }
-    // A tiny triangle is enlarged so that it still gets texels of its own.
-    let scale = if longest > 0.0 {
+    let mut partners = vec![None; scene.triangles.len()];
+    // Each edge's list is settled on its own, so the map's order does not matter.
+    for pair in by_edge.values().filter(|list| list.len() == 2) {
+        partners[pair[0] as usize] = Some(pair[1]);
+        partners[pair[1] as usize] = Some(pair[0]);
+    }
+    partners
+}
+
+/// A point at distances from the ends of the edge from `from` to `to` (lying along +x from the
+/// origin, `length` long) that match `point`'s in space, on the side `sign` of the edge.
+/// Both base angles of a longest edge are acute, so the point projects inside the edge.
+fn unfold(from: DVec3, to: DVec3, point: DVec3, length: f64, sign: f64) -> DVec2 {
+    let along = (point - from).dot(to - from) / length;
+    let across = (to - from).cross(point - from).length() / length;
+    DVec2::new(along.clamp(0.0, length), sign * across)
+}
+
+/// The scale from scene units to texels for a chart whose longest edge is `longest` long: the
+/// density, or more for a tiny chart, which is enlarged so that it still gets texels.
+fn chart_scale(longest: f64, texels_per_unit: f64) -> f64 {
+    if longest > 0.0 {
         texels_per_unit.max(MIN_CHART_EDGE as f64 / longest)
     } else {
         texels_per_unit
-    };
-    let corners = flat.map(|[x, y]| Vec2::new((x * scale) as f32, (y * scale) as f32));
-    let extent = corners.iter().fold(Vec2::ZERO, |m, &c| m.max(c)).to_array();
+    }
+}
+
+/// One triangle flat in the plane, scaled to texels: its longest edge on the x axis from the
+/// origin, the third corner above it, so the bounding box is `[0, longest] x [0, height]`.
+fn lay_flat(scene: &Scene, t: u32, texels_per_unit: f64) -> Chart {
+    let p = corner_positions(scene, t);
+    let (first, longest) = longest_edge(p);
+    let (second, third) = ((first + 1) % 3, (first + 2) % 3);
+    let mut flat = [DVec2::ZERO; 3];
+    if longest > 0.0 {
+        flat[second] = DVec2::new(longest, 0.0);
+        flat[third] = unfold(p[first], p[second], p[third], longest, 1.0);
+    }
+    let scale = chart_scale(longest, texels_per_unit);
+    finish_chart(vec![(t, flat.map(|c| c * scale))], DVec2::X)
+}
+
+/// Triangles `a` and `b`, which share `a`'s longest edge, unfolded about it into one chart and
+/// turned to the smallest footprint. `None` where `b` does not hold that edge's two vertices
+/// and a third (a malformed triangle).
+fn lay_flat_pair(scene: &Scene, a: u32, b: u32, texels_per_unit: f64) -> Option<Chart> {
+    let pa = corner_positions(scene, a);
+    let (first, longest) = longest_edge(pa);
+    let corners_a = scene.triangles[a as usize];
+    let corners_b = scene.triangles[b as usize];
+    let (u, v) = (corners_a[first], corners_a[(first + 1) % 3]);
+    let at_u = corners_b.iter().position(|&c| c == u)?;
+    let at_v = corners_b.iter().position(|&c| c == v)?;
+    let at_w = (0..3).find(|&i| corners_b[i] != u && corners_b[i] != v)?;
+    let pb = corner_positions(scene, b);
+    let mut flat_a = [DVec2::ZERO; 3];
+    flat_a[(first + 1) % 3] = DVec2::new(longest, 0.0);
+    flat_a[(first + 2) % 3] = unfold(
+        pa[first],
+        pa[(first + 1) % 3],
+        pa[(first + 2) % 3],
+        longest,
+        1.0,
+    );
+    let mut flat_b = [DVec2::ZERO; 3];
+    flat_b[at_v] = DVec2::new(longest, 0.0);
+    flat_b[at_w] = unfold(pb[at_u], pb[at_v], pb[at_w], longest, -1.0);
+    let scale = chart_scale(longest, texels_per_unit);
+    let (flat_a, flat_b) = (flat_a.map(|c| c * scale), flat_b.map(|c| c * scale));
+    let direction = smallest_box_direction(&[flat_a[0], flat_a[1], flat_a[2], flat_b[at_w]]);
+    Some(finish_chart(vec![(a, flat_a), (b, flat_b)], direction))
+}
+
+/// Of the directions of the segments between `points`, the one along which the points' box
+/// has the smallest footprint (gutters included); the smallest box of a convex polygon has a
+/// side along one of its edges. The first wins ties.
+fn smallest_box_direction(points: &[DVec2]) -> DVec2 {
+    let mut best = (u64::MAX, DVec2::X);
+    for (i, &p) in points.iter().enumerate() {
+        for &q in &points[i + 1..] {
+            let Some(direction) = (q - p).try_normalize() else {
+                continue;
+            };
+            let turned = points.iter().map(|&c| turn(c, direction));
+            let extent = box_extent(turned);
+            let cells = extent.map(|e| footprint(e as f32) as u64 + GUTTER as u64);
+            if cells[0] * cells[1] < best.0 {
+                best = (cells[0] * cells[1], direction);
+            }
+        }
+    }
+    best.1
+}
+
+/// `point` in the frame whose x axis is the unit `direction`.
+fn turn(point: DVec2, direction: DVec2) -> DVec2 {
+    DVec2::new(point.dot(direction), point.dot(direction.perp()))
+}
+
+fn box_extent(points: impl Iterator<Item = DVec2>) -> [f64; 2] {
+    let (lo, hi) = points.fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(lo, hi), p| {
+        (lo.min(p), hi.max(p))
+    });
+    (hi - lo).to_array()
+}
+
+/// The chart of `members` (corners in texels) turned so that `direction` is +x, moved so its
+/// box's lower corner is at the origin.
+fn finish_chart(members: Vec<(u32, [DVec2; 3])>, direction: DVec2) -> Chart {
+    let turned: Vec<(u32, [DVec2; 3])> = members
+        .into_iter()
+        .map(|(t, c)| (t, c.map(|p| turn(p, direction))))
+        .collect();
+    let lo = turned
+        .iter()
+        .flat_map(|(_, c)| c)
+        .fold(DVec2::INFINITY, |m, &p| m.min(p));
+    let members: Vec<(u32, [Vec2; 3])> = turned
+        .into_iter()
+        .map(|(t, c)| (t, c.map(|p| (p - lo).as_vec2())))
+        .collect();
+    let extent = members
+        .iter()
+        .flat_map(|(_, c)| c)
+        .fold(Vec2::ZERO, |m, &p| m.max(p))
+        .to_array();
     Chart {
-        corners,
+        members,
         size: extent.map(footprint),
     }
 }
@@ -211,8 +359,15 @@ fn lay_flat(scene: &Scene, t: [u32; 3], texels_per_unit: f64) -> Chart {
 /// Texels spanned by an extent `[0, e]` placed half a texel into its first texel: the texels
 /// whose closed squares meet `[0.5, 0.5 + e]`, from the first to `floor(0.5 + e)`.
 fn footprint(extent: f32) -> u32 {
+    // Placed in the atlas, the far corner is rounded to f32 again (an error of up to a
+    // thousandth of a texel at 16384): an extent that ends just short of a texel's edge may
+    // land on it, and touch the next texel. The margin counts that texel in.
+    const ROUNDING_MARGIN: f64 = 0.01;
     // Saturates for absurd extents; the packer then refuses the atlas as too large.
-    (0.5 + extent as f64).floor().min(u32::MAX as f64 / 4.0) as u32 + 1
+    (0.5 + extent as f64 + ROUNDING_MARGIN)
+        .floor()
+        .min(u32::MAX as f64 / 4.0) as u32
+        + 1
 }
 
 /// Charts placed: each chart's lower-left texel, and the atlas size.
@@ -263,7 +418,7 @@ fn too_large(width: u64, height: u64) -> Error {
     ))
 }
 
-/// The packing order: tallest first, ties by triangle index.
+/// The packing order: tallest first, ties by chart order.
 fn shelf_order(charts: &[Chart]) -> Vec<u32> {
     let mut order: Vec<u32> = (0..charts.len() as u32).collect();
     // A stable sort keeps equal heights in index order.
@@ -296,9 +451,21 @@ fn pack_shelves(charts: &[Chart], order: &[u32], max_width: u32) -> Packing {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use crate::scene::{builtin, prepare::prepare};
     use glam::Vec3;
+
+    /// A prepared (welded) scene of quads, split along their diagonals, that pair into charts,
+    /// and near-equilateral triangles, of which few do.
+    pub(crate) fn quad_scene() -> Scene {
+        let parts = [
+            builtin::grid_plane(Vec3::new(0.0, -3.0, 0.0), Vec3::X, Vec3::Z, 4, Vec3::ONE),
+            builtin::closed_box(Vec3::splat(-2.0), Vec3::new(2.0, 0.5, 3.0), 3),
+            builtin::icosphere(Vec3::ZERO, 1.0, 2),
+        ];
+        prepare(builtin::merge(&parts)).unwrap().0
+    }
 
     pub(crate) fn scene_of(triangles: &[[Vec3; 3]]) -> Scene {
         let positions: Vec<Vec3> = triangles.iter().flatten().copied().collect();
@@ -341,9 +508,13 @@ mod tests {
 
     #[test]
     fn charts_keep_edge_lengths_at_the_density() {
-        let scene = assorted_scene();
-        let density = 7.0;
-        let atlas = generate_atlas(&scene, density).unwrap();
+        for scene in [assorted_scene(), quad_scene()] {
+            keeps_edge_lengths(&scene, 7.0);
+        }
+    }
+
+    fn keeps_edge_lengths(scene: &Scene, density: f32) {
+        let atlas = generate_atlas(scene, density).unwrap();
         for (t, corners) in scene.triangles.iter().enumerate() {
             let p = corners.map(|i| scene.positions[i as usize]);
             let lengths_3d = [0, 1, 2].map(|i| (p[(i + 1) % 3] - p[i]).length());
@@ -361,15 +532,29 @@ mod tests {
 
     #[test]
     fn charts_lie_inside_with_gutters_between_their_boxes() {
-        let scene = assorted_scene();
-        let atlas = generate_atlas(&scene, 5.0).unwrap();
+        for scene in [assorted_scene(), quad_scene()] {
+            for density in [3.0, 4.5, 5.0, 9.0, 12.25, 17.3] {
+                gutters_between_boxes(&scene, density);
+            }
+        }
+    }
+
+    fn gutters_between_boxes(scene: &Scene, density: f32) {
+        let atlas = generate_atlas(scene, density).unwrap();
+        let charts = *atlas.chart_of.iter().max().unwrap() as usize + 1;
+        let mut lo = vec![Vec2::INFINITY; charts];
+        let mut hi = vec![Vec2::NEG_INFINITY; charts];
+        for (corners, &c) in atlas.corners.iter().zip(&atlas.chart_of) {
+            for &p in corners {
+                lo[c as usize] = lo[c as usize].min(p);
+                hi[c as usize] = hi[c as usize].max(p);
+            }
+        }
         // Each chart's texel box: the texels its closed bounding box meets.
-        let boxes: Vec<[i64; 4]> = atlas
-            .corners
+        let boxes: Vec<[i64; 4]> = lo
             .iter()
-            .map(|c| {
-                let lo = c.iter().fold(Vec2::INFINITY, |m, &p| m.min(p));
-                let hi = c.iter().fold(Vec2::NEG_INFINITY, |m, &p| m.max(p));
+            .zip(&hi)
+            .map(|(lo, hi)| {
                 [
                     lo.x.ceil() as i64 - 1,
                     lo.y.ceil() as i64 - 1,
@@ -387,6 +572,41 @@ mod tests {
                     a[2] + g < b[0] || b[2] + g < a[0] || a[3] + g < b[1] || b[3] + g < a[1];
                 assert!(apart, "boxes {a:?} and {b:?} closer than the gutter");
             }
+        }
+    }
+
+    #[test]
+    fn the_halves_of_a_quad_share_a_chart_as_large_as_the_quad() {
+        let flat = builtin::grid_plane(Vec3::ZERO, Vec3::X, Vec3::Z, 4, Vec3::ONE);
+        let scene = prepare(flat).unwrap().0;
+        let atlas = generate_atlas(&scene, 10.0).unwrap();
+        let mut members = vec![Vec::new(); scene.triangles.len()];
+        for (t, &c) in atlas.chart_of.iter().enumerate() {
+            members[c as usize].push(t);
+        }
+        assert_eq!(members.iter().filter(|m| !m.is_empty()).count(), 16);
+        for pair in members.iter().filter(|m| !m.is_empty()) {
+            let &[a, b] = pair.as_slice() else {
+                panic!("chart of {pair:?}")
+            };
+            // Shared vertices sit at one place in the atlas: no seam along the diagonal.
+            let mut shared = 0;
+            for (i, v) in scene.triangles[a].iter().enumerate() {
+                if let Some(j) = scene.triangles[b].iter().position(|w| w == v) {
+                    let gap = atlas.corners[a][i].distance(atlas.corners[b][j]);
+                    assert!(gap < 1e-4, "{gap}");
+                    shared += 1;
+                }
+            }
+            assert_eq!(shared, 2);
+            // The 0.5 x 0.5 cell at 10 texels a unit, turned square to the axes.
+            let points = || atlas.corners[a].iter().chain(&atlas.corners[b]);
+            let lo = points().fold(Vec2::INFINITY, |m, &p| m.min(p));
+            let hi = points().fold(Vec2::NEG_INFINITY, |m, &p| m.max(p));
+            assert!(
+                ((hi - lo) - Vec2::splat(5.0)).abs().max_element() < 1e-3,
+                "{lo} {hi}"
+            );
         }
     }
 

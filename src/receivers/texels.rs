@@ -369,6 +369,7 @@ fn fill_row(
 
 #[cfg(test)]
 mod tests {
+    use super::super::atlas::tests::quad_scene;
     use super::super::atlas::{generate_atlas, GUTTER};
     use super::*;
     use crate::scene::Scene;
@@ -438,14 +439,22 @@ mod tests {
 
     #[test]
     fn every_texel_a_chart_overlaps_is_covered_by_it() {
-        let scene = assorted_scene();
-        let atlas = generate_atlas(&scene, 6.0).unwrap();
+        for scene in [assorted_scene(), quad_scene()] {
+            covers_overlapped_texels(&scene, 6.0);
+        }
+    }
+
+    /// Each texel a triangle overlaps is covered, by it or by the other triangle of its chart
+    /// (along a quad's diagonal, the one that holds the texel's centre).
+    fn covers_overlapped_texels(scene: &Scene, density: f32) {
+        let atlas = generate_atlas(scene, density).unwrap();
         let texels = rasterize(&atlas);
+        let chart_of = |t: u32| atlas.chart_of[t as usize];
         let owner: std::collections::HashMap<(u32, u32), u32> = texels
             .texels
             .iter()
             .zip(&texels.points)
-            .map(|(&t, p)| (t, p.triangle))
+            .map(|(&t, p)| (t, chart_of(p.triangle)))
             .collect();
         for (t, &corners) in atlas.corners.iter().enumerate() {
             let lo = corners.iter().fold(Vec2::INFINITY, |m, &c| m.min(c));
@@ -453,7 +462,8 @@ mod tests {
             for y in lo.y.floor() as u32..=hi.y.floor() as u32 {
                 for x in lo.x.floor() as u32..=hi.x.floor() as u32 {
                     if sampled_overlap(corners, x, y) {
-                        assert_eq!(owner.get(&(x, y)), Some(&(t as u32)), "texel {x} {y}");
+                        let chart = chart_of(t as u32);
+                        assert_eq!(owner.get(&(x, y)), Some(&chart), "texel {x} {y}");
                     }
                 }
             }
@@ -462,8 +472,13 @@ mod tests {
 
     #[test]
     fn texels_are_unique_row_major_and_their_points_nearest_the_centre() {
-        let scene = assorted_scene();
-        let atlas = generate_atlas(&scene, 6.0).unwrap();
+        for scene in [assorted_scene(), quad_scene()] {
+            points_nearest_the_centres(&scene, 6.0);
+        }
+    }
+
+    fn points_nearest_the_centres(scene: &Scene, density: f32) {
+        let atlas = generate_atlas(scene, density).unwrap();
         let texels = rasterize(&atlas);
         let keys: Vec<(u32, u32)> = texels.texels.iter().map(|&(x, y)| (y, x)).collect();
         assert!(
@@ -509,15 +524,24 @@ mod tests {
 
     #[test]
     fn no_two_charts_come_within_the_gutter() {
-        let scene = assorted_scene();
-        let atlas = generate_atlas(&scene, 9.0).unwrap();
+        for scene in [assorted_scene(), quad_scene()] {
+            // Densities that put corners on and near texel edges.
+            for density in [3.0, 4.5, 9.0, 12.25, 17.3] {
+                charts_apart(&scene, density);
+            }
+        }
+    }
+
+    fn charts_apart(scene: &Scene, density: f32) {
+        let atlas = generate_atlas(scene, density).unwrap();
         let texels = rasterize(&atlas);
         let (w, h) = (atlas.width as usize, atlas.height as usize);
+        let chart_of = |t: u32| atlas.chart_of[t as usize];
         let mut owner = vec![u32::MAX; w * h];
         for (&(x, y), p) in texels.texels.iter().zip(&texels.points) {
-            owner[y as usize * w + x as usize] = p.triangle;
+            owner[y as usize * w + x as usize] = chart_of(p.triangle);
         }
-        // Any two covered texels of different triangles are more than GUTTER texels apart
+        // Any two covered texels of different charts are more than GUTTER texels apart
         // (Chebyshev distance), so GUTTER empty texels lie between them.
         let reach = GUTTER as i64;
         for (&(x, y), p) in texels.texels.iter().zip(&texels.points) {
@@ -526,7 +550,8 @@ mod tests {
                     let (nx, ny) = (x as i64 + dx, y as i64 + dy);
                     assert!(nx >= 0 && ny >= 0 && nx < w as i64 && ny < h as i64);
                     let other = owner[ny as usize * w + nx as usize];
-                    assert!(other == u32::MAX || other == p.triangle, "{x} {y}");
+                    let chart = chart_of(p.triangle);
+                    assert!(other == u32::MAX || other == chart, "{x} {y}");
                 }
             }
         }
@@ -549,6 +574,7 @@ mod tests {
             width: 10,
             height: 10,
             corners: vec![small, big, small],
+            chart_of: vec![0, 1, 2],
         };
         let texels = rasterize(&atlas);
         let owner = |x, y| {
@@ -574,12 +600,7 @@ mod tests {
     fn receivers_are_as_far_apart_on_the_surface_as_in_the_atlas() {
         use super::super::atlas::MIN_CHART_EDGE;
         use super::super::Receivers;
-        use crate::scene::{builtin, prepare::prepare};
-        let parts = [
-            builtin::icosphere(Vec3::ZERO, 1.0, 2),
-            builtin::closed_box(Vec3::splat(-2.0), Vec3::new(2.0, 0.5, 3.0), 3),
-        ];
-        let scene = prepare(builtin::merge(&parts)).unwrap().0;
+        let scene = quad_scene();
         let density = 20.0;
         let atlas = generate_atlas(&scene, density).unwrap();
         let texels = rasterize(&atlas);
@@ -614,18 +635,23 @@ mod tests {
 
     #[test]
     fn dilation_fills_the_bilinear_footprint_of_every_covered_texel() {
-        let scene = assorted_scene();
-        let atlas = generate_atlas(&scene, 6.0).unwrap();
+        // Every other texel of the needle (triangle 60) flagged as leaking.
+        fills_footprints(&assorted_scene(), |i, p| p.triangle == 60 && i % 2 == 0);
+        fills_footprints(&quad_scene(), |_, _| false);
+    }
+
+    fn fills_footprints(scene: &Scene, leaks: impl Fn(usize, &SurfacePoint) -> bool) {
+        let atlas = generate_atlas(scene, 6.0).unwrap();
         let texels = rasterize(&atlas);
-        // Every other texel of the needle flagged as leaking.
         let leaking: Vec<bool> = texels
             .points
             .iter()
             .enumerate()
-            .map(|(i, p)| p.triangle == 60 && i % 2 == 0)
+            .map(|(i, p)| leaks(i, p))
             .collect();
         let mut valid = texels.valid_mask(&leaking).unwrap();
-        let values: Vec<f32> = texels.points.iter().map(|p| p.triangle as f32).collect();
+        let chart_of = |p: &SurfacePoint| atlas.chart_of[p.triangle as usize] as f32;
+        let values: Vec<f32> = texels.points.iter().map(chart_of).collect();
         let mut image = texels.scatter(&values, 1).unwrap();
         let (w, h) = (atlas.width, atlas.height);
         dilate(w, h, &mut image, 1, &mut valid, 2).unwrap();
@@ -635,8 +661,8 @@ mod tests {
                 for nx in x - 1..=x + 1 {
                     let n = (ny * w + nx) as usize;
                     assert!(valid[n], "texel {nx} {ny} next to {x} {y}");
-                    // Filled from its own chart only (the values are triangle indices).
-                    assert_eq!(image[n], p.triangle as f32, "texel {nx} {ny}");
+                    // Filled from its own chart only (the values are chart indices).
+                    assert_eq!(image[n], chart_of(p), "texel {nx} {ny}");
                 }
             }
         }

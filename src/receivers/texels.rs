@@ -2,8 +2,9 @@
 //!
 //! [`rasterize`] is conservative: a texel belongs to a chart when its (closed) square meets the
 //! chart at all, not only when its centre is inside, so that bilinear filtering anywhere on a
-//! triangle reads texels baked for that triangle, and needle triangles narrower than a texel
-//! still get texels. A texel's receiver is the point of the triangle nearest its centre.
+//! triangle reads texels baked for its chart (that triangle, or the other half of its quad),
+//! and needle triangles narrower than a texel still get texels. A texel's receiver is the
+//! point of the triangle nearest its centre.
 //!
 //! [`dilate`] then fills the texels around the charts (and those whose bake is not to be
 //! trusted, [`mark_invalid`]) from their valid neighbours, so filtering near a chart's edge

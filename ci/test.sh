@@ -27,6 +27,14 @@ fi
 if ! python3 -c "import numpy" >/dev/null 2>&1; then
     python3 -m pip install --quiet --disable-pip-version-check numpy || echo "ci/test.sh: numpy not installed" >&2
 fi
+# The lightmap test (tests/lightmap_exr.rs) reads our OpenEXR files with the reference library's
+# Python binding. Debian's python refuses pip installs outside a virtual environment (PEP 668),
+# hence the second try.
+if ! python3 -c "import OpenEXR" >/dev/null 2>&1; then
+    python3 -m pip install --quiet --disable-pip-version-check OpenEXR \
+        || python3 -m pip install --quiet --disable-pip-version-check --break-system-packages OpenEXR \
+        || echo "ci/test.sh: OpenEXR (Python) not installed" >&2
+fi
 
 # The Khronos glTF-Validator, which every written file must pass (src/gltf_validator.rs), at the
 # version pinned in its package-lock.json. Installed again only when the lock file changed since.

@@ -2,7 +2,7 @@
 //!
 //! The data flows one way, one module per step:
 //! `scene` (load, prepare) → `bvh` → `sampling` + `sh` → `bake` (cpu or gpu backend, bounces)
-//! → `glb` (the baked file); `light` + a baked transfer → `render` (relight, preview images);
+//! → `glb` (the baked file; `lightmap` for transfer per texel); `light` + a baked transfer → `render` (relight, preview images);
 //! `sweep` bakes over strategies and sample counts against a reference → `chart`.
 //! Imports go the same way (no cycles); docs/architecture.md says what each module owns and
 //! may import.
@@ -17,6 +17,7 @@ pub mod fs;
 pub mod glb;
 pub mod gltf_validator;
 pub mod light;
+pub mod lightmap;
 pub mod morton;
 pub mod packet;
 pub mod ray;

@@ -8,7 +8,9 @@
 //! leans past the flat face (a coarse mesh's shadow terminator) the bake keeps the path
 //! tracer's rule: a direction below the face's own plane hits the face and is blocked.
 
+pub mod atlas;
 pub mod fit;
+pub mod texels;
 
 use glam::Vec3;
 

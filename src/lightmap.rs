@@ -1,0 +1,411 @@
+//! The baked lightmap: per-texel SH transfer as one multi-channel, half-float OpenEXR file.
+//!
+//! Layout of the file (one part, scan lines, ZIP compression, lossless for the halves):
+//! - one pixel per atlas texel: texel `(x, y)` is pixel `(x, y)`, the first scan line is the
+//!   atlas' row `y = 0`;
+//! - one layer per SH coefficient `k = l(l+1)+m` (`0 <= k < bands^2`, the convention of
+//!   [`crate::sh`]): channels `sh{k:02}.R`, `sh{k:02}.G`, `sh{k:02}.B` for coloured transfer,
+//!   `sh{k:02}.Y` for one channel (so `sh00.R` ... `sh08.B` for 3 bands in colour; from
+//!   `k = 100` on, three digits);
+//! - every channel half float (`f16`): transfer coefficients are small (at most a few times
+//!   the albedo), so half keeps about three significant digits; values beyond half's range are
+//!   refused rather than written as infinities;
+//! - attributes: `prtBands` (int), `prtConvention` (the SH convention, [`crate::sh::CONVENTION`])
+//!   and `prtLayout` (this layout in a line), for readers that want to check.
+//!
+//! The file is encoded in memory and written through [`crate::fs::write_atomically`], so no
+//! partial file ever exists.
+
+use std::collections::BTreeMap;
+use std::io::Cursor;
+use std::path::Path;
+
+use exr::prelude::{
+    f16, AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer,
+    LayerAttributes, SmallVec, Text, WritableImage,
+};
+
+use crate::error::{one_line, Error, Result};
+use crate::sh;
+
+/// Per-texel transfer: `coefficients[((y * width + x) * channels + c) * bands^2 + k]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Lightmap {
+    pub width: u32,
+    pub height: u32,
+    pub bands: u32,
+    /// 1 (grey transfer, channel `Y`) or 3 (`R`, `G`, `B`).
+    pub channels: u32,
+    /// `[texel row-major][channel][k]`.
+    pub coefficients: Vec<f32>,
+}
+
+/// The attribute that holds the band count.
+pub const BANDS_ATTRIBUTE: &str = "prtBands";
+const CONVENTION_ATTRIBUTE: &str = "prtConvention";
+const LAYOUT_ATTRIBUTE: &str = "prtLayout";
+const LAYOUT: &str = "channel shKK.C = SH coefficient k = l(l+1)+m of colour C (R, G, B, or Y \
+for one channel); pixel (x, y) = atlas texel (x, y)";
+
+/// The largest value a half float holds.
+const HALF_MAX: f32 = 65504.0;
+
+/// The channel names of a lightmap with `channels` channels, in the order of its values.
+pub fn channel_suffixes(channels: u32) -> &'static [&'static str] {
+    if channels == 1 {
+        &["Y"]
+    } else {
+        &["R", "G", "B"]
+    }
+}
+
+/// The name of coefficient `k`'s channel `suffix`, such as `sh04.G`.
+pub fn channel_name(k: usize, suffix: &str) -> String {
+    format!("sh{k:02}.{suffix}")
+}
+
+impl Lightmap {
+    fn coefficient_count(&self) -> usize {
+        sh::coeff_count(self.bands)
+    }
+
+    /// `Ok` for a lightmap that can be written: a known band count, 1 or 3 channels, at least
+    /// one texel, as many values as those say, each finite and within half-float range.
+    pub fn check(&self) -> Result<()> {
+        sh::check_bands(self.bands)?;
+        if self.channels != 1 && self.channels != 3 {
+            return Err(Error::Options(format!(
+                "a lightmap has 1 or 3 channels, not {}",
+                self.channels
+            )));
+        }
+        if self.width == 0 || self.height == 0 {
+            return Err(Error::Options(format!(
+                "a lightmap of {} x {} texels is empty",
+                self.width, self.height
+            )));
+        }
+        let expected = (self.width as u64)
+            * (self.height as u64)
+            * (self.channels as u64)
+            * (self.coefficient_count() as u64);
+        if self.coefficients.len() as u64 != expected {
+            return Err(Error::Options(format!(
+                "a {} x {} lightmap of {} channels and {} bands needs {expected} values, not {}",
+                self.width,
+                self.height,
+                self.channels,
+                self.bands,
+                self.coefficients.len()
+            )));
+        }
+        match self
+            .coefficients
+            .iter()
+            .position(|v| !v.is_finite() || v.abs() > HALF_MAX)
+        {
+            Some(i) => Err(Error::Options(format!(
+                "lightmap value {} (texel {}) is not a finite half float",
+                self.coefficients[i],
+                i / (self.channels as usize * self.coefficient_count())
+            ))),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Writes `lightmap` to `path` as OpenEXR (the layout in the module documentation), whole or
+/// not at all.
+pub fn write_lightmap(path: &Path, lightmap: &Lightmap) -> Result<()> {
+    let bytes = encode_lightmap(lightmap)
+        .map_err(|message| Error::baked(path, format!("OpenEXR: {message}")))?;
+    crate::fs::write_atomically(path, &bytes)
+}
+
+/// The OpenEXR bytes of a lightmap; a lightmap that fails [`Lightmap::check`] is an error.
+pub fn encode_lightmap(lightmap: &Lightmap) -> std::result::Result<Vec<u8>, String> {
+    lightmap.check().map_err(|e| e.to_string())?;
+    let size = (lightmap.width as usize, lightmap.height as usize);
+    let layer = Layer::new(
+        size,
+        lightmap_attributes(lightmap.bands),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(SmallVec::from_vec(channels_of(lightmap))),
+    );
+    let mut bytes = Cursor::new(Vec::new());
+    Image::from_layer(layer)
+        .write()
+        .to_buffered(&mut bytes)
+        .map_err(|e| one_line(&e.to_string()))?;
+    Ok(bytes.into_inner())
+}
+
+/// One half-float channel per coefficient and colour, pixels row-major.
+fn channels_of(lightmap: &Lightmap) -> Vec<AnyChannel<FlatSamples>> {
+    let count = lightmap.coefficient_count();
+    let suffixes = channel_suffixes(lightmap.channels);
+    let stride = suffixes.len() * count;
+    let mut channels = Vec::with_capacity(stride);
+    for k in 0..count {
+        for (c, suffix) in suffixes.iter().enumerate() {
+            let samples = lightmap
+                .coefficients
+                .chunks_exact(stride)
+                .map(|texel| f16::from_f32(texel[c * count + k]))
+                .collect();
+            channels.push(AnyChannel::new(
+                channel_name(k, suffix).as_str(),
+                FlatSamples::F16(samples),
+            ));
+        }
+    }
+    channels
+}
+
+fn lightmap_attributes(bands: u32) -> LayerAttributes {
+    let mut attributes = LayerAttributes::default();
+    let mut text = |name: &str, value: &str| {
+        // Both are ASCII constants, which exr's Latin-1 text always takes.
+        if let (Some(name), Some(value)) = (Text::new_or_none(name), Text::new_or_none(value)) {
+            attributes.other.insert(name, AttributeValue::Text(value));
+        }
+    };
+    text(CONVENTION_ATTRIBUTE, sh::CONVENTION);
+    text(LAYOUT_ATTRIBUTE, LAYOUT);
+    if let Some(name) = Text::new_or_none(BANDS_ATTRIBUTE) {
+        attributes
+            .other
+            .insert(name, AttributeValue::I32(bands as i32));
+    }
+    attributes
+}
+
+/// Reads a lightmap written by [`write_lightmap`] (or any OpenEXR file with the same channels:
+/// `shKK.R/G/B` or `shKK.Y` for every `k < bands^2`, nothing else). Anything else is a one-line
+/// error naming the file.
+pub fn read_lightmap(path: &Path) -> Result<Lightmap> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    decode_lightmap(&bytes).map_err(|message| Error::baked(path, message))
+}
+
+/// A lightmap from OpenEXR bytes; the error is a one-line message.
+pub fn decode_lightmap(bytes: &[u8]) -> std::result::Result<Lightmap, String> {
+    use exr::prelude::{read, ReadChannels, ReadLayers};
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(Cursor::new(bytes))
+        .map_err(|e| format!("OpenEXR: {}", one_line(&e.to_string())))?;
+    let layer = image.layer_data;
+    let (width, height) = (layer.size.width(), layer.size.height());
+    let mut named = BTreeMap::new();
+    for channel in &layer.channel_data.list {
+        named.insert(channel.name.to_string(), &channel.sample_data);
+    }
+    let (bands, channels) = lightmap_shape(named.keys().map(String::as_str))?;
+    if let Some(AttributeValue::I32(said)) =
+        Text::new_or_none(BANDS_ATTRIBUTE).and_then(|name| layer.attributes.other.get(&name))
+    {
+        if *said != bands as i32 {
+            return Err(format!(
+                "{BANDS_ATTRIBUTE} says {said} bands but the channels hold {bands}"
+            ));
+        }
+    }
+    let count = sh::coeff_count(bands);
+    let suffixes = channel_suffixes(channels);
+    let stride = suffixes.len() * count;
+    let mut coefficients = vec![0.0f32; width * height * stride];
+    for k in 0..count {
+        for (c, suffix) in suffixes.iter().enumerate() {
+            let samples = named[&channel_name(k, suffix)];
+            for (texel, value) in samples.values_as_f32().enumerate() {
+                coefficients[texel * stride + c * count + k] = value;
+            }
+        }
+    }
+    Ok(Lightmap {
+        width: width as u32,
+        height: height as u32,
+        bands,
+        channels,
+        coefficients,
+    })
+}
+
+/// The band count and channel count that a set of channel names describes, or why it is not
+/// a lightmap's.
+fn lightmap_shape<'a>(
+    names: impl Iterator<Item = &'a str>,
+) -> std::result::Result<(u32, u32), String> {
+    let mut suffixes_of: BTreeMap<usize, Vec<&str>> = BTreeMap::new();
+    for name in names {
+        let parsed = name
+            .strip_prefix("sh")
+            .and_then(|rest| rest.split_once('.'))
+            .filter(|(digits, _)| digits.len() >= 2 && digits.bytes().all(|b| b.is_ascii_digit()))
+            .and_then(|(digits, suffix)| Some((digits.parse::<usize>().ok()?, suffix)))
+            .filter(|&(k, suffix)| {
+                channel_name(k, suffix) == name && ["R", "G", "B", "Y"].contains(&suffix)
+            });
+        let Some((k, suffix)) = parsed else {
+            return Err(format!(
+                "not a lightmap: channel {name:?} is not shKK.R, .G, .B or .Y"
+            ));
+        };
+        suffixes_of.entry(k).or_default().push(suffix);
+    }
+    let count = suffixes_of.len();
+    let bands = (count as f64).sqrt().round() as u32;
+    if count == 0 || sh::coeff_count(bands) != count || bands > sh::MAX_BANDS {
+        return Err(format!(
+            "not a lightmap: {count} SH coefficients is not a square number of bands up to {}",
+            sh::MAX_BANDS
+        ));
+    }
+    let channels = if suffixes_of[&0] == ["Y"] { 1 } else { 3 };
+    let mut expected = channel_suffixes(channels).to_vec();
+    expected.sort_unstable();
+    for (i, (&k, suffixes)) in suffixes_of.iter_mut().enumerate() {
+        suffixes.sort_unstable();
+        if k != i || *suffixes != expected {
+            return Err(format!(
+                "not a lightmap: coefficient {i} should have channels {}",
+                expected.join(", ")
+            ));
+        }
+    }
+    Ok((bands, channels))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::entries;
+
+    /// A lightmap whose every value is distinct and half-exact (multiples of 1/64 below 32).
+    fn sample_lightmap(width: u32, height: u32, bands: u32, channels: u32) -> Lightmap {
+        let n = (width * height * channels) as usize * sh::coeff_count(bands);
+        Lightmap {
+            width,
+            height,
+            bands,
+            channels,
+            coefficients: (0..n).map(|i| (i % 2048) as f32 / 64.0 - 16.0).collect(),
+        }
+    }
+
+    #[test]
+    fn lightmaps_round_trip_exactly_when_half_exact() {
+        let dir = tempfile::tempdir().unwrap();
+        for (bands, channels) in [(1, 1), (3, 3), (4, 1), (11, 3)] {
+            let lightmap = sample_lightmap(7, 5, bands, channels);
+            let path = dir.path().join(format!("map{bands}_{channels}.exr"));
+            write_lightmap(&path, &lightmap).unwrap();
+            assert_eq!(read_lightmap(&path).unwrap(), lightmap);
+        }
+        assert_eq!(
+            entries(dir.path()),
+            ["map11_3.exr", "map1_1.exr", "map3_3.exr", "map4_1.exr"]
+        );
+    }
+
+    #[test]
+    fn values_are_rounded_to_half() {
+        let mut lightmap = sample_lightmap(3, 2, 2, 3);
+        lightmap.coefficients[5] = 0.1;
+        let back = decode_lightmap(&encode_lightmap(&lightmap).unwrap()).unwrap();
+        assert!((back.coefficients[5] - 0.1).abs() < 0.1 * 2f32.powi(-11));
+        assert_eq!(back.coefficients[6], lightmap.coefficients[6]);
+    }
+
+    #[test]
+    fn channel_names_are_per_coefficient_layers() {
+        assert_eq!(channel_name(0, "R"), "sh00.R");
+        assert_eq!(channel_name(8, "Y"), "sh08.Y");
+        assert_eq!(channel_name(120, "B"), "sh120.B");
+        let names = ["sh00.Y", "sh01.Y", "sh02.Y", "sh03.Y"];
+        assert_eq!(lightmap_shape(names.into_iter()), Ok((2, 1)));
+    }
+
+    #[test]
+    fn bad_lightmaps_are_refused_before_writing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.exr");
+        let mut cases = Vec::new();
+        let good = sample_lightmap(2, 2, 2, 3);
+        cases.push(Lightmap {
+            channels: 2,
+            ..good.clone()
+        });
+        cases.push(Lightmap {
+            bands: 0,
+            ..good.clone()
+        });
+        cases.push(Lightmap {
+            width: 3,
+            ..good.clone()
+        });
+        cases.push(Lightmap {
+            width: 0,
+            height: 0,
+            coefficients: vec![],
+            ..good.clone()
+        });
+        for value in [f32::NAN, f32::INFINITY, 1e6] {
+            let mut bad = good.clone();
+            bad.coefficients[3] = value;
+            cases.push(bad);
+        }
+        for bad in cases {
+            let message = write_lightmap(&path, &bad).unwrap_err().to_string();
+            assert!(!message.contains('\n'), "{message}");
+        }
+        assert!(entries(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn wrong_files_are_one_line_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("x.exr");
+        let mut bad_files: Vec<Vec<u8>> = vec![b"not an exr".to_vec(), Vec::new()];
+        let good = encode_lightmap(&sample_lightmap(4, 3, 2, 3)).unwrap();
+        bad_files.extend((1..good.len()).step_by(37).map(|n| good[..n].to_vec()));
+        // An OpenEXR image that is not a lightmap: plain RGB.
+        let rgb = plain_rgb_exr();
+        bad_files.push(rgb);
+        for bytes in bad_files {
+            std::fs::write(&path, &bytes).unwrap();
+            let error = read_lightmap(&path).unwrap_err().to_string();
+            assert!(!error.contains('\n') && error.contains("x.exr"), "{error}");
+        }
+        assert!(read_lightmap(&dir.path().join("missing.exr")).is_err());
+    }
+
+    fn plain_rgb_exr() -> Vec<u8> {
+        use exr::prelude::SpecificChannels;
+        let channels = SpecificChannels::rgb(|_| (0.5f32, 0.25f32, 1.0f32));
+        let mut bytes = Cursor::new(Vec::new());
+        Image::from_channels((4, 4), channels)
+            .write()
+            .to_buffered(&mut bytes)
+            .unwrap();
+        bytes.into_inner()
+    }
+
+    #[test]
+    fn inconsistent_channel_sets_are_not_lightmaps() {
+        let shape = |names: &[&str]| lightmap_shape(names.iter().copied());
+        assert!(shape(&[]).is_err());
+        assert!(shape(&["sh00.R", "sh00.G", "sh00.B", "sh01.R", "sh01.G", "sh01.B"]).is_err());
+        assert!(shape(&["sh00.R", "sh00.G"]).is_err());
+        assert!(shape(&["sh0.Y"]).is_err());
+        assert!(shape(&["sh00.Y", "sh01.Y", "sh02.Y", "sh04.Y"]).is_err());
+        assert!(shape(&["sh00.Y", "sh01.Y", "sh02.Y", "sh03.R"]).is_err());
+        assert!(shape(&["sh00.Y", "depth"]).is_err());
+        assert_eq!(shape(&["sh00.B", "sh00.G", "sh00.R"]), Ok((1, 3)));
+    }
+}

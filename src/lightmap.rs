@@ -40,11 +40,33 @@ pub struct Lightmap {
     pub coefficients: Vec<f32>,
 }
 
+/// Reads a baked file's lightmap with Python, numpy and OpenEXR (pip's `OpenEXR` 3.x):
+/// `python3 reader.py file.glb`. Gives `uv` (V, 2), each vertex's lightmap coordinates, and
+/// `texels` (height, width, channels, bands^2), the transfer of every texel (row 0 at the top,
+/// as `uv`'s v = 0); prints their shapes and the centre texel's transfer as JSON.
+pub const PYTHON_READER: &str = r#"import json, pathlib, struct, sys, numpy as np, OpenEXR
+data = open(sys.argv[1], "rb").read()
+n = struct.unpack_from("<I", data, 12)[0]  # JSON chunk length; BIN chunk data starts at 28 + n
+gltf, binary = json.loads(data[20:20 + n]), data[28 + n:]
+prim, prt = gltf["meshes"][0]["primitives"][0], gltf["meshes"][0]["extras"]["prt"]
+lightmap = prt["lightmap"]
+accessor = gltf["accessors"][prim["attributes"]["TEXCOORD_%d" % lightmap["texcoord"]]]
+view = gltf["bufferViews"][accessor["bufferView"]]
+uv = np.frombuffer(binary, "<f4", view["byteLength"] // 4, view.get("byteOffset", 0)).reshape(-1, 2)
+exr = OpenEXR.File(str(pathlib.Path(sys.argv[1]).with_name(lightmap["uri"])), separate_channels=True)
+channels = exr.parts[0].channels
+colours, K = ("RGB" if prt["channels"] == 3 else "Y"), prt["bands"] ** 2
+texels = np.stack([np.stack([channels["sh%02d.%s" % (k, c)].pixels for k in range(K)], -1) for c in colours], -2).astype(np.float32)
+H, W = texels.shape[:2]
+print(json.dumps({"uv": uv.shape, "texels": texels.shape, "centre": texels[H // 2, W // 2].tolist()}))
+"#;
+
 /// The attribute that holds the band count.
 pub const BANDS_ATTRIBUTE: &str = "prtBands";
 const CONVENTION_ATTRIBUTE: &str = "prtConvention";
 const LAYOUT_ATTRIBUTE: &str = "prtLayout";
-const LAYOUT: &str = "channel shKK.C = SH coefficient k = l(l+1)+m of colour C (R, G, B, or Y \
+/// The channel layout in a line (the file's `prtLayout`, and `extras.prt.lightmap.layout` of the .glb).
+pub const LAYOUT: &str = "channel shKK.C = SH coefficient k = l(l+1)+m of colour C (R, G, B, or Y \
 for one channel); pixel (x, y) = atlas texel (x, y)";
 
 /// The largest value a half float holds.

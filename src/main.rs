@@ -101,6 +101,10 @@ struct ChartArgs {
     /// Held-out surface points of the surface error (default: four per vertex, at most 20,000).
     #[arg(long, default_value_t = 0)]
     surface_points: usize,
+    /// Lightmap sizes, comma-separated: each strategy and count is also baked per texel at
+    /// each, for the surface panel (the vertex errors of these points are their vertices').
+    #[arg(long, value_delimiter = ',', value_name = "SIZES")]
+    lightmap: Vec<u32>,
 }
 
 /// What `bake` and `bench` compute per vertex.
@@ -282,6 +286,11 @@ struct BakeArgs {
     /// triangle gets at least three).
     #[arg(long, default_value_t = PointDensity::default().per_vertex)]
     fit_points: f32,
+    /// Also bake per-texel transfer into a lightmap about SIZE texels on its longer side (a
+    /// generated atlas): written as <output stem>.lightmap.exr beside the .glb, which then
+    /// holds the lightmap coordinates as TEXCOORD_0 (every triangle corner its own vertex).
+    #[arg(long, value_name = "SIZE")]
+    lightmap: Option<u32>,
     /// Override every material's albedo, as linear R,G,B in [0, 1].
     #[arg(long, value_parser = parse_rgb)]
     albedo: Option<Vec3>,
@@ -371,6 +380,7 @@ fn run_bake(args: BakeArgs) -> Result<()> {
         bounces: args.bounces,
         bounce_tolerance: args.bounce_tolerance,
         fit: args.fit,
+        lightmap: args.lightmap,
         point_density: PointDensity {
             per_vertex: args.fit_points,
             ..PointDensity::default()
@@ -380,6 +390,13 @@ fn run_bake(args: BakeArgs) -> Result<()> {
     options.validate()?;
     let loading = std::time::Instant::now();
     let (scene, gltf, name) = load_bake_input(&args.mesh)?;
+    if gltf.is_some() && options.lightmap.is_some() {
+        return Err(Error::Options(
+            "--lightmap bakes OBJ, PLY and the built-in scene; a glTF scene is baked in place \
+             per vertex (lightmaps for glTF scenes are not supported yet)"
+                .into(),
+        ));
+    }
     let seconds_load = loading.elapsed().as_secs_f64();
     let output_path = args
         .output
@@ -448,18 +465,7 @@ fn run_bake(args: BakeArgs) -> Result<()> {
         write_preview(&context, &baked, preview)?;
     }
     if let Some(written) = written {
-        eprintln!(
-            "baked in place: {} primitive(s), read in {seconds_load:.2} s, written in \
-             {seconds_write:.2} s{}",
-            written.primitives_baked,
-            match written.mesh_copies {
-                0 => String::new(),
-                n => format!(
-                    "; {n} mesh(es) shown by several nodes copied, one per placement \
-                     (each place sees its own occlusion)"
-                ),
-            }
-        );
+        print_in_place_report(&written, seconds_load, seconds_write);
     }
     print_bake_report(&name, &options, &report, &output_path);
     Ok(())
@@ -504,6 +510,22 @@ fn write_preview(context: &GpuContext, baked: &bake::BakedMesh, path: &Path) -> 
 }
 
 /// The bounces, the gather matrix and the one summary line of a finished bake.
+/// What baking a glTF scene in place did.
+fn print_in_place_report(written: &glb::scene::SceneWrite, seconds_load: f64, seconds_write: f64) {
+    eprintln!(
+        "baked in place: {} primitive(s), read in {seconds_load:.2} s, written in \
+         {seconds_write:.2} s{}",
+        written.primitives_baked,
+        match written.mesh_copies {
+            0 => String::new(),
+            n => format!(
+                "; {n} mesh(es) shown by several nodes copied, one per placement \
+                 (each place sees its own occlusion)"
+            ),
+        }
+    );
+}
+
 fn print_bake_report(name: &str, options: &BakeOptions, report: &BakeReport, output: &Path) {
     for (i, bounce) in report.bounces.iter().enumerate() {
         eprintln!(
@@ -532,9 +554,28 @@ fn print_bake_report(name: &str, options: &BakeOptions, report: &BakeReport, out
             fit.matrix_entries
         );
     }
+    if let Some(texels) = &report.texels {
+        eprintln!(
+            "lightmap: {}x{} texels, {} covered ({} inside geometry, refilled), {} rays in \
+             {:.2} s -> {}",
+            texels.width,
+            texels.height,
+            texels.covered,
+            texels.leaking,
+            texels.rays_cast,
+            texels.seconds,
+            output
+                .with_file_name(glb::lightmap_file_name(output))
+                .display()
+        );
+    }
     let seconds_bounces: f64 = report.bounces.iter().map(|b| b.seconds).sum();
-    let seconds =
-        report.seconds_prepare + report.seconds_transfer + report.seconds_fit + seconds_bounces;
+    let seconds_texels = report.texels.map_or(0.0, |t| t.seconds);
+    let seconds = report.seconds_prepare
+        + report.seconds_transfer
+        + report.seconds_fit
+        + seconds_bounces
+        + seconds_texels;
     let rays_per_second = report.rays_cast as f64 / report.seconds_transfer.max(1e-9);
     println!(
         "baked {name}: {} vertices, {} triangles, {} bands, {} {} samples, {} mode; {} rays in {:.2} s \
@@ -620,7 +661,7 @@ fn run_chart(args: ChartArgs) -> Result<()> {
             "{:>16} {:>13} {:>3} {:>6} samples: {:>8.3} s, transfer rms {:.3e}, radiance rms \
              {:.3e}, surface {:.2}%",
             p.sampling.name(),
-            p.fit.name(),
+            sweep::representation(p),
             p.backend,
             p.samples,
             p.seconds,
@@ -630,12 +671,13 @@ fn run_chart(args: ChartArgs) -> Result<()> {
         );
     }
     println!(
-        "charted {name}: {} points, reference {} samples in {:.2} s (and {} surface points in \
-         {:.2} s), {:.1} s in all -> {}, {}",
+        "charted {name}: {} points, reference {} samples in {:.2} s (and {} surface points, {} \
+         inside geometry left out, in {:.2} s), {:.1} s in all -> {}, {}",
         result.points.len(),
         result.reference_samples,
         result.reference_seconds,
         result.surface.points.len(),
+        result.surface.hidden,
         result.surface.seconds,
         started.elapsed().as_secs_f64(),
         args.output.display(),
@@ -669,11 +711,19 @@ fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
             args.fit.clone()
         },
         surface_points: args.surface_points,
+        lightmap_sizes: args.lightmap.clone(),
     };
     for &count in options.counts.iter().chain([&options.reference_samples]) {
         BakeOptions {
             bands: options.bands,
             samples: count,
+            ..BakeOptions::default()
+        }
+        .validate()?;
+    }
+    for &size in &options.lightmap_sizes {
+        BakeOptions {
+            lightmap: Some(size),
             ..BakeOptions::default()
         }
         .validate()?;

@@ -3,10 +3,15 @@
 //! renderer interpolates it) against a high-sample bake *at those points*, both relit by one
 //! light. The per-vertex error of `sweep` is exact at the vertices and blind in between; this
 //! one sees the interpolation too.
+//!
+//! Points inside other geometry (by the lightmap's leak test, `bake::texels::leaking_receivers`:
+//! most of their rays reach back faces) are left out: no viewer sees them, and a lightmap
+//! deliberately refills its texels there from their visible neighbours.
 
 use std::time::Instant;
 
-use crate::bake::{bake_at, Backend, BakeOptions, NoProgress, Transfer};
+use crate::bake::texels::{leaking_receivers, sample_bilinear};
+use crate::bake::{bake_at, Backend, BakeOptions, NoProgress, TexelBake, Transfer};
 use crate::error::Result;
 use crate::light::ShLight;
 use crate::receivers::{uniform_points, Receivers, SurfacePoint};
@@ -17,6 +22,8 @@ use crate::scene::Scene;
 #[derive(Clone, Debug)]
 pub struct SurfaceReference {
     pub points: Vec<SurfacePoint>,
+    /// Points drawn but left out as inside other geometry.
+    pub hidden: usize,
     /// Relit radiance, `[point][channel]` flattened.
     pub radiance: Vec<f32>,
     /// RMS of `radiance`: the scale errors are reported against.
@@ -25,7 +32,7 @@ pub struct SurfaceReference {
     pub seconds: f64,
 }
 
-/// Bakes `count` uniformly drawn points of the prepared `scene` with `options` (a high sample
+/// Bakes the visible ones of `count` uniformly drawn points of the prepared `scene` with `options` (a high sample
 /// count) and relights them. Interreflected mode gathers from `vertex_transfer` (see
 /// [`bake_at`]).
 pub fn surface_reference(
@@ -38,7 +45,14 @@ pub fn surface_reference(
     vertex_transfer: Option<&Transfer>,
 ) -> Result<SurfaceReference> {
     let started = Instant::now();
-    let points = uniform_points(scene, count, seed);
+    let drawn = uniform_points(scene, count, seed);
+    let inside = leaking_receivers(scene, &Receivers::at_points(scene, &drawn));
+    let points: Vec<SurfacePoint> = drawn
+        .iter()
+        .zip(&inside)
+        .filter(|(_, &inside)| !inside)
+        .map(|(&p, _)| p)
+        .collect();
     let receivers = Receivers::at_points(scene, &points);
     let (transfer, rays) = bake_at(
         scene,
@@ -51,6 +65,7 @@ pub fn surface_reference(
     let radiance = flat_radiance(&transfer, light)?;
     Ok(SurfaceReference {
         rms: root_mean_square(radiance.iter().map(|&x| x as f64)),
+        hidden: drawn.len() - points.len(),
         points,
         radiance,
         rays,
@@ -80,6 +95,49 @@ pub fn interpolate(transfer: &Transfer, scene: &Scene, points: &[SurfacePoint]) 
         vertex_count: points.len(),
         coeffs,
     }
+}
+
+/// Per-texel transfer looked up bilinearly at surface points, as a renderer samples a lightmap:
+/// each point's lightmap coordinates interpolated from its triangle's corners (`scene` is the
+/// prepared scene the lightmap was baked for, whose triangle t has the lightmap corners
+/// `3t..3t + 3`).
+pub fn texel_transfer_at(texels: &TexelBake, points: &[SurfacePoint]) -> Transfer {
+    let map = &texels.transfer;
+    let stride = map.channels as usize * map.coeffs_per_channel();
+    let mut coeffs = Vec::with_capacity(points.len() * stride);
+    for p in points {
+        let corner = |i: usize| texels.texcoords[3 * p.triangle as usize + i];
+        let uv = [0, 1].map(|axis| (0..3).map(|i| p.barycentrics[i] * corner(i)[axis]).sum());
+        coeffs.extend(sample_bilinear(
+            &map.coeffs,
+            stride,
+            texels.width,
+            texels.height,
+            uv,
+        ));
+    }
+    Transfer {
+        bands: map.bands,
+        channels: map.channels,
+        vertex_count: points.len(),
+        coeffs,
+    }
+}
+
+/// RMS over the reference's points and channels of the radiance error of a lightmap looked up
+/// there ([`texel_transfer_at`]).
+pub fn texel_surface_rms(
+    reference: &SurfaceReference,
+    texels: &TexelBake,
+    light: &ShLight,
+) -> Result<f64> {
+    let radiance = flat_radiance(&texel_transfer_at(texels, &reference.points), light)?;
+    Ok(root_mean_square(
+        radiance
+            .iter()
+            .zip(&reference.radiance)
+            .map(|(&a, &b)| a as f64 - b as f64),
+    ))
 }
 
 /// RMS over the reference's points and channels of the radiance error of `vertex_transfer`

@@ -6,6 +6,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::bake::gpu::{Chunking, GpuBaker};
+use crate::bake::texels::bake_texels;
 use crate::bake::Transfer;
 use crate::bake::{
     bake, cpu, gpu, Backend, BakeOptions, DirectInputs, Fit, Mode, NoProgress, Progress,
@@ -17,7 +18,7 @@ use crate::light::ShLight;
 use crate::render::relight;
 use crate::sampling::Sampling;
 use crate::scene::Scene;
-use crate::surface::{surface_reference, surface_rms, SurfaceReference};
+use crate::surface::{surface_reference, surface_rms, texel_surface_rms, SurfaceReference};
 
 /// What to sweep.
 #[derive(Clone, Debug)]
@@ -34,6 +35,8 @@ pub struct SweepOptions {
     pub fits: Vec<Fit>,
     /// Held-out surface points of the surface error (0: four per vertex, at most 20,000).
     pub surface_points: usize,
+    /// Lightmap sizes: every strategy and count is also baked per texel at each.
+    pub lightmap_sizes: Vec<u32>,
 }
 
 impl Default for SweepOptions {
@@ -48,6 +51,7 @@ impl Default for SweepOptions {
             seed: 1,
             fits: vec![Fit::Point, Fit::LeastSquares],
             surface_points: 0,
+            lightmap_sizes: Vec::new(),
         }
     }
 }
@@ -57,6 +61,9 @@ impl Default for SweepOptions {
 pub struct SweepPoint {
     pub sampling: Sampling,
     pub fit: Fit,
+    /// Per-texel bakes: the lightmap's size (the vertex errors are then those of its vertices,
+    /// baked with `fit`).
+    pub lightmap: Option<u32>,
     /// "cpu" or "gpu".
     pub backend: String,
     /// Samples actually used.
@@ -142,19 +149,7 @@ pub fn run(
     let reference_radiance = radiance(&reference.transfer, light)?;
     let zero = vec![0.0f32; reference_radiance.len()];
     progress.stage("surface reference", 1);
-    let surface_count = match options.surface_points {
-        0 => (4 * reference.scene.vertex_count()).min(20_000),
-        n => n,
-    };
-    let surface = surface_reference(
-        &reference.scene,
-        surface_count,
-        options.seed.wrapping_add(0x5eed_0001),
-        &reference_options,
-        &backends[0].1,
-        light,
-        Some(&reference.transfer),
-    )?;
+    let surface = surface_reference_of(&reference, options, &reference_options, backends, light)?;
     progress.advance(1);
 
     let fits = if options.fits.is_empty() {
@@ -166,6 +161,12 @@ pub fn run(
         "sweep",
         (options.strategies.len() * options.counts.len() * backends.len() * fits.len()) as u64,
     );
+    let references = References {
+        transfer: &reference.transfer,
+        radiance: &reference_radiance,
+        surface: &surface,
+        light,
+    };
     let mut points = Vec::new();
     for (&sampling, &fit) in options
         .strategies
@@ -180,26 +181,14 @@ pub fn run(
                     fit,
                     ..base.clone()
                 };
-                let started = Instant::now();
-                let (baked, report) = bake(scene.clone(), &point_options, backend, &NoProgress)?;
-                let seconds = started.elapsed().as_secs_f64();
-                points.push(SweepPoint {
-                    sampling,
-                    fit,
-                    backend: label.clone(),
-                    samples: report.samples_used,
-                    seconds,
-                    rays: report.rays_cast,
-                    transfer_rms: rms_difference(
-                        &baked.transfer.coeffs,
-                        &reference.transfer.coeffs,
-                    ),
-                    radiance_rms: rms_difference(
-                        &radiance(&baked.transfer, light)?,
-                        &reference_radiance,
-                    ),
-                    surface_rms: surface_rms(&surface, &baked.scene, &baked.transfer, light)?,
-                });
+                let (label, sizes) = (label.as_str(), &options.lightmap_sizes[..]);
+                points.extend(measure(
+                    scene,
+                    &point_options,
+                    (label, backend),
+                    sizes,
+                    &references,
+                )?);
                 progress.advance(1);
             }
         }
@@ -213,9 +202,96 @@ pub fn run(
     })
 }
 
+/// The high-sample bake at held-out surface points, for the reference's (prepared) scene.
+fn surface_reference_of(
+    reference: &crate::bake::BakedMesh,
+    options: &SweepOptions,
+    reference_options: &BakeOptions,
+    backends: &[(String, Backend)],
+    light: &ShLight,
+) -> Result<SurfaceReference> {
+    let count = match options.surface_points {
+        0 => (4 * reference.scene.vertex_count()).min(20_000),
+        n => n,
+    };
+    surface_reference(
+        &reference.scene,
+        count,
+        options.seed.wrapping_add(0x5eed_0001),
+        reference_options,
+        &backends[0].1,
+        light,
+        Some(&reference.transfer),
+    )
+}
+
+/// What every point of a sweep is compared with.
+struct References<'a> {
+    transfer: &'a Transfer,
+    radiance: &'a [f32],
+    surface: &'a SurfaceReference,
+    light: &'a ShLight,
+}
+
+/// One bake of the sweep with `options` on a labelled backend, measured: its vertices, and a
+/// lightmap of each of `lightmap_sizes` baked from them.
+fn measure(
+    scene: &Scene,
+    options: &BakeOptions,
+    (label, backend): (&str, &Backend),
+    lightmap_sizes: &[u32],
+    references: &References,
+) -> Result<Vec<SweepPoint>> {
+    let light = references.light;
+    let started = Instant::now();
+    let (baked, report) = bake(scene.clone(), options, backend, &NoProgress)?;
+    let seconds = started.elapsed().as_secs_f64();
+    let vertex_point = SweepPoint {
+        sampling: options.sampling,
+        fit: options.fit,
+        lightmap: None,
+        backend: label.to_string(),
+        samples: report.samples_used,
+        seconds,
+        rays: report.rays_cast,
+        transfer_rms: rms_difference(&baked.transfer.coeffs, &references.transfer.coeffs),
+        radiance_rms: rms_difference(&radiance(&baked.transfer, light)?, references.radiance),
+        surface_rms: surface_rms(references.surface, &baked.scene, &baked.transfer, light)?,
+    };
+    let mut points = Vec::new();
+    for &size in lightmap_sizes {
+        let started = Instant::now();
+        let (texels, texel_report) = bake_texels(
+            &baked.scene,
+            &baked.transfer,
+            options,
+            size,
+            backend,
+            &NoProgress,
+        )?;
+        points.push(SweepPoint {
+            lightmap: Some(size),
+            seconds: seconds + started.elapsed().as_secs_f64(),
+            rays: report.rays_cast + texel_report.rays_cast,
+            surface_rms: texel_surface_rms(references.surface, &texels, light)?,
+            ..vertex_point.clone()
+        });
+    }
+    points.push(vertex_point);
+    Ok(points)
+}
+
 /// The CSV header: one row per point follows.
 pub const CSV_HEADER: &str =
     "sampling,fit,backend,samples,seconds,rays,transfer_rms,radiance_rms,surface_rms";
+
+/// How a point represents the transfer between vertices: the fit's name, or `texels-SIZE`.
+pub fn representation(point: &SweepPoint) -> String {
+    match point.lightmap {
+        Some(size) => format!("texels-{size}"),
+        None => point.fit.name().to_string(),
+    }
+}
 
 /// The sweep as CSV text, one row per point.
 pub fn to_csv(sweep: &Sweep) -> String {
@@ -225,7 +301,7 @@ pub fn to_csv(sweep: &Sweep) -> String {
         text.push_str(&format!(
             "{},{},{},{},{:.6},{},{:.6e},{:.6e},{:.6e}\n",
             p.sampling.name(),
-            p.fit.name(),
+            representation(p),
             p.backend,
             p.samples,
             p.seconds,
@@ -248,9 +324,9 @@ pub fn write_csv(path: &Path, sweep: &Sweep) -> Result<()> {
 pub fn chart_panels(result: &Sweep) -> Vec<ChartPanel> {
     let mut lines: Vec<(String, Vec<&SweepPoint>)> = Vec::new();
     for p in &result.points {
-        let label = match p.fit {
-            Fit::Point => format!("{} {}", p.sampling.name(), p.backend),
-            fit => format!("{} {} {}", p.sampling.name(), fit.name(), p.backend),
+        let label = match (p.fit, p.lightmap) {
+            (Fit::Point, None) => format!("{} {}", p.sampling.name(), p.backend),
+            _ => format!("{} {} {}", p.sampling.name(), representation(p), p.backend),
         };
         match lines.iter_mut().find(|(l, _)| *l == label) {
             Some((_, points)) => points.push(p),
@@ -341,6 +417,7 @@ mod tests {
         SweepPoint {
             sampling,
             fit: Fit::Point,
+            lightmap: None,
             backend: backend.to_string(),
             samples,
             seconds: samples as f64 * 1e-3,
@@ -367,6 +444,7 @@ mod tests {
             reference_radiance_rms: 1.0,
             surface: SurfaceReference {
                 points: Vec::new(),
+                hidden: 0,
                 radiance: Vec::new(),
                 rms: 1.0,
                 rays: 0,

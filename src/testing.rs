@@ -51,3 +51,33 @@ fn python_with_numpy() -> bool {
     eprintln!("skipping: python3 with numpy is not available");
     false
 }
+
+/// What the README's lightmap reader (`lightmap::PYTHON_READER`) prints for the baked file
+/// `path` (a .glb with its lightmap beside it), as JSON; `None`, with the reason printed, where
+/// python3 with numpy and OpenEXR is missing (a panic under CI, where `ci/test.sh` installs
+/// them). A reader that fails is a panic with its stderr.
+pub fn lightmap_reader_output(path: &Path) -> Option<serde_json::Value> {
+    let probe = Command::new("python3")
+        .args(["-c", "import numpy, OpenEXR"])
+        .output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "python3 with numpy and OpenEXR is missing under CI"
+        );
+        eprintln!("skipping: python3 with numpy and OpenEXR is not available");
+        return None;
+    }
+    let out = Command::new("python3")
+        .arg("-c")
+        .arg(crate::lightmap::PYTHON_READER)
+        .arg(path)
+        .output()
+        .expect("run python3");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    Some(serde_json::from_slice(&out.stdout).expect("the reader prints JSON"))
+}

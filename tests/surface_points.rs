@@ -9,7 +9,7 @@ use prt_gpu::light::ShLight;
 use prt_gpu::receivers::{spread_points, PointDensity, Receivers, SurfacePoint};
 use prt_gpu::sampling::Sampling;
 use prt_gpu::scene::{builtin, prepare::prepare, Scene};
-use prt_gpu::surface::{surface_reference, surface_rms};
+use prt_gpu::surface::{surface_reference, surface_rms, texel_surface_rms};
 
 /// The rule at a point whose shading normal leans past its flat face: a direction below the
 /// face's plane is blocked by the face, as a path tracer sees it. On a convex shape nothing
@@ -135,6 +135,27 @@ fn the_least_squares_fit_beats_point_vertices_over_the_surface_at_equal_rays() {
         "least squares {fit_mean:.4} (spread {fit_spread:.4}) not below point {point_mean:.4} \
          (spread {point_spread:.4})"
     );
+
+    // Per texel, at a modest resolution, below both.
+    let texels: Vec<f64> = (1..=4)
+        .map(|seed| {
+            let options = BakeOptions {
+                samples: 256,
+                seed,
+                lightmap: Some(128),
+                ..base.clone()
+            };
+            let (baked, _) = bake(scene.clone(), &options, &Backend::Cpu, &NoProgress).unwrap();
+            let lightmap = baked.lightmap.as_ref().unwrap();
+            texel_surface_rms(&reference, lightmap, &light).unwrap() / reference.rms
+        })
+        .collect();
+    let (texel_mean, texel_spread) = mean_and_spread(&texels);
+    eprintln!("surface error: texels at 128 {texels:?}");
+    assert!(
+        texel_mean + 3.0 * (texel_spread + fit_spread) < fit_mean,
+        "texels {texel_mean:.4} (spread {texel_spread:.4}) not below least squares {fit_mean:.4}"
+    );
 }
 
 /// Mean and sample standard deviation.
@@ -233,4 +254,39 @@ fn spread_points_give_every_triangle_support() {
     let mut seen = vec![false; scene.triangle_count()];
     points.iter().for_each(|p| seen[p.triangle as usize] = true);
     assert!(seen.iter().all(|&s| s));
+}
+
+/// Texels with bounces on both backends: each texel's direct pass and its final gather from
+/// the vertices run on each backend; the lightmaps agree as the vertex bakes do.
+#[test]
+fn interreflected_texels_agree_on_cpu_and_gpu() {
+    if common::gpu_baker().is_none() {
+        return;
+    }
+    let options = BakeOptions {
+        bands: 3,
+        samples: 64,
+        mode: Mode::Interreflected,
+        lightmap: Some(64),
+        ..BakeOptions::default()
+    };
+    let scene = plane_with_thin_box();
+    let maps: Vec<Vec<f32>> = common::backends()
+        .iter()
+        .map(|backend| {
+            let (baked, _) = bake(scene.clone(), &options, backend, &NoProgress).unwrap();
+            baked.lightmap.unwrap().transfer.coeffs
+        })
+        .collect();
+    let rms = |values: &mut dyn Iterator<Item = f64>| {
+        let (sum, n) = values.fold((0.0, 0), |(s, n), x| (s + x * x, n + 1));
+        (sum / n as f64).sqrt()
+    };
+    let size = rms(&mut maps[0].iter().map(|&x| x as f64));
+    let difference = rms(&mut maps[0].iter().zip(&maps[1]).map(|(&a, &b)| (a - b) as f64));
+    eprintln!("interreflected texels: CPU and GPU differ by {difference:.2e} of {size:.2e}");
+    assert!(
+        size > 0.0 && difference <= 1e-3 * size,
+        "{difference} of {size}"
+    );
 }

@@ -3,6 +3,7 @@
 pub mod bounce;
 pub mod cpu;
 pub mod gpu;
+pub mod texels;
 
 use std::time::Instant;
 
@@ -12,8 +13,9 @@ use serde::{Deserialize, Serialize};
 use crate::bvh::Bvh;
 use crate::error::{Error, Result};
 use crate::ray::offset_ray_origin;
+use crate::receivers;
 use crate::receivers::fit::{fit_vertices, FitOptions, FitReport};
-use crate::receivers::{spread_points, PointDensity, Receivers};
+use crate::receivers::{spread_points, PointDensity, Receivers, SurfacePoint};
 use crate::sampling::{Estimator, SampleSet, Sampling, MAX_SAMPLES};
 use crate::scene::prepare::{prepare_mapped, PrepareReport, VertexMap};
 use crate::scene::Scene;
@@ -79,12 +81,12 @@ pub struct BakedMesh {
     pub metadata: BakeMetadata,
     /// Per-texel transfer, when a lightmap was baked (the scene is then split so that every
     /// triangle corner has its own vertex and lightmap coordinates).
-    pub lightmap: Option<Lightmap>,
+    pub lightmap: Option<TexelBake>,
 }
 
 /// Transfer per texel of a lightmap atlas.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Lightmap {
+pub struct TexelBake {
     pub width: u32,
     pub height: u32,
     /// Lightmap coordinates of every vertex of the scene, in [0, 1] as glTF's `TEXCOORD_n`:
@@ -176,6 +178,8 @@ pub struct BakeOptions {
     pub fit: Fit,
     /// Least-squares fit: how many surface points to bake.
     pub point_density: PointDensity,
+    /// Also bake a lightmap about this many texels on its longer side.
+    pub lightmap: Option<u32>,
 }
 
 impl Default for BakeOptions {
@@ -191,6 +195,7 @@ impl Default for BakeOptions {
             bounce_tolerance: 0.0,
             fit: Fit::Point,
             point_density: PointDensity::default(),
+            lightmap: None,
         }
     }
 }
@@ -220,6 +225,14 @@ impl BakeOptions {
                 "--bounce-tolerance {} must lie in [0, 1)",
                 self.bounce_tolerance
             )));
+        }
+        if let Some(size) = self.lightmap {
+            let max = crate::receivers::atlas::MAX_ATLAS_SIZE;
+            if !(1..=max).contains(&size) {
+                return Err(Error::Options(format!(
+                    "--lightmap {size} is out of range (1 to {max} texels)"
+                )));
+            }
         }
         let density = self.point_density;
         if !(density.per_vertex.is_finite()
@@ -319,6 +332,8 @@ pub struct BakeReport {
     pub seconds_fit: f64,
     /// The fit's solve, when the vertex values were fitted.
     pub fit: Option<FitReport>,
+    /// The lightmap's bake, when one was asked for.
+    pub texels: Option<texels::TexelReport>,
     /// One entry per bounce performed (each including its fit).
     pub bounces: Vec<BounceStat>,
     /// Non-zero entries of the gather matrix (interreflected mode).
@@ -404,13 +419,12 @@ pub fn bake(
     if let Some(albedo) = options.albedo {
         scene.albedo.iter_mut().for_each(|a| *a = albedo);
     }
-    let (receivers, points) = match options.fit {
-        Fit::Point => (Receivers::vertices(&scene), Vec::new()),
-        Fit::LeastSquares => {
-            let points = spread_points(&scene, options.point_density, options.seed);
-            (Receivers::at_points(&scene, &points), points)
-        }
+    // A lightmap that cannot fit fails now, not after the vertices are baked.
+    let atlas = match options.lightmap {
+        Some(size) => Some(texels::plan_atlas(&scene, size)?),
+        None => None,
     };
+    let (receivers, points) = choose_receivers(&scene, options);
     let owned = BakeInputs::for_receivers(&scene, &receivers, options);
     let inputs = owned.view();
     let seconds_prepare = started.elapsed().as_secs_f64();
@@ -453,22 +467,18 @@ pub fn bake(
     if options.fit == Fit::Point {
         seconds_fit = 0.0;
     }
-    let metadata = BakeMetadata {
-        tool: env!("CARGO_PKG_NAME").to_string(),
-        tool_version: env!("CARGO_PKG_VERSION").to_string(),
-        bands: options.bands,
-        channels: transfer.channels,
-        mode: options.mode,
-        samples: inputs.samples.len() as u32,
-        sampling: options.sampling.name().to_string(),
-        seed: options.seed,
-        backend: backend.describe(),
-        sh_convention: CONVENTION.to_string(),
-        radiometry: RADIOMETRY.to_string(),
-        bounces: bounces.len() as u32,
-        fit: options.fit,
-        fit_points: (options.fit == Fit::LeastSquares).then_some(points.len() as u32),
+    let (scene, transfer, lightmap, texel_report) = match &atlas {
+        None => (scene, transfer, None, None),
+        Some(atlas) => add_lightmap(scene, transfer, atlas, options, backend, progress)?,
     };
+    let fit_points = (options.fit == Fit::LeastSquares).then_some(points.len() as u32);
+    let metadata = metadata_for(
+        options,
+        backend,
+        inputs.samples.len(),
+        bounces.len(),
+        fit_points,
+    );
     let report = BakeReport {
         prepare: prepare_report,
         vertex_map,
@@ -480,6 +490,7 @@ pub fn bake(
         seconds_transfer,
         seconds_fit,
         fit: fit_report,
+        texels: texel_report,
         bounces,
         gather_entries: direct.matrix.map_or(0, |m| m.columns.len()),
         backend: backend.describe(),
@@ -489,16 +500,76 @@ pub fn bake(
             scene,
             transfer,
             metadata,
-            lightmap: None,
+            lightmap,
         },
         report,
     ))
 }
 
+/// The scene, its transfer and its lightmap's bake: the texels of `atlas` baked, and the mesh
+/// split at every corner to carry their coordinates.
+fn add_lightmap(
+    scene: Scene,
+    transfer: Transfer,
+    atlas: &receivers::atlas::Atlas,
+    options: &BakeOptions,
+    backend: &Backend,
+    progress: &dyn Progress,
+) -> Result<(
+    Scene,
+    Transfer,
+    Option<TexelBake>,
+    Option<texels::TexelReport>,
+)> {
+    let (lightmap, report) =
+        texels::bake_atlas(&scene, &transfer, options, atlas, backend, progress)?;
+    let (scene, transfer) = texels::split_corners(&scene, &transfer);
+    Ok((scene, transfer, Some(lightmap), Some(report)))
+}
+
+/// The receivers of a bake: the vertices, or (least-squares fit) the points spread over the
+/// triangles, which it also returns.
+fn choose_receivers(scene: &Scene, options: &BakeOptions) -> (Receivers, Vec<SurfacePoint>) {
+    match options.fit {
+        Fit::Point => (Receivers::vertices(scene), Vec::new()),
+        Fit::LeastSquares => {
+            let points = spread_points(scene, options.point_density, options.seed);
+            (Receivers::at_points(scene, &points), points)
+        }
+    }
+}
+
+/// What the baked file records about a bake with `options`.
+fn metadata_for(
+    options: &BakeOptions,
+    backend: &Backend,
+    samples: usize,
+    bounces: usize,
+    fit_points: Option<u32>,
+) -> BakeMetadata {
+    BakeMetadata {
+        tool: env!("CARGO_PKG_NAME").to_string(),
+        tool_version: env!("CARGO_PKG_VERSION").to_string(),
+        bands: options.bands,
+        channels: 3,
+        mode: options.mode,
+        samples: samples as u32,
+        sampling: options.sampling.name().to_string(),
+        seed: options.seed,
+        backend: backend.describe(),
+        sh_convention: CONVENTION.to_string(),
+        radiometry: RADIOMETRY.to_string(),
+        bounces: bounces as u32,
+        fit: options.fit,
+        fit_points,
+    }
+}
+
 /// Transfer at `receivers` on a prepared `scene` (RGB, `[receiver][channel][k]`; the
-/// receivers' albedo unless `options.albedo` replaces it), and the rays cast. Interreflected mode adds one final gather of `vertex_transfer` (the scene's baked
-/// vertex transfer, bounces included) where each receiver's blocked rays land, as lightmappers
-/// gather from a coarser solution: the receivers then carry one bounce more than the vertices.
+/// receivers' albedo unless `options.albedo` replaces it), and the rays cast. Interreflected
+/// mode adds one final gather of `vertex_transfer` (the scene's baked vertex transfer, bounces
+/// included) where each receiver's blocked rays land, as lightmappers gather from a coarser
+/// solution: the receivers then carry one bounce more than the vertices.
 pub fn bake_at(
     scene: &Scene,
     receivers: &Receivers,

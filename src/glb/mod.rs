@@ -15,6 +15,10 @@
 //!   per group and channel.
 //! - mesh `extras.prt` holds every [`BakeMetadata`] field, plus `vertices`,
 //!   `transfer_buffer_view` and `transfer_layout` ([`TRANSFER_LAYOUT`]).
+//! - with a lightmap (`bake --lightmap`): a sixth view, the lightmap coordinates as
+//!   `TEXCOORD_0` (`VEC2` float, one pair per vertex; every triangle corner is its own vertex),
+//!   and `extras.prt.lightmap` = `{uri, width, height, texcoord: 0, layout}`, `uri` naming the
+//!   OpenEXR file beside the .glb that holds the per-texel transfer (`crate::lightmap`).
 
 use std::collections::BTreeMap;
 use std::fs::{self, File};
@@ -24,7 +28,7 @@ use std::path::Path;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use crate::bake::{BakeMetadata, BakedMesh, Transfer};
+use crate::bake::{BakeMetadata, BakedMesh, TexelBake, Transfer};
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
 
@@ -70,21 +74,120 @@ pub fn transfer_attribute_name(channels: u32, channel: u32, group: usize) -> Str
 
 /// Writes `baked` to `path` atomically: a temporary file in the same directory, synced, then
 /// renamed over the target, so readers never see a half-written file.
+///
+/// With a lightmap, its OpenEXR file ([`lightmap_file_name`]) is written beside, first; should
+/// the .glb then fail, the lightmap is removed again, so that no half of a bake is left.
 pub fn write_glb(path: &Path, baked: &BakedMesh) -> Result<()> {
     validate(baked)?;
     // Fails before encoding, so a typo in the directory costs no work.
     check_destination(path)?;
-    let bytes = encode_valid(baked)?;
-    write_atomically(path, &bytes)
+    let Some(texels) = &baked.lightmap else {
+        return write_atomically(path, &encode_valid(baked, None)?);
+    };
+    let name = lightmap_file_name(path);
+    let bytes = encode_valid(baked, Some(&name))?;
+    let exr_path = path.with_file_name(&name);
+    check_destination(&exr_path)?;
+    crate::lightmap::write_lightmap(&exr_path, &lightmap_of(texels))?;
+    write_atomically(path, &bytes).inspect_err(|_| {
+        let _ = fs::remove_file(&exr_path);
+    })
+}
+
+/// The name of the lightmap file written beside `glb`: `scene.prt.glb` -> `scene.prt.lightmap.exr`.
+pub fn lightmap_file_name(glb: &Path) -> String {
+    let name = glb
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "baked".into());
+    let stem = match name.rsplit_once('.') {
+        Some((stem, _)) if !stem.is_empty() => stem.to_string(),
+        _ => name,
+    };
+    format!("{stem}.lightmap.exr")
+}
+
+/// The file form of a texel bake.
+fn lightmap_of(texels: &TexelBake) -> crate::lightmap::Lightmap {
+    crate::lightmap::Lightmap {
+        width: texels.width,
+        height: texels.height,
+        bands: texels.transfer.bands,
+        channels: texels.transfer.channels,
+        coefficients: texels.transfer.coeffs.clone(),
+    }
 }
 
 /// Reads and fully validates a baked file.
+/// Reads and fully validates a baked file, and the lightmap it refers to.
 pub fn read_glb(path: &Path) -> Result<BakedMesh> {
     let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
     if is_scene_file(&bytes) {
         return scene::read_scene_glb(path);
     }
-    decode_glb(&bytes, path)
+    let (mut baked, lightmap) = decode_parts(&bytes, path)?;
+    if let Some((extras, texcoords)) = lightmap {
+        baked.lightmap = Some(read_texels(path, &baked, extras, texcoords)?);
+    }
+    Ok(baked)
+}
+
+/// The lightmap `extras` names, beside `glb`, checked against the mesh it belongs to.
+fn read_texels(
+    glb: &Path,
+    baked: &BakedMesh,
+    extras: LightmapExtras,
+    texcoords: Vec<[f32; 2]>,
+) -> Result<TexelBake> {
+    let uri_is_plain = !extras.uri.is_empty()
+        && !extras.uri.contains(['/', '\\', ':'])
+        && extras.uri != ".."
+        && extras.uri != ".";
+    if !uri_is_plain {
+        return Err(Error::baked(
+            glb,
+            format!(
+                "extras.prt.lightmap.uri \"{}\" is not a file name beside it",
+                extras.uri
+            ),
+        ));
+    }
+    let exr_path = glb.with_file_name(&extras.uri);
+    let map = crate::lightmap::read_lightmap(&exr_path)?;
+    let expected = (
+        extras.width,
+        extras.height,
+        baked.transfer.bands,
+        baked.transfer.channels,
+    );
+    if (map.width, map.height, map.bands, map.channels) != expected {
+        return Err(Error::baked(
+            &exr_path,
+            format!(
+                "is {}x{} texels of {} bands and {} channels, but {} expects {}x{} of {} and {}",
+                map.width,
+                map.height,
+                map.bands,
+                map.channels,
+                glb.display(),
+                expected.0,
+                expected.1,
+                expected.2,
+                expected.3
+            ),
+        ));
+    }
+    Ok(TexelBake {
+        width: map.width,
+        height: map.height,
+        texcoords,
+        transfer: Transfer {
+            bands: map.bands,
+            channels: map.channels,
+            vertex_count: (map.width * map.height) as usize,
+            coeffs: map.coefficients,
+        },
+    })
 }
 
 /// Whether `bytes` are a glTF scene baked in place ([`scene`]) rather than a single mesh.
@@ -131,14 +234,26 @@ pub fn read_metadata(path: &Path) -> Result<(BakeMetadata, usize, usize)> {
     Ok((plan.metadata, plan.vertices, plan.triangles))
 }
 
-/// Encodes `baked` as a `.glb` in memory, after checking that its parts agree.
+/// Encodes `baked` as a `.glb` in memory, after checking that its parts agree. A lightmap is
+/// referred to as [`DEFAULT_LIGHTMAP_URI`] (it is [`write_glb`] that names and writes it).
 pub fn encode_glb(baked: &BakedMesh) -> Result<Vec<u8>> {
     validate(baked)?;
-    encode_valid(baked)
+    encode_valid(baked, None)
 }
 
-/// Decodes and validates a `.glb`; `path` only names the file in error messages.
+/// The lightmap reference of a file encoded without a name for it.
+pub const DEFAULT_LIGHTMAP_URI: &str = "lightmap.exr";
+
+/// Decodes and validates a `.glb`; `path` only names the file in error messages. A lightmap the
+/// file refers to is not loaded (see [`read_glb`]).
 pub fn decode_glb(bytes: &[u8], path: &Path) -> Result<BakedMesh> {
+    decode_parts(bytes, path).map(|(baked, _)| baked)
+}
+
+/// A lightmap's reference and the lightmap coordinates of every vertex.
+type LightmapParts = Option<(LightmapExtras, Vec<[f32; 2]>)>;
+
+fn decode_parts(bytes: &[u8], path: &Path) -> Result<(BakedMesh, LightmapParts)> {
     let head = bytes
         .get(..20)
         .ok_or_else(|| Error::baked(path, "too short to be a glTF binary (.glb) file"))?;
@@ -210,7 +325,11 @@ pub fn decode_glb(bytes: &[u8], path: &Path) -> Result<BakedMesh> {
         }
     }
 
-    Ok(BakedMesh {
+    let lightmap = match (plan.lightmap, &plan.texcoords) {
+        (Some(extras), Some(span)) => Some((extras, read_texcoords(bin, span, path)?)),
+        _ => None,
+    };
+    let baked = BakedMesh {
         scene: Scene {
             positions,
             normals: Some(normals),
@@ -225,7 +344,27 @@ pub fn decode_glb(bytes: &[u8], path: &Path) -> Result<BakedMesh> {
         },
         metadata: plan.metadata,
         lightmap: None,
-    })
+    };
+    Ok((baked, lightmap))
+}
+
+/// The lightmap coordinates `span` locates, each finite.
+fn read_texcoords(bin: &[u8], span: &Span, path: &Path) -> Result<Vec<[f32; 2]>> {
+    let data = span_bytes(bin, span, 8, path)?;
+    (0..span.count)
+        .map(|i| {
+            let at = i * span.stride;
+            let uv = [f32_at(data, at), f32_at(data, at + 4)];
+            if uv.iter().all(|x| x.is_finite()) {
+                Ok(uv)
+            } else {
+                Err(Error::baked(
+                    path,
+                    format!("non-finite lightmap coordinate at {i}"),
+                ))
+            }
+        })
+        .collect()
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -241,6 +380,7 @@ const TRIANGLES: u32 = 4;
 const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const TRANSFER_VIEW: usize = 4;
+const TEXCOORD_VIEW: usize = 5;
 
 // ---------------------------------------------------------------------------------------------
 // JSON. Structs rather than maps so the key order, and with it the bytes, never change; unknown
@@ -360,6 +500,8 @@ struct PrtExtras<'a> {
     vertices: usize,
     transfer_buffer_view: usize,
     transfer_layout: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    lightmap: Option<LightmapExtras>,
 }
 
 #[derive(Deserialize)]
@@ -369,6 +511,21 @@ struct PrtExtrasIn {
     vertices: usize,
     transfer_buffer_view: usize,
     transfer_layout: String,
+    #[serde(default)]
+    lightmap: Option<LightmapExtras>,
+}
+
+/// `extras.prt.lightmap`: where the per-texel transfer is and how to read it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LightmapExtras {
+    /// The OpenEXR file, beside the .glb.
+    pub uri: String,
+    pub width: u32,
+    pub height: u32,
+    /// The `TEXCOORD_n` set holding the lightmap coordinates.
+    pub texcoord: u32,
+    /// The file's channel layout (`crate::lightmap`).
+    pub layout: String,
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -456,12 +613,49 @@ fn validate(baked: &BakedMesh) -> Result<()> {
             i / per_vertex
         ));
     }
+    if let Some(texels) = &baked.lightmap {
+        validate_lightmap(texels, transfer, v).map_err(Error::Geometry)?;
+    }
     let bin = bin_len(v, scene.triangles.len(), transfer.channels, transfer.bands);
     // A GLB records its total length in 32 bits; keep a margin for the header and the JSON.
     if bin.is_none_or(|b| b > u32::MAX as usize - (64 << 20)) {
         return bad(format!(
             "{v} vertices with {} bands and {} channels exceed the 4 GiB limit of a .glb file",
             transfer.bands, transfer.channels
+        ));
+    }
+    Ok(())
+}
+
+/// Checks that a lightmap fits the mesh it belongs to: one coordinate pair per vertex, and
+/// texels of the vertex transfer's bands and channels.
+fn validate_lightmap(
+    texels: &TexelBake,
+    transfer: &Transfer,
+    v: usize,
+) -> std::result::Result<(), String> {
+    let map = &texels.transfer;
+    if texels.texcoords.len() != v {
+        return Err(format!(
+            "{} lightmap coordinates for {v} vertices",
+            texels.texcoords.len()
+        ));
+    }
+    if texels.texcoords.iter().flatten().any(|x| !x.is_finite()) {
+        return Err("non-finite lightmap coordinates".into());
+    }
+    if (map.bands, map.channels) != (transfer.bands, transfer.channels)
+        || map.vertex_count != texels.width as usize * texels.height as usize
+    {
+        return Err(format!(
+            "the lightmap holds {} texels of {} bands and {} channels for a {}x{} map of {} and {}",
+            map.vertex_count,
+            map.bands,
+            map.channels,
+            texels.width,
+            texels.height,
+            transfer.bands,
+            transfer.channels
         ));
     }
     Ok(())
@@ -494,7 +688,7 @@ fn put_f32s(bin: &mut Vec<u8>, values: impl IntoIterator<Item = f32>) {
     }
 }
 
-fn encode_valid(baked: &BakedMesh) -> Result<Vec<u8>> {
+fn encode_valid(baked: &BakedMesh, lightmap_uri: Option<&str>) -> Result<Vec<u8>> {
     let (bin, views) = encode_bin(baked);
     let (accessors, attributes) = accessors_and_attributes(baked);
     let doc = Document {
@@ -517,6 +711,13 @@ fn encode_valid(baked: &BakedMesh) -> Result<Vec<u8>> {
                     vertices: baked.scene.positions.len(),
                     transfer_buffer_view: TRANSFER_VIEW,
                     transfer_layout: TRANSFER_LAYOUT,
+                    lightmap: baked.lightmap.as_ref().map(|texels| LightmapExtras {
+                        uri: lightmap_uri.unwrap_or(DEFAULT_LIGHTMAP_URI).to_string(),
+                        width: texels.width,
+                        height: texels.height,
+                        texcoord: 0,
+                        layout: crate::lightmap::LAYOUT.to_string(),
+                    }),
                 },
             }),
         }],
@@ -575,7 +776,14 @@ fn encode_bin(baked: &BakedMesh) -> (Vec<u8>, Vec<BufferViewJson>) {
     }
     // Several accessors share this view, so the spec requires an explicit stride.
     view(&bin, start, Some(16), ARRAY_BUFFER);
-    debug_assert_eq!(views.len(), TRANSFER_VIEW + 1);
+    if let Some(texels) = &baked.lightmap {
+        let start = bin.len();
+        put_f32s(&mut bin, texels.texcoords.iter().flatten().copied());
+        view(&bin, start, None, ARRAY_BUFFER);
+    }
+    let expected_views = TRANSFER_VIEW + 1 + baked.lightmap.is_some() as usize;
+    debug_assert_eq!(views.len(), expected_views);
+    const { assert!(TEXCOORD_VIEW == TRANSFER_VIEW + 1) };
     (bin, views)
 }
 
@@ -619,6 +827,10 @@ fn accessors_and_attributes(baked: &BakedMesh) -> (Vec<AccessorJson>, BTreeMap<S
             attributes.insert(name, accessors.len());
             accessors.push(accessor(TRANSFER_VIEW, block * v * 16, FLOAT, v, "VEC4"));
         }
+    }
+    if baked.lightmap.is_some() {
+        attributes.insert("TEXCOORD_0".into(), accessors.len());
+        accessors.push(accessor(TEXCOORD_VIEW, 0, FLOAT, v, "VEC2"));
     }
     (accessors, attributes)
 }
@@ -733,6 +945,9 @@ struct Plan {
     indices: Span,
     /// One per `(channel, group)`, channel-major.
     transfer: Vec<Span>,
+    lightmap: Option<LightmapExtras>,
+    /// `TEXCOORD_0`, present with a lightmap.
+    texcoords: Option<Span>,
 }
 
 fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Result<Plan> {
@@ -783,8 +998,18 @@ fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Resul
         )));
     }
     let transfer = transfer_spans(doc, buffer_len, primitive, &prt, v).map_err(bad)?;
+    let texcoords = match &prt.lightmap {
+        Some(lightmap) => {
+            let name = format!("TEXCOORD_{}", lightmap.texcoord);
+            let span = locate(&name, attribute(&name), FLOAT, "VEC2", 2)?;
+            Some(same_count(span, v, &name).map_err(bad)?)
+        }
+        None => None,
+    };
     let meta = prt.metadata;
     Ok(Plan {
+        lightmap: prt.lightmap,
+        texcoords,
         vertices: v,
         triangles: indices.count / 3,
         coeffs_per_channel: (meta.bands * meta.bands) as usize,

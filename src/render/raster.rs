@@ -6,7 +6,8 @@ use wgpu::util::DeviceExt;
 
 use super::camera::{bounds, usable_radius, Camera};
 use super::relight::relight;
-use crate::bake::BakedMesh;
+use crate::bake::texels::sample_bilinear;
+use crate::bake::{BakedMesh, TexelBake};
 use crate::device::GpuContext;
 use crate::error::{Error, Result};
 use crate::light::ShLight;
@@ -96,16 +97,40 @@ pub fn preview(
     width: u32,
     height: u32,
 ) -> Result<Vec<[f32; 4]>> {
-    let radiance = relight(&baked.transfer, light)?;
     let framed = Camera::framing_scene(&baked.scene);
-    render(
-        ctx,
-        &baked.scene,
-        &radiance,
-        camera.unwrap_or(&framed),
-        width,
-        height,
-    )
+    let camera = camera.unwrap_or(&framed);
+    match &baked.lightmap {
+        None => {
+            let radiance = relight(&baked.transfer, light)?;
+            render(ctx, &baked.scene, &radiance, camera, width, height)
+        }
+        Some(texels) => render_texels(ctx, &baked.scene, texels, light, camera, width, height),
+    }
+}
+
+/// A lightmapped mesh: the texels relit, then looked up bilinearly at each pixel's lightmap
+/// coordinates (rasterised as the "radiance" of a first pass, interpolated perspective-correct
+/// as any vertex attribute), as a renderer samples a lightmap texture.
+fn render_texels(
+    ctx: &GpuContext,
+    scene: &Scene,
+    texels: &TexelBake,
+    light: &ShLight,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> Result<Vec<[f32; 4]>> {
+    let relit: Vec<f32> = relight(&texels.transfer, light)?
+        .into_iter()
+        .flatten()
+        .collect();
+    let coordinates: Vec<[f32; 3]> = texels.texcoords.iter().map(|&[u, v]| [u, v, 0.0]).collect();
+    let mut pixels = render(ctx, scene, &coordinates, camera, width, height)?;
+    for pixel in pixels.iter_mut().filter(|p| p[3] > 0.0) {
+        let rgb = sample_bilinear(&relit, 3, texels.width, texels.height, [pixel[0], pixel[1]]);
+        *pixel = [rgb[0], rgb[1], rgb[2], pixel[3]];
+    }
+    Ok(pixels)
 }
 
 /// Rasterises `scene` with `radiance` (one RGB value per vertex, interpolated across each

@@ -1,0 +1,300 @@
+//! Per-texel transfer (lightmaps, as D3DX's per-texel PRT and the SH lightmaps of Godot and
+//! Bakery): the texels of a generated atlas (`receivers::atlas`) baked as surface points, their
+//! leaks marked, the map dilated so that bilinear filtering never reads an unbaked texel.
+//!
+//! A texel whose rays mostly reach the back of a surface sits inside other geometry (a floor
+//! under a wall, an intersecting box): its value would be dark and, filtered, bleed into the
+//! texels around it. Such texels are marked invalid and refilled from their neighbours, as
+//! lightmappers do against leaks.
+
+use std::time::Instant;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{bake_at, Backend, BakeOptions, Progress, TexelBake, Transfer};
+use crate::bvh::Bvh;
+use crate::error::Result;
+use crate::ray::{offset_ray_origin, Ray, RAY_T_MAX};
+use crate::receivers::atlas::{generate_atlas, texels_per_unit_for_size, Atlas, GUTTER};
+use crate::receivers::face_normal;
+use crate::receivers::texels::{dilate, rasterize};
+use crate::receivers::Receivers;
+use crate::sampling::{cosine_hemisphere, VertexDirections};
+use crate::scene::Scene;
+
+/// Rays per texel of the leak test.
+pub const LEAK_RAYS: u32 = 16;
+
+/// A texel leaks when more than this fraction of its leak-test rays hit back faces.
+pub const LEAK_FRACTION: f32 = 0.5;
+
+/// Dilation rings: well past the gutter (so that a bilinear footprint reaching past a chart's
+/// edge reads filled texels), and enough to refill leaks from their valid neighbours; a leak
+/// wider than this keeps its own (dark) values.
+const DILATION_PASSES: u32 = 32 * GUTTER;
+
+/// What the texel bake did, for the summary line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexelReport {
+    pub width: u32,
+    pub height: u32,
+    /// Texels some triangle covers (each baked once).
+    pub covered: usize,
+    /// Covered texels found inside geometry and refilled from their neighbours.
+    pub leaking: usize,
+    pub rays_cast: u64,
+    pub seconds: f64,
+}
+
+/// The atlas of a lightmap about `size` texels on its longer side for the prepared `scene`;
+/// fails (before any ray is cast) where the charts cannot fit that size.
+pub fn plan_atlas(scene: &Scene, size: u32) -> Result<Atlas> {
+    generate_atlas(scene, texels_per_unit_for_size(scene, size)?)
+}
+
+/// Bakes a lightmap of about `size` texels on its longer side for the prepared `scene`, whose
+/// vertex transfer (bounces included) `vertex_transfer` is: interreflected texels gather from
+/// it ([`bake_at`]).
+pub fn bake_texels(
+    scene: &Scene,
+    vertex_transfer: &Transfer,
+    options: &BakeOptions,
+    size: u32,
+    backend: &Backend,
+    progress: &dyn Progress,
+) -> Result<(TexelBake, TexelReport)> {
+    let started = Instant::now();
+    let atlas = plan_atlas(scene, size)?;
+    let (bake, mut report) =
+        bake_atlas(scene, vertex_transfer, options, &atlas, backend, progress)?;
+    report.seconds = started.elapsed().as_secs_f64();
+    Ok((bake, report))
+}
+
+/// Bakes the texels of `atlas` (see [`bake_texels`]).
+pub fn bake_atlas(
+    scene: &Scene,
+    vertex_transfer: &Transfer,
+    options: &BakeOptions,
+    atlas: &Atlas,
+    backend: &Backend,
+    progress: &dyn Progress,
+) -> Result<(TexelBake, TexelReport)> {
+    let started = Instant::now();
+    let texels = rasterize(atlas);
+    let receivers = Receivers::at_points(scene, &texels.points);
+    let (at_texels, rays_cast) = bake_at(
+        scene,
+        &receivers,
+        options,
+        backend,
+        Some(vertex_transfer),
+        progress,
+    )?;
+    let leaking = leaking_receivers(scene, &receivers);
+    let stride = at_texels.channels as usize * at_texels.coeffs_per_channel();
+    let mut image = texels.scatter(&at_texels.coeffs, stride)?;
+    let mut valid = texels.valid_mask(&leaking)?;
+    let (width, height) = (atlas.width, atlas.height);
+    dilate(
+        width,
+        height,
+        &mut image,
+        stride,
+        &mut valid,
+        DILATION_PASSES,
+    )?;
+    // Leaks too wide to fill keep what was baked there.
+    for ((&(x, y), values), _) in texels
+        .texels
+        .iter()
+        .zip(at_texels.coeffs.chunks_exact(stride))
+        .zip(&leaking)
+        .filter(|(_, &leak)| leak)
+    {
+        let at = (y * width + x) as usize;
+        if !valid[at] {
+            image[at * stride..(at + 1) * stride].copy_from_slice(values);
+            valid[at] = true;
+        }
+    }
+    let texcoords = atlas
+        .corners
+        .iter()
+        .flatten()
+        .map(|c| [c.x / width as f32, c.y / height as f32])
+        .collect();
+    let report = TexelReport {
+        width,
+        height,
+        covered: texels.texels.len(),
+        leaking: leaking.iter().filter(|&&l| l).count(),
+        rays_cast,
+        seconds: started.elapsed().as_secs_f64(),
+    };
+    let bake = TexelBake {
+        width,
+        height,
+        texcoords,
+        transfer: Transfer {
+            bands: at_texels.bands,
+            channels: at_texels.channels,
+            vertex_count: (width * height) as usize,
+            coeffs: image,
+        },
+    };
+    Ok((bake, report))
+}
+
+/// Per receiver, whether more than [`LEAK_FRACTION`] of [`LEAK_RAYS`] cosine-distributed rays
+/// about its normal first hit the back of a triangle (by the triangle's winding).
+pub fn leaking_receivers(scene: &Scene, receivers: &Receivers) -> Vec<bool> {
+    let bvh = Bvh::build(&scene.positions, &scene.triangles);
+    let extent = bvh.extent();
+    let directions = cosine_hemisphere(LEAK_RAYS, 0x1eaf);
+    let limit = (LEAK_FRACTION * LEAK_RAYS as f32) as usize;
+    (0..receivers.len())
+        .into_par_iter()
+        .map(|r| {
+            let normal = receivers.normals[r];
+            let origin = offset_ray_origin(receivers.positions[r], normal, extent);
+            let to_world = VertexDirections::new(directions.frame, normal);
+            let back_hits = directions
+                .directions
+                .iter()
+                .filter(|&&d| {
+                    let direction = to_world.world(d);
+                    bvh.closest_hit(&Ray::new(origin, direction), RAY_T_MAX)
+                        .is_some_and(|(t, _)| {
+                            let corners = scene.triangles[t as usize];
+                            face_normal(&scene.positions, corners).dot(direction) > 0.0
+                        })
+                })
+                .count();
+            back_hits > limit
+        })
+        .collect()
+}
+
+/// The scene with every triangle corner its own vertex (triangle t's corners become vertices
+/// 3t, 3t + 1, 3t + 2), and the vertex transfer copied to them: the mesh a lightmap's
+/// per-corner coordinates belong to.
+pub fn split_corners(scene: &Scene, transfer: &Transfer) -> (Scene, Transfer) {
+    let corners: Vec<usize> = scene
+        .triangles
+        .iter()
+        .flatten()
+        .map(|&i| i as usize)
+        .collect();
+    let pick = |values: &[Vec3]| corners.iter().map(|&i| values[i]).collect::<Vec<_>>();
+    let stride = transfer.channels as usize * transfer.coeffs_per_channel();
+    let split = Scene {
+        positions: pick(&scene.positions),
+        normals: scene.normals.as_deref().map(pick),
+        albedo: pick(&scene.albedo),
+        triangles: (0..scene.triangles.len() as u32)
+            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect(),
+    };
+    let coeffs = corners
+        .iter()
+        .flat_map(|&i| {
+            transfer.coeffs[i * stride..(i + 1) * stride]
+                .iter()
+                .copied()
+        })
+        .collect();
+    let transfer = Transfer {
+        vertex_count: corners.len(),
+        coeffs,
+        ..transfer.clone()
+    };
+    (split, transfer)
+}
+
+/// Bilinear lookup of per-texel values (`[texel][channel]`, row-major, `channels` each) at
+/// lightmap coordinates `uv` (glTF's convention, see [`TexelBake::texcoords`]), clamped at the
+/// borders.
+pub fn sample_bilinear(
+    values: &[f32],
+    channels: usize,
+    width: u32,
+    height: u32,
+    uv: [f32; 2],
+) -> Vec<f32> {
+    let x = uv[0] * width as f32 - 0.5;
+    let y = uv[1] * height as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let clamp = |v: f32, n: u32| (v.max(0.0) as u32).min(n - 1) as usize;
+    let at = |dx: f32, dy: f32| {
+        let i = clamp(y0 + dy, height) * width as usize + clamp(x0 + dx, width);
+        &values[i * channels..(i + 1) * channels]
+    };
+    let weights = [
+        ((1.0 - fx) * (1.0 - fy), at(0.0, 0.0)),
+        (fx * (1.0 - fy), at(1.0, 0.0)),
+        ((1.0 - fx) * fy, at(0.0, 1.0)),
+        (fx * fy, at(1.0, 1.0)),
+    ];
+    (0..channels)
+        .map(|c| weights.iter().map(|(w, texel)| w * texel[c]).sum())
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::builtin;
+    use crate::scene::prepare::prepare;
+
+    #[test]
+    fn bilinear_lookup_hits_texel_centres_and_blends_between() {
+        // 2 x 1 texels, one channel: 1 and 3.
+        let values = [1.0, 3.0];
+        let centre = |x: f32| [(x + 0.5) / 2.0, 0.5];
+        assert_eq!(sample_bilinear(&values, 1, 2, 1, centre(0.0)), vec![1.0]);
+        assert_eq!(sample_bilinear(&values, 1, 2, 1, centre(1.0)), vec![3.0]);
+        assert_eq!(sample_bilinear(&values, 1, 2, 1, centre(0.5)), vec![2.0]);
+        // Clamped past the border.
+        assert_eq!(sample_bilinear(&values, 1, 2, 1, [0.0, 0.0]), vec![1.0]);
+    }
+
+    #[test]
+    fn split_corners_keep_every_triangle_and_its_values() {
+        let (scene, _) = prepare(builtin::icosphere(Vec3::ZERO, 1.0, 1)).unwrap();
+        let transfer = Transfer {
+            bands: 1,
+            channels: 1,
+            vertex_count: scene.vertex_count(),
+            coeffs: (0..scene.vertex_count()).map(|v| v as f32).collect(),
+        };
+        let (split, split_transfer) = split_corners(&scene, &transfer);
+        assert_eq!(split.vertex_count(), 3 * scene.triangle_count());
+        for (t, corners) in scene.triangles.iter().enumerate() {
+            for (i, &v) in corners.iter().enumerate() {
+                let s = split.triangles[t][i] as usize;
+                assert_eq!(split.positions[s], scene.positions[v as usize]);
+                assert_eq!(split_transfer.coeffs[s], v as f32);
+            }
+        }
+    }
+
+    #[test]
+    fn texels_inside_a_closed_box_leak_and_those_outside_do_not() {
+        // A floor through a closed box: the floor's part inside the box sees only the box's
+        // inner (back) faces.
+        let floor = builtin::grid_plane(Vec3::ZERO, Vec3::X * 2.0, Vec3::NEG_Z * 2.0, 4, Vec3::ONE);
+        let cage = builtin::closed_box(Vec3::new(-0.5, -0.5, -0.5), Vec3::new(0.5, 0.5, 0.5), 1);
+        let (scene, _) = prepare(builtin::merge(&[floor, cage])).unwrap();
+        let points = [Vec3::ZERO, Vec3::new(1.5, 0.0, 1.5)];
+        let receivers = Receivers {
+            positions: points.to_vec(),
+            normals: vec![Vec3::Y; 2],
+            albedo: vec![Vec3::ONE; 2],
+            sources: Vec::new(),
+        };
+        assert_eq!(leaking_receivers(&scene, &receivers), vec![true, false]);
+    }
+}

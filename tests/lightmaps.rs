@@ -1,0 +1,281 @@
+//! Per-texel transfer end to end: `bake --lightmap` writes a .glb with lightmap coordinates and
+//! an OpenEXR lightmap beside it; both are read back by independent readers (the Khronos glTF
+//! validator, the README's Python/OpenEXR recipe) and by our own; every texel a bilinear lookup
+//! can reach is baked or filled; `render` draws it; bad requests fail cleanly.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use glam::Vec3;
+use prt_gpu::bake::texels::bake_texels;
+use prt_gpu::bake::{bake, Backend, BakeOptions, NoProgress};
+use prt_gpu::glb::{lightmap_file_name, read_glb};
+use prt_gpu::lightmap::read_lightmap;
+use prt_gpu::scene::{builtin, Scene};
+use prt_gpu::testing::{entries, lightmap_reader_output};
+
+fn prt_gpu(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_prt-gpu"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run prt-gpu")
+}
+
+fn succeeded(out: &Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// A plane with a thin wall standing on it (its foot inside the wall: texels that leak).
+fn plane_with_wall() -> Scene {
+    let plane = builtin::grid_plane(Vec3::ZERO, Vec3::X * 2.0, Vec3::NEG_Z * 2.0, 4, Vec3::ONE);
+    let wall = builtin::closed_box(Vec3::new(-0.9, -0.1, -0.05), Vec3::new(0.9, 0.8, 0.05), 2);
+    builtin::merge(&[plane, wall])
+}
+
+#[test]
+fn a_lightmap_bake_writes_files_other_readers_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = prt_gpu(
+        &[
+            "bake",
+            "--samples",
+            "64",
+            "--lightmap",
+            "512",
+            "--device",
+            "cpu",
+            "-o",
+            "scene.prt.glb",
+        ],
+        dir.path(),
+    );
+    succeeded(&out);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("lightmap: ") && stderr.contains("covered"),
+        "{stderr}"
+    );
+    assert_eq!(
+        entries(dir.path()),
+        ["scene.prt.glb", "scene.prt.lightmap.exr"]
+    );
+    let glb = dir.path().join("scene.prt.glb");
+    assert_eq!(lightmap_file_name(&glb), "scene.prt.lightmap.exr");
+
+    if let Some(report) = common::validate_gltf(&glb) {
+        assert_eq!(report.num_errors, 0, "{}", report.listing());
+    }
+    let baked = read_glb(&glb).unwrap();
+    let texels = baked.lightmap.as_ref().expect("the lightmap is read back");
+    assert!(texels.width.max(texels.height) <= 512 && texels.width.max(texels.height) >= 480);
+    assert_eq!(texels.texcoords.len(), baked.scene.vertex_count());
+    assert_eq!(baked.scene.vertex_count(), 3 * baked.scene.triangle_count());
+    assert!(texels
+        .texcoords
+        .iter()
+        .flatten()
+        .all(|&x| (0.0..=1.0).contains(&x)));
+
+    // The README's recipe (Python, numpy, OpenEXR) reads what our reader reads.
+    if let Some(read) = lightmap_reader_output(&glb) {
+        let (w, h) = (texels.width as usize, texels.height as usize);
+        let k = (baked.metadata.bands * baked.metadata.bands) as usize;
+        assert_eq!(
+            read["uv"],
+            serde_json::json!([baked.scene.vertex_count(), 2])
+        );
+        assert_eq!(read["texels"], serde_json::json!([h, w, 3, k]));
+        let centre = (h / 2) * w + w / 2;
+        for c in 0..3 {
+            let ours = texels.transfer.vertex_channel(centre, c);
+            for (i, &x) in ours.iter().enumerate() {
+                let theirs = read["centre"][c][i].as_f64().unwrap();
+                // JSON prints the f32 to within a unit of its last decimal digit.
+                let close = (theirs - x as f64).abs() <= 1e-6 * (x as f64).abs().max(1e-30);
+                assert!(
+                    close,
+                    "texel {centre}, channel {c}, k = {i}: {theirs} vs {x}"
+                );
+            }
+        }
+    }
+    // The .exr on its own, through our reader, matches the .glb's description.
+    let map = read_lightmap(&dir.path().join("scene.prt.lightmap.exr")).unwrap();
+    assert_eq!((map.width, map.height), (texels.width, texels.height));
+    dir.close().unwrap();
+}
+
+#[test]
+fn every_texel_a_bilinear_lookup_reaches_is_baked_or_filled() {
+    let (scene, _) = prt_gpu::scene::prepare::prepare(plane_with_wall()).unwrap();
+    let options = BakeOptions {
+        samples: 64,
+        ..BakeOptions::default()
+    };
+    let (baked, _) = bake(scene.clone(), &options, &Backend::Cpu, &NoProgress).unwrap();
+    let (texels, report) = bake_texels(
+        &baked.scene,
+        &baked.transfer,
+        &options,
+        96,
+        &Backend::Cpu,
+        &NoProgress,
+    )
+    .unwrap();
+    assert!(
+        report.leaking > 0,
+        "the wall's foot should leak: {report:?}"
+    );
+    let (w, h) = (texels.width as i64, texels.height as i64);
+    let stride = 3 * 16;
+    // Every texel within the 2x2 footprint of any point of any triangle: the four texels
+    // around each corner and around points along its edges.
+    let dc = |x: i64, y: i64| texels.transfer.coeffs[((y * w + x) as usize) * stride];
+    let mut checked = 0;
+    for corners in texels.texcoords.chunks(3) {
+        for i in 0..3 {
+            for step in 0..8 {
+                let s = step as f32 / 8.0;
+                let (a, b) = (corners[i], corners[(i + 1) % 3]);
+                let u = (a[0] + (b[0] - a[0]) * s) * w as f32 - 0.5;
+                let v = (a[1] + (b[1] - a[1]) * s) * h as f32 - 0.5;
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    let x = (u.floor() as i64 + dx).clamp(0, w - 1);
+                    let y = (v.floor() as i64 + dy).clamp(0, h - 1);
+                    // Open sky above every receiver of this scene: the DC term is positive.
+                    assert!(dc(x, y) > 0.0, "texel ({x}, {y}) is empty");
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked > 1000);
+}
+
+#[test]
+fn a_lightmap_renders_like_the_vertices_where_transfer_is_smooth() {
+    let Some(_) = common::gpu_baker() else {
+        return;
+    };
+    // An open plane: transfer constant over it, so texels and vertices must render alike.
+    let dir = tempfile::tempdir().unwrap();
+    let plane = builtin::grid_plane(Vec3::ZERO, Vec3::X, Vec3::NEG_Z, 3, Vec3::splat(0.6));
+    let options = BakeOptions {
+        samples: 64,
+        mode: prt_gpu::bake::Mode::Unshadowed,
+        ..BakeOptions::default()
+    };
+    for (name, lightmap) in [("v.glb", None), ("t.glb", Some(32))] {
+        let options = BakeOptions {
+            lightmap,
+            ..options.clone()
+        };
+        let (baked, _) = bake(plane.clone(), &options, &Backend::Cpu, &NoProgress).unwrap();
+        prt_gpu::glb::write_glb(&dir.path().join(name), &baked).unwrap();
+    }
+    let out = prt_gpu(
+        &[
+            "render", "v.glb", "t.glb", "--width", "64", "--height", "48", "-o", "both.exr",
+        ],
+        dir.path(),
+    );
+    succeeded(&out);
+    let pixels = exr::prelude::read_first_rgba_layer_from_file(
+        dir.path().join("both.exr"),
+        |size, _| (size.0, vec![[0.0f32; 4]; size.0 * size.1]),
+        |out: &mut (usize, Vec<[f32; 4]>), pos, (r, g, b, a): (f32, f32, f32, f32)| {
+            out.1[pos.1 * out.0 + pos.0] = [r, g, b, a];
+        },
+    )
+    .unwrap()
+    .layer_data
+    .channel_data
+    .pixels
+    .1;
+    let mut compared = 0;
+    for y in 0..48 {
+        for x in 0..64 {
+            let (a, b) = (pixels[y * 128 + x], pixels[y * 128 + 64 + x]);
+            assert_eq!(a[3], b[3], "coverage differs at ({x}, {y})");
+            if a[3] == 1.0 {
+                for c in 0..3 {
+                    // Half-float texels: three significant digits.
+                    assert!(
+                        (a[c] - b[c]).abs() <= 2e-3 * a[c].abs(),
+                        "({x}, {y}): {a:?} {b:?}"
+                    );
+                }
+                compared += 1;
+            }
+        }
+    }
+    assert!(compared > 300, "{compared} pixels covered");
+}
+
+#[test]
+fn bad_lightmap_requests_fail_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    for (args, expect) in [
+        (
+            vec!["bake", "--lightmap", "0", "-o", "o.glb"],
+            "--lightmap 0 is out of range",
+        ),
+        (
+            vec!["bake", "--lightmap", "99999", "-o", "o.glb"],
+            "--lightmap 99999 is out of range",
+        ),
+        (
+            vec!["bake", "--lightmap", "64", "--device", "cpu", "-o", "o.glb"],
+            "a lightmap of 64 texels a side is too small for 12544 triangles",
+        ),
+        (
+            vec![
+                "bake",
+                concat!(
+                    env!("CARGO_MANIFEST_DIR"),
+                    "/tests/data/gltf/BoxTextured.glb"
+                ),
+                "--lightmap",
+                "64",
+                "-o",
+                "o.glb",
+            ],
+            "--lightmap bakes OBJ, PLY and the built-in scene",
+        ),
+    ] {
+        let out = prt_gpu(&args, dir.path());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(expect), "{args:?}: {stderr}");
+        assert!(entries(dir.path()).is_empty(), "{args:?} left files");
+    }
+    // A lightmapped file whose lightmap is gone: one line naming what is missing.
+    let out = prt_gpu(
+        &[
+            "bake",
+            "--samples",
+            "16",
+            "--lightmap",
+            "512",
+            "-o",
+            "m.glb",
+        ],
+        dir.path(),
+    );
+    succeeded(&out);
+    std::fs::remove_file(dir.path().join("m.lightmap.exr")).unwrap();
+    let out = prt_gpu(&["render", "m.glb", "-o", "m.png"], dir.path());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("m.lightmap.exr"), "{stderr}");
+    dir.close().unwrap();
+}

@@ -305,6 +305,16 @@ fn lightmap_shape<'a>(
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn readme_quotes_the_python_reader_verbatim() {
+        let readme = include_str!("../README.md");
+        assert!(
+            readme.contains(PYTHON_READER),
+            "README.md's lightmap snippet differs from lightmap::PYTHON_READER"
+        );
+    }
+
     use super::*;
     use crate::testing::entries;
 

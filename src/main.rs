@@ -977,6 +977,12 @@ fn run_info(path: &Path) -> Result<()> {
         ),
         None => println!("fit:          {}", metadata.fit.name()),
     }
+    if let Some(lightmap) = glb::read_lightmap_reference(path)? {
+        println!(
+            "lightmap:     {}x{} texels in {} (TEXCOORD_{})",
+            lightmap.width, lightmap.height, lightmap.uri, lightmap.texcoord
+        );
+    }
     println!("backend:      {}", metadata.backend);
     println!("made by:      {} {}", metadata.tool, metadata.tool_version);
     println!("sh basis:     {}", metadata.sh_convention);

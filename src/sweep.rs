@@ -35,7 +35,8 @@ pub struct SweepOptions {
     pub fits: Vec<Fit>,
     /// Held-out surface points of the surface error (0: four per vertex, at most 20,000).
     pub surface_points: usize,
-    /// Lightmap sizes: every strategy and count is also baked per texel at each.
+    /// Lightmap sizes: every strategy and count of the point fit is also baked per texel at
+    /// each.
     pub lightmap_sizes: Vec<u32>,
 }
 
@@ -259,6 +260,13 @@ fn measure(
         surface_rms: surface_rms(references.surface, &baked.scene, &baked.transfer, light)?,
     };
     let mut points = Vec::new();
+    // Texels are baked from their own points; the vertex fit only feeds interreflected
+    // texels' final gather, so one fit (the point bake) stands for all.
+    let lightmap_sizes = if options.fit == Fit::Point {
+        lightmap_sizes
+    } else {
+        &[]
+    };
     for &size in lightmap_sizes {
         let started = Instant::now();
         let (texels, texel_report) = bake_texels(

@@ -106,6 +106,13 @@ fn a_lightmap_bake_writes_files_other_readers_read() {
             }
         }
     }
+    let info = prt_gpu(&["info", "scene.prt.glb"], dir.path());
+    let text = String::from_utf8_lossy(&info.stdout);
+    let expected = format!(
+        "lightmap:     {}x{} texels in scene.prt.lightmap.exr (TEXCOORD_0)",
+        texels.width, texels.height
+    );
+    assert!(text.contains(&expected), "{text}");
     // The .exr on its own, through our reader, matches the .glb's description.
     let map = read_lightmap(&dir.path().join("scene.prt.lightmap.exr")).unwrap();
     assert_eq!((map.width, map.height), (texels.width, texels.height));

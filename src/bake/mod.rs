@@ -442,7 +442,8 @@ pub fn bake(
         }
         let (fitted, report) =
             fit_vertices(&scene, &points, &values, columns, &FitOptions::default())?;
-        fit_report = Some(report);
+        // The direct pass's solve is the one reported; the bounces' are like it.
+        fit_report.get_or_insert(report);
         Ok(fitted)
     };
     let at_receivers = tint_by_albedo(&direct.scalar, &receivers.albedo, options.bands);
@@ -533,7 +534,15 @@ fn choose_receivers(scene: &Scene, options: &BakeOptions) -> (Receivers, Vec<Sur
     match options.fit {
         Fit::Point => (Receivers::vertices(scene), Vec::new()),
         Fit::LeastSquares => {
-            let points = spread_points(scene, options.point_density, options.seed);
+            let spread = spread_points(scene, options.point_density, options.seed);
+            // Points inside other geometry are never seen and would pull their vertices dark.
+            let inside = texels::leaking_receivers(scene, &Receivers::at_points(scene, &spread));
+            let points: Vec<SurfacePoint> = spread
+                .into_iter()
+                .zip(inside)
+                .filter(|(_, inside)| !inside)
+                .map(|(p, _)| p)
+                .collect();
             (Receivers::at_points(scene, &points), points)
         }
     }

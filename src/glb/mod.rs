@@ -234,6 +234,27 @@ pub fn read_metadata(path: &Path) -> Result<(BakeMetadata, usize, usize)> {
     Ok((plan.metadata, plan.vertices, plan.triangles))
 }
 
+/// The lightmap a single-mesh baked file refers to (`extras.prt.lightmap`), if any; the JSON
+/// only is read.
+pub fn read_lightmap_reference(path: &Path) -> Result<Option<LightmapExtras>> {
+    let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
+    if is_scene_file(&bytes) {
+        return Ok(None);
+    }
+    let head = bytes
+        .get(..20)
+        .ok_or_else(|| Error::baked(path, "too short to be a glTF binary (.glb) file"))?;
+    let json_len = check_head(head, bytes.len() as u64, path)?;
+    let doc = parse_document(&bytes[20..20 + json_len], path)?;
+    let mesh = doc
+        .meshes
+        .first()
+        .ok_or_else(|| Error::baked(path, "the file contains no mesh"))?;
+    Ok(prt_extras(mesh)
+        .map_err(|m| Error::baked(path, m))?
+        .lightmap)
+}
+
 /// Encodes `baked` as a `.glb` in memory, after checking that its parts agree. A lightmap is
 /// referred to as [`DEFAULT_LIGHTMAP_URI`] (it is [`write_glb`] that names and writes it).
 pub fn encode_glb(baked: &BakedMesh) -> Result<Vec<u8>> {

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 
+use prt_gpu::bake::adaptive::TargetError;
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
 use prt_gpu::bake::{
     self, Backend, BakeOptions, BakeReport, Fit, Mode, Progress, DEFAULT_SAMPLES, DEFAULT_SAMPLING,
@@ -105,6 +106,10 @@ struct ChartArgs {
     /// each, for the surface panel (the vertex errors of these points are their vertices').
     #[arg(long, value_delimiter = ',', value_name = "SIZES")]
     lightmap: Vec<u32>,
+    /// Error targets, comma-separated: each strategy is also baked to each (`bake
+    /// --target-error`, on the CPU backend, at most 16,384 samples a receiver).
+    #[arg(long, value_delimiter = ',', value_name = "ERRORS")]
+    target_error: Vec<f64>,
 }
 
 /// What `bake` and `bench` compute per vertex.
@@ -286,6 +291,14 @@ struct BakeArgs {
     /// triangle gets at least three).
     #[arg(long, default_value_t = PointDensity::default().per_vertex)]
     fit_points: f32,
+    /// Bake to an error target instead of a fixed sample count: each receiver casts batches of
+    /// 32 samples (at least 8) until the standard error of its transfer, relative to unoccluded
+    /// transfer's norm, is below E. Shadowed and unshadowed modes; runs on the CPU backend.
+    #[arg(long, value_name = "E")]
+    target_error: Option<f64>,
+    /// With --target-error: the most samples one receiver casts.
+    #[arg(long, default_value_t = 4096)]
+    max_samples: u32,
     /// Also bake per-texel transfer into a lightmap about SIZE texels on its longer side (a
     /// generated atlas): written as <output stem>.lightmap.exr beside the .glb, which then
     /// holds the lightmap coordinates as TEXCOORD_0 (every triangle corner its own vertex).
@@ -381,6 +394,10 @@ fn run_bake(args: BakeArgs) -> Result<()> {
         bounce_tolerance: args.bounce_tolerance,
         fit: args.fit,
         lightmap: args.lightmap,
+        target_error: args.target_error.map(|relative| TargetError {
+            relative,
+            max_samples: args.max_samples,
+        }),
         point_density: PointDensity {
             per_vertex: args.fit_points,
             ..PointDensity::default()
@@ -423,7 +440,14 @@ fn run_bake(args: BakeArgs) -> Result<()> {
             return Err(Error::Options(format!("{flag} must be at least 1")));
         }
     }
-    let baker = open_backend(args.device, args.adapter.as_deref())?;
+    let baker = if options.target_error.is_some() {
+        if args.device == DeviceChoice::Gpu {
+            eprintln!("note: error-targeted bakes run on the CPU backend");
+        }
+        None
+    } else {
+        open_backend(args.device, args.adapter.as_deref())?
+    };
     let backend = match &baker {
         Some(baker) => Backend::Gpu {
             baker,
@@ -554,6 +578,20 @@ fn print_bake_report(name: &str, options: &BakeOptions, report: &BakeReport, out
             fit.matrix_entries
         );
     }
+    if let Some(adaptive) = &report.adaptive {
+        eprintln!(
+            "target error: samples per receiver {} / {} / {} (min / median / max, mean {:.0}), \
+             {} at the cap; estimated error {:.2e} / {:.2e} / {:.2e} (median / 90% / max)",
+            adaptive.samples_min,
+            adaptive.samples_median,
+            adaptive.samples_max,
+            adaptive.samples_mean,
+            adaptive.at_cap,
+            adaptive.error_median,
+            adaptive.error_p90,
+            adaptive.error_max
+        );
+    }
     if let Some(texels) = &report.texels {
         eprintln!(
             "lightmap: {}x{} texels, {} covered ({} inside geometry, refilled), {} rays in \
@@ -583,7 +621,10 @@ fn print_bake_report(name: &str, options: &BakeOptions, report: &BakeReport, out
         report.prepare.vertices,
         report.prepare.triangles,
         options.bands,
-        report.samples_used,
+        match &report.adaptive {
+            Some(adaptive) => format!("{:.0} (mean)", adaptive.samples_mean),
+            None => report.samples_used.to_string(),
+        },
         options.sampling.name(),
         options.mode.name(),
         report.rays_cast,
@@ -661,7 +702,10 @@ fn run_chart(args: ChartArgs) -> Result<()> {
             "{:>16} {:>13} {:>3} {:>6} samples: {:>8.3} s, transfer rms {:.3e}, radiance rms \
              {:.3e}, surface {:.2}%",
             p.sampling.name(),
-            sweep::representation(p),
+            match p.target_error {
+                Some(e) => format!("target {e}"),
+                None => sweep::representation(p),
+            },
             p.backend,
             p.samples,
             p.seconds,
@@ -712,6 +756,7 @@ fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
         },
         surface_points: args.surface_points,
         lightmap_sizes: args.lightmap.clone(),
+        target_errors: args.target_error.clone(),
     };
     for &count in options.counts.iter().chain([&options.reference_samples]) {
         BakeOptions {
@@ -724,6 +769,17 @@ fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
     for &size in &options.lightmap_sizes {
         BakeOptions {
             lightmap: Some(size),
+            ..BakeOptions::default()
+        }
+        .validate()?;
+    }
+    for &relative in &options.target_errors {
+        BakeOptions {
+            mode: options.mode,
+            target_error: Some(TargetError {
+                relative,
+                max_samples: sweep::MAX_TARGET_SAMPLES,
+            }),
             ..BakeOptions::default()
         }
         .validate()?;

@@ -5,6 +5,7 @@
 use std::path::Path;
 use std::time::Instant;
 
+use crate::bake::adaptive::TargetError;
 use crate::bake::gpu::{Chunking, GpuBaker};
 use crate::bake::texels::bake_texels;
 use crate::bake::Transfer;
@@ -38,6 +39,8 @@ pub struct SweepOptions {
     /// Lightmap sizes: every strategy and count of the point fit is also baked per texel at
     /// each.
     pub lightmap_sizes: Vec<u32>,
+    /// Error targets: each strategy is also baked to each (on the CPU backend, point fit).
+    pub target_errors: Vec<f64>,
 }
 
 impl Default for SweepOptions {
@@ -53,6 +56,7 @@ impl Default for SweepOptions {
             fits: vec![Fit::Point, Fit::LeastSquares],
             surface_points: 0,
             lightmap_sizes: Vec::new(),
+            target_errors: Vec::new(),
         }
     }
 }
@@ -65,6 +69,8 @@ pub struct SweepPoint {
     /// Per-texel bakes: the lightmap's size (the vertex errors are then those of its vertices,
     /// baked with `fit`).
     pub lightmap: Option<u32>,
+    /// Error-targeted bakes: the target (`samples` is then the mean over receivers).
+    pub target_error: Option<f64>,
     /// "cpu" or "gpu".
     pub backend: String,
     /// Samples actually used.
@@ -194,6 +200,23 @@ pub fn run(
             }
         }
     }
+    for (&sampling, &relative) in options
+        .strategies
+        .iter()
+        .flat_map(|s| options.target_errors.iter().map(move |e| (s, e)))
+    {
+        let target = TargetError {
+            relative,
+            max_samples: MAX_TARGET_SAMPLES,
+        };
+        let point_options = BakeOptions {
+            sampling,
+            target_error: Some(target),
+            ..base.clone()
+        };
+        let cpu = ("cpu", &Backend::Cpu);
+        points.extend(measure(scene, &point_options, cpu, &[], &references)?);
+    }
     Ok(Sweep {
         points,
         reference_samples: reference_options.samples_used(),
@@ -226,6 +249,9 @@ fn surface_reference_of(
     )
 }
 
+/// The sample cap of the sweep's error-targeted bakes.
+pub const MAX_TARGET_SAMPLES: u32 = 16_384;
+
 /// What every point of a sweep is compared with.
 struct References<'a> {
     transfer: &'a Transfer,
@@ -251,8 +277,12 @@ fn measure(
         sampling: options.sampling,
         fit: options.fit,
         lightmap: None,
+        target_error: options.target_error.map(|t| t.relative),
         backend: label.to_string(),
-        samples: report.samples_used,
+        samples: report
+            .adaptive
+            .as_ref()
+            .map_or(report.samples_used, |a| a.samples_mean.round() as u32),
         seconds,
         rays: report.rays_cast,
         transfer_rms: rms_difference(&baked.transfer.coeffs, &references.transfer.coeffs),
@@ -290,8 +320,8 @@ fn measure(
 }
 
 /// The CSV header: one row per point follows.
-pub const CSV_HEADER: &str =
-    "sampling,fit,backend,samples,seconds,rays,transfer_rms,radiance_rms,surface_rms";
+pub const CSV_HEADER: &str = "sampling,fit,backend,samples,seconds,rays,transfer_rms,\
+radiance_rms,surface_rms,target_error";
 
 /// How a point represents the transfer between vertices: the fit's name, or `texels-SIZE`.
 pub fn representation(point: &SweepPoint) -> String {
@@ -307,7 +337,7 @@ pub fn to_csv(sweep: &Sweep) -> String {
     text.push('\n');
     for p in &sweep.points {
         text.push_str(&format!(
-            "{},{},{},{},{:.6},{},{:.6e},{:.6e},{:.6e}\n",
+            "{},{},{},{},{:.6},{},{:.6e},{:.6e},{:.6e},{}\n",
             p.sampling.name(),
             representation(p),
             p.backend,
@@ -316,7 +346,8 @@ pub fn to_csv(sweep: &Sweep) -> String {
             p.rays,
             p.transfer_rms,
             p.radiance_rms,
-            p.surface_rms
+            p.surface_rms,
+            p.target_error.map_or(String::new(), |e| e.to_string())
         ));
     }
     text
@@ -332,8 +363,9 @@ pub fn write_csv(path: &Path, sweep: &Sweep) -> Result<()> {
 pub fn chart_panels(result: &Sweep) -> Vec<ChartPanel> {
     let mut lines: Vec<(String, Vec<&SweepPoint>)> = Vec::new();
     for p in &result.points {
-        let label = match (p.fit, p.lightmap) {
-            (Fit::Point, None) => format!("{} {}", p.sampling.name(), p.backend),
+        let label = match (p.fit, p.lightmap, p.target_error) {
+            (_, _, Some(_)) => format!("{} target {}", p.sampling.name(), p.backend),
+            (Fit::Point, None, None) => format!("{} {}", p.sampling.name(), p.backend),
             _ => format!("{} {} {}", p.sampling.name(), representation(p), p.backend),
         };
         match lines.iter_mut().find(|(l, _)| *l == label) {
@@ -426,6 +458,7 @@ mod tests {
             sampling,
             fit: Fit::Point,
             lightmap: None,
+            target_error: None,
             backend: backend.to_string(),
             samples,
             seconds: samples as f64 * 1e-3,

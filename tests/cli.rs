@@ -590,7 +590,7 @@ fn csv_rows(path: &Path) -> Vec<Vec<String>> {
     let mut lines = text.lines();
     assert_eq!(
         lines.next(),
-        Some("sampling,fit,backend,samples,seconds,rays,transfer_rms,radiance_rms,surface_rms")
+        Some("sampling,fit,backend,samples,seconds,rays,transfer_rms,radiance_rms,surface_rms,target_error")
     );
     lines
         .map(|l| l.split(',').map(str::to_string).collect())

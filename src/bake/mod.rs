@@ -1,5 +1,6 @@
 //! The bake: options in, one [`Transfer`] out, whichever backend computes it.
 
+pub mod adaptive;
 pub mod bounce;
 pub mod cpu;
 pub mod gpu;
@@ -123,6 +124,9 @@ pub struct BakeMetadata {
     /// Least-squares fit: the surface points baked.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fit_points: Option<u32>,
+    /// An error-targeted bake's target (`samples` is then the mean over receivers).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_error: Option<f64>,
 }
 
 /// How a bake turns transfer baked at receivers into the per-vertex values a renderer
@@ -180,6 +184,8 @@ pub struct BakeOptions {
     pub point_density: PointDensity,
     /// Also bake a lightmap about this many texels on its longer side.
     pub lightmap: Option<u32>,
+    /// Cast samples per receiver until this error is reached (instead of `samples` each).
+    pub target_error: Option<adaptive::TargetError>,
 }
 
 impl Default for BakeOptions {
@@ -196,6 +202,7 @@ impl Default for BakeOptions {
             fit: Fit::Point,
             point_density: PointDensity::default(),
             lightmap: None,
+            target_error: None,
         }
     }
 }
@@ -232,6 +239,15 @@ impl BakeOptions {
                 return Err(Error::Options(format!(
                     "--lightmap {size} is out of range (1 to {max} texels)"
                 )));
+            }
+        }
+        if let Some(target) = &self.target_error {
+            target.validate()?;
+            if self.mode == Mode::Interreflected {
+                return Err(Error::Options(
+                    "--target-error bakes shadowed and unshadowed transfer, not interreflected"
+                        .into(),
+                ));
             }
         }
         let density = self.point_density;
@@ -334,6 +350,8 @@ pub struct BakeReport {
     pub fit: Option<FitReport>,
     /// The lightmap's bake, when one was asked for.
     pub texels: Option<texels::TexelReport>,
+    /// The error-targeted direct pass, when a target was given.
+    pub adaptive: Option<adaptive::AdaptiveReport>,
     /// One entry per bounce performed (each including its fit).
     pub bounces: Vec<BounceStat>,
     /// Non-zero entries of the gather matrix (interreflected mode).
@@ -430,7 +448,26 @@ pub fn bake(
     let seconds_prepare = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
-    let direct = direct_pass(&inputs, options.mode, backend, progress)?;
+    let (direct, adaptive_report) = match &options.target_error {
+        None => (direct_pass(&inputs, options.mode, backend, progress)?, None),
+        Some(target) => {
+            progress.stage("transfer", inputs.origins.len() as u64);
+            let (scalar, rays_cast, report) = adaptive::adaptive_direct_transfer(
+                &owned,
+                options.sampling,
+                options.seed,
+                options.mode,
+                target,
+                progress,
+            )?;
+            let direct = DirectPass {
+                scalar,
+                matrix: None,
+                rays_cast,
+            };
+            (direct, Some(report))
+        }
+    };
     let seconds_transfer = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
@@ -473,13 +510,15 @@ pub fn bake(
         Some(atlas) => add_lightmap(scene, transfer, atlas, options, backend, progress)?,
     };
     let fit_points = (options.fit == Fit::LeastSquares).then_some(points.len() as u32);
-    let metadata = metadata_for(
-        options,
-        backend,
-        inputs.samples.len(),
-        bounces.len(),
-        fit_points,
-    );
+    let samples = match &adaptive_report {
+        // The mean over receivers, as a bake of that many samples each would cast.
+        Some(report) => report.samples_mean.round() as usize,
+        None => inputs.samples.len(),
+    };
+    let mut metadata = metadata_for(options, backend, samples, bounces.len(), fit_points);
+    if adaptive_report.is_some() {
+        metadata.backend = Backend::Cpu.describe();
+    }
     let report = BakeReport {
         prepare: prepare_report,
         vertex_map,
@@ -492,6 +531,7 @@ pub fn bake(
         seconds_fit,
         fit: fit_report,
         texels: texel_report,
+        adaptive: adaptive_report,
         bounces,
         gather_entries: direct.matrix.map_or(0, |m| m.columns.len()),
         backend: backend.describe(),
@@ -571,6 +611,7 @@ fn metadata_for(
         bounces: bounces as u32,
         fit: options.fit,
         fit_points,
+        target_error: options.target_error.map(|t| t.relative),
     }
 }
 

@@ -1291,6 +1291,7 @@ mod tests {
                 bounces: 0,
                 fit: crate::bake::Fit::Point,
                 fit_points: None,
+                target_error: None,
             },
             lightmap: None,
         }

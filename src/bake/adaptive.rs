@@ -1,0 +1,278 @@
+//! Baking to an error target (`--target-error E`): each receiver casts batches of samples until
+//! the estimated standard error of its transfer is below the target, so that a receiver under
+//! open sky stops after a few batches and one deep in a crevice takes many.
+//!
+//! Honest estimates need independent batches: batch b draws its directions with its own seed
+//! (a lattice or a sphere set turned by its own random shift), shared by all receivers, so the
+//! batch estimates of one receiver are independent and unbiased, their mean is the estimate, and
+//! the spread between them estimates its error:
+//!
+//! `SE^2 = sum_k var_k / n`, `var_k = sum_b (t_bk - mean_k)^2 / (n - 1)`.
+//!
+//! Each batch estimates only what is blocked, against the closed-form unoccluded transfer (the
+//! control variate), with the strategy's directions (cosine-distributed by default, the best
+//! per sample): a receiver under open sky is then exact and stops after [`MIN_BATCHES`], and
+//! the variance a receiver has is that of its occlusion.
+//!
+//! **What the error means.** E is that standard error in the L2 norm of the (albedo-free)
+//! transfer vector, relative to the norm of unoccluded transfer (the same for every normal). By
+//! Cauchy–Schwarz it bounds the relit radiance's error under any light, relative to what the
+//! same light could at most give an open receiver: no light is assumed.
+
+use rayon::prelude::*;
+
+use super::cpu::{finish_transfer, project_visibility, trace_visibility_of, words_per_vertex};
+use super::{BakeInputs, DirectInputs, Mode, Progress};
+use crate::error::{Error, Result};
+use crate::sampling::{Estimator, SampleSet, Sampling};
+use crate::sh::{coeff_count, unshadowed_transfer, ShTable};
+
+/// Samples in one batch.
+pub const BATCH_SAMPLES: u32 = 128;
+
+/// Batches every receiver casts before its spread is trusted (the estimate of the error has
+/// `MIN_BATCHES - 1` degrees of freedom).
+pub const MIN_BATCHES: u32 = 4;
+
+/// Batches after which a receiver none of whose rays was blocked stops: its control-variate
+/// estimate is the closed form, exact.
+pub const OPEN_BATCHES: u32 = 2;
+
+/// What an error-targeted bake is asked.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TargetError {
+    /// The standard error to reach, relative to unoccluded transfer's norm.
+    pub relative: f64,
+    /// The most samples one receiver casts (a multiple of [`BATCH_SAMPLES`]).
+    pub max_samples: u32,
+}
+
+impl TargetError {
+    pub fn validate(&self) -> Result<()> {
+        if !(self.relative.is_finite() && self.relative > 0.0 && self.relative < 1.0) {
+            return Err(Error::Options(format!(
+                "--target-error {} must lie in (0, 1)",
+                self.relative
+            )));
+        }
+        let min = MIN_BATCHES * BATCH_SAMPLES;
+        if self.max_samples < min || self.max_samples > crate::sampling::MAX_SAMPLES {
+            return Err(Error::Options(format!(
+                "--max-samples {} is out of range ({min} to {})",
+                self.max_samples,
+                crate::sampling::MAX_SAMPLES
+            )));
+        }
+        Ok(())
+    }
+
+    fn max_batches(&self) -> u32 {
+        (self.max_samples / BATCH_SAMPLES).max(MIN_BATCHES)
+    }
+}
+
+/// How an error-targeted bake went, for the summary line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AdaptiveReport {
+    /// Samples per receiver: fewest, median, most; and the mean.
+    pub samples_min: u32,
+    pub samples_median: u32,
+    pub samples_max: u32,
+    pub samples_mean: f64,
+    /// Receivers that reached the sample cap before the target.
+    pub at_cap: usize,
+    /// Estimated relative standard error per receiver: median, 90th percentile, largest.
+    pub error_median: f64,
+    pub error_p90: f64,
+    pub error_max: f64,
+    /// Samples each receiver cast, in the receivers' order.
+    pub per_receiver: Vec<u32>,
+}
+
+/// One receiver's result: its transfer, samples cast and estimated relative error.
+struct ReceiverResult {
+    transfer: Vec<f64>,
+    samples: u32,
+    rays: u64,
+    error: f64,
+}
+
+/// The seed of batch `b` of a bake seeded `seed`: distinct streams, none equal to `seed`.
+pub fn batch_seed(seed: u64, batch: u32) -> u64 {
+    seed ^ (batch as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
+/// Albedo-free direct transfer of every receiver of `base` (`[receiver][k]`) to the target
+/// error, on the CPU; the rays cast; and the report. `base` supplies the geometry and
+/// receivers; its own sample set is not used.
+pub fn adaptive_direct_transfer(
+    base: &BakeInputs,
+    sampling: Sampling,
+    seed: u64,
+    mode: Mode,
+    target: &TargetError,
+    progress: &dyn Progress,
+) -> Result<(Vec<f32>, u64, AdaptiveReport)> {
+    target.validate()?;
+    if mode == Mode::Interreflected {
+        return Err(Error::Options(
+            "--target-error bakes shadowed and unshadowed transfer (interreflection's gather \
+             needs one sample set for all receivers)"
+                .into(),
+        ));
+    }
+    let bands = base.table.bands;
+    let batches: Vec<(SampleSet, ShTable)> = (0..target.max_batches())
+        .map(|b| {
+            let set = sampling.directions(BATCH_SAMPLES, batch_seed(seed, b));
+            let table = ShTable::new(bands, &set.directions);
+            (set, table)
+        })
+        .collect();
+    let views: Vec<DirectInputs> = batches
+        .iter()
+        .map(|(samples, table)| DirectInputs {
+            samples,
+            table,
+            // The control variate: what is open is exact, only what is blocked is estimated.
+            estimator: Estimator::Blocked,
+            ..base.view()
+        })
+        .collect();
+    // Every normal's unoccluded transfer has the same norm.
+    let open_norm = norm(&unshadowed_transfer(bands, glam::DVec3::Z));
+    let results: Vec<ReceiverResult> = (0..base.origins.len())
+        .into_par_iter()
+        .with_min_len(16)
+        .map(|r| {
+            let result = bake_receiver(&views, mode, r, target.relative * open_norm);
+            progress.advance(1);
+            ReceiverResult {
+                error: result.error / open_norm,
+                ..result
+            }
+        })
+        .collect();
+    let n = coeff_count(bands);
+    let mut transfer = Vec::with_capacity(results.len() * n);
+    for result in &results {
+        transfer.extend(result.transfer.iter().map(|&t| t as f32));
+    }
+    let rays = results.iter().map(|r| r.rays).sum();
+    Ok((transfer, rays, report(&results, target)))
+}
+
+/// Batches for receiver `r` until its standard error is at most `target_norm` (after
+/// [`MIN_BATCHES`]) or the batches run out.
+///
+/// Batches are summed as projected (for a tangent-frame set, in the receiver's own frame) and
+/// finished once, on their mean: finishing is affine (a scale, a rotation, for the control
+/// variate a closed form minus the sum), so the mean of finished batches is the finished mean,
+/// and the rotation keeps the L2 norm the error is measured in.
+fn bake_receiver(views: &[DirectInputs], mode: Mode, r: usize, target_norm: f64) -> ReceiverResult {
+    let n = coeff_count(views[0].table.bands);
+    let scale = super::cpu::transfer_scale(&views[0]);
+    let mut bits = vec![0u32; words_per_vertex(BATCH_SAMPLES as usize)];
+    let (mut sum, mut sum_squares, mut estimate) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let (mut rays, mut error, mut count) = (0, f64::INFINITY, 0);
+    for view in views {
+        rays += trace_visibility_of(view, mode, r, &mut bits);
+        project_visibility(view, r, &bits, &mut estimate);
+        for ((s, q), &e) in sum.iter_mut().zip(&mut sum_squares).zip(&estimate) {
+            *s += e;
+            *q += e * e;
+        }
+        count += 1;
+        if count == OPEN_BATCHES && sum.iter().all(|&s| s == 0.0) {
+            error = 0.0;
+            break;
+        }
+        if count >= MIN_BATCHES {
+            error = scale * standard_error(&sum, &sum_squares, count);
+            if error <= target_norm {
+                break;
+            }
+        }
+    }
+    let mut transfer: Vec<f64> = sum.iter().map(|s| s / count as f64).collect();
+    finish_transfer(&views[0], r, &mut transfer);
+    ReceiverResult {
+        transfer,
+        samples: count * BATCH_SAMPLES,
+        rays,
+        error,
+    }
+}
+
+/// The standard error (L2 over coefficients) of the mean of `count` batch estimates, from
+/// their sums and sums of squares.
+fn standard_error(sum: &[f64], sum_squares: &[f64], count: u32) -> f64 {
+    let n = count as f64;
+    let variance: f64 = sum
+        .iter()
+        .zip(sum_squares)
+        .map(|(&s, &q)| ((q - s * s / n) / (n - 1.0)).max(0.0))
+        .sum();
+    (variance / n).sqrt()
+}
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+fn report(results: &[ReceiverResult], target: &TargetError) -> AdaptiveReport {
+    let per_receiver: Vec<u32> = results.iter().map(|r| r.samples).collect();
+    let mut samples = per_receiver.clone();
+    let mut errors: Vec<f64> = results.iter().map(|r| r.error).collect();
+    samples.sort_unstable();
+    errors.sort_by(f64::total_cmp);
+    let at = |len: usize, q: f64| ((len.max(1) - 1) as f64 * q).round() as usize;
+    let mean = samples.iter().map(|&s| s as f64).sum::<f64>() / samples.len().max(1) as f64;
+    AdaptiveReport {
+        samples_min: samples.first().copied().unwrap_or(0),
+        samples_median: samples.get(at(samples.len(), 0.5)).copied().unwrap_or(0),
+        samples_max: samples.last().copied().unwrap_or(0),
+        samples_mean: mean,
+        at_cap: results
+            .iter()
+            .filter(|r| r.samples >= target.max_batches() * BATCH_SAMPLES)
+            .count(),
+        error_median: errors.get(at(errors.len(), 0.5)).copied().unwrap_or(0.0),
+        error_p90: errors.get(at(errors.len(), 0.9)).copied().unwrap_or(0.0),
+        error_max: errors.last().copied().unwrap_or(0.0),
+        per_receiver,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_standard_error_of_identical_batches_is_zero_and_of_spread_ones_is_their_spread() {
+        // Batches 1 and 3 in one coefficient: variance 2, standard error sqrt(2 / 2) = 1.
+        assert_eq!(standard_error(&[4.0], &[10.0], 2), 1.0);
+        assert_eq!(standard_error(&[6.0, 3.0], &[12.0, 3.0], 3), 0.0);
+    }
+
+    #[test]
+    fn batch_seeds_differ_from_each_other_and_from_the_seed() {
+        let seeds: Vec<u64> = (0..100).map(|b| batch_seed(7, b)).collect();
+        let mut unique = seeds.clone();
+        unique.sort_unstable();
+        unique.dedup();
+        assert_eq!(unique.len(), 100);
+        assert!(!seeds.contains(&7));
+    }
+
+    #[test]
+    fn targets_out_of_range_are_refused() {
+        for (relative, max_samples) in [(0.0, 4096), (1.5, 4096), (f64::NAN, 4096), (0.01, 8)] {
+            let target = TargetError {
+                relative,
+                max_samples,
+            };
+            assert!(target.validate().is_err(), "{target:?}");
+        }
+    }
+}

@@ -397,3 +397,41 @@ fn dragon_compression_time_size_and_error() {
         );
     }
 }
+
+/// The widest transfer (16 bands RGB, 768 floats per vertex), where the covariance and the
+/// subspace iteration dominate: run by hand as the dragon test above.
+#[test]
+#[ignore]
+fn wide_transfer_compression_time() {
+    let (vertices, n) = (8000, 768);
+    let mut rng = Pcg32::new(12);
+    // A decaying spectrum, as transfer has: direction i scaled by 0.8^i.
+    let directions: Vec<f32> = (0..32 * n).map(|_| uniform(&mut rng, 1.0)).collect();
+    let mut coeffs = vec![0.0f32; vertices * n];
+    for x in coeffs.chunks_exact_mut(n) {
+        for (i, d) in directions.chunks_exact(n).enumerate() {
+            let w = uniform(&mut rng, 0.8f32.powi(i as i32));
+            x.iter_mut().zip(d).for_each(|(x, d)| *x += w * d);
+        }
+    }
+    let transfer = Transfer {
+        bands: 16,
+        channels: 3,
+        vertex_count: vertices,
+        coeffs,
+    };
+    let started = std::time::Instant::now();
+    let cpca = compress(
+        &transfer,
+        &CpcaOptions {
+            iterations: 3,
+            ..options(64, 8)
+        },
+    )
+    .unwrap();
+    println!(
+        "{vertices} x {n}, 64 x 8, 3 rounds: {:.2} s, error {:.4}",
+        started.elapsed().as_secs_f64(),
+        relative_error(&transfer, &cpca)
+    );
+}

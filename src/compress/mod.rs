@@ -8,6 +8,13 @@
 //! cluster's mean and directions once, and each vertex costs `components` multiply-adds per
 //! channel instead of `bands^2`.
 //!
+//! Measured (`tests.rs`, `dragon_compression_time_size_and_error`, 2 shared cores): the dragon
+//! (22,982 vertices, 4 bands RGB, 4.4 MB as float32) at 64 clusters x 8 components takes 3.0 s
+//! and 0.89 MB (4.9x smaller) with a coefficient error of 2.9% and a relit error of 1.8%;
+//! 64 x 4: 2.0 s, 9.3x, 7.8% / 5.0%. Its grey albedo makes the three channels proportional,
+//! so 16 components reconstruct it exactly. At 768 floats per vertex (16 bands RGB) a round
+//! takes about 0.25 ms per vertex at 64 x 8.
+//!
 //! - [`cluster`] runs the iteration (k-means++ seeding, assignment, refits);
 //! - [`eigen`] finds a cluster's principal directions (Jacobi, subspace iteration).
 

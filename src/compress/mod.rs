@@ -15,8 +15,8 @@
 //! so 16 components reconstruct it exactly. At 768 floats per vertex (16 bands RGB) a round
 //! takes about 0.25 ms per vertex at 64 x 8.
 //!
-//! - [`cluster`] runs the iteration (k-means++ seeding, assignment, refits);
-//! - [`eigen`] finds a cluster's principal directions (Jacobi, subspace iteration).
+//! - `cluster.rs` runs the iteration (k-means++ seeding, assignment, refits);
+//! - `eigen.rs` finds a cluster's principal directions (Jacobi, subspace iteration).
 
 mod cluster;
 mod eigen;

@@ -3,6 +3,7 @@
 //! The data flows one way, one module per step:
 //! `scene` (load, prepare) → `bvh` → `sampling` + `sh` → `bake` (cpu or gpu backend, bounces)
 //! → `glb` (the baked file; `lightmap` for transfer per texel); `light` + a baked transfer → `render` (relight, preview images);
+//! `compress` shrinks a baked transfer by clustered PCA (and relights the compressed form);
 //! `sweep` bakes over strategies and sample counts against a reference → `chart`.
 //! Imports go the same way (no cycles); docs/architecture.md says what each module owns and
 //! may import.
@@ -11,6 +12,7 @@ pub mod bake;
 pub mod bvh;
 pub mod chart;
 pub mod color;
+pub mod compress;
 pub mod device;
 pub mod error;
 pub mod fs;

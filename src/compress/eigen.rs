@@ -1,0 +1,370 @@
+//! The top eigenvectors of a symmetric positive semi-definite matrix (a cluster's covariance).
+//!
+//! Small problems are diagonalised whole by cyclic Jacobi rotations: simple, accurate to
+//! rounding and with orthonormal eigenvectors by construction. Large ones (a 768-dimensional
+//! covariance of which only the top 8 directions are wanted) use subspace iteration with
+//! Rayleigh–Ritz: a block a little wider than the directions wanted is multiplied by the
+//! matrix, re-orthonormalised and rotated onto the Ritz vectors of the block's small projected
+//! matrix (diagonalised by Jacobi) until every wanted Ritz pair has a small residual. Its cost
+//! per step is `n^2 p` instead of Jacobi's `n^3` per sweep, and a warm start (the previous
+//! CPCA round's basis) usually converges in a step or two.
+//!
+//! Everything is sequential f64 in a fixed order, so the result is a function of the input.
+
+use crate::sampling::Pcg32;
+
+/// Jacobi sweeps before giving up; cyclic Jacobi converges quadratically, in well under 20.
+const MAX_SWEEPS: usize = 50;
+/// Subspace-iteration steps before settling for the block reached (still a valid orthonormal
+/// basis, only not the optimal one; the caller keeps the better of it and its previous basis).
+const MAX_STEPS: usize = 300;
+/// A Ritz pair is converged when `|C u - theta u| <= RESIDUAL_TOLERANCE * theta_max`; the
+/// captured variance is then optimal to about the square of it.
+const RESIDUAL_TOLERANCE: f64 = 1e-10;
+/// The fixed seed of the random vectors that start or refill a block: the result must not
+/// depend on anything but the matrix and the warm start.
+const BLOCK_SEED: u64 = 0x5eed_c0de_cafe;
+
+/// Eigenvalues (descending) and eigenvectors (`vectors[i * n..(i + 1) * n]` belongs to
+/// `values[i]`) of the symmetric `n x n` row-major matrix `a`, by cyclic Jacobi rotations.
+pub fn symmetric_eigen(a: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut a = a.to_vec();
+    // Columns of `v` collect the rotations: A = V diag V^T.
+    let mut v = identity(n);
+    for _ in 0..MAX_SWEEPS {
+        if off_diagonal_is_negligible(&a, n) {
+            break;
+        }
+        for p in 0..n {
+            for q in p + 1..n {
+                rotate(&mut a, &mut v, n, p, q);
+            }
+        }
+    }
+    let mut order: Vec<usize> = (0..n).collect();
+    // Stable sort by descending eigenvalue; total_cmp keeps it a total order even for NaN.
+    order.sort_by(|&i, &j| a[j * n + j].total_cmp(&a[i * n + i]));
+    let values = order.iter().map(|&i| a[i * n + i]).collect();
+    let vectors = order
+        .iter()
+        .flat_map(|&i| (0..n).map(move |r| (r, i)))
+        .map(|(r, i)| v[r * n + i])
+        .collect();
+    (values, vectors)
+}
+
+fn identity(n: usize) -> Vec<f64> {
+    let mut m = vec![0.0; n * n];
+    (0..n).for_each(|i| m[i * n + i] = 1.0);
+    m
+}
+
+/// Converged when the off-diagonal mass is below rounding relative to the diagonal's.
+fn off_diagonal_is_negligible(a: &[f64], n: usize) -> bool {
+    let (mut off, mut diagonal) = (0.0, 0.0);
+    for p in 0..n {
+        diagonal += a[p * n + p] * a[p * n + p];
+        for q in p + 1..n {
+            off += a[p * n + q] * a[p * n + q];
+        }
+    }
+    off <= 1e-30 * diagonal || off == 0.0
+}
+
+/// One Jacobi rotation in the (p, q) plane that zeroes `a[p][q]`: `A <- J^T A J`, `V <- V J`.
+fn rotate(a: &mut [f64], v: &mut [f64], n: usize, p: usize, q: usize) {
+    let apq = a[p * n + q];
+    if apq == 0.0 {
+        return;
+    }
+    // theta = cot(2 phi); t = tan(phi), the smaller root of t^2 + 2 t theta - 1 = 0, keeps the
+    // rotation below 45 degrees, which is what makes the sweeps converge.
+    let theta = (a[q * n + q] - a[p * n + p]) / (2.0 * apq);
+    let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+    let c = 1.0 / (t * t + 1.0).sqrt();
+    let s = t * c;
+    for r in 0..n {
+        if r != p && r != q {
+            let (arp, arq) = (a[r * n + p], a[r * n + q]);
+            let (new_p, new_q) = (c * arp - s * arq, s * arp + c * arq);
+            a[r * n + p] = new_p;
+            a[p * n + r] = new_p;
+            a[r * n + q] = new_q;
+            a[q * n + r] = new_q;
+        }
+    }
+    a[p * n + p] -= t * apq;
+    a[q * n + q] += t * apq;
+    a[p * n + q] = 0.0;
+    a[q * n + p] = 0.0;
+    for r in 0..n {
+        let (vrp, vrq) = (v[r * n + p], v[r * n + q]);
+        v[r * n + p] = c * vrp - s * vrq;
+        v[r * n + q] = s * vrp + c * vrq;
+    }
+}
+
+/// The `m` leading eigenvectors (rows, orthonormal) of the symmetric PSD `n x n` matrix `c`,
+/// with their eigenvalues. `warm` (rows of length `n`, any number, ideally near the answer)
+/// starts the subspace iteration; it does not change the answer beyond the tolerance.
+pub fn top_eigenvectors(c: &[f64], n: usize, m: usize, warm: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    if m == 0 {
+        return (Vec::new(), Vec::new());
+    }
+    let block = block_size(n, m);
+    if block == n {
+        // Nothing to gain from a block as wide as the space: diagonalise whole.
+        let (values, vectors) = symmetric_eigen(c, n);
+        return (values[..m].to_vec(), vectors[..m * n].to_vec());
+    }
+    subspace_iteration(c, n, m, block, warm)
+}
+
+/// Twice the directions wanted plus a few: the convergence rate of the m-th direction is
+/// `lambda_(block+1) / lambda_m`, so slack in the block buys speed; at half the space or more,
+/// a whole Jacobi diagonalisation is as cheap.
+fn block_size(n: usize, m: usize) -> usize {
+    let block = 2 * m + 4;
+    if 2 * block >= n {
+        n
+    } else {
+        block
+    }
+}
+
+fn subspace_iteration(
+    c: &[f64],
+    n: usize,
+    m: usize,
+    block: usize,
+    warm: &[f64],
+) -> (Vec<f64>, Vec<f64>) {
+    let mut rng = Pcg32::new(BLOCK_SEED);
+    let mut start: Vec<f64> = warm.iter().copied().take(block * n).collect();
+    while start.len() < block * n {
+        start.push(symmetric_unit(&mut rng));
+    }
+    let mut basis = orthonormalize(start, n, &mut rng);
+    let mut ritz = rayleigh_ritz(c, n, &basis);
+    for _ in 0..MAX_STEPS {
+        if ritz.converged(n, m) {
+            break;
+        }
+        basis = orthonormalize(ritz.product, n, &mut rng);
+        ritz = rayleigh_ritz(c, n, &basis);
+    }
+    (ritz.values[..m].to_vec(), ritz.vectors[..m * n].to_vec())
+}
+
+/// Ritz pairs of a block: `vectors` (rows) span the block, `product` holds `C` times each.
+struct Ritz {
+    values: Vec<f64>,
+    vectors: Vec<f64>,
+    product: Vec<f64>,
+}
+
+impl Ritz {
+    fn converged(&self, n: usize, m: usize) -> bool {
+        let scale = self.values[0].abs();
+        (0..m).all(|i| {
+            let u = &self.vectors[i * n..(i + 1) * n];
+            let cu = &self.product[i * n..(i + 1) * n];
+            let residual: f64 = u
+                .iter()
+                .zip(cu)
+                .map(|(u, cu)| (cu - self.values[i] * u).powi(2))
+                .sum();
+            residual.sqrt() <= RESIDUAL_TOLERANCE * scale
+        })
+    }
+}
+
+/// Rotates the orthonormal rows of `basis` onto the eigenvectors of `B C B^T`, best first.
+fn rayleigh_ritz(c: &[f64], n: usize, basis: &[f64]) -> Ritz {
+    let block = basis.len() / n;
+    let product: Vec<f64> = basis.chunks_exact(n).flat_map(|b| mat_vec(c, b)).collect();
+    let mut projected = vec![0.0; block * block];
+    for i in 0..block {
+        for j in 0..block {
+            projected[i * block + j] = dot(&basis[i * n..(i + 1) * n], &product[j * n..][..n]);
+        }
+    }
+    // Symmetric up to rounding; make it exactly so for Jacobi.
+    for i in 0..block {
+        for j in 0..i {
+            let mean = 0.5 * (projected[i * block + j] + projected[j * block + i]);
+            projected[i * block + j] = mean;
+            projected[j * block + i] = mean;
+        }
+    }
+    let (values, small) = symmetric_eigen(&projected, block);
+    Ritz {
+        values,
+        vectors: combine(&small, basis, block, n),
+        product: combine(&small, &product, block, n),
+    }
+}
+
+/// Rows `sum_j coefficients[i][j] * rows[j]`.
+fn combine(coefficients: &[f64], rows: &[f64], block: usize, n: usize) -> Vec<f64> {
+    let mut out = vec![0.0; block * n];
+    for (i, target) in out.chunks_exact_mut(n).enumerate() {
+        for (j, row) in rows.chunks_exact(n).enumerate() {
+            let weight = coefficients[i * block + j];
+            target
+                .iter_mut()
+                .zip(row)
+                .for_each(|(t, r)| *t += weight * r);
+        }
+    }
+    out
+}
+
+fn mat_vec(c: &[f64], x: &[f64]) -> Vec<f64> {
+    c.chunks_exact(x.len()).map(|row| dot(row, x)).collect()
+}
+
+/// A dot product with four running sums: vectorisable, and still one fixed order.
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut sums = [0.0f64; 4];
+    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = a4
+        .remainder()
+        .iter()
+        .zip(b4.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in a4.zip(b4) {
+        for k in 0..4 {
+            sums[k] += x[k] * y[k];
+        }
+    }
+    (sums[0] + sums[1]) + (sums[2] + sums[3]) + tail
+}
+
+/// Orthonormal rows spanning what `rows` span, by modified Gram–Schmidt applied twice (once
+/// is not enough in floating point for nearly dependent rows). A row that is (nearly) in the
+/// span of those before it is replaced by a random one, so the block keeps its width.
+pub fn orthonormalize(mut rows: Vec<f64>, n: usize, rng: &mut Pcg32) -> Vec<f64> {
+    let count = rows.len() / n;
+    for i in 0..count {
+        let original = norm(&rows[i * n..(i + 1) * n]);
+        let mut attempts = 0;
+        loop {
+            let (done, rest) = rows.split_at_mut(i * n);
+            let row = &mut rest[..n];
+            for _ in 0..2 {
+                for previous in done.chunks_exact(n) {
+                    let projection = dot(previous, row);
+                    row.iter_mut()
+                        .zip(previous)
+                        .for_each(|(r, p)| *r -= projection * p);
+                }
+            }
+            let length = norm(row);
+            // Below 1e-10 of what it was, the row was dependent and its direction is noise.
+            if length > 1e-10 * original && length > 0.0 {
+                row.iter_mut().for_each(|r| *r /= length);
+                break;
+            }
+            attempts += 1;
+            assert!(
+                attempts < 100,
+                "no independent direction found in {n} dimensions"
+            );
+            row.iter_mut().for_each(|r| *r = symmetric_unit(rng));
+        }
+    }
+    rows
+}
+
+fn norm(x: &[f64]) -> f64 {
+    dot(x, x).sqrt()
+}
+
+/// Uniform in [-1, 1).
+fn symmetric_unit(rng: &mut Pcg32) -> f64 {
+    2.0 * rng.next_f32() as f64 - 1.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A random orthogonal matrix (rows) and `Q^T diag(values) Q`.
+    fn known_matrix(values: &[f64], seed: u64) -> (Vec<f64>, Vec<f64>) {
+        let n = values.len();
+        let mut rng = Pcg32::new(seed);
+        let random: Vec<f64> = (0..n * n).map(|_| symmetric_unit(&mut rng)).collect();
+        let q = orthonormalize(random, n, &mut rng);
+        let mut a = vec![0.0; n * n];
+        for (k, value) in values.iter().enumerate() {
+            let qk = &q[k * n..(k + 1) * n];
+            for i in 0..n {
+                for j in 0..n {
+                    a[i * n + j] += value * qk[i] * qk[j];
+                }
+            }
+        }
+        (q, a)
+    }
+
+    fn assert_vectors_match(got: &[f64], expected: &[f64], n: usize, count: usize, tol: f64) {
+        for i in 0..count {
+            let alignment = dot(&got[i * n..(i + 1) * n], &expected[i * n..(i + 1) * n]).abs();
+            assert!(
+                (alignment - 1.0).abs() < tol,
+                "eigenvector {i}: |u . q| = {alignment}"
+            );
+        }
+    }
+
+    #[test]
+    fn jacobi_recovers_a_known_decomposition() {
+        let values: Vec<f64> = (0..30).map(|i| 10.0 * 0.7f64.powi(i) - 0.5).collect();
+        let (q, a) = known_matrix(&values, 7);
+        let (got_values, got_vectors) = symmetric_eigen(&a, 30);
+        for (got, expected) in got_values.iter().zip(&values) {
+            assert!((got - expected).abs() < 1e-12, "{got} vs {expected}");
+        }
+        assert_vectors_match(&got_vectors, &q, 30, 30, 1e-9);
+    }
+
+    #[test]
+    fn subspace_iteration_finds_the_leading_directions() {
+        // Slowly decaying spectrum: lambda_(block+1) / lambda_m = 0.9^12, many steps.
+        let values: Vec<f64> = (0..80).map(|i| 0.9f64.powi(i)).collect();
+        let (q, a) = known_matrix(&values, 11);
+        for warm in [Vec::new(), q[..3 * 80].to_vec()] {
+            let (got_values, got_vectors) = top_eigenvectors(&a, 80, 6, &warm);
+            assert_eq!(got_vectors.len(), 6 * 80);
+            for (got, expected) in got_values.iter().zip(&values) {
+                assert!((got - expected).abs() < 1e-10, "{got} vs {expected}");
+            }
+            assert_vectors_match(&got_vectors, &q, 80, 6, 1e-8);
+        }
+    }
+
+    #[test]
+    fn rank_deficient_matrices_get_a_full_orthonormal_basis() {
+        // Rank 2 in 60 dimensions, 5 directions asked for: 3 of them span part of the null
+        // space, and all 5 must still be orthonormal.
+        let mut values = vec![0.0; 60];
+        values[0] = 3.0;
+        values[1] = 1.0;
+        let (q, a) = known_matrix(&values, 3);
+        let (got_values, vectors) = top_eigenvectors(&a, 60, 5, &[]);
+        assert!((got_values[0] - 3.0).abs() < 1e-12 && (got_values[1] - 1.0).abs() < 1e-12);
+        assert_vectors_match(&vectors, &q, 60, 2, 1e-10);
+        for i in 0..5 {
+            for j in 0..5 {
+                let d = dot(&vectors[i * 60..][..60], &vectors[j * 60..][..60]);
+                let expected = if i == j { 1.0 } else { 0.0 };
+                assert!((d - expected).abs() < 1e-12, "rows {i}, {j}: {d}");
+            }
+        }
+        // The zero matrix too.
+        let (_, zero) = top_eigenvectors(&vec![0.0; 3600], 60, 5, &[]);
+        assert!((norm(&zero[..60]) - 1.0).abs() < 1e-12);
+    }
+}

@@ -387,23 +387,7 @@ fn usage_error_line(message: &str) -> String {
 }
 
 fn run_bake(args: BakeArgs) -> Result<()> {
-    let options = BakeOptions {
-        seed: args.seed,
-        albedo: args.albedo,
-        bounces: args.bounces,
-        bounce_tolerance: args.bounce_tolerance,
-        fit: args.fit,
-        lightmap: args.lightmap,
-        target_error: args.target_error.map(|relative| TargetError {
-            relative,
-            max_samples: args.max_samples,
-        }),
-        point_density: PointDensity {
-            per_vertex: args.fit_points,
-            ..PointDensity::default()
-        },
-        ..args.transfer.options()
-    };
+    let options = bake_options(&args);
     options.validate()?;
     let loading = std::time::Instant::now();
     let (scene, gltf, name) = load_bake_input(&args.mesh)?;
@@ -440,14 +424,7 @@ fn run_bake(args: BakeArgs) -> Result<()> {
             return Err(Error::Options(format!("{flag} must be at least 1")));
         }
     }
-    let baker = if options.target_error.is_some() {
-        if args.device == DeviceChoice::Gpu {
-            eprintln!("note: error-targeted bakes run on the CPU backend");
-        }
-        None
-    } else {
-        open_backend(args.device, args.adapter.as_deref())?
-    };
+    let baker = bake_backend(&options, args.device, args.adapter.as_deref())?;
     let backend = match &baker {
         Some(baker) => Backend::Gpu {
             baker,
@@ -493,6 +470,43 @@ fn run_bake(args: BakeArgs) -> Result<()> {
     }
     print_bake_report(&name, &options, &report, &output_path);
     Ok(())
+}
+
+/// What `bake`'s arguments ask of the bake.
+fn bake_options(args: &BakeArgs) -> BakeOptions {
+    BakeOptions {
+        seed: args.seed,
+        albedo: args.albedo,
+        bounces: args.bounces,
+        bounce_tolerance: args.bounce_tolerance,
+        fit: args.fit,
+        lightmap: args.lightmap,
+        target_error: args.target_error.map(|relative| TargetError {
+            relative,
+            max_samples: args.max_samples,
+        }),
+        point_density: PointDensity {
+            per_vertex: args.fit_points,
+            ..PointDensity::default()
+        },
+        ..args.transfer.options()
+    }
+}
+
+/// The GPU baker a bake with `options` uses, or `None` for the CPU backend (error-targeted
+/// bakes always run there).
+fn bake_backend(
+    options: &BakeOptions,
+    device: DeviceChoice,
+    adapter: Option<&str>,
+) -> Result<Option<GpuBaker>> {
+    if options.target_error.is_some() {
+        if device == DeviceChoice::Gpu {
+            eprintln!("note: error-targeted bakes run on the CPU backend");
+        }
+        return Ok(None);
+    }
+    open_backend(device, adapter)
 }
 
 /// What `bake` bakes: the mesh named on the command line (a glTF scene keeps its document,

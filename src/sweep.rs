@@ -200,23 +200,7 @@ pub fn run(
             }
         }
     }
-    for (&sampling, &relative) in options
-        .strategies
-        .iter()
-        .flat_map(|s| options.target_errors.iter().map(move |e| (s, e)))
-    {
-        let target = TargetError {
-            relative,
-            max_samples: MAX_TARGET_SAMPLES,
-        };
-        let point_options = BakeOptions {
-            sampling,
-            target_error: Some(target),
-            ..base.clone()
-        };
-        let cpu = ("cpu", &Backend::Cpu);
-        points.extend(measure(scene, &point_options, cpu, &[], &references)?);
-    }
+    points.extend(measure_targets(scene, options, &base, &references)?);
     Ok(Sweep {
         points,
         reference_samples: reference_options.samples_used(),
@@ -247,6 +231,32 @@ fn surface_reference_of(
         light,
         Some(&reference.transfer),
     )
+}
+
+/// The error-targeted bakes of the sweep: every strategy to every target, on the CPU.
+fn measure_targets(
+    scene: &Scene,
+    options: &SweepOptions,
+    base: &BakeOptions,
+    references: &References,
+) -> Result<Vec<SweepPoint>> {
+    let mut points = Vec::new();
+    for &sampling in &options.strategies {
+        for &relative in &options.target_errors {
+            let target = TargetError {
+                relative,
+                max_samples: MAX_TARGET_SAMPLES,
+            };
+            let point_options = BakeOptions {
+                sampling,
+                target_error: Some(target),
+                ..base.clone()
+            };
+            let cpu = ("cpu", &Backend::Cpu);
+            points.extend(measure(scene, &point_options, cpu, &[], references)?);
+        }
+    }
+    Ok(points)
 }
 
 /// The sample cap of the sweep's error-targeted bakes.

@@ -433,10 +433,7 @@ pub fn bake(
 ) -> Result<(BakedMesh, BakeReport)> {
     options.validate()?;
     let started = Instant::now();
-    let (mut scene, prepare_report, vertex_map) = prepare_mapped(scene)?;
-    if let Some(albedo) = options.albedo {
-        scene.albedo.iter_mut().for_each(|a| *a = albedo);
-    }
+    let (scene, prepare_report, vertex_map) = prepare_with_albedo(scene, options)?;
     // A lightmap that cannot fit fails now, not after the vertices are baked.
     let atlas = match options.lightmap {
         Some(size) => Some(texels::plan_atlas(&scene, size)?),
@@ -448,26 +445,7 @@ pub fn bake(
     let seconds_prepare = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
-    let (direct, adaptive_report) = match &options.target_error {
-        None => (direct_pass(&inputs, options.mode, backend, progress)?, None),
-        Some(target) => {
-            progress.stage("transfer", inputs.origins.len() as u64);
-            let (scalar, rays_cast, report) = adaptive::adaptive_direct_transfer(
-                &owned,
-                options.sampling,
-                options.seed,
-                options.mode,
-                target,
-                progress,
-            )?;
-            let direct = DirectPass {
-                scalar,
-                matrix: None,
-                rays_cast,
-            };
-            (direct, Some(report))
-        }
-    };
+    let (direct, adaptive_report) = direct_or_adaptive(&owned, options, backend, progress)?;
     let seconds_transfer = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
@@ -490,7 +468,10 @@ pub fn bake(
         vertex_count: scene.vertex_count(),
         coeffs: to_vertices(at_receivers.coeffs)?,
     };
-    let mut seconds_fit = started.elapsed().as_secs_f64();
+    let seconds_fit = match options.fit {
+        Fit::Point => 0.0,
+        Fit::LeastSquares => started.elapsed().as_secs_f64(),
+    };
     let bounces = match &direct.matrix {
         Some(matrix) => {
             let gather = Gather {
@@ -502,23 +483,21 @@ pub fn bake(
         }
         None => Vec::new(),
     };
-    if options.fit == Fit::Point {
-        seconds_fit = 0.0;
-    }
     let (scene, transfer, lightmap, texel_report) = match &atlas {
         None => (scene, transfer, None, None),
         Some(atlas) => add_lightmap(scene, transfer, atlas, options, backend, progress)?,
     };
     let fit_points = (options.fit == Fit::LeastSquares).then_some(points.len() as u32);
-    let samples = match &adaptive_report {
-        // The mean over receivers, as a bake of that many samples each would cast.
-        Some(report) => report.samples_mean.round() as usize,
-        None => inputs.samples.len(),
+    // An error-targeted bake records the mean over receivers.
+    let samples = adaptive_report
+        .as_ref()
+        .map_or(inputs.samples.len(), |r| r.samples_mean.round() as usize);
+    // Error-targeted bakes run on the CPU whatever the backend.
+    let ran_on = match adaptive_report {
+        Some(_) => &Backend::Cpu,
+        None => backend,
     };
-    let mut metadata = metadata_for(options, backend, samples, bounces.len(), fit_points);
-    if adaptive_report.is_some() {
-        metadata.backend = Backend::Cpu.describe();
-    }
+    let metadata = metadata_for(options, ran_on, samples, bounces.len(), fit_points);
     let report = BakeReport {
         prepare: prepare_report,
         vertex_map,
@@ -566,6 +545,49 @@ fn add_lightmap(
         texels::bake_atlas(&scene, &transfer, options, atlas, backend, progress)?;
     let (scene, transfer) = texels::split_corners(&scene, &transfer);
     Ok((scene, transfer, Some(lightmap), Some(report)))
+}
+
+/// The scene prepared for the bake, its albedo replaced where the options say so.
+fn prepare_with_albedo(
+    scene: Scene,
+    options: &BakeOptions,
+) -> Result<(Scene, PrepareReport, VertexMap)> {
+    let (mut scene, report, map) = prepare_mapped(scene)?;
+    if let Some(albedo) = options.albedo {
+        scene.albedo.iter_mut().for_each(|a| *a = albedo);
+    }
+    Ok((scene, report, map))
+}
+
+/// The direct pass of `owned`'s receivers: a fixed sample count on the backend, or to the
+/// options' error target on the CPU (with its report).
+fn direct_or_adaptive(
+    owned: &BakeInputs,
+    options: &BakeOptions,
+    backend: &Backend,
+    progress: &dyn Progress,
+) -> Result<(DirectPass, Option<adaptive::AdaptiveReport>)> {
+    let Some(target) = &options.target_error else {
+        return Ok((
+            direct_pass(&owned.view(), options.mode, backend, progress)?,
+            None,
+        ));
+    };
+    progress.stage("transfer", owned.origins.len() as u64);
+    let (scalar, rays_cast, report) = adaptive::adaptive_direct_transfer(
+        owned,
+        options.sampling,
+        options.seed,
+        options.mode,
+        target,
+        progress,
+    )?;
+    let direct = DirectPass {
+        scalar,
+        matrix: None,
+        rays_cast,
+    };
+    Ok((direct, Some(report)))
 }
 
 /// The receivers of a bake: the vertices, or (least-squares fit) the points spread over the

@@ -13,6 +13,7 @@ use prt_gpu::bake::gpu::{Chunking, GpuBaker};
 use prt_gpu::bake::{
     self, Backend, BakeOptions, BakeReport, Fit, Mode, Progress, DEFAULT_SAMPLES, DEFAULT_SAMPLING,
 };
+use prt_gpu::compress::{self, Cpca, CpcaOptions};
 use prt_gpu::device::{self, DeviceChoice, GpuContext};
 use prt_gpu::light::{self, analytic, Mapping, ShLight};
 use prt_gpu::receivers::PointDensity;
@@ -299,6 +300,11 @@ struct BakeArgs {
     /// With --target-error: the most samples one receiver casts.
     #[arg(long, default_value_t = 4096)]
     max_samples: u32,
+    /// Store the transfer compressed by clustered PCA (Sloan et al. 2003): CLUSTERSxCOMPONENTS,
+    /// e.g. 64x8 — per vertex a cluster and COMPONENTS weights, per cluster a mean and a basis.
+    /// Sizes and the error against the uncompressed transfer are reported.
+    #[arg(long, value_name = "CLUSTERSxCOMPONENTS", value_parser = parse_cpca_shape)]
+    compress: Option<(u32, u32)>,
     /// Also bake per-texel transfer into a lightmap about SIZE texels on its longer side (a
     /// generated atlas): written as <output stem>.lightmap.exr beside the .glb, which then
     /// holds the lightmap coordinates as TEXCOORD_0 (every triangle corner its own vertex).
@@ -326,6 +332,18 @@ struct BakeArgs {
     /// GPU: at most this many samples per chunk, rounded up to a multiple of 32.
     #[arg(long, hide_short_help = true)]
     chunk_samples: Option<u32>,
+}
+
+fn parse_cpca_shape(text: &str) -> std::result::Result<(u32, u32), String> {
+    let (clusters, components) = text
+        .split_once(['x', 'X'])
+        .ok_or("expected CLUSTERSxCOMPONENTS, such as 64x8")?;
+    let number = |t: &str| {
+        t.trim()
+            .parse::<u32>()
+            .map_err(|e| format!("expected CLUSTERSxCOMPONENTS, such as 64x8: {e}"))
+    };
+    Ok((number(clusters)?, number(components)?))
 }
 
 fn parse_rgb(text: &str) -> std::result::Result<Vec3, String> {
@@ -391,6 +409,13 @@ fn run_bake(args: BakeArgs) -> Result<()> {
     options.validate()?;
     let loading = std::time::Instant::now();
     let (scene, gltf, name) = load_bake_input(&args.mesh)?;
+    if args.compress.is_some() && (gltf.is_some() || options.lightmap.is_some()) {
+        return Err(Error::Options(
+            "--compress stores the transfer of OBJ, PLY and the built-in scene per vertex; \
+             glTF scenes baked in place and lightmaps are not compressed"
+                .into(),
+        ));
+    }
     if gltf.is_some() && options.lightmap.is_some() {
         return Err(Error::Options(
             "--lightmap bakes OBJ, PLY and the built-in scene; a glTF scene is baked in place \
@@ -444,6 +469,10 @@ fn run_bake(args: BakeArgs) -> Result<()> {
     let (baked, report) =
         bake::bake(scene, &options, &backend, &progress).map_err(|e| naming_the_mesh(e, &shown))?;
     progress.finish();
+    let cpca = match args.compress {
+        Some(shape) => Some(compress_transfer(&baked, shape)?),
+        None => None,
+    };
     let writing = std::time::Instant::now();
     let written = match &gltf {
         Some(gltf) => Some(glb::scene::write_scene_glb(
@@ -453,7 +482,7 @@ fn run_bake(args: BakeArgs) -> Result<()> {
             &report.vertex_map,
         )?),
         None => {
-            glb::write_glb(&output_path, &baked)?;
+            glb::write_glb_with(&output_path, &baked, cpca.as_ref())?;
             None
         }
     };
@@ -491,6 +520,30 @@ fn bake_options(args: &BakeArgs) -> BakeOptions {
         },
         ..args.transfer.options()
     }
+}
+
+/// The baked transfer compressed to `(clusters, components)`, with its sizes and errors said.
+fn compress_transfer(baked: &bake::BakedMesh, (clusters, components): (u32, u32)) -> Result<Cpca> {
+    let started = std::time::Instant::now();
+    let options = CpcaOptions {
+        clusters,
+        components,
+        ..CpcaOptions::default()
+    };
+    let cpca = compress::compress(&baked.transfer, &options)?;
+    let seconds = started.elapsed().as_secs_f64();
+    let before = compress::uncompressed_bytes(&baked.transfer);
+    let after = cpca.byte_size();
+    let light = light::preview_light(baked.transfer.bands)?;
+    eprintln!(
+        "compressed: {clusters} clusters x {components} components in {seconds:.2} s, {after} \
+         bytes of {before} ({:.1}x smaller); coefficient error {:.2}%, relit error {:.2}% under \
+         the preview light",
+        before as f64 / after as f64,
+        100.0 * compress::relative_error(&baked.transfer, &cpca),
+        100.0 * compress::relit_error(&baked.transfer, &cpca, &light)?
+    );
+    Ok(cpca)
 }
 
 /// The GPU baker a bake with `options` uses, or `None` for the CPU backend (error-targeted
@@ -975,7 +1028,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let context = open_render_device(args.adapter.as_deref())?;
     let mut panels = Vec::new();
     for path in &args.baked {
-        let baked = glb::read_glb(path)?;
+        let (baked, cpca) = glb::read_glb_compressed(path)?;
         let bands = baked.metadata.bands;
         let light = match &args.light {
             Some(light_path) => light::load(light_path, bands, args.mapping, false)?.light,
@@ -985,14 +1038,25 @@ fn run_render(args: RenderArgs) -> Result<()> {
         let camera = args
             .camera
             .unwrap_or_else(|| Camera::framing_scene(&baked.scene));
-        let mut panel = render::preview(
-            &context,
-            &baked,
-            &light,
-            Some(&camera),
-            args.width,
-            args.height,
-        )?;
+        let mut panel = match &cpca {
+            // As a run-time would: the light dotted into each cluster once, then per vertex.
+            Some(cpca) => render::render(
+                &context,
+                &baked.scene,
+                &cpca.relight(&light)?,
+                &camera,
+                args.width,
+                args.height,
+            )?,
+            None => render::preview(
+                &context,
+                &baked,
+                &light,
+                Some(&camera),
+                args.width,
+                args.height,
+            )?,
+        };
         if args.sky {
             render::draw_sky(&mut panel, args.width, args.height, &camera, &light);
         }
@@ -1051,6 +1115,12 @@ fn run_info(path: &Path) -> Result<()> {
         println!(
             "lightmap:     {}x{} texels in {} (TEXCOORD_{})",
             lightmap.width, lightmap.height, lightmap.uri, lightmap.texcoord
+        );
+    }
+    if let Some(cpca) = glb::read_compression(path)? {
+        println!(
+            "compressed:   CPCA, {} clusters x {} components",
+            cpca.clusters, cpca.components
         );
     }
     println!("backend:      {}", metadata.backend);

@@ -29,9 +29,12 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::bake::{BakeMetadata, BakedMesh, TexelBake, Transfer};
+use crate::compress::Cpca;
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
+use compressed::CpcaExtras;
 
+pub mod compressed;
 pub mod scene;
 use crate::scene::Scene;
 
@@ -78,14 +81,23 @@ pub fn transfer_attribute_name(channels: u32, channel: u32, group: usize) -> Str
 /// With a lightmap, its OpenEXR file ([`lightmap_file_name`]) is written beside, first; should
 /// the .glb then fail, the lightmap is removed again, so that no half of a bake is left.
 pub fn write_glb(path: &Path, baked: &BakedMesh) -> Result<()> {
+    write_glb_with(path, baked, None)
+}
+
+/// [`write_glb`], with the transfer stored compressed ([`compressed`]) when `cpca` is given
+/// (which must be the compression of `baked.transfer`).
+pub fn write_glb_with(path: &Path, baked: &BakedMesh, cpca: Option<&Cpca>) -> Result<()> {
     validate(baked)?;
+    if let Some(cpca) = cpca {
+        validate_cpca(baked, cpca).map_err(Error::Geometry)?;
+    }
     // Fails before encoding, so a typo in the directory costs no work.
     check_destination(path)?;
     let Some(texels) = &baked.lightmap else {
-        return write_atomically(path, &encode_valid(baked, None)?);
+        return write_atomically(path, &encode_valid(baked, None, cpca)?);
     };
     let name = lightmap_file_name(path);
-    let bytes = encode_valid(baked, Some(&name))?;
+    let bytes = encode_valid(baked, Some(&name), cpca)?;
     let exr_path = path.with_file_name(&name);
     check_destination(&exr_path)?;
     crate::lightmap::write_lightmap(&exr_path, &lightmap_of(texels))?;
@@ -125,11 +137,25 @@ pub fn read_glb(path: &Path) -> Result<BakedMesh> {
     if is_scene_file(&bytes) {
         return scene::read_scene_glb(path);
     }
-    let (mut baked, lightmap) = decode_parts(&bytes, path)?;
+    let (mut baked, lightmap, _) = decode_parts(&bytes, path)?;
     if let Some((extras, texcoords)) = lightmap {
         baked.lightmap = Some(read_texels(path, &baked, extras, texcoords)?);
     }
     Ok(baked)
+}
+
+/// Reads a baked file and, where it holds its transfer compressed, the compressed form (the
+/// mesh's `transfer` is then its reconstruction).
+pub fn read_glb_compressed(path: &Path) -> Result<(BakedMesh, Option<Cpca>)> {
+    let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
+    if is_scene_file(&bytes) {
+        return Ok((scene::read_scene_glb(path)?, None));
+    }
+    let (mut baked, lightmap, cpca) = decode_parts(&bytes, path)?;
+    if let Some((extras, texcoords)) = lightmap {
+        baked.lightmap = Some(read_texels(path, &baked, extras, texcoords)?);
+    }
+    Ok((baked, cpca))
 }
 
 /// The lightmap `extras` names, beside `glb`, checked against the mesh it belongs to.
@@ -237,6 +263,17 @@ pub fn read_metadata(path: &Path) -> Result<(BakeMetadata, usize, usize)> {
 /// The lightmap a single-mesh baked file refers to (`extras.prt.lightmap`), if any; the JSON
 /// only is read.
 pub fn read_lightmap_reference(path: &Path) -> Result<Option<LightmapExtras>> {
+    Ok(read_prt_extras(path)?.and_then(|prt| prt.lightmap))
+}
+
+/// How a single-mesh baked file stores its transfer compressed (`extras.prt.cpca`), if it
+/// does; the JSON only is read.
+pub fn read_compression(path: &Path) -> Result<Option<CpcaExtras>> {
+    Ok(read_prt_extras(path)?.and_then(|prt| prt.cpca))
+}
+
+/// `extras.prt` of a single-mesh baked file (`None` for a glTF scene baked in place).
+fn read_prt_extras(path: &Path) -> Result<Option<PrtExtrasIn>> {
     let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
     if is_scene_file(&bytes) {
         return Ok(None);
@@ -250,16 +287,14 @@ pub fn read_lightmap_reference(path: &Path) -> Result<Option<LightmapExtras>> {
         .meshes
         .first()
         .ok_or_else(|| Error::baked(path, "the file contains no mesh"))?;
-    Ok(prt_extras(mesh)
-        .map_err(|m| Error::baked(path, m))?
-        .lightmap)
+    Ok(Some(prt_extras(mesh).map_err(|m| Error::baked(path, m))?))
 }
 
 /// Encodes `baked` as a `.glb` in memory, after checking that its parts agree. A lightmap is
 /// referred to as [`DEFAULT_LIGHTMAP_URI`] (it is [`write_glb`] that names and writes it).
 pub fn encode_glb(baked: &BakedMesh) -> Result<Vec<u8>> {
     validate(baked)?;
-    encode_valid(baked, None)
+    encode_valid(baked, None, None)
 }
 
 /// The lightmap reference of a file encoded without a name for it.
@@ -268,13 +303,13 @@ pub const DEFAULT_LIGHTMAP_URI: &str = "lightmap.exr";
 /// Decodes and validates a `.glb`; `path` only names the file in error messages. A lightmap the
 /// file refers to is not loaded (see [`read_glb`]).
 pub fn decode_glb(bytes: &[u8], path: &Path) -> Result<BakedMesh> {
-    decode_parts(bytes, path).map(|(baked, _)| baked)
+    decode_parts(bytes, path).map(|(baked, _, _)| baked)
 }
 
 /// A lightmap's reference and the lightmap coordinates of every vertex.
 type LightmapParts = Option<(LightmapExtras, Vec<[f32; 2]>)>;
 
-fn decode_parts(bytes: &[u8], path: &Path) -> Result<(BakedMesh, LightmapParts)> {
+fn decode_parts(bytes: &[u8], path: &Path) -> Result<(BakedMesh, LightmapParts, Option<Cpca>)> {
     let head = bytes
         .get(..20)
         .ok_or_else(|| Error::baked(path, "too short to be a glTF binary (.glb) file"))?;
@@ -328,23 +363,18 @@ fn decode_parts(bytes: &[u8], path: &Path) -> Result<(BakedMesh, LightmapParts)>
 
     let channels = plan.metadata.channels as usize;
     let n = plan.coeffs_per_channel;
-    let mut coeffs = vec![0f32; v * channels * n];
-    for (block, span) in plan.transfer.iter().enumerate() {
-        let (channel, group) = (block / plan.groups, block % plan.groups);
-        let data = span_bytes(bin, span, 16, path)?;
-        for vertex in 0..v {
-            for lane in 0..4 {
-                let k = 4 * group + lane;
-                if k < n {
-                    let x = f32_at(data, vertex * span.stride + 4 * lane);
-                    if !x.is_finite() {
-                        return Err(damaged("transfer coefficient of vertex", vertex));
-                    }
-                    coeffs[(vertex * channels + channel) * n + k] = x;
-                }
-            }
+    let cpca = match &plan.cpca {
+        Some(extras) => {
+            let shape = (v, plan.metadata.bands, plan.metadata.channels);
+            Some(compressed::decode(&doc, bin, extras, shape).map_err(|m| Error::baked(path, m))?)
         }
-    }
+        None => None,
+    };
+    let mut coeffs = match &cpca {
+        Some(cpca) => cpca.reconstruct().coeffs,
+        None => vec![0f32; v * channels * n],
+    };
+    read_planar_transfer(bin, &plan, path, &mut coeffs)?;
 
     let lightmap = match (plan.lightmap, &plan.texcoords) {
         (Some(extras), Some(span)) => Some((extras, read_texcoords(bin, span, path)?)),
@@ -366,7 +396,41 @@ fn decode_parts(bytes: &[u8], path: &Path) -> Result<(BakedMesh, LightmapParts)>
         metadata: plan.metadata,
         lightmap: None,
     };
-    Ok((baked, lightmap))
+    Ok((baked, lightmap, cpca))
+}
+
+/// The per-vertex transfer of the planar `_PRT_*` attributes into `coeffs`
+/// (`[vertex][channel][k]`), each value finite.
+fn read_planar_transfer(bin: &[u8], plan: &Plan, path: &Path, coeffs: &mut [f32]) -> Result<()> {
+    let (v, channels, n) = (
+        plan.vertices,
+        plan.metadata.channels as usize,
+        plan.coeffs_per_channel,
+    );
+    let damaged = |i: usize| {
+        Error::baked(
+            path,
+            format!("non-finite transfer coefficient of vertex at {i}"),
+        )
+    };
+    for (block, span) in plan.transfer.iter().enumerate() {
+        let (channel, group) = (block / plan.groups, block % plan.groups);
+        let data = span_bytes(bin, span, 16, path)?;
+        for vertex in 0..v {
+            for lane in 0..4 {
+                let k = 4 * group + lane;
+                if k < n {
+                    let x = f32_at(data, vertex * span.stride + 4 * lane);
+                    if !x.is_finite() {
+                        return Err(damaged(vertex));
+                    }
+                    coeffs[(vertex * channels + channel) * n + k] = x;
+                }
+            }
+        }
+    }
+
+    Ok(())
 }
 
 /// The lightmap coordinates `span` locates, each finite.
@@ -519,10 +583,13 @@ struct PrtExtras<'a> {
     #[serde(flatten)]
     metadata: &'a BakeMetadata,
     vertices: usize,
-    transfer_buffer_view: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    transfer_buffer_view: Option<usize>,
     transfer_layout: &'a str,
     #[serde(skip_serializing_if = "Option::is_none")]
     lightmap: Option<LightmapExtras>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cpca: Option<CpcaExtras>,
 }
 
 #[derive(Deserialize)]
@@ -530,10 +597,13 @@ struct PrtExtrasIn {
     #[serde(flatten)]
     metadata: BakeMetadata,
     vertices: usize,
-    transfer_buffer_view: usize,
+    #[serde(default)]
+    transfer_buffer_view: Option<usize>,
     transfer_layout: String,
     #[serde(default)]
     lightmap: Option<LightmapExtras>,
+    #[serde(default)]
+    cpca: Option<CpcaExtras>,
 }
 
 /// `extras.prt.lightmap`: where the per-texel transfer is and how to read it.
@@ -648,6 +718,27 @@ fn validate(baked: &BakedMesh) -> Result<()> {
     Ok(())
 }
 
+/// Checks that compressed transfer matches the mesh and transfer it stands for.
+fn validate_cpca(baked: &BakedMesh, cpca: &Cpca) -> std::result::Result<(), String> {
+    let t = &baked.transfer;
+    if baked.lightmap.is_some() {
+        return Err("a lightmapped bake cannot be stored compressed".into());
+    }
+    if (cpca.bands, cpca.channels, cpca.vertex_count()) != (t.bands, t.channels, t.vertex_count) {
+        return Err(format!(
+            "the compressed transfer has {} vertices of {} bands and {} channels, the mesh {} \
+             of {} and {}",
+            cpca.vertex_count(),
+            cpca.bands,
+            cpca.channels,
+            t.vertex_count,
+            t.bands,
+            t.channels
+        ));
+    }
+    Ok(())
+}
+
 /// Checks that a lightmap fits the mesh it belongs to: one coordinate pair per vertex, and
 /// texels of the vertex transfer's bands and channels.
 fn validate_lightmap(
@@ -709,9 +800,14 @@ fn put_f32s(bin: &mut Vec<u8>, values: impl IntoIterator<Item = f32>) {
     }
 }
 
-fn encode_valid(baked: &BakedMesh, lightmap_uri: Option<&str>) -> Result<Vec<u8>> {
-    let (bin, views) = encode_bin(baked);
-    let (accessors, attributes) = accessors_and_attributes(baked);
+fn encode_valid(
+    baked: &BakedMesh,
+    lightmap_uri: Option<&str>,
+    cpca: Option<&Cpca>,
+) -> Result<Vec<u8>> {
+    let (mut bin, mut views) = encode_bin(baked, cpca.is_none());
+    let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, &mut bin, &mut views));
+    let (accessors, attributes) = accessors_and_attributes(baked, cpca.is_none());
     let doc = Document {
         asset: AssetJson {
             version: "2.0".into(),
@@ -730,8 +826,9 @@ fn encode_valid(baked: &BakedMesh, lightmap_uri: Option<&str>) -> Result<Vec<u8>
                 prt: PrtExtras {
                     metadata: &baked.metadata,
                     vertices: baked.scene.positions.len(),
-                    transfer_buffer_view: TRANSFER_VIEW,
+                    transfer_buffer_view: cpca_extras.is_none().then_some(TRANSFER_VIEW),
                     transfer_layout: TRANSFER_LAYOUT,
+                    cpca: cpca_extras,
                     lightmap: baked.lightmap.as_ref().map(|texels| LightmapExtras {
                         uri: lightmap_uri.unwrap_or(DEFAULT_LIGHTMAP_URI).to_string(),
                         width: texels.width,
@@ -755,7 +852,9 @@ fn encode_valid(baked: &BakedMesh, lightmap_uri: Option<&str>) -> Result<Vec<u8>
 }
 
 /// The BIN chunk (positions, normals, albedo, indices, transfer) and its five buffer views.
-fn encode_bin(baked: &BakedMesh) -> (Vec<u8>, Vec<BufferViewJson>) {
+/// The BIN chunk and its views: positions, normals, albedo, indices, then (with `planar`) the
+/// per-vertex transfer and, with a lightmap, its coordinates.
+fn encode_bin(baked: &BakedMesh, planar: bool) -> (Vec<u8>, Vec<BufferViewJson>) {
     let (scene, transfer) = (&baked.scene, &baked.transfer);
     let normals = scene.normals.as_deref().unwrap_or_default();
     let v = scene.positions.len();
@@ -783,6 +882,9 @@ fn encode_bin(baked: &BakedMesh) -> (Vec<u8>, Vec<BufferViewJson>) {
         bin.extend_from_slice(&i.to_le_bytes());
     }
     view(&bin, start, None, ELEMENT_ARRAY_BUFFER);
+    if !planar {
+        return (bin, views);
+    }
     let start = bin.len();
     for channel in 0..transfer.channels as usize {
         for group in 0..groups {
@@ -809,7 +911,10 @@ fn encode_bin(baked: &BakedMesh) -> (Vec<u8>, Vec<BufferViewJson>) {
 }
 
 /// The accessors of the views [`encode_bin`] lays out, and the primitive's attributes.
-fn accessors_and_attributes(baked: &BakedMesh) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
+fn accessors_and_attributes(
+    baked: &BakedMesh,
+    planar: bool,
+) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
     let (scene, transfer) = (&baked.scene, &baked.transfer);
     let v = scene.positions.len();
     let groups = groups(transfer.bands);
@@ -841,7 +946,12 @@ fn accessors_and_attributes(baked: &BakedMesh) -> (Vec<AccessorJson>, BTreeMap<S
         .into_iter()
         .map(|(name, index)| (name.to_string(), index))
         .collect();
-    for channel in 0..transfer.channels as usize {
+    let planar_channels = if planar {
+        transfer.channels as usize
+    } else {
+        0
+    };
+    for channel in 0..planar_channels {
         for group in 0..groups {
             let block = channel * groups + group;
             let name = transfer_attribute_name(transfer.channels, channel as u32, group);
@@ -969,6 +1079,8 @@ struct Plan {
     lightmap: Option<LightmapExtras>,
     /// `TEXCOORD_0`, present with a lightmap.
     texcoords: Option<Span>,
+    /// Compressed transfer, in place of `transfer`.
+    cpca: Option<CpcaExtras>,
 }
 
 fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Result<Plan> {
@@ -1018,7 +1130,17 @@ fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Resul
             prt.vertices
         )));
     }
-    let transfer = transfer_spans(doc, buffer_len, primitive, &prt, v).map_err(bad)?;
+    let transfer = match (&prt.cpca, prt.transfer_buffer_view) {
+        (None, Some(view)) => {
+            transfer_spans(doc, buffer_len, primitive, &prt, view, v).map_err(bad)?
+        }
+        (Some(_), None) => Vec::new(),
+        _ => {
+            return Err(bad(
+                "extras.prt needs exactly one of transfer_buffer_view and cpca".into(),
+            ))
+        }
+    };
     let texcoords = match &prt.lightmap {
         Some(lightmap) => {
             let name = format!("TEXCOORD_{}", lightmap.texcoord);
@@ -1029,6 +1151,7 @@ fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Resul
     };
     let meta = prt.metadata;
     Ok(Plan {
+        cpca: prt.cpca,
         lightmap: prt.lightmap,
         texcoords,
         vertices: v,
@@ -1121,13 +1244,14 @@ fn transfer_spans(
     buffer_len: u64,
     primitive: &PrimitiveJson,
     prt: &PrtExtrasIn,
+    transfer_view: usize,
     v: usize,
 ) -> std::result::Result<Vec<Span>, String> {
     let meta = &prt.metadata;
     let groups = groups(meta.bands);
     let view = doc
         .buffer_views
-        .get(prt.transfer_buffer_view)
+        .get(transfer_view)
         .ok_or("extras.prt.transfer_buffer_view does not exist")?;
     let expected = transfer_bytes(v, meta.channels, meta.bands);
     if expected.map(|n| n as u64) != Some(view.byte_length) {
@@ -1145,7 +1269,7 @@ fn transfer_spans(
             let span = same_count(span, v, &name)?;
             let block = channel as usize * groups + group;
             let accessor = &doc.accessors[index.unwrap_or_default()];
-            if accessor.buffer_view != Some(prt.transfer_buffer_view)
+            if accessor.buffer_view != Some(transfer_view)
                 || accessor.byte_offset != (block * v * 16) as u64
                 || span.stride != 16
             {

@@ -1,0 +1,166 @@
+//! Compressed transfer in the baked file (`bake --compress`): clustered PCA (`crate::compress`)
+//! stored in place of the per-vertex `_PRT_*` attributes, as four buffer views that
+//! `extras.prt.cpca` names:
+//!
+//! - `means_buffer_view`: float32 `[cluster][dimension]`;
+//! - `bases_buffer_view`: float32 `[cluster][component][dimension]`, each cluster's rows
+//!   orthonormal;
+//! - `assignment_buffer_view`: uint32 `[vertex]`, each vertex's cluster;
+//! - `weights_buffer_view`: float32 `[vertex][component]`;
+//!
+//! with `dimension = channels * bands^2` in the transfer's order (`[channel][k]`). Vertex v's
+//! transfer is `means[a] + sum_j weights[v][j] * bases[a][j]`, `a = assignment[v]`; a run-time
+//! dots the light into every cluster's mean and basis once and then does a few multiply-adds
+//! per vertex (`Cpca::relight`).
+
+use serde::{Deserialize, Serialize};
+
+use super::{BufferViewJson, Document, ARRAY_BUFFER};
+use crate::compress::Cpca;
+
+/// How the compressed views are laid out; written into `extras.prt.cpca.layout` and checked on
+/// reading.
+pub const CPCA_LAYOUT: &str =
+    "means [cluster][dimension] f32, bases [cluster][component][dimension] \
+f32, assignment [vertex] u32, weights [vertex][component] f32, little-endian; dimension = \
+channels * bands^2 as [channel][k]";
+
+/// `extras.prt.cpca`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CpcaExtras {
+    pub clusters: usize,
+    pub components: usize,
+    pub dimension: usize,
+    pub means_buffer_view: usize,
+    pub bases_buffer_view: usize,
+    pub assignment_buffer_view: usize,
+    pub weights_buffer_view: usize,
+    pub layout: String,
+}
+
+/// Appends the four views of `cpca` to `bin` and `views`; returns their description.
+pub(super) fn encode(
+    cpca: &Cpca,
+    bin: &mut Vec<u8>,
+    views: &mut Vec<BufferViewJson>,
+) -> CpcaExtras {
+    let first = views.len();
+    let mut push = |bytes: &mut Vec<u8>, write: &dyn Fn(&mut Vec<u8>)| {
+        let start = bytes.len();
+        write(bytes);
+        views.push(BufferViewJson {
+            buffer: 0,
+            byte_offset: start as u64,
+            byte_length: (bytes.len() - start) as u64,
+            byte_stride: None,
+            target: Some(ARRAY_BUFFER),
+        });
+    };
+    let floats = |values: &[f32]| {
+        let values = values.to_vec();
+        move |bytes: &mut Vec<u8>| values.iter().for_each(|x| bytes.extend(x.to_le_bytes()))
+    };
+    push(bin, &floats(&cpca.means));
+    push(bin, &floats(&cpca.bases));
+    push(bin, &|bytes: &mut Vec<u8>| {
+        cpca.assignment
+            .iter()
+            .for_each(|a| bytes.extend(a.to_le_bytes()))
+    });
+    push(bin, &floats(&cpca.weights));
+    CpcaExtras {
+        clusters: cpca.cluster_count(),
+        components: cpca.components,
+        dimension: cpca.dimension,
+        means_buffer_view: first,
+        bases_buffer_view: first + 1,
+        assignment_buffer_view: first + 2,
+        weights_buffer_view: first + 3,
+        layout: CPCA_LAYOUT.to_string(),
+    }
+}
+
+/// Reads the compressed transfer `extras` describes from the BIN chunk, checking every size and
+/// value; `vertices`, `bands` and `channels` come from the rest of the file.
+pub(super) fn decode<X>(
+    doc: &Document<X>,
+    bin: &[u8],
+    extras: &CpcaExtras,
+    (vertices, bands, channels): (usize, u32, u32),
+) -> Result<Cpca, String> {
+    if extras.layout != CPCA_LAYOUT {
+        return Err(format!(
+            "unsupported compressed layout \"{}\"",
+            extras.layout
+        ));
+    }
+    let dimension = channels as usize * (bands * bands) as usize;
+    if extras.dimension != dimension || extras.clusters == 0 || extras.components > dimension {
+        return Err(format!(
+            "extras.prt.cpca has dimension {}, {} clusters and {} components for {channels} \
+             channels of {bands} bands",
+            extras.dimension, extras.clusters, extras.components
+        ));
+    }
+    let (k, m) = (extras.clusters, extras.components);
+    let view = |index: usize, count: usize, what: &str| -> Result<&[u8], String> {
+        let view = doc
+            .buffer_views
+            .get(index)
+            .ok_or(format!("the {what} buffer view does not exist"))?;
+        let start = view.byte_offset as usize;
+        let bytes = bin
+            .get(start..start + view.byte_length as usize)
+            .ok_or(format!("the {what} buffer view runs past the BIN chunk"))?;
+        if bytes.len() != 4 * count {
+            return Err(format!(
+                "the {what} view has {} bytes, expected {}",
+                bytes.len(),
+                4 * count
+            ));
+        }
+        Ok(bytes)
+    };
+    let floats = |bytes: &[u8], what: &str| -> Result<Vec<f32>, String> {
+        let values: Vec<f32> = bytes
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        match values.iter().position(|x| !x.is_finite()) {
+            Some(i) => Err(format!("non-finite {what} value at {i}")),
+            None => Ok(values),
+        }
+    };
+    let means = floats(
+        view(extras.means_buffer_view, k * dimension, "means")?,
+        "mean",
+    )?;
+    let bases = floats(
+        view(extras.bases_buffer_view, k * m * dimension, "bases")?,
+        "basis",
+    )?;
+    let weights = floats(
+        view(extras.weights_buffer_view, vertices * m, "weights")?,
+        "weight",
+    )?;
+    let assignment: Vec<u32> = view(extras.assignment_buffer_view, vertices, "assignment")?
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    if let Some(v) = assignment.iter().position(|&a| a as usize >= k) {
+        return Err(format!(
+            "vertex {v} is assigned to cluster {} but there are only {k}",
+            assignment[v]
+        ));
+    }
+    Ok(Cpca {
+        bands,
+        channels,
+        dimension,
+        components: m,
+        means,
+        bases,
+        assignment,
+        weights,
+    })
+}

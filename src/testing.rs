@@ -20,12 +20,22 @@ pub fn entries(dir: &Path) -> Vec<String> {
 /// JSON; `None`, with the reason printed, where python3 with numpy is missing (a panic under CI,
 /// where `ci/test.sh` installs numpy). A reader that fails is a panic with its stderr.
 pub fn numpy_reader_output(path: &Path) -> Option<serde_json::Value> {
+    python_output(crate::glb::PYTHON_READER, path)
+}
+
+/// What the README's numpy reader of compressed files (`glb::compressed::PYTHON_READER`)
+/// prints for `path`, as [`numpy_reader_output`] does.
+pub fn compressed_reader_output(path: &Path) -> Option<serde_json::Value> {
+    python_output(crate::glb::compressed::PYTHON_READER, path)
+}
+
+fn python_output(script: &str, path: &Path) -> Option<serde_json::Value> {
     if !python_with_numpy() {
         return None;
     }
     let out = Command::new("python3")
         .arg("-c")
-        .arg(crate::glb::PYTHON_READER)
+        .arg(script)
         .arg(path)
         .output()
         .expect("run python3");

@@ -70,6 +70,19 @@ fn compressed_files_round_trip_and_validate() {
     if let Some(report) = common::validate_gltf(&small) {
         assert_eq!(report.num_errors, 0, "{}", report.listing());
     }
+    // The README's numpy recipe reconstructs the same transfer.
+    if let Some(out) = prt_gpu::testing::compressed_reader_output(&small) {
+        let v = baked.scene.vertex_count();
+        assert_eq!(out["transfer"], serde_json::json!([v, 3, 16]));
+        let reconstructed = cpca.reconstruct();
+        for c in 0..3 {
+            for (k, &x) in reconstructed.vertex_channel(v - 1, c).iter().enumerate() {
+                let theirs = out["last_vertex"][c][k].as_f64().unwrap();
+                let close = (theirs - x as f64).abs() <= 1e-5 * (x as f64).abs().max(1e-3);
+                assert!(close, "channel {c}, k = {k}: numpy {theirs}, ours {x}");
+            }
+        }
+    }
     dir.close().unwrap();
 }
 

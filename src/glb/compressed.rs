@@ -18,6 +18,22 @@ use serde::{Deserialize, Serialize};
 use super::{BufferViewJson, Document, ARRAY_BUFFER};
 use crate::compress::Cpca;
 
+/// Reads a compressed baked file with Python and numpy alone: `python3 reader.py file.glb`.
+/// Gives `transfer` (V, channels, bands^2) reconstructed from the clusters, and prints its shape
+/// and the last vertex's transfer as JSON.
+pub const PYTHON_READER: &str = r#"import json, struct, sys, numpy as np
+data = open(sys.argv[1], "rb").read()
+n = struct.unpack_from("<I", data, 12)[0]  # JSON chunk length; BIN chunk data starts at 28 + n
+gltf, binary = json.loads(data[20:20 + n]), data[28 + n:]
+bv, prt = gltf["bufferViews"], gltf["meshes"][0]["extras"]["prt"]
+view = lambda i, dtype: np.frombuffer(binary, dtype, bv[i]["byteLength"] // 4, bv[i].get("byteOffset", 0))
+c = prt["cpca"]; V, D, M = prt["vertices"], c["dimension"], c["components"]
+means, bases = view(c["means_buffer_view"], "<f4").reshape(-1, D), view(c["bases_buffer_view"], "<f4").reshape(-1, M, D)
+a, w = view(c["assignment_buffer_view"], "<u4"), view(c["weights_buffer_view"], "<f4").reshape(V, M)
+transfer = (means[a] + np.einsum("vm,vmd->vd", w, bases[a])).reshape(V, prt["channels"], -1)
+print(json.dumps({"transfer": transfer.shape, "last_vertex": transfer[-1].tolist()}))
+"#;
+
 /// How the compressed views are laid out; written into `extras.prt.cpca.layout` and checked on
 /// reading.
 pub const CPCA_LAYOUT: &str =
@@ -163,4 +179,18 @@ pub(super) fn decode<X>(
         assignment,
         weights,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn readme_quotes_the_python_reader_verbatim() {
+        let readme = include_str!("../../README.md");
+        assert!(
+            readme.contains(PYTHON_READER),
+            "README.md's compressed-file snippet differs from glb::compressed::PYTHON_READER"
+        );
+    }
 }

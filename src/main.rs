@@ -116,9 +116,11 @@ struct ChartArgs {
 /// What `bake` and `bench` compute per vertex.
 #[derive(clap::Args)]
 struct TransferArgs {
-    /// Spherical-harmonic bands (bands^2 coefficients per channel).
-    #[arg(long, default_value_t = 4)]
-    bands: u32,
+    /// Spherical-harmonic bands (bands^2 coefficients per channel), or `auto` (bake only): the
+    /// fewest bands, up to 8, that leave less than --bands-threshold of the transfer's energy
+    /// above them.
+    #[arg(long, default_value = "4", value_parser = parse_bands)]
+    bands: Bands,
     /// Sample directions per vertex (rounded to the nearest square for stratified sampling).
     #[arg(long, default_value_t = DEFAULT_SAMPLES)]
     samples: u32,
@@ -131,11 +133,34 @@ struct TransferArgs {
     mode: Mode,
 }
 
+/// `--bands`: a count, or chosen from the transfer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Bands {
+    Fixed(u32),
+    Auto,
+}
+
+/// The most bands `--bands auto` bakes and chooses among.
+const AUTO_MAX_BANDS: u32 = 8;
+
+fn parse_bands(text: &str) -> std::result::Result<Bands, String> {
+    if text.eq_ignore_ascii_case("auto") {
+        return Ok(Bands::Auto);
+    }
+    text.parse::<u32>()
+        .map(Bands::Fixed)
+        .map_err(|e| format!("expected a number of bands or auto: {e}"))
+}
+
 impl TransferArgs {
-    /// Bake options with these settings and defaults for the rest.
+    /// Bake options with these settings and defaults for the rest (`auto` bands bake the most
+    /// it chooses among).
     fn options(&self) -> BakeOptions {
         BakeOptions {
-            bands: self.bands,
+            bands: match self.bands {
+                Bands::Fixed(bands) => bands,
+                Bands::Auto => AUTO_MAX_BANDS,
+            },
             samples: self.samples,
             sampling: self.sampling,
             mode: self.mode,
@@ -300,6 +325,10 @@ struct BakeArgs {
     /// With --target-error: the most samples one receiver casts.
     #[arg(long, default_value_t = 4096)]
     max_samples: u32,
+    /// With --bands auto: the largest fraction of the transfer's energy (squared coefficients
+    /// over vertices and channels) the bands left out may hold.
+    #[arg(long, default_value_t = 0.05)]
+    bands_threshold: f64,
     /// Store the transfer compressed by clustered PCA (Sloan et al. 2003): CLUSTERSxCOMPONENTS,
     /// e.g. 64x8 — per vertex a cluster and COMPONENTS weights, per cluster a mean and a basis.
     /// Sizes and the error against the uncompressed transfer are reported.
@@ -406,6 +435,12 @@ fn usage_error_line(message: &str) -> String {
 
 fn run_bake(args: BakeArgs) -> Result<()> {
     let options = bake_options(&args);
+    if !(args.bands_threshold > 0.0 && args.bands_threshold < 1.0) {
+        return Err(Error::Options(format!(
+            "--bands-threshold {} must lie in (0, 1)",
+            args.bands_threshold
+        )));
+    }
     options.validate()?;
     let loading = std::time::Instant::now();
     let (scene, gltf, name) = load_bake_input(&args.mesh)?;
@@ -466,9 +501,22 @@ fn run_bake(args: BakeArgs) -> Result<()> {
         .mesh
         .as_ref()
         .map_or_else(|| "built-in scene".to_string(), |p| p.display().to_string());
-    let (baked, report) =
+    let (mut baked, report) =
         bake::bake(scene, &options, &backend, &progress).map_err(|e| naming_the_mesh(e, &shown))?;
     progress.finish();
+    let mut options = options;
+    if args.transfer.bands == Bands::Auto {
+        let (bands, beyond) = bake::choose_bands(&baked.transfer, args.bands_threshold);
+        bake::truncate_baked(&mut baked, bands);
+        options.bands = bands;
+        eprintln!(
+            "bands auto: {bands} ({:.2}% of the transfer's energy lies in bands {bands} to {}, \
+             below --bands-threshold {})",
+            100.0 * beyond,
+            AUTO_MAX_BANDS - 1,
+            args.bands_threshold
+        );
+    }
     let cpca = match args.compress {
         Some(shape) => Some(compress_transfer(&baked, shape)?),
         None => None,
@@ -855,6 +903,11 @@ fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
 }
 
 fn run_bench(args: BenchArgs) -> Result<()> {
+    if args.transfer.bands == Bands::Auto {
+        return Err(Error::Options(
+            "--bands auto chooses the bands of a bake; bench needs a number".into(),
+        ));
+    }
     let options = args.transfer.options();
     options.validate()?;
     if args.repeats == 0 {

@@ -75,6 +75,63 @@ fn a_least_squares_bake_says_so_in_its_report_and_file() {
 }
 
 #[test]
+fn bands_auto_chooses_reports_and_writes_the_choice() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = prt_gpu(
+        &[
+            "bake",
+            "--samples",
+            "64",
+            "--bands",
+            "auto",
+            "-o",
+            "auto.glb",
+        ],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let chosen: u32 = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("bands auto: "))
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no choice reported: {stderr}"));
+    assert!((1..=8).contains(&chosen));
+    let info = prt_gpu(&["info", "auto.glb"], dir.path());
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        text.contains(&format!("bands:        {chosen} (")),
+        "{text}"
+    );
+    // A threshold that keeps almost everything keeps more bands.
+    let out = prt_gpu(
+        &[
+            "bake",
+            "--samples",
+            "64",
+            "--bands",
+            "auto",
+            "--bands-threshold",
+            "0.001",
+            "-o",
+            "more.glb",
+        ],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("bands auto: "), "{stderr}");
+    let more: u32 = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("bands auto: "))
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap();
+    assert!(more >= chosen);
+    dir.close().unwrap();
+}
+
+#[test]
 fn a_non_square_sample_count_is_rounded_and_said() {
     let dir = tempfile::tempdir().unwrap();
     let out = prt_gpu(
@@ -316,6 +373,18 @@ fn bad_input_fails_with_one_line_and_no_output() {
                 "o.glb",
             ],
             expect: "--fit-points 0",
+        },
+        BadInput {
+            case: "bands-auto-bench",
+            file: None,
+            args: &["bench", "--bands", "auto"],
+            expect: "--bands auto",
+        },
+        BadInput {
+            case: "bands-word",
+            file: None,
+            args: &["bake", "--bands", "many", "-o", "o.glb"],
+            expect: "many",
         },
         BadInput {
             case: "fit",

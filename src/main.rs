@@ -434,13 +434,7 @@ fn usage_error_line(message: &str) -> String {
 }
 
 fn run_bake(args: BakeArgs) -> Result<()> {
-    let options = bake_options(&args);
-    if !(args.bands_threshold > 0.0 && args.bands_threshold < 1.0) {
-        return Err(Error::Options(format!(
-            "--bands-threshold {} must lie in (0, 1)",
-            args.bands_threshold
-        )));
-    }
+    let options = bake_options(&args)?;
     options.validate()?;
     let loading = std::time::Instant::now();
     let (scene, gltf, name) = load_bake_input(&args.mesh)?;
@@ -506,16 +500,7 @@ fn run_bake(args: BakeArgs) -> Result<()> {
     progress.finish();
     let mut options = options;
     if args.transfer.bands == Bands::Auto {
-        let (bands, beyond) = bake::choose_bands(&baked.transfer, args.bands_threshold);
-        bake::truncate_baked(&mut baked, bands);
-        options.bands = bands;
-        eprintln!(
-            "bands auto: {bands} ({:.2}% of the transfer's energy lies in bands {bands} to {}, \
-             below --bands-threshold {})",
-            100.0 * beyond,
-            AUTO_MAX_BANDS - 1,
-            args.bands_threshold
-        );
+        options.bands = choose_auto_bands(&mut baked, args.bands_threshold);
     }
     let cpca = match args.compress {
         Some(shape) => Some(compress_transfer(&baked, shape)?),
@@ -549,9 +534,28 @@ fn run_bake(args: BakeArgs) -> Result<()> {
     Ok(())
 }
 
+/// `--bands auto`: the baked mesh cut to the bands the threshold asks for, said; returns them.
+fn choose_auto_bands(baked: &mut bake::BakedMesh, threshold: f64) -> u32 {
+    let (bands, beyond) = bake::choose_bands(&baked.transfer, threshold);
+    bake::truncate_baked(baked, bands);
+    eprintln!(
+        "bands auto: {bands} ({:.2}% of the transfer's energy lies in bands {bands} to {}, \
+         below --bands-threshold {threshold})",
+        100.0 * beyond,
+        AUTO_MAX_BANDS - 1,
+    );
+    bands
+}
+
 /// What `bake`'s arguments ask of the bake.
-fn bake_options(args: &BakeArgs) -> BakeOptions {
-    BakeOptions {
+fn bake_options(args: &BakeArgs) -> Result<BakeOptions> {
+    if !(args.bands_threshold > 0.0 && args.bands_threshold < 1.0) {
+        return Err(Error::Options(format!(
+            "--bands-threshold {} must lie in (0, 1)",
+            args.bands_threshold
+        )));
+    }
+    Ok(BakeOptions {
         seed: args.seed,
         albedo: args.albedo,
         bounces: args.bounces,
@@ -567,7 +571,7 @@ fn bake_options(args: &BakeArgs) -> BakeOptions {
             ..PointDensity::default()
         },
         ..args.transfer.options()
-    }
+    })
 }
 
 /// The baked transfer compressed to `(clusters, components)`, with its sizes and errors said.

@@ -11,7 +11,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use prt_gpu::bake::adaptive::TargetError;
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
 use prt_gpu::bake::{
-    self, Backend, BakeOptions, BakeReport, Fit, Mode, Progress, DEFAULT_SAMPLES, DEFAULT_SAMPLING,
+    self, Backend, BakeOptions, BakeReport, Fit, Mode, Progress, Storage, DEFAULT_SAMPLES,
+    DEFAULT_SAMPLING,
 };
 use prt_gpu::compress::{self, Cpca, CpcaOptions};
 use prt_gpu::device::{self, DeviceChoice, GpuContext};
@@ -329,6 +330,11 @@ struct BakeArgs {
     /// over vertices and channels) the bands left out may hold.
     #[arg(long, default_value_t = 0.05)]
     bands_threshold: f64,
+    /// How to store the transfer: `rgb`, or `lean` — one channel where one suffices
+    /// (shadowed and unshadowed transfer albedo-free, the albedo applied at relighting from
+    /// COLOR_0; interreflected transfer when every albedo is grey), a third of the size.
+    #[arg(long, value_enum, default_value_t = Storage::Rgb)]
+    storage: Storage,
     /// Store the transfer compressed by clustered PCA (Sloan et al. 2003): CLUSTERSxCOMPONENTS,
     /// e.g. 64x8 — per vertex a cluster and COMPONENTS weights, per cluster a mean and a basis.
     /// Sizes and the error against the uncompressed transfer are reported.
@@ -442,6 +448,13 @@ fn run_bake(args: BakeArgs) -> Result<()> {
         return Err(Error::Options(
             "--compress stores the transfer of OBJ, PLY and the built-in scene per vertex; \
              glTF scenes baked in place and lightmaps are not compressed"
+                .into(),
+        ));
+    }
+    if gltf.is_some() && options.storage == Storage::Lean {
+        return Err(Error::Options(
+            "--storage lean stores OBJ, PLY and the built-in scene; a glTF scene baked in place \
+             keeps RGB transfer"
                 .into(),
         ));
     }
@@ -562,6 +575,7 @@ fn bake_options(args: &BakeArgs) -> Result<BakeOptions> {
         bounce_tolerance: args.bounce_tolerance,
         fit: args.fit,
         lightmap: args.lightmap,
+        storage: args.storage,
         target_error: args.target_error.map(|relative| TargetError {
             relative,
             max_samples: args.max_samples,
@@ -1100,7 +1114,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
             Some(cpca) => render::render(
                 &context,
                 &baked.scene,
-                &cpca.relight(&light)?,
+                &render::apply_albedo(&baked, cpca.relight(&light)?),
                 &camera,
                 args.width,
                 args.height,
@@ -1157,7 +1171,15 @@ fn run_info(path: &Path) -> Result<()> {
         metadata.bands,
         metadata.bands * metadata.bands
     );
-    println!("channels:     {}", metadata.channels);
+    println!(
+        "channels:     {}{}",
+        metadata.channels,
+        if metadata.albedo_free {
+            " (albedo-free: radiance = COLOR_0 x transfer . light)"
+        } else {
+            ""
+        }
+    );
     println!("samples:      {} ({})", metadata.samples, metadata.sampling);
     println!("seed:         {}", metadata.seed);
     println!("bounces:      {}", metadata.bounces);

@@ -127,6 +127,10 @@ pub struct BakeMetadata {
     /// An error-targeted bake's target (`samples` is then the mean over receivers).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub target_error: Option<f64>,
+    /// The transfer leaves the albedo out: radiance is `albedo * sum_k l_k t_k`, the albedo
+    /// being the vertex colour (`COLOR_0`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub albedo_free: bool,
 }
 
 /// How a bake turns transfer baked at receivers into the per-vertex values a renderer
@@ -186,6 +190,20 @@ pub struct BakeOptions {
     pub lightmap: Option<u32>,
     /// Cast samples per receiver until this error is reached (instead of `samples` each).
     pub target_error: Option<adaptive::TargetError>,
+    pub storage: Storage,
+}
+
+/// How the transfer is stored.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Storage {
+    /// Red, green and blue transfer, albedo included.
+    #[default]
+    Rgb,
+    /// One channel where one suffices: shadowed and unshadowed transfer albedo-free (the albedo,
+    /// in `COLOR_0`, is applied at relighting); interreflected transfer when every albedo is
+    /// grey (its channels are then equal); RGB otherwise.
+    Lean,
 }
 
 impl Default for BakeOptions {
@@ -203,6 +221,7 @@ impl Default for BakeOptions {
             point_density: PointDensity::default(),
             lightmap: None,
             target_error: None,
+            storage: Storage::Rgb,
         }
     }
 }
@@ -249,6 +268,11 @@ impl BakeOptions {
                         .into(),
                 ));
             }
+        }
+        if self.storage == Storage::Lean && self.lightmap.is_some() {
+            return Err(Error::Options(
+                "--storage lean stores vertex transfer; lightmaps are stored in RGB".into(),
+            ));
         }
         let density = self.point_density;
         if !(density.per_vertex.is_finite()
@@ -483,6 +507,10 @@ pub fn bake(
         }
         None => Vec::new(),
     };
+    let (transfer, albedo_free) = match options.storage {
+        Storage::Rgb => (transfer, false),
+        Storage::Lean => lean_transfer(transfer, &direct.scalar, &scene, &points, options)?,
+    };
     let (scene, transfer, lightmap, texel_report) = match &atlas {
         None => (scene, transfer, None, None),
         Some(atlas) => add_lightmap(scene, transfer, atlas, options, backend, progress)?,
@@ -497,7 +525,9 @@ pub fn bake(
         Some(_) => &Backend::Cpu,
         None => backend,
     };
-    let metadata = metadata_for(options, ran_on, samples, bounces.len(), fit_points);
+    let mut metadata = metadata_for(options, ran_on, samples, bounces.len(), fit_points);
+    metadata.channels = transfer.channels;
+    metadata.albedo_free = albedo_free;
     let report = BakeReport {
         prepare: prepare_report,
         vertex_map,
@@ -524,6 +554,45 @@ pub fn bake(
         },
         report,
     ))
+}
+
+/// The transfer in one channel where one suffices ([`Storage::Lean`]), and whether it left the
+/// albedo out: direct transfer becomes the albedo-free scalar (fitted as the RGB was);
+/// interreflected transfer keeps its red channel when every albedo is grey.
+fn lean_transfer(
+    rgb: Transfer,
+    scalar: &[f32],
+    scene: &Scene,
+    points: &[SurfacePoint],
+    options: &BakeOptions,
+) -> Result<(Transfer, bool)> {
+    let n = coeff_count(rgb.bands);
+    if options.mode != Mode::Interreflected {
+        let coeffs = match options.fit {
+            Fit::Point => scalar.to_vec(),
+            Fit::LeastSquares => fit_vertices(scene, points, scalar, n, &FitOptions::default())?.0,
+        };
+        let transfer = Transfer {
+            channels: 1,
+            coeffs,
+            ..rgb
+        };
+        return Ok((transfer, true));
+    }
+    if scene.albedo.iter().any(|a| a.x != a.y || a.y != a.z) {
+        return Ok((rgb, false));
+    }
+    let coeffs = rgb
+        .coeffs
+        .chunks_exact(3 * n)
+        .flat_map(|v| v[..n].iter().copied())
+        .collect();
+    let transfer = Transfer {
+        channels: 1,
+        coeffs,
+        ..rgb
+    };
+    Ok((transfer, false))
 }
 
 /// The scene, its transfer and its lightmap's bake: the texels of `atlas` baked, and the mesh
@@ -634,6 +703,7 @@ fn metadata_for(
         fit: options.fit,
         fit_points,
         target_error: options.target_error.map(|t| t.relative),
+        albedo_free: false,
     }
 }
 

@@ -1416,6 +1416,7 @@ mod tests {
                 fit: crate::bake::Fit::Point,
                 fit_points: None,
                 target_error: None,
+                albedo_free: false,
             },
             lightmap: None,
         }

@@ -24,5 +24,5 @@ mod test_support;
 pub use self::image::{side_by_side, to_rgba8, tone_map, write_image, ToneMap};
 pub use camera::{bounds, Camera, DEFAULT_FOV_DEG};
 pub use raster::{preview, render, RenderParams};
-pub use relight::relight;
+pub use relight::{apply_albedo, relight, relight_baked};
 pub use sky::{draw_sky, pixel_ray, sky_radiance};

@@ -5,7 +5,7 @@ use glam::Vec3;
 use wgpu::util::DeviceExt;
 
 use super::camera::{bounds, usable_radius, Camera};
-use super::relight::relight;
+use super::relight::{relight, relight_baked};
 use crate::bake::texels::sample_bilinear;
 use crate::bake::{BakedMesh, TexelBake};
 use crate::device::GpuContext;
@@ -101,7 +101,7 @@ pub fn preview(
     let camera = camera.unwrap_or(&framed);
     match &baked.lightmap {
         None => {
-            let radiance = relight(&baked.transfer, light)?;
+            let radiance = relight_baked(baked, light)?;
             render(ctx, &baked.scene, &radiance, camera, width, height)
         }
         Some(texels) => render_texels(ctx, &baked.scene, texels, light, camera, width, height),

@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use crate::bake::Transfer;
+use crate::bake::{BakedMesh, Transfer};
 use crate::error::{Error, Result};
 use crate::light::ShLight;
 
@@ -25,6 +25,23 @@ pub fn relight(transfer: &Transfer, light: &ShLight) -> Result<Vec<[f32; 3]>> {
         .with_min_len(1024)
         .map(|vertex| vertex_radiance(vertex, per_channel, light))
         .collect())
+}
+
+/// Per-vertex exit radiance of a baked mesh: [`relight`], times the vertex albedo where the
+/// file stores its transfer albedo-free (`--storage lean`).
+pub fn relight_baked(baked: &BakedMesh, light: &ShLight) -> Result<Vec<[f32; 3]>> {
+    let radiance = relight(&baked.transfer, light)?;
+    Ok(apply_albedo(baked, radiance))
+}
+
+/// `radiance` of `baked`'s vertices times their albedo where its transfer leaves it out.
+pub fn apply_albedo(baked: &BakedMesh, mut radiance: Vec<[f32; 3]>) -> Vec<[f32; 3]> {
+    if baked.metadata.albedo_free {
+        for (r, a) in radiance.iter_mut().zip(&baked.scene.albedo) {
+            *r = [r[0] * a.x, r[1] * a.y, r[2] * a.z];
+        }
+    }
+    radiance
 }
 
 /// One vertex: `vertex` holds its `channels * per_channel` coefficients, channel-major.

@@ -444,27 +444,7 @@ fn run_bake(args: BakeArgs) -> Result<()> {
     options.validate()?;
     let loading = std::time::Instant::now();
     let (scene, gltf, name) = load_bake_input(&args.mesh)?;
-    if args.compress.is_some() && (gltf.is_some() || options.lightmap.is_some()) {
-        return Err(Error::Options(
-            "--compress stores the transfer of OBJ, PLY and the built-in scene per vertex; \
-             glTF scenes baked in place and lightmaps are not compressed"
-                .into(),
-        ));
-    }
-    if gltf.is_some() && options.storage == Storage::Lean {
-        return Err(Error::Options(
-            "--storage lean stores OBJ, PLY and the built-in scene; a glTF scene baked in place \
-             keeps RGB transfer"
-                .into(),
-        ));
-    }
-    if gltf.is_some() && options.lightmap.is_some() {
-        return Err(Error::Options(
-            "--lightmap bakes OBJ, PLY and the built-in scene; a glTF scene is baked in place \
-             per vertex (lightmaps for glTF scenes are not supported yet)"
-                .into(),
-        ));
-    }
+    check_output_forms(&args, &options, gltf.is_some())?;
     let seconds_load = loading.elapsed().as_secs_f64();
     let output_path = args
         .output
@@ -544,6 +524,31 @@ fn run_bake(args: BakeArgs) -> Result<()> {
         print_in_place_report(&written, seconds_load, seconds_write);
     }
     print_bake_report(&name, &options, &report, &output_path);
+    Ok(())
+}
+
+/// Refuses output forms a bake cannot give: compressed, lean or lightmapped glTF scenes baked
+/// in place, compressed lightmaps.
+fn check_output_forms(args: &BakeArgs, options: &BakeOptions, gltf: bool) -> Result<()> {
+    let refuse = |message: &str| Err(Error::Options(message.to_string()));
+    if args.compress.is_some() && (gltf || options.lightmap.is_some()) {
+        return refuse(
+            "--compress stores the transfer of OBJ, PLY and the built-in scene per vertex; \
+             glTF scenes baked in place and lightmaps are not compressed",
+        );
+    }
+    if gltf && options.storage == Storage::Lean {
+        return refuse(
+            "--storage lean stores OBJ, PLY and the built-in scene; a glTF scene baked in place \
+             keeps RGB transfer",
+        );
+    }
+    if gltf && options.lightmap.is_some() {
+        return refuse(
+            "--lightmap bakes OBJ, PLY and the built-in scene; a glTF scene is baked in place \
+             per vertex (lightmaps for glTF scenes are not supported yet)",
+        );
+    }
     Ok(())
 }
 

@@ -459,10 +459,10 @@ pub fn bake(
     let started = Instant::now();
     let (scene, prepare_report, vertex_map) = prepare_with_albedo(scene, options)?;
     // A lightmap that cannot fit fails now, not after the vertices are baked.
-    let atlas = match options.lightmap {
-        Some(size) => Some(texels::plan_atlas(&scene, size)?),
-        None => None,
-    };
+    let atlas = options
+        .lightmap
+        .map(|size| texels::plan_atlas(&scene, size))
+        .transpose()?;
     let (receivers, points) = choose_receivers(&scene, options);
     let owned = BakeInputs::for_receivers(&scene, &receivers, options);
     let inputs = owned.view();
@@ -472,45 +472,11 @@ pub fn bake(
     let (direct, adaptive_report) = direct_or_adaptive(&owned, options, backend, progress)?;
     let seconds_transfer = started.elapsed().as_secs_f64();
 
-    let started = Instant::now();
-    let columns = 3 * coeff_count(options.bands);
-    let mut fit_report = None;
-    let mut to_vertices = |values: Vec<f32>| -> Result<Vec<f32>> {
-        if options.fit == Fit::Point {
-            return Ok(values);
-        }
-        let (fitted, report) =
-            fit_vertices(&scene, &points, &values, columns, &FitOptions::default())?;
-        // The direct pass's solve is the one reported; the bounces' are like it.
-        fit_report.get_or_insert(report);
-        Ok(fitted)
-    };
-    let at_receivers = tint_by_albedo(&direct.scalar, &receivers.albedo, options.bands);
-    let mut transfer = Transfer {
-        bands: options.bands,
-        channels: 3,
-        vertex_count: scene.vertex_count(),
-        coeffs: to_vertices(at_receivers.coeffs)?,
-    };
-    let seconds_fit = match options.fit {
-        Fit::Point => 0.0,
-        Fit::LeastSquares => started.elapsed().as_secs_f64(),
-    };
-    let bounces = match &direct.matrix {
-        Some(matrix) => {
-            let gather = Gather {
-                matrix,
-                albedo: &receivers.albedo,
-                to_vertices: &mut to_vertices,
-            };
-            add_bounces(&mut transfer, gather, options, backend, progress)?
-        }
-        None => Vec::new(),
-    };
-    let (transfer, albedo_free) = match options.storage {
-        Storage::Rgb => (transfer, false),
-        Storage::Lean => lean_transfer(transfer, &direct.scalar, &scene, &points, options)?,
-    };
+    let fitted = vertex_transfer(
+        &scene, &receivers, &points, &direct, options, backend, progress,
+    )?;
+    let (transfer, bounces, fit_report, seconds_fit) = fitted;
+    let (transfer, albedo_free) = stored(transfer, &direct.scalar, &scene, &points, options)?;
     let (scene, transfer, lightmap, texel_report) = match &atlas {
         None => (scene, transfer, None, None),
         Some(atlas) => add_lightmap(scene, transfer, atlas, options, backend, progress)?,
@@ -525,9 +491,11 @@ pub fn bake(
         Some(_) => &Backend::Cpu,
         None => backend,
     };
-    let mut metadata = metadata_for(options, ran_on, samples, bounces.len(), fit_points);
-    metadata.channels = transfer.channels;
-    metadata.albedo_free = albedo_free;
+    let metadata = BakeMetadata {
+        channels: transfer.channels,
+        albedo_free,
+        ..metadata_for(options, ran_on, samples, bounces.len(), fit_points)
+    };
     let report = BakeReport {
         prepare: prepare_report,
         vertex_map,
@@ -556,16 +524,19 @@ pub fn bake(
     ))
 }
 
-/// The transfer in one channel where one suffices ([`Storage::Lean`]), and whether it left the
-/// albedo out: direct transfer becomes the albedo-free scalar (fitted as the RGB was);
+/// The transfer as `options.storage` stores it, and whether it left the albedo out. Lean: one
+/// channel where one suffices: direct transfer becomes the albedo-free scalar (fitted as the RGB was);
 /// interreflected transfer keeps its red channel when every albedo is grey.
-fn lean_transfer(
+fn stored(
     rgb: Transfer,
     scalar: &[f32],
     scene: &Scene,
     points: &[SurfacePoint],
     options: &BakeOptions,
 ) -> Result<(Transfer, bool)> {
+    if options.storage == Storage::Rgb {
+        return Ok((rgb, false));
+    }
     let n = coeff_count(rgb.bands);
     if options.mode != Mode::Interreflected {
         let coeffs = match options.fit {
@@ -614,6 +585,56 @@ fn add_lightmap(
         texels::bake_atlas(&scene, &transfer, options, atlas, backend, progress)?;
     let (scene, transfer) = texels::split_corners(&scene, &transfer);
     Ok((scene, transfer, Some(lightmap), Some(report)))
+}
+
+/// Vertex transfer from the direct pass at the receivers (fitted, for the least-squares fit)
+/// and its bounces; what each bounce added, the first fit's report and the direct fit's time.
+fn vertex_transfer(
+    scene: &Scene,
+    receivers: &Receivers,
+    points: &[SurfacePoint],
+    direct: &DirectPass,
+    options: &BakeOptions,
+    backend: &Backend,
+    progress: &dyn Progress,
+) -> Result<(Transfer, Vec<BounceStat>, Option<FitReport>, f64)> {
+    let started = Instant::now();
+    let columns = 3 * coeff_count(options.bands);
+    let mut fit_report = None;
+    let mut to_vertices = |values: Vec<f32>| -> Result<Vec<f32>> {
+        if options.fit == Fit::Point {
+            return Ok(values);
+        }
+        let (fitted, report) =
+            fit_vertices(scene, points, &values, columns, &FitOptions::default())?;
+        // The direct pass's solve is the one reported; the bounces' are like it.
+        fit_report.get_or_insert(report);
+        Ok(fitted)
+    };
+    let at_receivers = tint_by_albedo(&direct.scalar, &receivers.albedo, options.bands);
+    let mut transfer = Transfer {
+        bands: options.bands,
+        channels: 3,
+        vertex_count: scene.vertex_count(),
+        coeffs: to_vertices(at_receivers.coeffs)?,
+    };
+    let seconds_fit = match options.fit {
+        Fit::Point => 0.0,
+        Fit::LeastSquares => started.elapsed().as_secs_f64(),
+    };
+    let bounces = match &direct.matrix {
+        Some(matrix) => {
+            let (albedo, to_vertices) = (&receivers.albedo, &mut to_vertices);
+            let gather = Gather {
+                matrix,
+                albedo,
+                to_vertices,
+            };
+            add_bounces(&mut transfer, gather, options, backend, progress)?
+        }
+        None => Vec::new(),
+    };
+    Ok((transfer, bounces, fit_report, seconds_fit))
 }
 
 /// The scene prepared for the bake, its albedo replaced where the options say so.

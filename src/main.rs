@@ -1165,18 +1165,21 @@ fn open_render_device(adapter: Option<&str>) -> Result<GpuContext> {
         .ok_or_else(|| Error::Gpu("no adapter to render with".into()))
 }
 
+/// Prints a baked file's description; a reader that stops early (`| head`) ends it quietly.
 fn run_info(path: &Path) -> Result<()> {
+    use std::io::Write;
+    let mut lines: Vec<String> = Vec::new();
     let (metadata, vertices, triangles) = glb::read_metadata(path)?;
-    println!("file:         {}", path.display());
-    println!("vertices:     {vertices}");
-    println!("triangles:    {triangles}");
-    println!("mode:         {}", metadata.mode.name());
-    println!(
+    lines.push(format!("file:         {}", path.display()));
+    lines.push(format!("vertices:     {vertices}"));
+    lines.push(format!("triangles:    {triangles}"));
+    lines.push(format!("mode:         {}", metadata.mode.name()));
+    lines.push(format!(
         "bands:        {} ({} coefficients per channel)",
         metadata.bands,
         metadata.bands * metadata.bands
-    );
-    println!(
+    ));
+    lines.push(format!(
         "channels:     {}{}",
         metadata.channels,
         if metadata.albedo_free {
@@ -1184,33 +1187,45 @@ fn run_info(path: &Path) -> Result<()> {
         } else {
             ""
         }
-    );
-    println!("samples:      {} ({})", metadata.samples, metadata.sampling);
-    println!("seed:         {}", metadata.seed);
-    println!("bounces:      {}", metadata.bounces);
+    ));
+    lines.push(format!(
+        "samples:      {} ({})",
+        metadata.samples, metadata.sampling
+    ));
+    lines.push(format!("seed:         {}", metadata.seed));
+    lines.push(format!("bounces:      {}", metadata.bounces));
     match metadata.fit_points {
-        Some(points) => println!(
+        Some(points) => lines.push(format!(
             "fit:          {} ({points} surface points)",
             metadata.fit.name()
-        ),
-        None => println!("fit:          {}", metadata.fit.name()),
+        )),
+        None => lines.push(format!("fit:          {}", metadata.fit.name())),
     }
     if let Some(lightmap) = glb::read_lightmap_reference(path)? {
-        println!(
+        lines.push(format!(
             "lightmap:     {}x{} texels in {} (TEXCOORD_{})",
             lightmap.width, lightmap.height, lightmap.uri, lightmap.texcoord
-        );
+        ));
     }
     if let Some(cpca) = glb::read_compression(path)? {
-        println!(
+        lines.push(format!(
             "compressed:   CPCA, {} clusters x {} components",
             cpca.clusters, cpca.components
-        );
+        ));
     }
-    println!("backend:      {}", metadata.backend);
-    println!("made by:      {} {}", metadata.tool, metadata.tool_version);
-    println!("sh basis:     {}", metadata.sh_convention);
-    println!("radiometry:   {}", metadata.radiometry);
+    lines.push(format!("backend:      {}", metadata.backend));
+    lines.push(format!(
+        "made by:      {} {}",
+        metadata.tool, metadata.tool_version
+    ));
+    lines.push(format!("sh basis:     {}", metadata.sh_convention));
+    lines.push(format!("radiometry:   {}", metadata.radiometry));
+    let mut out = std::io::stdout().lock();
+    for line in lines {
+        if writeln!(out, "{line}").is_err() {
+            break;
+        }
+    }
     Ok(())
 }
 

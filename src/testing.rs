@@ -30,13 +30,38 @@ pub fn compressed_reader_output(path: &Path) -> Option<serde_json::Value> {
 }
 
 fn python_output(script: &str, path: &Path) -> Option<serde_json::Value> {
-    if !python_with_numpy() {
-        return None;
+    python_with_numpy().then(|| python_json(script, path))
+}
+
+fn python_with_numpy() -> bool {
+    python_with(&["numpy"])
+}
+
+/// Whether python3 can import every one of `modules`; where it cannot, a printed reason and
+/// `false`, except under CI (`CI` set), where `ci/test.sh` installs them: a panic.
+pub fn python_with(modules: &[&str]) -> bool {
+    let probe = Command::new("python3")
+        .args(["-c", &format!("import {}", modules.join(", "))])
+        .output();
+    if probe.is_ok_and(|o| o.status.success()) {
+        return true;
     }
+    let missing = modules.join(" and ");
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "python3 with {missing} is missing under CI"
+    );
+    eprintln!("skipping: python3 with {missing} is not available");
+    false
+}
+
+/// What `script` (Python) prints, as JSON, when run with `argument`; a panic with its stderr
+/// when it fails.
+pub fn python_json(script: &str, argument: &Path) -> serde_json::Value {
     let out = Command::new("python3")
         .arg("-c")
         .arg(script)
-        .arg(path)
+        .arg(argument)
         .output()
         .expect("run python3");
     assert!(
@@ -44,22 +69,22 @@ fn python_output(script: &str, path: &Path) -> Option<serde_json::Value> {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    Some(serde_json::from_slice(&out.stdout).expect("the reader prints JSON"))
+    serde_json::from_slice(&out.stdout).expect("the script prints JSON")
 }
 
-fn python_with_numpy() -> bool {
-    let numpy = Command::new("python3")
-        .args(["-c", "import numpy"])
-        .output();
-    if numpy.is_ok_and(|o| o.status.success()) {
-        return true;
-    }
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "python3 with numpy is missing under CI"
-    );
-    eprintln!("skipping: python3 with numpy is not available");
-    false
+/// The RGBA pixels of an OpenEXR image, row-major, and its width.
+pub fn read_exr_rgba(path: &Path) -> (usize, Vec<[f32; 4]>) {
+    exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |size, _| (size.0, vec![[0.0f32; 4]; size.0 * size.1]),
+        |out: &mut (usize, Vec<[f32; 4]>), pos, (r, g, b, a): (f32, f32, f32, f32)| {
+            out.1[pos.1 * out.0 + pos.0] = [r, g, b, a];
+        },
+    )
+    .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+    .layer_data
+    .channel_data
+    .pixels
 }
 
 /// What the README's lightmap reader (`lightmap::PYTHON_READER`) prints for the baked file
@@ -67,27 +92,5 @@ fn python_with_numpy() -> bool {
 /// python3 with numpy and OpenEXR is missing (a panic under CI, where `ci/test.sh` installs
 /// them). A reader that fails is a panic with its stderr.
 pub fn lightmap_reader_output(path: &Path) -> Option<serde_json::Value> {
-    let probe = Command::new("python3")
-        .args(["-c", "import numpy, OpenEXR"])
-        .output();
-    if !probe.is_ok_and(|o| o.status.success()) {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "python3 with numpy and OpenEXR is missing under CI"
-        );
-        eprintln!("skipping: python3 with numpy and OpenEXR is not available");
-        return None;
-    }
-    let out = Command::new("python3")
-        .arg("-c")
-        .arg(crate::lightmap::PYTHON_READER)
-        .arg(path)
-        .output()
-        .expect("run python3");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    Some(serde_json::from_slice(&out.stdout).expect("the reader prints JSON"))
+    python_with(&["numpy", "OpenEXR"]).then(|| python_json(crate::lightmap::PYTHON_READER, path))
 }

@@ -1,16 +1,10 @@
 //! The command line end to end: a bake, `info`, and every kind of bad input failing cleanly.
 
+mod common;
+
+use common::prt_gpu;
 use prt_gpu::testing::entries;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn prt_gpu(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_prt-gpu"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run prt-gpu")
-}
 
 #[test]
 fn bakes_the_builtin_scene_and_reports_it() {
@@ -595,18 +589,7 @@ fn bake_then_render_side_by_side() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let sky = exr::prelude::read_first_rgba_layer_from_file(
-        dir.path().join("sky.exr"),
-        |size, _| (size.0, vec![[0.0f32; 4]; size.0 * size.1]),
-        |out: &mut (usize, Vec<[f32; 4]>), pos, (r, g, b, a): (f32, f32, f32, f32)| {
-            out.1[pos.1 * out.0 + pos.0] = [r, g, b, a];
-        },
-    )
-    .unwrap()
-    .layer_data
-    .channel_data
-    .pixels
-    .1;
+    let sky = prt_gpu::testing::read_exr_rgba(&dir.path().join("sky.exr")).1;
     let light = prt_gpu::light::load(std::path::Path::new(studio), 4, None, false).unwrap();
     let camera = prt_gpu::render::Camera::framing_scene(
         &prt_gpu::glb::read_glb(&dir.path().join("shadowed.glb"))

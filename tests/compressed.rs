@@ -4,20 +4,12 @@
 mod common;
 
 use std::path::Path;
-use std::process::{Command, Output};
 
+use common::prt_gpu;
 use prt_gpu::bake::{bake, Backend, BakeOptions, NoProgress};
 use prt_gpu::compress::{compress, CpcaOptions};
 use prt_gpu::glb::{read_glb, read_glb_compressed, write_glb, write_glb_with};
 use prt_gpu::testing::entries;
-
-fn prt_gpu(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_prt-gpu"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run prt-gpu")
-}
 
 fn bunny() -> prt_gpu::scene::Scene {
     prt_gpu::scene::load(Path::new(concat!(

@@ -4,7 +4,6 @@
 //! under CI (`CI` set), where `ci/test.sh` installs it and a missing binding is a failure.
 
 use std::path::Path;
-use std::process::Command;
 
 use prt_gpu::lightmap::{channel_name, channel_suffixes, write_lightmap, Lightmap};
 
@@ -28,33 +27,11 @@ print(json.dumps({"channels": channels, "header": header, "parts": len(f.parts)}
 "#;
 
 fn python_with_openexr() -> bool {
-    let probe = Command::new("python3")
-        .args(["-c", "import OpenEXR, numpy"])
-        .output();
-    if probe.is_ok_and(|o| o.status.success()) {
-        return true;
-    }
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "python3 with the OpenEXR binding is missing under CI"
-    );
-    eprintln!("skipping: python3 with OpenEXR (pip install OpenEXR) is not available");
-    false
+    prt_gpu::testing::python_with(&["OpenEXR", "numpy"])
 }
 
 fn openexr_dump(path: &Path) -> serde_json::Value {
-    let out = Command::new("python3")
-        .arg("-c")
-        .arg(OPENEXR_DUMP)
-        .arg(path)
-        .output()
-        .expect("run python3");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("the dump is JSON")
+    prt_gpu::testing::python_json(OPENEXR_DUMP, path)
 }
 
 /// Values of many magnitudes and both signs, none exactly representable in half.

@@ -5,9 +5,9 @@
 
 mod common;
 
-use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
+use common::prt_gpu;
 use glam::Vec3;
 use prt_gpu::bake::texels::bake_texels;
 use prt_gpu::bake::{bake, Backend, BakeOptions, NoProgress};
@@ -15,14 +15,6 @@ use prt_gpu::glb::{lightmap_file_name, read_glb};
 use prt_gpu::lightmap::read_lightmap;
 use prt_gpu::scene::{builtin, Scene};
 use prt_gpu::testing::{entries, lightmap_reader_output};
-
-fn prt_gpu(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_prt-gpu"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run prt-gpu")
-}
 
 fn succeeded(out: &Output) {
     assert!(
@@ -194,18 +186,7 @@ fn a_lightmap_renders_like_the_vertices_where_transfer_is_smooth() {
         dir.path(),
     );
     succeeded(&out);
-    let pixels = exr::prelude::read_first_rgba_layer_from_file(
-        dir.path().join("both.exr"),
-        |size, _| (size.0, vec![[0.0f32; 4]; size.0 * size.1]),
-        |out: &mut (usize, Vec<[f32; 4]>), pos, (r, g, b, a): (f32, f32, f32, f32)| {
-            out.1[pos.1 * out.0 + pos.0] = [r, g, b, a];
-        },
-    )
-    .unwrap()
-    .layer_data
-    .channel_data
-    .pixels
-    .1;
+    let pixels = prt_gpu::testing::read_exr_rgba(&dir.path().join("both.exr")).1;
     let mut compared = 0;
     for y in 0..48 {
         for x in 0..64 {

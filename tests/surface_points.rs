@@ -230,16 +230,7 @@ fn least_squares_interreflection_agrees_on_cpu_and_gpu() {
         .map(|backend| bake(scene.clone(), &options, backend, &NoProgress).unwrap())
         .collect();
     let (cpu, gpu) = (&results[0].0.transfer, &results[1].0.transfer);
-    let rms = |values: &mut dyn Iterator<Item = f64>| {
-        let (sum, n) = values.fold((0.0, 0), |(s, n), x| (s + x * x, n + 1));
-        (sum / n as f64).sqrt()
-    };
-    let size = rms(&mut cpu.coeffs.iter().map(|&x| x as f64));
-    let difference = rms(&mut cpu
-        .coeffs
-        .iter()
-        .zip(&gpu.coeffs)
-        .map(|(&a, &b)| (a - b) as f64));
+    let (size, difference) = size_and_difference(&cpu.coeffs, &gpu.coeffs);
     eprintln!(
         "least-squares interreflection: CPU and GPU differ by {difference:.2e} of {size:.2e}"
     );
@@ -278,15 +269,21 @@ fn interreflected_texels_agree_on_cpu_and_gpu() {
             baked.lightmap.unwrap().transfer.coeffs
         })
         .collect();
-    let rms = |values: &mut dyn Iterator<Item = f64>| {
-        let (sum, n) = values.fold((0.0, 0), |(s, n), x| (s + x * x, n + 1));
-        (sum / n as f64).sqrt()
-    };
-    let size = rms(&mut maps[0].iter().map(|&x| x as f64));
-    let difference = rms(&mut maps[0].iter().zip(&maps[1]).map(|(&a, &b)| (a - b) as f64));
+    let (size, difference) = size_and_difference(&maps[0], &maps[1]);
     eprintln!("interreflected texels: CPU and GPU differ by {difference:.2e} of {size:.2e}");
     assert!(
         size > 0.0 && difference <= 1e-3 * size,
         "{difference} of {size}"
     );
+}
+
+/// RMS of `a`, and RMS of `a - b`.
+fn size_and_difference(a: &[f32], b: &[f32]) -> (f64, f64) {
+    let rms = |values: &mut dyn Iterator<Item = f64>| {
+        let (sum, n) = values.fold((0.0, 0), |(s, n), x| (s + x * x, n + 1));
+        (sum / n as f64).sqrt()
+    };
+    let size = rms(&mut a.iter().map(|&x| x as f64));
+    let difference = rms(&mut a.iter().zip(b).map(|(&x, &y)| (x - y) as f64));
+    (size, difference)
 }

@@ -45,3 +45,12 @@ pub fn backends() -> Vec<Backend<'static>> {
 pub fn validate_gltf(path: &Path) -> Option<ValidatorReport> {
     gltf_validator::validate_or_skip(path)
 }
+
+/// Runs the prt-gpu binary with `args` in `dir`.
+pub fn prt_gpu(args: &[&str], dir: &Path) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_prt-gpu"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run prt-gpu")
+}

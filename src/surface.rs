@@ -10,8 +10,9 @@
 
 use std::time::Instant;
 
-use crate::bake::texels::{leaking_receivers, sample_bilinear};
-use crate::bake::{bake_at, Backend, BakeOptions, NoProgress, TexelBake, Transfer};
+use crate::bake::texels::{leaking_receivers_in, sample_bilinear};
+use crate::bake::{bake_at_in, Backend, BakeOptions, NoProgress, TexelBake, Transfer};
+use crate::bvh::Bvh;
 use crate::error::Result;
 use crate::light::ShLight;
 use crate::receivers::{uniform_points, Receivers, SurfacePoint};
@@ -46,7 +47,8 @@ pub fn surface_reference(
 ) -> Result<SurfaceReference> {
     let started = Instant::now();
     let drawn = uniform_points(scene, count, seed);
-    let inside = leaking_receivers(scene, &Receivers::at_points(scene, &drawn));
+    let bvh = Bvh::build(&scene.positions, &scene.triangles);
+    let inside = leaking_receivers_in(scene, &bvh, &Receivers::at_points(scene, &drawn));
     let points: Vec<SurfacePoint> = drawn
         .iter()
         .zip(&inside)
@@ -54,14 +56,8 @@ pub fn surface_reference(
         .map(|(&p, _)| p)
         .collect();
     let receivers = Receivers::at_points(scene, &points);
-    let (transfer, rays) = bake_at(
-        scene,
-        &receivers,
-        options,
-        backend,
-        vertex_transfer,
-        &NoProgress,
-    )?;
+    let at = (&receivers, bvh);
+    let (transfer, rays) = bake_at_in(scene, at, options, backend, vertex_transfer, &NoProgress)?;
     let radiance = flat_radiance(&transfer, light)?;
     Ok(SurfaceReference {
         rms: root_mean_square(radiance.iter().map(|&x| x as f64)),

@@ -463,8 +463,9 @@ pub fn bake(
         .lightmap
         .map(|size| texels::plan_atlas(&scene, size))
         .transpose()?;
-    let (receivers, points) = choose_receivers(&scene, options);
-    let owned = BakeInputs::for_receivers(&scene, &receivers, options);
+    let bvh = Bvh::build(&scene.positions, &scene.triangles);
+    let (receivers, points) = choose_receivers(&scene, &bvh, options);
+    let owned = BakeInputs::with_tree(&scene, &receivers, bvh, options);
     let inputs = owned.view();
     let seconds_prepare = started.elapsed().as_secs_f64();
 
@@ -682,13 +683,18 @@ fn direct_or_adaptive(
 
 /// The receivers of a bake: the vertices, or (least-squares fit) the points spread over the
 /// triangles, which it also returns.
-fn choose_receivers(scene: &Scene, options: &BakeOptions) -> (Receivers, Vec<SurfacePoint>) {
+fn choose_receivers(
+    scene: &Scene,
+    bvh: &Bvh,
+    options: &BakeOptions,
+) -> (Receivers, Vec<SurfacePoint>) {
     match options.fit {
         Fit::Point => (Receivers::vertices(scene), Vec::new()),
         Fit::LeastSquares => {
             let spread = spread_points(scene, options.point_density, options.seed);
             // Points inside other geometry are never seen and would pull their vertices dark.
-            let inside = texels::leaking_receivers(scene, &Receivers::at_points(scene, &spread));
+            let candidates = Receivers::at_points(scene, &spread);
+            let inside = texels::leaking_receivers_in(scene, bvh, &candidates);
             let points: Vec<SurfacePoint> = spread
                 .into_iter()
                 .zip(inside)
@@ -741,8 +747,22 @@ pub fn bake_at(
     vertex_transfer: Option<&Transfer>,
     progress: &dyn Progress,
 ) -> Result<(Transfer, u64)> {
+    let bvh = Bvh::build(&scene.positions, &scene.triangles);
+    let at = (receivers, bvh);
+    bake_at_in(scene, at, options, backend, vertex_transfer, progress)
+}
+
+/// [`bake_at`] with the scene's tree already built.
+pub fn bake_at_in(
+    scene: &Scene,
+    (receivers, bvh): (&Receivers, Bvh),
+    options: &BakeOptions,
+    backend: &Backend,
+    vertex_transfer: Option<&Transfer>,
+    progress: &dyn Progress,
+) -> Result<(Transfer, u64)> {
     options.validate()?;
-    let owned = BakeInputs::for_receivers(scene, receivers, options);
+    let owned = BakeInputs::with_tree(scene, receivers, bvh, options);
     let direct = direct_pass(&owned.view(), options.mode, backend, progress)?;
     let albedo = match options.albedo {
         Some(albedo) => vec![albedo; receivers.len()],
@@ -869,6 +889,22 @@ impl BakeInputs {
         Self::at_receivers(scene, &receivers, bands, samples, seed, sampling)
     }
 
+    /// [`BakeInputs::for_receivers`] with the scene's tree already built.
+    pub fn with_tree(
+        scene: &Scene,
+        receivers: &Receivers,
+        bvh: Bvh,
+        options: &BakeOptions,
+    ) -> Self {
+        let sampling = (
+            options.bands,
+            options.samples_used(),
+            options.seed,
+            options.sampling,
+        );
+        Self::assemble(scene, receivers, bvh, sampling)
+    }
+
     fn at_receivers(
         scene: &Scene,
         receivers: &Receivers,
@@ -877,8 +913,17 @@ impl BakeInputs {
         seed: u64,
         sampling: Sampling,
     ) -> Self {
-        let vertex_normals = scene.normals.clone().expect("a prepared scene has normals");
         let bvh = Bvh::build(&scene.positions, &scene.triangles);
+        Self::assemble(scene, receivers, bvh, (bands, samples, seed, sampling))
+    }
+
+    fn assemble(
+        scene: &Scene,
+        receivers: &Receivers,
+        bvh: Bvh,
+        (bands, samples, seed, sampling): (u32, u32, u64, Sampling),
+    ) -> Self {
+        let vertex_normals = scene.normals.clone().expect("a prepared scene has normals");
         let origins = ray_origins(&receivers.positions, &receivers.normals, &bvh);
         let samples = sampling.directions(samples, seed);
         let table = ShTable::new(bands, &samples.directions);

@@ -12,7 +12,7 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{bake_at, Backend, BakeOptions, Progress, TexelBake, Transfer};
+use super::{bake_at_in, Backend, BakeOptions, Progress, TexelBake, Transfer};
 use crate::bvh::Bvh;
 use crate::error::Result;
 use crate::ray::{offset_ray_origin, Ray, RAY_T_MAX};
@@ -84,15 +84,11 @@ pub fn bake_atlas(
     let started = Instant::now();
     let texels = rasterize(atlas);
     let receivers = Receivers::at_points(scene, &texels.points);
-    let (at_texels, rays_cast) = bake_at(
-        scene,
-        &receivers,
-        options,
-        backend,
-        Some(vertex_transfer),
-        progress,
-    )?;
-    let leaking = leaking_receivers(scene, &receivers);
+    let bvh = Bvh::build(&scene.positions, &scene.triangles);
+    let leaking = leaking_receivers_in(scene, &bvh, &receivers);
+    let at = (&receivers, bvh);
+    let (at_texels, rays_cast) =
+        bake_at_in(scene, at, options, backend, Some(vertex_transfer), progress)?;
     let stride = at_texels.channels as usize * at_texels.coeffs_per_channel();
     let mut image = texels.scatter(&at_texels.coeffs, stride)?;
     let mut valid = texels.valid_mask(&leaking)?;
@@ -150,7 +146,15 @@ pub fn bake_atlas(
 /// Per receiver, whether more than [`LEAK_FRACTION`] of [`LEAK_RAYS`] cosine-distributed rays
 /// about its normal first hit the back of a triangle (by the triangle's winding).
 pub fn leaking_receivers(scene: &Scene, receivers: &Receivers) -> Vec<bool> {
-    let bvh = Bvh::build(&scene.positions, &scene.triangles);
+    leaking_receivers_in(
+        scene,
+        &Bvh::build(&scene.positions, &scene.triangles),
+        receivers,
+    )
+}
+
+/// [`leaking_receivers`] with the scene's tree already built.
+pub fn leaking_receivers_in(scene: &Scene, bvh: &Bvh, receivers: &Receivers) -> Vec<bool> {
     let extent = bvh.extent();
     let directions = cosine_hemisphere(LEAK_RAYS, 0x1eaf);
     let limit = (LEAK_FRACTION * LEAK_RAYS as f32) as usize;

@@ -297,7 +297,6 @@ mod tests {
             positions: points.to_vec(),
             normals: vec![Vec3::Y; 2],
             albedo: vec![Vec3::ONE; 2],
-            sources: Vec::new(),
         };
         assert_eq!(leaking_receivers(&scene, &receivers), vec![true, false]);
     }

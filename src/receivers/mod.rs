@@ -25,21 +25,14 @@ pub struct SurfacePoint {
     pub barycentrics: [f32; 3],
 }
 
-/// Where a receiver came from.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ReceiverSource {
-    Vertex(u32),
-    Surface(SurfacePoint),
-}
-
-/// A set of receivers, structure of arrays: what a bake reads of each.
+/// A set of receivers, structure of arrays: what a bake reads of each. Where they came from
+/// (the vertices, or `SurfacePoint`s) is the caller's: it keeps the points it made them from.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Receivers {
     pub positions: Vec<Vec3>,
     /// Unit shading normals.
     pub normals: Vec<Vec3>,
     pub albedo: Vec<Vec3>,
-    pub sources: Vec<ReceiverSource>,
 }
 
 impl Receivers {
@@ -58,9 +51,6 @@ impl Receivers {
             positions: scene.positions.clone(),
             normals,
             albedo: scene.albedo.clone(),
-            sources: (0..scene.vertex_count() as u32)
-                .map(ReceiverSource::Vertex)
-                .collect(),
         }
     }
 
@@ -74,7 +64,6 @@ impl Receivers {
             positions: Vec::with_capacity(points.len()),
             normals: Vec::with_capacity(points.len()),
             albedo: Vec::with_capacity(points.len()),
-            sources: Vec::with_capacity(points.len()),
         };
         for &point in points {
             let corners = scene.triangles[point.triangle as usize];
@@ -90,7 +79,6 @@ impl Receivers {
                 .normals
                 .push(shading_normal(blend(normals), &scene.positions, corners));
             receivers.albedo.push(blend(&scene.albedo));
-            receivers.sources.push(ReceiverSource::Surface(point));
         }
         receivers
     }

@@ -370,32 +370,17 @@ fn fill_row(
 
 #[cfg(test)]
 mod tests {
-    use super::super::atlas::tests::quad_scene;
+    use super::super::atlas::tests::{quad_scene, scene_of};
     use super::super::atlas::{generate_atlas, GUTTER};
     use super::*;
     use crate::scene::Scene;
     use glam::{Vec2, Vec3};
 
-    fn scene_of(triangles: &[[Vec3; 3]]) -> Scene {
-        let positions: Vec<Vec3> = triangles.iter().flatten().copied().collect();
-        Scene {
-            normals: Some(vec![Vec3::Z; positions.len()]),
-            albedo: vec![Vec3::ONE; positions.len()],
-            triangles: (0..triangles.len() as u32)
-                .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
-                .collect(),
-            positions,
-        }
-    }
-
     /// Assorted triangles: random shapes, a needle, a tiny one, a right triangle on the grid.
     fn assorted_scene() -> Scene {
         let mut triangles = Vec::new();
-        let mut state = 12345u32;
-        let mut next = || {
-            state = state.wrapping_mul(747796405).wrapping_add(2891336453);
-            (state >> 8) as f32 / (1 << 24) as f32
-        };
+        let mut rng = crate::sampling::Pcg32::new(12345);
+        let mut next = || rng.next_f32();
         for _ in 0..60 {
             let p = [(); 3].map(|_| Vec3::new(next(), next(), next()) * 3.0);
             triangles.push(p);

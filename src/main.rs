@@ -336,10 +336,11 @@ struct BakeArgs {
     #[arg(long, value_enum, default_value_t = Storage::Rgb)]
     storage: Storage,
     /// Store the transfer compressed by clustered PCA (Sloan et al. 2003): CLUSTERSxCOMPONENTS,
-    /// e.g. 64x8 — per vertex a cluster and COMPONENTS weights, per cluster a mean and a basis.
+    /// e.g. 64x8 — per vertex a cluster and COMPONENTS weights, per cluster a mean and a basis —
+    /// or auto:E, the smallest shape (of a grid of them) whose coefficient error is below E.
     /// Sizes and the error against the uncompressed transfer are reported.
-    #[arg(long, value_name = "CLUSTERSxCOMPONENTS", value_parser = parse_cpca_shape)]
-    compress: Option<(u32, u32)>,
+    #[arg(long, value_name = "CLUSTERSxCOMPONENTS|auto:E", value_parser = parse_compression)]
+    compress: Option<Compression>,
     /// Also bake per-texel transfer into a lightmap about SIZE texels on its longer side (a
     /// generated atlas): written as <output stem>.lightmap.exr beside the .glb, which then
     /// holds the lightmap coordinates as TEXCOORD_0 (every triangle corner its own vertex).
@@ -367,6 +368,24 @@ struct BakeArgs {
     /// GPU: at most this many samples per chunk, rounded up to a multiple of 32.
     #[arg(long, hide_short_help = true)]
     chunk_samples: Option<u32>,
+}
+
+/// `--compress`: a shape, or an error target to choose one by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Compression {
+    Shape(u32, u32),
+    Target(f64),
+}
+
+fn parse_compression(text: &str) -> std::result::Result<Compression, String> {
+    match text.strip_prefix("auto:") {
+        Some(target) => target
+            .trim()
+            .parse::<f64>()
+            .map(Compression::Target)
+            .map_err(|e| format!("expected auto:ERROR, such as auto:0.02: {e}")),
+        None => parse_cpca_shape(text).map(|(k, m)| Compression::Shape(k, m)),
+    }
 }
 
 fn parse_cpca_shape(text: &str) -> std::result::Result<(u32, u32), String> {
@@ -531,6 +550,13 @@ fn run_bake(args: BakeArgs) -> Result<()> {
 /// in place, compressed lightmaps.
 fn check_output_forms(args: &BakeArgs, options: &BakeOptions, gltf: bool) -> Result<()> {
     let refuse = |message: &str| Err(Error::Options(message.to_string()));
+    if let Some(Compression::Target(error)) = args.compress {
+        if !(error > 0.0 && error < 1.0) {
+            return Err(Error::Options(format!(
+                "--compress auto:{error}: the error target must lie in (0, 1)"
+            )));
+        }
+    }
     if args.compress.is_some() && (gltf || options.lightmap.is_some()) {
         return refuse(
             "--compress stores the transfer of OBJ, PLY and the built-in scene per vertex; \
@@ -594,14 +620,22 @@ fn bake_options(args: &BakeArgs) -> Result<BakeOptions> {
 }
 
 /// The baked transfer compressed to `(clusters, components)`, with its sizes and errors said.
-fn compress_transfer(baked: &bake::BakedMesh, (clusters, components): (u32, u32)) -> Result<Cpca> {
+fn compress_transfer(baked: &bake::BakedMesh, compression: Compression) -> Result<Cpca> {
     let started = std::time::Instant::now();
-    let options = CpcaOptions {
-        clusters,
-        components,
-        ..CpcaOptions::default()
+    let (cpca, options) = match compression {
+        Compression::Shape(clusters, components) => {
+            let options = CpcaOptions {
+                clusters,
+                components,
+                ..CpcaOptions::default()
+            };
+            (compress::compress(&baked.transfer, &options)?, options)
+        }
+        Compression::Target(error) => {
+            compress::choose(&baked.transfer, error, CpcaOptions::default().seed)?
+        }
     };
-    let cpca = compress::compress(&baked.transfer, &options)?;
+    let (clusters, components) = (options.clusters, options.components);
     let seconds = started.elapsed().as_secs_f64();
     let before = compress::uncompressed_bytes(&baked.transfer);
     let after = cpca.byte_size();
@@ -1201,13 +1235,14 @@ fn run_info(path: &Path) -> Result<()> {
         )),
         None => lines.push(format!("fit:          {}", metadata.fit.name())),
     }
-    if let Some(lightmap) = glb::read_lightmap_reference(path)? {
+    let (lightmap, compression) = glb::read_references(path)?;
+    if let Some(lightmap) = lightmap {
         lines.push(format!(
             "lightmap:     {}x{} texels in {} (TEXCOORD_{})",
             lightmap.width, lightmap.height, lightmap.uri, lightmap.texcoord
         ));
     }
-    if let Some(cpca) = glb::read_compression(path)? {
+    if let Some(cpca) = compression {
         lines.push(format!(
             "compressed:   CPCA, {} clusters x {} components",
             cpca.clusters, cpca.components

@@ -137,6 +137,8 @@ fn bad_compression_requests_fail_with_one_line() {
         (vec!["--compress", "8"], "CLUSTERSxCOMPONENTS"),
         (vec!["--compress", "0x4"], "cluster"),
         (vec!["--compress", "8x4", "--lightmap", "512"], "--compress"),
+        (vec!["--compress", "auto:-1"], "--compress auto:-1"),
+        (vec!["--compress", "auto:x"], "auto:ERROR"),
     ] {
         let mut all = vec!["bake", "--samples", "16", "--device", "cpu", "-o", "o.glb"];
         all.extend(args.iter());
@@ -147,5 +149,60 @@ fn bad_compression_requests_fail_with_one_line() {
         assert!(stderr.contains(expect), "{args:?}: {stderr}");
         assert!(entries(dir.path()).is_empty(), "{args:?} left files");
     }
+    dir.close().unwrap();
+}
+
+#[test]
+fn an_error_target_chooses_a_shape_that_meets_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let bunny_path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj");
+    let out = prt_gpu(
+        &[
+            "bake",
+            bunny_path,
+            "--samples",
+            "64",
+            "--compress",
+            "auto:0.05",
+            "--device",
+            "cpu",
+            "-o",
+            "auto.glb",
+        ],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    // "compressed: K clusters x M components ...; coefficient error E%, ..."
+    let error: f64 = stderr
+        .split("coefficient error ")
+        .nth(1)
+        .and_then(|rest| rest.split('%').next())
+        .and_then(|e| e.parse().ok())
+        .unwrap_or_else(|| panic!("no error reported: {stderr}"));
+    assert!(error <= 5.0, "{stderr}");
+    // Against the same bake uncompressed, the stored form meets the target.
+    let out = prt_gpu(
+        &[
+            "bake",
+            bunny_path,
+            "--samples",
+            "64",
+            "--device",
+            "cpu",
+            "-o",
+            "full.glb",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success());
+    let full = read_glb(&dir.path().join("full.glb")).unwrap();
+    let (_, cpca) = read_glb_compressed(&dir.path().join("auto.glb")).unwrap();
+    let cpca = cpca.expect("stored compressed");
+    let measured = prt_gpu::compress::relative_error(&full.transfer, &cpca);
+    assert!(
+        measured <= 0.05,
+        "coefficient error {measured} over the 0.05 asked for"
+    );
     dir.close().unwrap();
 }

@@ -260,16 +260,11 @@ pub fn read_metadata(path: &Path) -> Result<(BakeMetadata, usize, usize)> {
     Ok((plan.metadata, plan.vertices, plan.triangles))
 }
 
-/// The lightmap a single-mesh baked file refers to (`extras.prt.lightmap`), if any; the JSON
-/// only is read.
-pub fn read_lightmap_reference(path: &Path) -> Result<Option<LightmapExtras>> {
-    Ok(read_prt_extras(path)?.and_then(|prt| prt.lightmap))
-}
-
-/// How a single-mesh baked file stores its transfer compressed (`extras.prt.cpca`), if it
-/// does; the JSON only is read.
-pub fn read_compression(path: &Path) -> Result<Option<CpcaExtras>> {
-    Ok(read_prt_extras(path)?.and_then(|prt| prt.cpca))
+/// What a single-mesh baked file refers to beside its transfer: its lightmap
+/// (`extras.prt.lightmap`) and how its transfer is compressed (`extras.prt.cpca`), each if
+/// any; the JSON only is parsed.
+pub fn read_references(path: &Path) -> Result<(Option<LightmapExtras>, Option<CpcaExtras>)> {
+    Ok(read_prt_extras(path)?.map_or((None, None), |prt| (prt.lightmap, prt.cpca)))
 }
 
 /// `extras.prt` of a single-mesh baked file (`None` for a glTF scene baked in place).

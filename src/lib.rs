@@ -29,6 +29,7 @@ pub mod sampling;
 pub mod scene;
 pub mod sh;
 pub mod shaders;
+pub mod shard;
 pub mod surface;
 pub mod sweep;
 pub mod testing;

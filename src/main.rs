@@ -22,6 +22,7 @@ use prt_gpu::render::{self, Camera, ToneMap};
 use prt_gpu::sampling::Sampling;
 use prt_gpu::sh::window::Window;
 use prt_gpu::sh::MAX_BANDS;
+use prt_gpu::shard::{self, Part, PartHeader};
 use prt_gpu::sweep::{self, SweepOptions};
 use prt_gpu::{chart, fs, glb, scene, Error, Result};
 
@@ -56,6 +57,22 @@ enum Command {
     Chart(ChartArgs),
     /// Time the direct-transfer pass on the CPU and GPU backends side by side (rays/s).
     Bench(BenchArgs),
+    /// Join the parts of a sharded bake (`bake … --shard I/N`) into the file the unsharded bake
+    /// writes, byte for byte; bounces, fits and lightmaps run here.
+    Merge(MergeArgs),
+}
+
+#[derive(clap::Args)]
+struct MergeArgs {
+    /// Part files written by `prt-gpu bake … --shard I/N`, in any order, one per shard.
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// Output file (.glb). Default: <mesh name>.prt.glb in the current directory.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Also render a preview of the result under a default sky and sun (.png or .exr).
+    #[arg(long)]
+    preview: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -362,6 +379,11 @@ struct BakeArgs {
     /// Also render a preview of the result under a default sky and sun (.png or .exr).
     #[arg(long)]
     preview: Option<PathBuf>,
+    /// Bake only shard I of N (counted from 0): a contiguous run of about 1/N of the receivers,
+    /// written as a part file (default <mesh name>.prt.I-of-N.part); `prt-gpu merge` joins
+    /// the N parts into the file this bake without --shard writes, byte for byte.
+    #[arg(long, value_name = "I/N", value_parser = parse_shard)]
+    shard: Option<bake::Shard>,
     /// GPU: at most this many vertices per chunk (for testing chunking; default from limits).
     #[arg(long, hide_short_help = true)]
     chunk_vertices: Option<u32>,
@@ -386,6 +408,16 @@ fn parse_compression(text: &str) -> std::result::Result<Compression, String> {
             .map_err(|e| format!("expected auto:ERROR, such as auto:0.02: {e}")),
         None => parse_cpca_shape(text).map(|(k, m)| Compression::Shape(k, m)),
     }
+}
+
+fn parse_shard(text: &str) -> std::result::Result<bake::Shard, String> {
+    let numbers = text
+        .split_once('/')
+        .and_then(|(i, n)| Some((i.trim().parse::<u32>().ok()?, n.trim().parse::<u32>().ok()?)));
+    let Some((index, count)) = numbers else {
+        return Err("expected I/N, shard I of N counted from 0 (e.g. 0/4)".into());
+    };
+    bake::Shard::new(index, count).map_err(|e| e.to_string())
 }
 
 fn parse_cpca_shape(text: &str) -> std::result::Result<(u32, u32), String> {
@@ -434,6 +466,7 @@ fn main() -> ExitCode {
         Command::Render(args) => run_render(args),
         Command::Chart(args) => run_chart(args),
         Command::Bench(args) => run_bench(args),
+        Command::Merge(args) => run_merge(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -459,6 +492,15 @@ fn usage_error_line(message: &str) -> String {
 }
 
 fn run_bake(args: BakeArgs) -> Result<()> {
+    match args.shard {
+        Some(shard) => run_shard(args, shard),
+        None => run_bake_from(args, None),
+    }
+}
+
+/// `bake` with its direct pass computed here or, merging, joined from the parts of a sharded
+/// bake of the same mesh and options.
+fn run_bake_from(args: BakeArgs, merged: Option<(PartHeader, bake::DirectPass)>) -> Result<()> {
     let options = bake_options(&args)?;
     options.validate()?;
     let loading = std::time::Instant::now();
@@ -467,48 +509,41 @@ fn run_bake(args: BakeArgs) -> Result<()> {
     let seconds_load = loading.elapsed().as_secs_f64();
     let output_path = args
         .output
+        .clone()
         .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
     // Fail before the long part, not after it.
     fs::check_destination(&output_path)?;
     if let Some(preview) = &args.preview {
         fs::check_destination(preview)?;
     }
-    if options.samples_used() != options.samples {
-        let side = (options.samples_used() as f64).sqrt() as u32;
-        eprintln!(
-            "note: --samples {} is not a square; {} sampling uses {} ({side} x {side} strata)",
-            options.samples,
-            options.sampling.name(),
-            options.samples_used()
-        );
-    }
-    for (flag, value) in [
-        ("--chunk-vertices", args.chunk_vertices),
-        ("--chunk-samples", args.chunk_samples),
-    ] {
-        if value == Some(0) {
-            return Err(Error::Options(format!("{flag} must be at least 1")));
-        }
-    }
-    let baker = bake_backend(&options, args.device, args.adapter.as_deref())?;
-    let backend = match &baker {
-        Some(baker) => Backend::Gpu {
-            baker,
-            chunking: Chunking {
-                max_vertices: args.chunk_vertices,
-                max_samples: args.chunk_samples,
-                max_steps: None,
-            },
-        },
-        None => Backend::Cpu,
-    };
-    let progress = BarProgress::default();
-    let shown = args
-        .mesh
+    note_samples_rounded(&options);
+    check_chunking(&args)?;
+    let merged_from = merged
         .as_ref()
-        .map_or_else(|| "built-in scene".to_string(), |p| p.display().to_string());
-    let (mut baked, report) =
-        bake::bake(scene, &options, &backend, &progress).map_err(|e| naming_the_mesh(e, &shown))?;
+        .map(|(header, _)| (header.shard_count, header.backend.clone()));
+    let (baker, source) = match merged {
+        None => (
+            bake_backend(&options, args.device, args.adapter.as_deref())?,
+            bake::DirectSource::Compute,
+        ),
+        Some((header, direct)) => {
+            if shard::fingerprint(&scene, &fingerprinted_options(&args, &options))
+                != header.fingerprint
+            {
+                return Err(Error::Options(format!(
+                    "{} is not the mesh the parts were baked from (it changed since)",
+                    mesh_shown(&args.mesh)
+                )));
+            }
+            let baker = merge_backend(&options, &header.backend)?;
+            let ran_on = header.backend;
+            (baker, bake::DirectSource::Given { direct, ran_on })
+        }
+    };
+    let backend = backend_of(&baker, &args);
+    let progress = BarProgress::default();
+    let (mut baked, report) = bake::bake_from(scene, &options, &backend, source, &progress)
+        .map_err(|e| naming_the_mesh(e, &mesh_shown(&args.mesh)))?;
     progress.finish();
     let mut options = options;
     if args.transfer.bands == Bands::Auto {
@@ -542,8 +577,159 @@ fn run_bake(args: BakeArgs) -> Result<()> {
     if let Some(written) = written {
         print_in_place_report(&written, seconds_load, seconds_write);
     }
-    print_bake_report(&name, &options, &report, &output_path);
+    print_bake_report(&name, &options, &report, &output_path, merged_from);
     Ok(())
+}
+
+/// `bake … --shard I/N`: the direct pass of one shard's receivers, written as a part file.
+fn run_shard(args: BakeArgs, shard: bake::Shard) -> Result<()> {
+    let options = bake_options(&args)?;
+    options.validate()?;
+    let (scene, gltf, name) = load_bake_input(&args.mesh)?;
+    check_output_forms(&args, &options, gltf.is_some())?;
+    if args.preview.is_some() {
+        return Err(Error::Options(
+            "--preview renders a whole bake: give it to `prt-gpu merge`, not to a shard".into(),
+        ));
+    }
+    let output = args.output.clone().unwrap_or_else(|| {
+        PathBuf::from(format!(
+            "{name}.prt.{}-of-{}.part",
+            shard.index, shard.count
+        ))
+    });
+    fs::check_destination(&output)?;
+    note_samples_rounded(&options);
+    check_chunking(&args)?;
+    let fingerprint = shard::fingerprint(&scene, &fingerprinted_options(&args, &options));
+    let baker = bake_backend(&options, args.device, args.adapter.as_deref())?;
+    let backend = backend_of(&baker, &args);
+    let progress = BarProgress::default();
+    let started = std::time::Instant::now();
+    let pass = bake::bake_shard(scene, &options, &backend, shard, &progress)
+        .map_err(|e| naming_the_mesh(e, &mesh_shown(&args.mesh)))?;
+    progress.finish();
+    let (range, total, rays) = (
+        pass.receivers.clone(),
+        pass.receivers_total,
+        pass.direct.rays_cast,
+    );
+    let directory = std::env::current_dir().map_err(|e| Error::io(Path::new("."), e))?;
+    let command = std::env::args().skip(1).collect();
+    let part = Part::new(
+        pass,
+        (shard.index, shard.count),
+        fingerprint,
+        command,
+        directory,
+    );
+    shard::write_part(&output, &part)?;
+    println!(
+        "baked {name} shard {}/{}: receivers {}..{} of {total}, {rays} rays, {:.2} s ({}) -> {}",
+        shard.index,
+        shard.count,
+        range.start,
+        range.end,
+        started.elapsed().as_secs_f64(),
+        backend.describe(),
+        output.display()
+    );
+    Ok(())
+}
+
+/// `merge`: the parts checked and joined, then the rest of the bake their command asks for.
+fn run_merge(args: MergeArgs) -> Result<()> {
+    let parts = args
+        .parts
+        .iter()
+        .map(|path| Ok((path.clone(), shard::read_part(path)?)))
+        .collect::<Result<Vec<_>>>()?;
+    let (header, direct) = shard::assemble(parts)?;
+    let command = std::iter::once("prt-gpu".to_string()).chain(header.command.iter().cloned());
+    let bake_args = match Cli::try_parse_from(command).map(|cli| cli.command) {
+        Ok(Command::Bake(bake_args)) => bake_args,
+        _ => {
+            return Err(Error::Options(format!(
+                "the parts' command is not a bake: {}",
+                header.command.join(" ")
+            )))
+        }
+    };
+    let bake_args = BakeArgs {
+        mesh: bake_args.mesh.map(|mesh| header.directory.join(mesh)),
+        shard: None,
+        output: args.output,
+        preview: args.preview,
+        ..bake_args
+    };
+    run_bake_from(bake_args, Some((header, direct)))
+}
+
+/// What besides the mesh decides a bake's output, as text for its fingerprint.
+fn fingerprinted_options(args: &BakeArgs, options: &BakeOptions) -> String {
+    format!(
+        "{options:?} bands {:?} threshold {} compress {:?}",
+        args.transfer.bands, args.bands_threshold, args.compress
+    )
+}
+
+/// The device a merge runs the rest of the bake on: the CPU for parts baked there; a GPU for
+/// parts baked on one, where bounces or texels run on it (so that the bytes match).
+fn merge_backend(options: &BakeOptions, parts_backend: &str) -> Result<Option<GpuBaker>> {
+    let needs_device = options.mode == Mode::Interreflected || options.lightmap.is_some();
+    if parts_backend == Backend::Cpu.describe() || !needs_device {
+        return Ok(None);
+    }
+    match GpuBaker::open(DeviceChoice::Gpu, None)? {
+        Some(baker) => Ok(Some(baker)),
+        None => Err(Error::Options(format!(
+            "the parts were baked on {parts_backend}, and their bounces need a GPU adapter,              which this machine lacks"
+        ))),
+    }
+}
+
+fn mesh_shown(mesh: &Option<PathBuf>) -> String {
+    mesh.as_ref()
+        .map_or_else(|| "built-in scene".to_string(), |p| p.display().to_string())
+}
+
+fn note_samples_rounded(options: &BakeOptions) {
+    if options.samples_used() != options.samples {
+        let side = (options.samples_used() as f64).sqrt() as u32;
+        eprintln!(
+            "note: --samples {} is not a square; {} sampling uses {} ({side} x {side} strata)",
+            options.samples,
+            options.sampling.name(),
+            options.samples_used()
+        );
+    }
+}
+
+fn check_chunking(args: &BakeArgs) -> Result<()> {
+    for (flag, value) in [
+        ("--chunk-vertices", args.chunk_vertices),
+        ("--chunk-samples", args.chunk_samples),
+    ] {
+        if value == Some(0) {
+            return Err(Error::Options(format!("{flag} must be at least 1")));
+        }
+    }
+    Ok(())
+}
+
+/// The backend of `baker` (the CPU's without one), chunked as `args` ask.
+fn backend_of<'a>(baker: &'a Option<GpuBaker>, args: &BakeArgs) -> Backend<'a> {
+    match baker {
+        Some(baker) => Backend::Gpu {
+            baker,
+            chunking: Chunking {
+                max_vertices: args.chunk_vertices,
+                max_samples: args.chunk_samples,
+                max_steps: None,
+            },
+        },
+        None => Backend::Cpu,
+    }
 }
 
 /// Refuses output forms a bake cannot give: compressed, lean or lightmapped glTF scenes baked
@@ -722,7 +908,16 @@ fn print_in_place_report(written: &glb::scene::SceneWrite, seconds_load: f64, se
     );
 }
 
-fn print_bake_report(name: &str, options: &BakeOptions, report: &BakeReport, output: &Path) {
+/// The parts a bake was merged from: how many, and the backend they ran on.
+type MergedFrom = Option<(u32, String)>;
+
+fn print_bake_report(
+    name: &str,
+    options: &BakeOptions,
+    report: &BakeReport,
+    output: &Path,
+    merged_from: MergedFrom,
+) {
     for (i, bounce) in report.bounces.iter().enumerate() {
         eprintln!(
             "bounce {}: +{:.2}% energy in {:.2} s",
@@ -787,9 +982,21 @@ fn print_bake_report(name: &str, options: &BakeOptions, report: &BakeReport, out
         + seconds_bounces
         + seconds_texels;
     let rays_per_second = report.rays_cast as f64 / report.seconds_transfer.max(1e-9);
+    let rays = match merged_from {
+        None => format!(
+            "{} rays in {:.2} s ({:.2} M rays/s)",
+            report.rays_cast,
+            report.seconds_transfer,
+            rays_per_second / 1e6
+        ),
+        Some((parts, ran_on)) => format!(
+            "{} rays in {parts} shards ({ran_on}), merged",
+            report.rays_cast
+        ),
+    };
     println!(
-        "baked {name}: {} vertices, {} triangles, {} bands, {} {} samples, {} mode; {} rays in {:.2} s \
-         ({:.2} M rays/s), {:.2} s in all ({}) -> {}",
+        "baked {name}: {} vertices, {} triangles, {} bands, {} {} samples, {} mode; {rays}, \
+         {:.2} s in all ({}) -> {}",
         report.prepare.vertices,
         report.prepare.triangles,
         options.bands,
@@ -799,9 +1006,6 @@ fn print_bake_report(name: &str, options: &BakeOptions, report: &BakeReport, out
         },
         options.sampling.name(),
         options.mode.name(),
-        report.rays_cast,
-        report.seconds_transfer,
-        rays_per_second / 1e6,
         seconds,
         report.backend,
         output.display()

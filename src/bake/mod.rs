@@ -455,56 +455,182 @@ pub fn bake(
     backend: &Backend,
     progress: &dyn Progress,
 ) -> Result<(BakedMesh, BakeReport)> {
+    bake_from(scene, options, backend, DirectSource::Compute, progress)
+}
+
+/// Where a bake's direct pass comes from.
+pub enum DirectSource {
+    /// Computed here, on the bake's backend.
+    Compute,
+    /// Already computed (by the shards of a sharded bake, merged), on the backend `ran_on`
+    /// describes: the rest of the bake (fit, bounces, lightmap) runs here.
+    Given { direct: DirectPass, ran_on: String },
+}
+
+/// A part of a bake's receivers: shard `index` of `count`, each a contiguous run of about
+/// the same number of receivers in the prepared (Morton) order, so a shard's rays stay
+/// coherent. Which receivers a shard holds depends only on the receiver count, and what
+/// each receiver gets only on the receiver, so shards merge to the unsharded bake bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u32,
+    pub count: u32,
+}
+
+impl Shard {
+    pub fn new(index: u32, count: u32) -> Result<Shard> {
+        if count == 0 || index >= count {
+            return Err(Error::Options(format!(
+                "--shard {index}/{count}: the shard index must lie in 0 to count - 1"
+            )));
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// The receivers of `total` this shard bakes.
+    pub fn receivers(&self, total: usize) -> std::ops::Range<usize> {
+        let edge = |i: u32| (total as u128 * i as u128 / self.count as u128) as usize;
+        edge(self.index)..edge(self.index + 1)
+    }
+}
+
+/// What a shard bakes: the direct pass of its receivers (gather rows included, for
+/// interreflection), which of how many receivers they are, and the backend it ran on.
+pub struct ShardPass {
+    pub receivers: std::ops::Range<usize>,
+    pub receivers_total: usize,
+    pub direct: DirectPass,
+    pub ran_on: String,
+}
+
+/// The direct pass of `shard`'s receivers of the bake of `scene` with `options`: everything a
+/// shard computes. Bounces, fits and lightmaps need every receiver and run where the shards
+/// are merged ([`bake_from`] with [`DirectSource::Given`]).
+pub fn bake_shard(
+    scene: Scene,
+    options: &BakeOptions,
+    backend: &Backend,
+    shard: Shard,
+    progress: &dyn Progress,
+) -> Result<ShardPass> {
     options.validate()?;
+    if options.target_error.is_some() {
+        return Err(Error::Options(
+            "--shard bakes a fixed sample count; --target-error bakes are not sharded".into(),
+        ));
+    }
+    let planned = plan(scene, options)?;
+    let range = shard.receivers(planned.receivers.len());
+    let view = planned.inputs.view();
+    let part = DirectInputs {
+        origins: &view.origins[range.clone()],
+        normals: &view.normals[range.clone()],
+        ..view
+    };
+    let direct = direct_pass(&part, options.mode, backend, progress)?;
+    Ok(ShardPass {
+        receivers: range,
+        receivers_total: planned.receivers.len(),
+        direct,
+        ran_on: backend.describe(),
+    })
+}
+
+/// What every bake does before its direct pass: the prepared scene, its receivers, and what
+/// the backends read.
+struct Planned {
+    scene: Scene,
+    prepare: PrepareReport,
+    vertex_map: VertexMap,
+    receivers: Receivers,
+    points: Vec<SurfacePoint>,
+    inputs: BakeInputs,
+    seconds: f64,
+}
+
+fn plan(scene: Scene, options: &BakeOptions) -> Result<Planned> {
     let started = Instant::now();
-    let (scene, prepare_report, vertex_map) = prepare_with_albedo(scene, options)?;
+    let (scene, prepare, vertex_map) = prepare_with_albedo(scene, options)?;
+    let bvh = Bvh::build(&scene.positions, &scene.triangles);
+    let (receivers, points) = choose_receivers(&scene, &bvh, options);
+    let inputs = BakeInputs::with_tree(&scene, &receivers, bvh, options);
+    Ok(Planned {
+        scene,
+        prepare,
+        vertex_map,
+        receivers,
+        points,
+        inputs,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// [`bake`] with its direct pass from `source`.
+pub fn bake_from(
+    scene: Scene,
+    options: &BakeOptions,
+    backend: &Backend,
+    source: DirectSource,
+    progress: &dyn Progress,
+) -> Result<(BakedMesh, BakeReport)> {
+    options.validate()?;
+    let mut planned = plan(scene, options)?;
     // A lightmap that cannot fit fails now, not after the vertices are baked.
     let atlas = options
         .lightmap
-        .map(|size| texels::plan_atlas(&scene, size))
+        .map(|size| texels::plan_atlas(&planned.scene, size))
         .transpose()?;
-    let bvh = Bvh::build(&scene.positions, &scene.triangles);
-    let (receivers, points) = choose_receivers(&scene, &bvh, options);
-    let owned = BakeInputs::with_tree(&scene, &receivers, bvh, options);
-    let inputs = owned.view();
-    let seconds_prepare = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
-    let (direct, adaptive_report) = direct_or_adaptive(&owned, options, backend, progress)?;
+    let (direct, adaptive_report, ran_on) = match source {
+        DirectSource::Compute => {
+            let (direct, adaptive) =
+                direct_or_adaptive(&planned.inputs, options, backend, progress)?;
+            // Error-targeted bakes run on the CPU whatever the backend.
+            let ran_on = match adaptive {
+                Some(_) => Backend::Cpu.describe(),
+                None => backend.describe(),
+            };
+            (direct, adaptive, ran_on)
+        }
+        DirectSource::Given { direct, ran_on } => {
+            check_given(&direct, &planned.receivers, options)?;
+            (direct, None, ran_on)
+        }
+    };
     let seconds_transfer = started.elapsed().as_secs_f64();
 
+    let (scene, receivers, points) = (&planned.scene, &planned.receivers, &planned.points);
     let fitted = vertex_transfer(
-        &scene, &receivers, &points, &direct, options, backend, progress,
+        scene, receivers, points, &direct, options, backend, progress,
     )?;
     let (transfer, bounces, fit_report, seconds_fit) = fitted;
-    let (transfer, albedo_free) = stored(transfer, &direct.scalar, &scene, &points, options)?;
+    let (transfer, albedo_free) = stored(transfer, &direct.scalar, scene, points, options)?;
+    let scene = std::mem::take(&mut planned.scene);
     let (scene, transfer, lightmap, texel_report) = match &atlas {
         None => (scene, transfer, None, None),
         Some(atlas) => add_lightmap(scene, transfer, atlas, options, backend, progress)?,
     };
-    let fit_points = (options.fit == Fit::LeastSquares).then_some(points.len() as u32);
+    let fit_points = (options.fit == Fit::LeastSquares).then_some(planned.points.len() as u32);
+    let samples_used = planned.inputs.samples.len();
     // An error-targeted bake records the mean over receivers.
     let samples = adaptive_report
         .as_ref()
-        .map_or(inputs.samples.len(), |r| r.samples_mean.round() as usize);
-    // Error-targeted bakes run on the CPU whatever the backend.
-    let ran_on = match adaptive_report {
-        Some(_) => &Backend::Cpu,
-        None => backend,
-    };
+        .map_or(samples_used, |r| r.samples_mean.round() as usize);
     let metadata = BakeMetadata {
         channels: transfer.channels,
         albedo_free,
-        ..metadata_for(options, ran_on, samples, bounces.len(), fit_points)
+        backend: ran_on,
+        ..metadata_for(options, samples, bounces.len(), fit_points)
     };
     let report = BakeReport {
-        prepare: prepare_report,
-        vertex_map,
-        receivers: receivers.len(),
-        samples_used: inputs.samples.len() as u32,
+        prepare: planned.prepare,
+        vertex_map: planned.vertex_map,
+        receivers: planned.receivers.len(),
+        samples_used: samples_used as u32,
         rays_cast: direct.rays_cast,
-        bvh_nodes: inputs.bvh.nodes.len(),
-        seconds_prepare,
+        bvh_nodes: planned.inputs.bvh.nodes.len(),
+        seconds_prepare: planned.seconds,
         seconds_transfer,
         seconds_fit,
         fit: fit_report,
@@ -523,6 +649,26 @@ pub fn bake(
         },
         report,
     ))
+}
+
+/// Refuses a given direct pass that is not one of these receivers' (wrong count, or no
+/// gather matrix for interreflection).
+fn check_given(direct: &DirectPass, receivers: &Receivers, options: &BakeOptions) -> Result<()> {
+    let expected = receivers.len() * coeff_count(options.bands);
+    let rows_fit = match (&direct.matrix, options.mode) {
+        (Some(matrix), Mode::Interreflected) => matrix.rows() == receivers.len(),
+        (None, Mode::Interreflected) => false,
+        (_, _) => true,
+    };
+    if direct.scalar.len() != expected || !rows_fit {
+        return Err(Error::Options(format!(
+            "the given direct pass holds {} values for {} receivers of {} coefficients",
+            direct.scalar.len(),
+            receivers.len(),
+            coeff_count(options.bands)
+        )));
+    }
+    Ok(())
 }
 
 /// The transfer as `options.storage` stores it, and whether it left the albedo out. Lean: one
@@ -709,7 +855,6 @@ fn choose_receivers(
 /// What the baked file records about a bake with `options`.
 fn metadata_for(
     options: &BakeOptions,
-    backend: &Backend,
     samples: usize,
     bounces: usize,
     fit_points: Option<u32>,
@@ -723,7 +868,7 @@ fn metadata_for(
         samples: samples as u32,
         sampling: options.sampling.name().to_string(),
         seed: options.seed,
-        backend: backend.describe(),
+        backend: String::new(),
         sh_convention: CONVENTION.to_string(),
         radiometry: RADIOMETRY.to_string(),
         bounces: bounces as u32,

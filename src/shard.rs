@@ -1,0 +1,297 @@
+//! Part files of a sharded bake, and their merge into the direct pass of the whole bake.
+//!
+//! A shard (`prt-gpu bake … --shard I/N`) bakes the direct pass of a contiguous run of the
+//! receivers ([`crate::bake::Shard`]) and writes it as a part; `prt-gpu merge` checks that the
+//! parts belong together and that each shard is there exactly once, and joins them into the
+//! direct pass an unsharded bake would have computed, bit for bit. Bounces, fits and
+//! lightmaps need every receiver and run in the merge.
+//!
+//! Layout (little-endian): the 8 bytes `prtpart1`; a u32 `L`; `L` bytes of JSON
+//! ([`PartHeader`], padded with spaces to a multiple of 4); then `f32 scalar[receivers ×
+//! coeffs]` (albedo-free direct transfer, `[receiver][k]`), and for interreflection the part's
+//! gather rows: `u32 row_offsets[receivers + 1]` (from 0), `u32 columns[entries]`,
+//! `f32 weights[entries]`.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::bake::bounce::GatherMatrix;
+use crate::bake::{DirectPass, ShardPass};
+use crate::error::{Error, Result};
+use crate::fs::write_atomically;
+use crate::scene::Scene;
+
+const MAGIC: &[u8; 8] = b"prtpart1";
+
+/// What a part says about itself and the bake it belongs to.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PartHeader {
+    /// Of the mesh as loaded and the options that shape the output: parts merge only with
+    /// parts of the same fingerprint.
+    pub fingerprint: String,
+    pub shard_index: u32,
+    pub shard_count: u32,
+    /// The receivers of the whole bake, and this part's run of them.
+    pub receivers_total: u64,
+    pub first_receiver: u64,
+    pub receivers: u64,
+    pub coeffs: u32,
+    /// Gather entries (interreflection), absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gather_entries: Option<u64>,
+    pub rays_cast: u64,
+    /// The backend the shard ran on (`cpu`, or `gpu: adapter`).
+    pub backend: String,
+    /// The bake command (arguments after the program's name) and the directory it ran in,
+    /// from which the merge bakes the rest.
+    pub command: Vec<String>,
+    pub directory: PathBuf,
+    pub tool_version: String,
+}
+
+/// A part file: its header and its direct pass.
+pub struct Part {
+    pub header: PartHeader,
+    pub direct: DirectPass,
+}
+
+impl Part {
+    /// The part of `pass`, shard `index` of `count`, baked by `command` in `directory`.
+    pub fn new(
+        pass: ShardPass,
+        (index, count): (u32, u32),
+        fingerprint: String,
+        command: Vec<String>,
+        directory: PathBuf,
+    ) -> Part {
+        let receivers = pass.receivers.len();
+        let coeffs = pass.direct.scalar.len().checked_div(receivers).unwrap_or(0) as u32;
+        let header = PartHeader {
+            fingerprint,
+            shard_index: index,
+            shard_count: count,
+            receivers_total: pass.receivers_total as u64,
+            first_receiver: pass.receivers.start as u64,
+            receivers: receivers as u64,
+            coeffs,
+            gather_entries: pass.direct.matrix.as_ref().map(|m| m.columns.len() as u64),
+            rays_cast: pass.direct.rays_cast,
+            backend: pass.ran_on,
+            command,
+            directory,
+            tool_version: env!("CARGO_PKG_VERSION").to_string(),
+        };
+        Part {
+            header,
+            direct: pass.direct,
+        }
+    }
+}
+
+/// Writes `part` to `path`, whole or not at all (a shard killed mid-write leaves no part).
+pub fn write_part(path: &Path, part: &Part) -> Result<()> {
+    let mut json = serde_json::to_vec(&part.header).map_err(|e| Error::io(path, e.into()))?;
+    json.resize(json.len().next_multiple_of(4), b' ');
+    let mut bytes = Vec::with_capacity(12 + json.len() + 4 * part.direct.scalar.len());
+    bytes.extend_from_slice(MAGIC);
+    bytes.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    bytes.extend_from_slice(&json);
+    bytes.extend_from_slice(bytemuck::cast_slice(&part.direct.scalar));
+    if let Some(matrix) = &part.direct.matrix {
+        bytes.extend_from_slice(bytemuck::cast_slice(&matrix.row_offsets));
+        bytes.extend_from_slice(bytemuck::cast_slice(&matrix.columns));
+        bytes.extend_from_slice(bytemuck::cast_slice(&matrix.weights));
+    }
+    write_atomically(path, &bytes)
+}
+
+/// Reads a part file written by [`write_part`], checking that its sizes add up.
+pub fn read_part(path: &Path) -> Result<Part> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let broken = |why: &str| Error::io(path, std::io::Error::other(format!("not a part: {why}")));
+    if bytes.len() < 12 || &bytes[..8] != MAGIC {
+        return Err(broken(
+            "no prtpart1 signature (not written by prt-gpu bake --shard)",
+        ));
+    }
+    let json_len = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes")) as usize;
+    let json = bytes
+        .get(12..12 + json_len)
+        .ok_or_else(|| broken("truncated header"))?;
+    let header: PartHeader =
+        serde_json::from_slice(json).map_err(|e| broken(&format!("header: {e}")))?;
+    let receivers = header.receivers as usize;
+    let values = receivers * header.coeffs as usize;
+    let (offsets, entries) = match header.gather_entries {
+        Some(entries) => (receivers + 1, entries as usize),
+        None => (0, 0),
+    };
+    let body = &bytes[12 + json_len..];
+    if body.len() != 4 * (values + offsets + 2 * entries) {
+        return Err(broken(&format!(
+            "{} bytes of data where its header says {}",
+            body.len(),
+            4 * (values + offsets + 2 * entries)
+        )));
+    }
+    let words = |from: usize, count: usize| -> Vec<u32> {
+        body[4 * from..4 * (from + count)]
+            .chunks_exact(4)
+            .map(|w| u32::from_le_bytes(w.try_into().expect("4 bytes")))
+            .collect()
+    };
+    let floats = |from: usize, count: usize| words(from, count).into_iter().map(f32::from_bits);
+    let scalar = floats(0, values).collect();
+    let matrix = header.gather_entries.map(|_| GatherMatrix {
+        row_offsets: words(values, offsets),
+        columns: words(values + offsets, entries),
+        weights: floats(values + offsets + entries, entries).collect(),
+    });
+    if let Some(m) = &matrix {
+        let ascending = m.row_offsets.windows(2).all(|w| w[0] <= w[1]);
+        if m.row_offsets.first() != Some(&0)
+            || !ascending
+            || m.row_offsets.last() != Some(&(entries as u32))
+        {
+            return Err(broken("gather rows out of order"));
+        }
+    }
+    let direct = DirectPass {
+        scalar,
+        matrix,
+        rays_cast: header.rays_cast,
+    };
+    Ok(Part { header, direct })
+}
+
+/// The direct pass of the whole bake from its parts, in any order, and the header of the
+/// first (whose command the merge bakes the rest with). Refuses, naming the files, parts of
+/// different bakes, a shard given twice, a shard missing, and parts whose runs of receivers
+/// do not tile the whole.
+pub fn assemble(mut parts: Vec<(PathBuf, Part)>) -> Result<(PartHeader, DirectPass)> {
+    let refuse = |message: String| Err(Error::Options(message));
+    let Some((first_path, first)) = parts.first() else {
+        return refuse("merge needs at least one part".into());
+    };
+    let (first_path, first) = (first_path.clone(), first.header.clone());
+    for (path, part) in &parts {
+        let h = &part.header;
+        if h.fingerprint != first.fingerprint || h.shard_count != first.shard_count {
+            return refuse(format!(
+                "{} and {} are parts of different bakes (mesh, options, seed or shard count differ)",
+                first_path.display(),
+                path.display()
+            ));
+        }
+        if h.backend != first.backend {
+            return refuse(format!(
+                "{} was baked on {} and {} on {}: parts of one bake must share a backend",
+                first_path.display(),
+                first.backend,
+                path.display(),
+                h.backend
+            ));
+        }
+    }
+    parts.sort_by_key(|(_, part)| part.header.shard_index);
+    for pair in parts.windows(2) {
+        if pair[0].1.header.shard_index == pair[1].1.header.shard_index {
+            return refuse(format!(
+                "shard {}/{} is given twice: {} and {}",
+                pair[0].1.header.shard_index,
+                first.shard_count,
+                pair[0].0.display(),
+                pair[1].0.display()
+            ));
+        }
+    }
+    let present: Vec<u32> = parts.iter().map(|(_, p)| p.header.shard_index).collect();
+    if let Some(missing) = (0..first.shard_count).find(|i| !present.contains(i)) {
+        return refuse(format!(
+            "shard {missing}/{} is missing ({} of {} parts given)",
+            first.shard_count,
+            parts.len(),
+            first.shard_count
+        ));
+    }
+    join(parts, first)
+}
+
+/// Concatenates parts sorted by shard, checking their runs of receivers tile the whole.
+fn join(parts: Vec<(PathBuf, Part)>, first: PartHeader) -> Result<(PartHeader, DirectPass)> {
+    let interreflected = first.gather_entries.is_some();
+    let mut scalar = Vec::new();
+    let mut matrix = interreflected.then(|| GatherMatrix {
+        row_offsets: vec![0],
+        ..GatherMatrix::default()
+    });
+    let mut next_receiver = 0;
+    let mut rays_cast = 0;
+    for (path, part) in parts {
+        let h = &part.header;
+        if h.first_receiver != next_receiver || h.receivers_total != first.receivers_total {
+            return Err(Error::Options(format!(
+                "{} holds receivers {}.. where {next_receiver}.. were expected",
+                path.display(),
+                h.first_receiver
+            )));
+        }
+        next_receiver += h.receivers;
+        rays_cast += h.rays_cast;
+        scalar.extend(part.direct.scalar);
+        if let (Some(all), Some(rows)) = (&mut matrix, part.direct.matrix) {
+            let base = all.columns.len() as u32;
+            all.row_offsets
+                .extend(rows.row_offsets[1..].iter().map(|o| o + base));
+            all.columns.extend(rows.columns);
+            all.weights.extend(rows.weights);
+        }
+    }
+    if next_receiver != first.receivers_total {
+        return Err(Error::Options(format!(
+            "the parts hold {next_receiver} of {} receivers",
+            first.receivers_total
+        )));
+    }
+    let direct = DirectPass {
+        scalar,
+        matrix,
+        rays_cast,
+    };
+    Ok((first, direct))
+}
+
+/// A fingerprint of `scene` as loaded and of `options` (any text that determines the output
+/// besides the mesh): FNV-1a, 64 bits, as hex. Not a defence against tampering; a check that
+/// parts come from the same inputs.
+pub fn fingerprint(scene: &Scene, options: &str) -> String {
+    let mut hash = Fnv1a::default();
+    hash.write(bytemuck::cast_slice(&scene.positions));
+    if let Some(normals) = &scene.normals {
+        hash.write(bytemuck::cast_slice(normals));
+    }
+    hash.write(bytemuck::cast_slice(&scene.albedo));
+    hash.write(bytemuck::cast_slice(&scene.triangles));
+    hash.write(options.as_bytes());
+    hash.write(env!("CARGO_PKG_VERSION").as_bytes());
+    format!("{:016x}", hash.0)
+}
+
+struct Fnv1a(u64);
+
+impl Default for Fnv1a {
+    fn default() -> Self {
+        Fnv1a(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv1a {
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+        // Separates fields, so that moving bytes from one field to the next changes the hash.
+        self.0 = (self.0 ^ 0xff).wrapping_mul(0x0100_0000_01b3);
+    }
+}

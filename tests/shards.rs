@@ -1,0 +1,221 @@
+//! Sharded bakes: `bake … --shard I/N` parts merged by `prt-gpu merge` give the very bytes of the
+//! unsharded bake, whatever the split; parts that do not belong together are refused.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::prt_gpu;
+
+const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj");
+
+/// Bakes `mesh` (the built-in scene for `None`) whole, then in `count` shards merged; returns
+/// the two files' bytes.
+fn whole_and_merged(
+    mesh: Option<&str>,
+    extra: &[&str],
+    count: u32,
+    dir: &Path,
+) -> (Vec<u8>, Vec<u8>) {
+    let mut args: Vec<String> = vec!["bake".into()];
+    args.extend(mesh.map(String::from));
+    args.extend(extra.iter().map(|a| a.to_string()));
+    let run = |more: &[String]| {
+        let all: Vec<&str> = args.iter().chain(more).map(String::as_str).collect();
+        let out = prt_gpu(&all, dir);
+        assert!(
+            out.status.success(),
+            "{all:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    run(&["-o".into(), "whole.glb".into()]);
+    let mut merge = vec!["merge".to_string()];
+    // Shards in reverse, so that the merge has to order them.
+    for i in (0..count).rev() {
+        let part = format!("shard{i}.part");
+        run(&[
+            "--shard".into(),
+            format!("{i}/{count}"),
+            "-o".into(),
+            part.clone(),
+        ]);
+        merge.push(part);
+    }
+    merge.extend(["-o".into(), "merged.glb".into()]);
+    let merge: Vec<&str> = merge.iter().map(String::as_str).collect();
+    let out = prt_gpu(&merge, dir);
+    assert!(
+        out.status.success(),
+        "merge: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let read = |name: &str| std::fs::read(dir.join(name)).unwrap();
+    (read("whole.glb"), read("merged.glb"))
+}
+
+#[test]
+fn merged_shards_equal_the_whole_bake_byte_for_byte() {
+    for mesh in [Some(BUNNY), None] {
+        for mode in ["shadowed", "interreflected"] {
+            for count in [1, 2, 3, 7] {
+                let dir = tempfile::tempdir().unwrap();
+                let extra = ["--device", "cpu", "--samples", "128", "--mode", mode];
+                let (whole, merged) = whole_and_merged(mesh, &extra, count, dir.path());
+                assert!(
+                    whole == merged,
+                    "{mesh:?} {mode} in {count} shards: the merged file differs"
+                );
+            }
+        }
+    }
+}
+
+/// Fits, auto bands, lean storage and compression run in the merge, as in the whole bake.
+#[test]
+fn merge_runs_the_rest_of_the_bake_as_the_whole_bake_does() {
+    let cases: [&[&str]; 3] = [
+        &[
+            "--fit",
+            "least-squares",
+            "--mode",
+            "interreflected",
+            "--bounces",
+            "2",
+        ],
+        &["--bands", "auto", "--storage", "lean"],
+        &["--compress", "8x4", "--seed", "7"],
+    ];
+    for extra in cases {
+        let dir = tempfile::tempdir().unwrap();
+        let mut args = vec!["--device", "cpu", "--samples", "64"];
+        args.extend(extra);
+        let (whole, merged) = whole_and_merged(Some(BUNNY), &args, 3, dir.path());
+        assert!(whole == merged, "{extra:?}: the merged file differs");
+    }
+}
+
+/// On the GPU backend (lavapipe in CI) too: the bounces of GPU parts run on a GPU in the merge.
+#[test]
+fn gpu_shards_merge_to_the_whole_gpu_bake() {
+    if common::gpu_baker().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let extra = [
+        "--device",
+        "gpu",
+        "--samples",
+        "64",
+        "--mode",
+        "interreflected",
+    ];
+    let (whole, merged) = whole_and_merged(Some(BUNNY), &extra, 2, dir.path());
+    assert!(whole == merged, "GPU parts: the merged file differs");
+}
+
+fn shard(dir: &Path, mesh: &str, extra: &[&str], index: u32, count: u32) -> PathBuf {
+    let name = format!("{}-{index}-of-{count}-{}.part", stem(mesh), extra.join("_"));
+    let spec = format!("{index}/{count}");
+    let mut args = vec!["bake", mesh, "--device", "cpu", "--samples", "32"];
+    args.extend(extra);
+    args.extend(["--shard", &spec, "-o", &name]);
+    let out = prt_gpu(&args, dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    dir.join(name)
+}
+
+fn stem(mesh: &str) -> String {
+    Path::new(mesh)
+        .file_stem()
+        .unwrap()
+        .to_string_lossy()
+        .into()
+}
+
+/// `merge` of `parts`: its exit failed, with one line of error naming the problem.
+fn refused(dir: &Path, parts: &[&Path], expected: &str) {
+    let mut args = vec!["merge".to_string()];
+    args.extend(parts.iter().map(|p| p.display().to_string()));
+    args.extend(["-o".into(), "out.glb".into()]);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let out = prt_gpu(&args, dir);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} was merged");
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains(expected), "{args:?}: {stderr}");
+    assert!(
+        !dir.join("out.glb").exists(),
+        "a refused merge wrote a file"
+    );
+}
+
+#[test]
+fn merge_refuses_parts_that_do_not_make_one_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let a = [0, 1, 2].map(|i| shard(d, BUNNY, &[], i, 3));
+    refused(d, &[&a[0], &a[2]], "shard 1/3 is missing");
+    refused(d, &[&a[0], &a[1], &a[1], &a[2]], "shard 1/3 is given twice");
+    let other_seed = shard(d, BUNNY, &["--seed", "2"], 1, 3);
+    refused(d, &[&a[0], &other_seed, &a[2]], "parts of different bakes");
+    let other_mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
+    let other = shard(d, other_mesh, &[], 1, 3);
+    refused(d, &[&a[0], &other, &a[2]], "parts of different bakes");
+    let other_split = shard(d, BUNNY, &[], 1, 2);
+    refused(d, &[&a[0], &other_split, &a[2]], "parts of different bakes");
+
+    // A file that is not a part, and a part cut short.
+    let not_a_part = d.join("bunny.obj.part");
+    std::fs::copy(BUNNY, &not_a_part).unwrap();
+    refused(d, &[&a[0], &not_a_part, &a[2]], "not a part");
+    let bytes = std::fs::read(&a[1]).unwrap();
+    let cut = d.join("cut.part");
+    std::fs::write(&cut, &bytes[..bytes.len() - 8]).unwrap();
+    refused(d, &[&a[0], &cut, &a[2]], "not a part");
+
+    // The mesh changed after the shards were baked.
+    let mesh = d.join("moving.obj");
+    std::fs::copy(BUNNY, &mesh).unwrap();
+    let mesh = mesh.display().to_string();
+    let parts = [0, 1].map(|i| shard(d, &mesh, &[], i, 2));
+    let text = std::fs::read_to_string(&mesh).unwrap();
+    let moved: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, line)| match line.strip_prefix("v ") {
+            // The first vertex moves a little along x.
+            Some(xyz) if i == text.lines().position(|l| l.starts_with("v ")).unwrap() => {
+                let x: Vec<f32> = xyz.split_whitespace().map(|v| v.parse().unwrap()).collect();
+                format!("v {} {} {}", x[0] + 1e-3, x[1], x[2])
+            }
+            _ => line.to_string(),
+        })
+        .collect();
+    std::fs::write(&mesh, moved.join("\n")).unwrap();
+    refused(
+        d,
+        &[&parts[0], &parts[1]],
+        "is not the mesh the parts were baked from",
+    );
+}
+
+#[test]
+fn bad_shard_specs_are_refused_in_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    for spec in ["3/3", "1/0", "1/2/3", "a/b", "2"] {
+        let out = prt_gpu(&["bake", BUNNY, "--shard", spec], dir.path());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "--shard {spec} was accepted");
+        assert_eq!(stderr.trim().lines().count(), 1, "--shard {spec}: {stderr}");
+        assert!(stderr.contains("--shard"), "--shard {spec}: {stderr}");
+    }
+    assert!(
+        prt_gpu::testing::entries(dir.path()).is_empty(),
+        "a refused shard wrote a file"
+    );
+}

@@ -12,6 +12,10 @@ done
 if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
     need_packages+=(nodejs npm)
 fi
+# Slurm and munge run the sharded bake's array jobs (tests/slurm.rs) on a one-node cluster.
+for tool in sbatch:slurm-wlm munged:munge; do
+    command -v "${tool%%:*}" >/dev/null || need_packages+=("${tool#*:}")
+done
 if [ ${#need_packages[@]} -gt 0 ]; then
     if [ "$(id -u)" -eq 0 ] && command -v apt-get >/dev/null; then
         echo "ci/test.sh: installing ${need_packages[*]}"
@@ -34,6 +38,18 @@ if ! python3 -c "import OpenEXR" >/dev/null 2>&1; then
     python3 -m pip install --quiet --disable-pip-version-check OpenEXR \
         || python3 -m pip install --quiet --disable-pip-version-check --break-system-packages OpenEXR \
         || echo "ci/test.sh: OpenEXR (Python) not installed" >&2
+fi
+
+# The Kubernetes manifest test (tests/shards.rs) parses k8s/sharded-bake.yaml with PyYAML.
+if ! python3 -c "import yaml" >/dev/null 2>&1; then
+    python3 -m pip install --quiet --disable-pip-version-check pyyaml \
+        || python3 -m pip install --quiet --disable-pip-version-check --break-system-packages pyyaml \
+        || echo "ci/test.sh: PyYAML not installed" >&2
+fi
+
+# A one-node Slurm cluster for tests/slurm.rs (root only: it starts munged, slurmctld, slurmd).
+if [ "$(id -u)" -eq 0 ] && command -v slurmctld >/dev/null; then
+    ci/slurm/start-cluster.sh || echo "ci/test.sh: the Slurm cluster did not start" >&2
 fi
 
 # The Khronos glTF-Validator, which every written file must pass (src/gltf_validator.rs), at the

@@ -219,3 +219,46 @@ fn bad_shard_specs_are_refused_in_one_line() {
         "a refused shard wrote a file"
     );
 }
+
+/// The Kubernetes manifest (k8s/sharded-bake.yaml) is valid YAML and splits as the Slurm script
+/// does: an Indexed Job of N completions whose pods bake `--shard $JOB_COMPLETION_INDEX/N`, and a
+/// merge of N parts.
+#[test]
+fn kubernetes_manifest_is_an_indexed_job_of_n_shards_and_a_merge() {
+    if !prt_gpu::testing::python_with(&["yaml"]) {
+        return;
+    }
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("k8s/sharded-bake.yaml");
+    let script =
+        "import json, sys, yaml\nprint(json.dumps(list(yaml.safe_load_all(open(sys.argv[1])))))";
+    let docs = prt_gpu::testing::python_json(script, &manifest);
+    let docs = docs.as_array().expect("a list of documents");
+    assert_eq!(docs.len(), 2);
+    let (shards, merge) = (&docs[0], &docs[1]);
+    for doc in docs {
+        assert_eq!(doc["apiVersion"], "batch/v1");
+        assert_eq!(doc["kind"], "Job");
+    }
+    assert_eq!(shards["spec"]["completionMode"], "Indexed");
+    let n = shards["spec"]["completions"].as_u64().expect("completions");
+    let command = |job: &serde_json::Value| {
+        let container = &job["spec"]["template"]["spec"]["containers"][0];
+        container["args"][0].as_str().expect("args").to_string()
+    };
+    let bake = command(shards);
+    assert!(bake.starts_with("prt-gpu bake "), "{bake}");
+    assert!(
+        bake.contains(&format!("--shard \"${{JOB_COMPLETION_INDEX}}/{n}\"")),
+        "{bake}"
+    );
+    assert!(
+        bake.contains(&format!("part-${{JOB_COMPLETION_INDEX}}-of-{n}.part")),
+        "{bake}"
+    );
+    let merging = command(merge);
+    assert!(merging.starts_with("prt-gpu merge "), "{merging}");
+    assert!(
+        merging.contains(&format!("part-*-of-{n}.part")),
+        "{merging}"
+    );
+}

@@ -20,6 +20,14 @@ pub enum Error {
     #[error("invalid option: {0}")]
     Options(String),
     /// No usable adapter, or the GPU failed (validation, device loss, limits).
+    /// Parts of a sharded bake that do not make one bake.
+    #[error("merge: {0}")]
+    Merge(String),
+
+    /// Meshes of a batch that failed (each reported as it failed).
+    #[error("batch: {0}")]
+    Batch(String),
+
     #[error("gpu: {0}")]
     Gpu(String),
     /// An environment map or light file that cannot be read, or lighting that cannot be projected.

@@ -311,8 +311,13 @@ struct RenderArgs {
 struct BakeArgs {
     /// Mesh to bake: a glTF scene (.gltf, .glb: written back with its transfer added), .obj,
     /// .ply or .ply.gz. Without it, the built-in scene (a sphere and a box on a ground plane
-    /// beside a wall).
-    mesh: Option<PathBuf>,
+    /// beside a wall). Several meshes, directories (their mesh files) or quoted glob patterns
+    /// bake as a batch into --out-dir, one device for all.
+    #[arg(value_name = "MESH")]
+    meshes: Vec<PathBuf>,
+    /// Batch: the directory each <mesh name>.prt.glb is written to (created if missing).
+    #[arg(long, value_name = "DIR")]
+    out_dir: Option<PathBuf>,
     #[command(flatten)]
     transfer: TransferArgs,
     /// Interreflected mode: bounces of light between surfaces added to the direct transfer.
@@ -492,58 +497,125 @@ fn usage_error_line(message: &str) -> String {
 }
 
 fn run_bake(args: BakeArgs) -> Result<()> {
-    match args.shard {
-        Some(shard) => run_shard(args, shard),
-        None => run_bake_from(args, None),
+    let meshes = scene::batch::mesh_files(&args.meshes)?;
+    if let Some(shard) = args.shard {
+        return match meshes.as_slice() {
+            [_, _, ..] => Err(Error::Options("--shard bakes one mesh, not a batch".into())),
+            _ => run_shard(&args, &meshes.first().cloned(), shard),
+        };
+    }
+    if meshes.len() > 1 || args.out_dir.is_some() {
+        return run_batch(&args, &meshes);
+    }
+    let options = bake_options(&args)?;
+    options.validate()?;
+    check_chunking(&args)?;
+    let baker = bake_backend(&options, args.device, args.adapter.as_deref())?;
+    let progress = BarProgress::default();
+    let mesh = meshes.first().cloned();
+    bake_one(&args, &mesh, args.output.clone(), &baker, None, &progress)
+}
+
+/// `bake` of several meshes: one device, one line per mesh and a total; a mesh that fails is
+/// reported and the others still bake, the exit failing at the end.
+fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
+    for (given, flag) in [
+        (
+            args.output.is_some(),
+            "-o names one output; a batch writes into --out-dir",
+        ),
+        (
+            args.preview.is_some(),
+            "--preview renders one bake, not a batch",
+        ),
+    ] {
+        if given {
+            return Err(Error::Options(flag.into()));
+        }
+    }
+    if meshes.is_empty() {
+        return Err(Error::Options(
+            "--out-dir: no mesh to bake was given".into(),
+        ));
+    }
+    let out_dir = args.out_dir.clone().unwrap_or_else(|| PathBuf::from("."));
+    let outputs = scene::batch::output_paths(meshes, &out_dir)?;
+    let options = bake_options(args)?;
+    options.validate()?;
+    check_chunking(args)?;
+    std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
+    let baker = bake_backend(&options, args.device, args.adapter.as_deref())?;
+    let started = std::time::Instant::now();
+    let mut failed = Vec::new();
+    for (k, (mesh, output)) in meshes.iter().zip(outputs).enumerate() {
+        let progress = BarProgress::in_batch(k + 1, meshes.len(), &stem(mesh));
+        let mesh = Some(mesh.clone());
+        if let Err(error) = bake_one(args, &mesh, Some(output), &baker, None, &progress) {
+            progress.finish();
+            eprintln!("error: {error}");
+            failed.push(mesh_shown(&mesh));
+        }
+    }
+    println!(
+        "batch: {} of {} meshes baked in {:.2} s -> {}",
+        meshes.len() - failed.len(),
+        meshes.len(),
+        started.elapsed().as_secs_f64(),
+        out_dir.display()
+    );
+    match failed.len() {
+        0 => Ok(()),
+        n => Err(Error::Batch(format!(
+            "{n} of {} meshes failed: {}",
+            meshes.len(),
+            failed.join(", ")
+        ))),
     }
 }
 
-/// `bake` with its direct pass computed here or, merging, joined from the parts of a sharded
-/// bake of the same mesh and options.
-fn run_bake_from(args: BakeArgs, merged: Option<(PartHeader, bake::DirectPass)>) -> Result<()> {
-    let options = bake_options(&args)?;
-    options.validate()?;
+/// One bake of `mesh` to `output`, its direct pass computed on `baker` (the CPU without one)
+/// or, merging, joined from the parts of a sharded bake of the same mesh and options.
+fn bake_one(
+    args: &BakeArgs,
+    mesh: &Option<PathBuf>,
+    output: Option<PathBuf>,
+    baker: &Option<GpuBaker>,
+    merged: Option<(PartHeader, bake::DirectPass)>,
+    progress: &BarProgress,
+) -> Result<()> {
+    let options = bake_options(args)?;
     let loading = std::time::Instant::now();
-    let (scene, gltf, name) = load_bake_input(&args.mesh)?;
-    check_output_forms(&args, &options, gltf.is_some())?;
+    let (scene, gltf, name) = load_bake_input(mesh)?;
+    check_output_forms(args, &options, gltf.is_some())?;
     let seconds_load = loading.elapsed().as_secs_f64();
-    let output_path = args
-        .output
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
+    let output_path = output.unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
     // Fail before the long part, not after it.
     fs::check_destination(&output_path)?;
     if let Some(preview) = &args.preview {
         fs::check_destination(preview)?;
     }
     note_samples_rounded(&options);
-    check_chunking(&args)?;
     let merged_from = merged
         .as_ref()
         .map(|(header, _)| (header.shard_count, header.backend.clone()));
-    let (baker, source) = match merged {
-        None => (
-            bake_backend(&options, args.device, args.adapter.as_deref())?,
-            bake::DirectSource::Compute,
-        ),
+    let source = match merged {
+        None => bake::DirectSource::Compute,
         Some((header, direct)) => {
-            if shard::fingerprint(&scene, &fingerprinted_options(&args, &options))
+            if shard::fingerprint(&scene, &fingerprinted_options(args, &options))
                 != header.fingerprint
             {
-                return Err(Error::Options(format!(
+                return Err(Error::Merge(format!(
                     "{} is not the mesh the parts were baked from (it changed since)",
-                    mesh_shown(&args.mesh)
+                    mesh_shown(mesh)
                 )));
             }
-            let baker = merge_backend(&options, &header.backend)?;
             let ran_on = header.backend;
-            (baker, bake::DirectSource::Given { direct, ran_on })
+            bake::DirectSource::Given { direct, ran_on }
         }
     };
-    let backend = backend_of(&baker, &args);
-    let progress = BarProgress::default();
-    let (mut baked, report) = bake::bake_from(scene, &options, &backend, source, &progress)
-        .map_err(|e| naming_the_mesh(e, &mesh_shown(&args.mesh)))?;
+    let backend = backend_of(baker, args);
+    let (mut baked, report) = bake::bake_from(scene, &options, &backend, source, progress)
+        .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
     progress.finish();
     let mut options = options;
     if args.transfer.bands == Bands::Auto {
@@ -568,11 +640,10 @@ fn run_bake_from(args: BakeArgs, merged: Option<(PartHeader, bake::DirectPass)>)
     };
     let seconds_write = writing.elapsed().as_secs_f64();
     if let Some(preview) = &args.preview {
-        let context = match baker {
-            Some(baker) => baker.context,
-            None => open_render_device(None)?,
-        };
-        write_preview(&context, &baked, preview)?;
+        match baker {
+            Some(baker) => write_preview(&baker.context, &baked, preview)?,
+            None => write_preview(&open_render_device(None)?, &baked, preview)?,
+        }
     }
     if let Some(written) = written {
         print_in_place_report(&written, seconds_load, seconds_write);
@@ -582,11 +653,11 @@ fn run_bake_from(args: BakeArgs, merged: Option<(PartHeader, bake::DirectPass)>)
 }
 
 /// `bake … --shard I/N`: the direct pass of one shard's receivers, written as a part file.
-fn run_shard(args: BakeArgs, shard: bake::Shard) -> Result<()> {
-    let options = bake_options(&args)?;
+fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Shard) -> Result<()> {
+    let options = bake_options(args)?;
     options.validate()?;
-    let (scene, gltf, name) = load_bake_input(&args.mesh)?;
-    check_output_forms(&args, &options, gltf.is_some())?;
+    let (scene, gltf, name) = load_bake_input(mesh)?;
+    check_output_forms(args, &options, gltf.is_some())?;
     if args.preview.is_some() {
         return Err(Error::Options(
             "--preview renders a whole bake: give it to `prt-gpu merge`, not to a shard".into(),
@@ -600,14 +671,14 @@ fn run_shard(args: BakeArgs, shard: bake::Shard) -> Result<()> {
     });
     fs::check_destination(&output)?;
     note_samples_rounded(&options);
-    check_chunking(&args)?;
-    let fingerprint = shard::fingerprint(&scene, &fingerprinted_options(&args, &options));
+    check_chunking(args)?;
+    let fingerprint = shard::fingerprint(&scene, &fingerprinted_options(args, &options));
     let baker = bake_backend(&options, args.device, args.adapter.as_deref())?;
-    let backend = backend_of(&baker, &args);
+    let backend = backend_of(&baker, args);
     let progress = BarProgress::default();
     let started = std::time::Instant::now();
     let pass = bake::bake_shard(scene, &options, &backend, shard, &progress)
-        .map_err(|e| naming_the_mesh(e, &mesh_shown(&args.mesh)))?;
+        .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
     progress.finish();
     let (range, total, rays) = (
         pass.receivers.clone(),
@@ -649,20 +720,31 @@ fn run_merge(args: MergeArgs) -> Result<()> {
     let bake_args = match Cli::try_parse_from(command).map(|cli| cli.command) {
         Ok(Command::Bake(bake_args)) => bake_args,
         _ => {
-            return Err(Error::Options(format!(
+            return Err(Error::Merge(format!(
                 "the parts' command is not a bake: {}",
                 header.command.join(" ")
             )))
         }
     };
     let bake_args = BakeArgs {
-        mesh: bake_args.mesh.map(|mesh| header.directory.join(mesh)),
-        shard: None,
-        output: args.output,
         preview: args.preview,
         ..bake_args
     };
-    run_bake_from(bake_args, Some((header, direct)))
+    let mesh = match bake_args.meshes.as_slice() {
+        [] => None,
+        [mesh] => Some(header.directory.join(mesh)),
+        _ => {
+            return Err(Error::Merge(format!(
+                "the parts' command bakes several meshes: {}",
+                header.command.join(" ")
+            )))
+        }
+    };
+    let options = bake_options(&bake_args)?;
+    let baker = merge_backend(&options, &header.backend)?;
+    let progress = BarProgress::default();
+    let merged = Some((header, direct));
+    bake_one(&bake_args, &mesh, args.output, &baker, merged, &progress)
 }
 
 /// What besides the mesh decides a bake's output, as text for its fingerprint.
@@ -1469,26 +1551,20 @@ fn run_info(path: &Path) -> Result<()> {
 }
 
 fn stem(path: &Path) -> String {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "mesh".into());
-    let name = name.strip_suffix(".gz").unwrap_or(&name);
-    match name.rsplit_once('.') {
-        Some((stem, _)) if !stem.is_empty() => stem.to_string(),
-        _ => name.to_string(),
-    }
+    scene::batch::mesh_name(path)
 }
 
 /// A progress bar on stderr; indicatif hides it when stderr is not a terminal.
 #[derive(Default)]
 struct BarProgress {
     bar: Mutex<Option<ProgressBar>>,
+    /// In a batch, which mesh of how many: "[2/5] bunny".
+    prefix: String,
 }
 
 impl Progress for BarProgress {
     fn stage(&self, name: &str, total: u64) {
-        let bar = ProgressBar::new(total).with_message(name.to_string());
+        let bar = ProgressBar::new(total).with_message(format!("{}{name}", self.prefix));
         bar.set_style(
             ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len}, eta {eta}")
                 .expect("static template")
@@ -1507,6 +1583,13 @@ impl Progress for BarProgress {
 }
 
 impl BarProgress {
+    fn in_batch(position: usize, count: usize, mesh: &str) -> BarProgress {
+        BarProgress {
+            prefix: format!("[{position}/{count}] {mesh} "),
+            ..BarProgress::default()
+        }
+    }
+
     fn finish(&self) {
         if let Some(bar) = self.bar.lock().unwrap().take() {
             bar.finish_and_clear();

@@ -170,7 +170,7 @@ pub fn read_part(path: &Path) -> Result<Part> {
 /// different bakes, a shard given twice, a shard missing, and parts whose runs of receivers
 /// do not tile the whole.
 pub fn assemble(mut parts: Vec<(PathBuf, Part)>) -> Result<(PartHeader, DirectPass)> {
-    let refuse = |message: String| Err(Error::Options(message));
+    let refuse = |message: String| Err(Error::Merge(message));
     let Some((first_path, first)) = parts.first() else {
         return refuse("merge needs at least one part".into());
     };
@@ -231,7 +231,7 @@ fn join(parts: Vec<(PathBuf, Part)>, first: PartHeader) -> Result<(PartHeader, D
     for (path, part) in parts {
         let h = &part.header;
         if h.first_receiver != next_receiver || h.receivers_total != first.receivers_total {
-            return Err(Error::Options(format!(
+            return Err(Error::Merge(format!(
                 "{} holds receivers {}.. where {next_receiver}.. were expected",
                 path.display(),
                 h.first_receiver
@@ -249,7 +249,7 @@ fn join(parts: Vec<(PathBuf, Part)>, first: PartHeader) -> Result<(PartHeader, D
         }
     }
     if next_receiver != first.receivers_total {
-        return Err(Error::Options(format!(
+        return Err(Error::Merge(format!(
             "the parts hold {next_receiver} of {} receivers",
             first.receivers_total
         )));

@@ -4,6 +4,7 @@
 //! `prepare` validates it, computes missing normals, welds duplicate vertices and sorts the
 //! vertices spatially, giving the [`Scene`] that is baked and written out.
 
+pub mod batch;
 pub mod builtin;
 pub mod gltf;
 pub mod obj;

@@ -320,3 +320,12 @@ pub fn any_adapter_or_skip() -> Option<GpuContext> {
         }
     }
 }
+
+/// The memory this machine can give a new process without swapping (Linux's `MemAvailable`),
+/// in bytes; `None` where the platform does not say.
+pub fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}

@@ -66,6 +66,71 @@ fn write_then_rename(tmp: &Path, path: &Path, bytes: &[u8]) -> Result<()> {
     fs::rename(tmp, path).map_err(|e| Error::io(path, e))
 }
 
+/// A file written piece by piece (at any offset) and then put in place whole: a temporary file
+/// beside the target that [`AtomicFile::commit`] syncs and renames, and that is removed when
+/// the writer is dropped uncommitted (an error or a panic halfway). For outputs too large to
+/// hold in memory; the rest go through [`write_atomically`].
+pub struct AtomicFile {
+    file: Option<File>,
+    tmp: std::path::PathBuf,
+    path: std::path::PathBuf,
+}
+
+impl AtomicFile {
+    pub fn create(path: &Path) -> Result<AtomicFile> {
+        let dir = check_destination(path)?;
+        let mut tmp_name = path.file_name().unwrap_or_default().to_os_string();
+        tmp_name.push(format!(".tmp-{}", std::process::id()));
+        let tmp = dir.join(tmp_name);
+        let file = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        Ok(AtomicFile {
+            file: Some(file),
+            tmp,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// Writes `bytes` at byte `offset` of the file.
+    pub fn write_at(&mut self, offset: u64, bytes: &[u8]) -> Result<()> {
+        use std::io::{Seek, SeekFrom};
+        let file = self.file.as_mut().expect("open until committed");
+        file.seek(SeekFrom::Start(offset))
+            .and_then(|_| file.write_all(bytes))
+            .map_err(|e| Error::io(&self.tmp, e))
+    }
+
+    /// Makes the file `len` bytes long (zeros where nothing was written yet).
+    pub fn set_len(&mut self, len: u64) -> Result<()> {
+        let file = self.file.as_mut().expect("open until committed");
+        file.set_len(len).map_err(|e| Error::io(&self.tmp, e))
+    }
+
+    /// Syncs the file and renames it over the target.
+    pub fn commit(mut self) -> Result<()> {
+        let file = self.file.take().expect("open until committed");
+        file.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
+        drop(file);
+        fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;
+        if let Some(dir) = self.path.parent() {
+            sync_dir(if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            });
+        }
+        Ok(())
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if self.file.take().is_some() {
+            // Best effort: the error that stopped the writer matters more.
+            let _ = fs::remove_file(&self.tmp);
+        }
+    }
+}
+
 /// Makes the rename itself durable where the platform allows syncing a directory.
 fn sync_dir(dir: &Path) {
     #[cfg(unix)]

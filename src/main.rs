@@ -384,6 +384,12 @@ struct BakeArgs {
     /// Also render a preview of the result under a default sky and sun (.png or .exr).
     #[arg(long)]
     preview: Option<PathBuf>,
+    /// Most memory the bake may use, e.g. 512M or 8G (binary units). A shadowed or unshadowed
+    /// bake of OBJ, PLY or the built-in scene that would need more streams its transfer to the
+    /// file in chunks that fit; one that cannot fit says so before it starts. Default: the
+    /// memory this machine has available (when that is too little, a warning).
+    #[arg(long, value_name = "SIZE", value_parser = parse_size)]
+    memory_limit: Option<u64>,
     /// Bake only shard I of N (counted from 0): a contiguous run of about 1/N of the receivers,
     /// written as a part file (default <mesh name>.prt.I-of-N.part); `prt-gpu merge` joins
     /// the N parts into the file this bake without --shard writes, byte for byte.
@@ -412,6 +418,33 @@ fn parse_compression(text: &str) -> std::result::Result<Compression, String> {
             .map(Compression::Target)
             .map_err(|e| format!("expected auto:ERROR, such as auto:0.02: {e}")),
         None => parse_cpca_shape(text).map(|(k, m)| Compression::Shape(k, m)),
+    }
+}
+
+fn parse_size(text: &str) -> std::result::Result<u64, String> {
+    let text = text.trim();
+    let split = text
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(text.len());
+    let (number, unit) = text.split_at(split);
+    let shift = match unit
+        .trim()
+        .to_ascii_uppercase()
+        .trim_end_matches("IB")
+        .trim_end_matches('B')
+    {
+        "" => 0,
+        "K" => 10,
+        "M" => 20,
+        "G" => 30,
+        "T" => 40,
+        _ => return Err(format!("expected a size such as 512M or 8G, not {text}")),
+    };
+    match number.parse::<f64>() {
+        Ok(value) if value > 0.0 && value.is_finite() => {
+            Ok((value * (1u64 << shift) as f64) as u64)
+        }
+        _ => Err(format!("expected a size such as 512M or 8G, not {text}")),
     }
 }
 
@@ -595,6 +628,18 @@ fn bake_one(
         fs::check_destination(preview)?;
     }
     note_samples_rounded(&options);
+    if merged.is_none() {
+        if let Some(chunk) = memory_plan(args, &options, &scene, gltf.is_some())? {
+            let planned = bake::stream::StreamedBake::plan(scene, &options)
+                .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
+            let backend = backend_of(baker, args);
+            let report =
+                glb::stream::bake_streamed(&planned, &backend, chunk, &output_path, progress)?;
+            progress.finish();
+            print_bake_report(&name, &options, &report, &output_path, None);
+            return Ok(());
+        }
+    }
     let merged_from = merged
         .as_ref()
         .map(|(header, _)| (header.shard_count, header.backend.clone()));
@@ -745,6 +790,64 @@ fn run_merge(args: MergeArgs) -> Result<()> {
     let progress = BarProgress::default();
     let merged = Some((header, direct));
     bake_one(&bake_args, &mesh, args.output, &baker, merged, &progress)
+}
+
+/// How the bake of `scene` fits the memory limit: `None` whole, or streamed in chunks of that
+/// many receivers. A bake that cannot fit an explicit limit fails before it starts, saying what
+/// it needs; over the machine's available memory, a warning.
+fn memory_plan(
+    args: &BakeArgs,
+    options: &BakeOptions,
+    scene: &scene::Scene,
+    gltf: bool,
+) -> Result<Option<usize>> {
+    use bake::stream::{format_bytes, MemoryNeed};
+    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), options);
+    let Some(limit) = args.memory_limit.or_else(device::available_memory) else {
+        return Ok(None);
+    };
+    if need.whole() <= limit {
+        return Ok(None);
+    }
+    let streamable = bake::stream::streams(options)
+        && !gltf
+        && args.compress.is_none()
+        && args.transfer.bands != Bands::Auto
+        && args.preview.is_none();
+    let cannot = match streamable {
+        true => None,
+        false => Some(
+            "only shadowed and unshadowed per-vertex bakes of OBJ, PLY and the built-in scene, \
+             without --compress, --bands auto or --preview, stream in chunks",
+        ),
+    };
+    match (cannot, args.memory_limit) {
+        (None, _) => {
+            let chunk = need.chunk_within(limit)?;
+            eprintln!(
+                "note: streaming the transfer in chunks of {chunk} receivers to stay within {} \
+                 (about {} whole, {} streamed)",
+                format_bytes(limit),
+                format_bytes(need.whole()),
+                format_bytes(need.streamed(chunk))
+            );
+            Ok(Some(chunk))
+        }
+        (Some(why), Some(_)) => Err(Error::Options(format!(
+            "--memory-limit {}: this bake needs about {}, and {why}",
+            format_bytes(limit),
+            format_bytes(need.whole())
+        ))),
+        (Some(why), None) => {
+            eprintln!(
+                "warning: this bake needs about {}, more than the {} this machine has available, \
+                 and {why}",
+                format_bytes(need.whole()),
+                format_bytes(limit)
+            );
+            Ok(None)
+        }
+    }
 }
 
 /// What besides the mesh decides a bake's output, as text for its fingerprint.

@@ -36,6 +36,7 @@ use compressed::CpcaExtras;
 
 pub mod compressed;
 pub mod scene;
+pub mod stream;
 use crate::scene::Scene;
 
 /// How the transfer buffer view is laid out; written into `extras.prt.transfer_layout` and
@@ -619,8 +620,60 @@ pub struct LightmapExtras {
 
 /// Checks everything `encode_valid` relies on, so encoding itself cannot fail halfway.
 fn validate(baked: &BakedMesh) -> Result<()> {
+    validate_shape(Shape::of(baked))?;
+    let (v, transfer) = (baked.scene.positions.len(), &baked.transfer);
+    let expected = transfer_len(v, transfer.channels, transfer.bands);
+    if expected != Some(transfer.coeffs.len()) {
+        return Err(Error::Geometry(format!(
+            "the transfer holds {} coefficients, expected {v} vertices x {} channels x {} = {}",
+            transfer.coeffs.len(),
+            transfer.channels,
+            transfer.bands * transfer.bands,
+            expected.map_or_else(|| "too many".to_string(), |n| n.to_string())
+        )));
+    }
+    check_finite_coeffs(transfer, 0)
+}
+
+/// Refuses a non-finite coefficient, naming its vertex (`first` is the first vertex's index).
+fn check_finite_coeffs(transfer: &Transfer, first: usize) -> Result<()> {
+    if let Some(i) = transfer.coeffs.iter().position(|x| !x.is_finite()) {
+        let per_vertex = (transfer.channels * transfer.bands * transfer.bands) as usize;
+        return Err(Error::Geometry(format!(
+            "non-finite transfer coefficient at vertex {}",
+            first + i / per_vertex
+        )));
+    }
+    Ok(())
+}
+
+/// A baked mesh without its coefficients: what the JSON chunk and the checks read. A streamed
+/// file (`stream`) is described by one before its coefficients exist.
+#[derive(Clone, Copy)]
+struct Shape<'a> {
+    pub scene: &'a Scene,
+    /// Bands, channels and vertex count; the coefficients are not read.
+    pub transfer: &'a Transfer,
+    pub metadata: &'a BakeMetadata,
+    pub lightmap: Option<&'a TexelBake>,
+}
+
+impl<'a> Shape<'a> {
+    pub fn of(baked: &'a BakedMesh) -> Shape<'a> {
+        Shape {
+            scene: &baked.scene,
+            transfer: &baked.transfer,
+            metadata: &baked.metadata,
+            lightmap: baked.lightmap.as_ref(),
+        }
+    }
+}
+
+/// Checks everything but the transfer's coefficients: the mesh, the transfer's shape and
+/// metadata, the lightmap, the file's size.
+fn validate_shape(shape: Shape) -> Result<()> {
     let bad = |message: String| Err(Error::Geometry(message));
-    let (scene, transfer, meta) = (&baked.scene, &baked.transfer, &baked.metadata);
+    let (scene, transfer, meta) = (shape.scene, shape.transfer, shape.metadata);
     let v = scene.positions.len();
     if v == 0 || scene.triangles.is_empty() {
         return bad(format!(
@@ -682,24 +735,7 @@ fn validate(baked: &BakedMesh) -> Result<()> {
             meta.bands, meta.channels, transfer.bands, transfer.channels
         ));
     }
-    let expected = transfer_len(v, transfer.channels, transfer.bands);
-    if expected != Some(transfer.coeffs.len()) {
-        return bad(format!(
-            "the transfer holds {} coefficients, expected {v} vertices x {} channels x {} = {}",
-            transfer.coeffs.len(),
-            transfer.channels,
-            transfer.bands * transfer.bands,
-            expected.map_or_else(|| "too many".to_string(), |n| n.to_string())
-        ));
-    }
-    if let Some(i) = transfer.coeffs.iter().position(|x| !x.is_finite()) {
-        let per_vertex = (transfer.channels * transfer.bands * transfer.bands) as usize;
-        return bad(format!(
-            "non-finite transfer coefficient at vertex {}",
-            i / per_vertex
-        ));
-    }
-    if let Some(texels) = &baked.lightmap {
+    if let Some(texels) = shape.lightmap {
         validate_lightmap(texels, transfer, v).map_err(Error::Geometry)?;
     }
     let bin = bin_len(v, scene.triangles.len(), transfer.channels, transfer.bands);
@@ -802,7 +838,25 @@ fn encode_valid(
 ) -> Result<Vec<u8>> {
     let (mut bin, mut views) = encode_bin(baked, cpca.is_none());
     let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, &mut bin, &mut views));
-    let (accessors, attributes) = accessors_and_attributes(baked, cpca.is_none());
+    let json = encode_json(
+        Shape::of(baked),
+        lightmap_uri,
+        cpca_extras,
+        views,
+        bin.len(),
+    )?;
+    glb_container(json, bin)
+}
+
+/// The JSON chunk of `baked` with the BIN chunk's `views` (`bin_len` bytes in all).
+fn encode_json(
+    shape: Shape,
+    lightmap_uri: Option<&str>,
+    cpca_extras: Option<CpcaExtras>,
+    views: Vec<BufferViewJson>,
+    bin_len: usize,
+) -> Result<Vec<u8>> {
+    let (accessors, attributes) = accessors_and_attributes(shape, cpca_extras.is_none());
     let doc = Document {
         asset: AssetJson {
             version: "2.0".into(),
@@ -819,12 +873,12 @@ fn encode_valid(
             }],
             extras: Some(MeshExtras {
                 prt: PrtExtras {
-                    metadata: &baked.metadata,
-                    vertices: baked.scene.positions.len(),
+                    metadata: shape.metadata,
+                    vertices: shape.scene.positions.len(),
                     transfer_buffer_view: cpca_extras.is_none().then_some(TRANSFER_VIEW),
                     transfer_layout: TRANSFER_LAYOUT,
                     cpca: cpca_extras,
-                    lightmap: baked.lightmap.as_ref().map(|texels| LightmapExtras {
+                    lightmap: shape.lightmap.map(|texels| LightmapExtras {
                         uri: lightmap_uri.unwrap_or(DEFAULT_LIGHTMAP_URI).to_string(),
                         width: texels.width,
                         height: texels.height,
@@ -837,67 +891,36 @@ fn encode_valid(
         accessors,
         buffer_views: views,
         buffers: vec![BufferJson {
-            byte_length: bin.len() as u64,
+            byte_length: bin_len as u64,
             uri: None,
         }],
     };
-    let json = serde_json::to_vec(&doc)
-        .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))?;
-    glb_container(json, bin)
+    serde_json::to_vec(&doc)
+        .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))
 }
 
-/// The BIN chunk (positions, normals, albedo, indices, transfer) and its five buffer views.
 /// The BIN chunk and its views: positions, normals, albedo, indices, then (with `planar`) the
 /// per-vertex transfer and, with a lightmap, its coordinates.
 fn encode_bin(baked: &BakedMesh, planar: bool) -> (Vec<u8>, Vec<BufferViewJson>) {
     let (scene, transfer) = (&baked.scene, &baked.transfer);
-    let normals = scene.normals.as_deref().unwrap_or_default();
-    let v = scene.positions.len();
-    let t = scene.triangles.len();
-    let groups = groups(transfer.bands);
-    let mut bin = Vec::with_capacity(bin_len(v, t, transfer.channels, transfer.bands).unwrap_or(0));
-    let mut views = Vec::new();
-    let mut view = |bin: &Vec<u8>, start: usize, stride: Option<u64>, target: u32| {
-        views.push(BufferViewJson {
-            buffer: 0,
-            byte_offset: start as u64,
-            byte_length: (bin.len() - start) as u64,
-            byte_stride: stride,
-            target: Some(target),
-        });
-    };
-
-    for vectors in [&scene.positions[..], normals, &scene.albedo[..]] {
-        let start = bin.len();
-        put_f32s(&mut bin, vectors.iter().flat_map(|p| p.to_array()));
-        view(&bin, start, None, ARRAY_BUFFER);
-    }
-    let start = bin.len();
-    for &i in scene.triangles.iter().flatten() {
-        bin.extend_from_slice(&i.to_le_bytes());
-    }
-    view(&bin, start, None, ELEMENT_ARRAY_BUFFER);
+    let capacity = bin_len(
+        scene.positions.len(),
+        scene.triangles.len(),
+        transfer.channels,
+        transfer.bands,
+    );
+    let mut bin = Vec::with_capacity(capacity.unwrap_or(0));
+    let mut views = encode_mesh_views(scene, &mut bin);
     if !planar {
         return (bin, views);
     }
     let start = bin.len();
-    for channel in 0..transfer.channels as usize {
-        for group in 0..groups {
-            for vertex in 0..v {
-                let coeffs = transfer.vertex_channel(vertex, channel);
-                put_f32s(
-                    &mut bin,
-                    (4 * group..4 * group + 4).map(|k| coeffs.get(k).copied().unwrap_or(0.0)),
-                );
-            }
-        }
-    }
-    // Several accessors share this view, so the spec requires an explicit stride.
-    view(&bin, start, Some(16), ARRAY_BUFFER);
+    put_planar_transfer(&mut bin, transfer);
+    views.push(transfer_view(start, bin.len() - start));
     if let Some(texels) = &baked.lightmap {
         let start = bin.len();
         put_f32s(&mut bin, texels.texcoords.iter().flatten().copied());
-        view(&bin, start, None, ARRAY_BUFFER);
+        views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
     }
     let expected_views = TRANSFER_VIEW + 1 + baked.lightmap.is_some() as usize;
     debug_assert_eq!(views.len(), expected_views);
@@ -905,12 +928,71 @@ fn encode_bin(baked: &BakedMesh, planar: bool) -> (Vec<u8>, Vec<BufferViewJson>)
     (bin, views)
 }
 
+/// Appends the mesh's positions, normals, albedo and indices to `bin`; their four views.
+fn encode_mesh_views(scene: &Scene, bin: &mut Vec<u8>) -> Vec<BufferViewJson> {
+    let normals = scene.normals.as_deref().unwrap_or_default();
+    let mut views = Vec::new();
+    for vectors in [&scene.positions[..], normals, &scene.albedo[..]] {
+        let start = bin.len();
+        put_f32s(bin, vectors.iter().flat_map(|p| p.to_array()));
+        views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
+    }
+    let start = bin.len();
+    for &i in scene.triangles.iter().flatten() {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    views.push(array_view(
+        start,
+        bin.len() - start,
+        None,
+        ELEMENT_ARRAY_BUFFER,
+    ));
+    debug_assert_eq!(views.len(), TRANSFER_VIEW);
+    views
+}
+
+/// The transfer's view, `len` bytes from `start`. Several accessors share it, so the spec
+/// requires an explicit stride.
+fn transfer_view(start: usize, len: usize) -> BufferViewJson {
+    array_view(start, len, Some(16), ARRAY_BUFFER)
+}
+
+fn array_view(start: usize, len: usize, stride: Option<u64>, target: u32) -> BufferViewJson {
+    BufferViewJson {
+        buffer: 0,
+        byte_offset: start as u64,
+        byte_length: len as u64,
+        byte_stride: stride,
+        target: Some(target),
+    }
+}
+
+/// Appends `transfer` in the planar layout ([`TRANSFER_LAYOUT`]).
+fn put_planar_transfer(bin: &mut Vec<u8>, transfer: &Transfer) {
+    for channel in 0..transfer.channels as usize {
+        for group in 0..groups(transfer.bands) {
+            put_planar_block(bin, transfer, channel, group);
+        }
+    }
+}
+
+/// Appends the `(channel, group)` block of `transfer`'s vertices: four coefficients each.
+fn put_planar_block(bin: &mut Vec<u8>, transfer: &Transfer, channel: usize, group: usize) {
+    for vertex in 0..transfer.vertex_count {
+        let coeffs = transfer.vertex_channel(vertex, channel);
+        put_f32s(
+            bin,
+            (4 * group..4 * group + 4).map(|k| coeffs.get(k).copied().unwrap_or(0.0)),
+        );
+    }
+}
+
 /// The accessors of the views [`encode_bin`] lays out, and the primitive's attributes.
 fn accessors_and_attributes(
-    baked: &BakedMesh,
+    shape: Shape,
     planar: bool,
 ) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
-    let (scene, transfer) = (&baked.scene, &baked.transfer);
+    let (scene, transfer) = (shape.scene, shape.transfer);
     let v = scene.positions.len();
     let groups = groups(transfer.bands);
     let (min, max) = scene.positions.iter().fold(
@@ -954,7 +1036,7 @@ fn accessors_and_attributes(
             accessors.push(accessor(TRANSFER_VIEW, block * v * 16, FLOAT, v, "VEC4"));
         }
     }
-    if baked.lightmap.is_some() {
+    if shape.lightmap.is_some() {
         attributes.insert("TEXCOORD_0".into(), accessors.len());
         accessors.push(accessor(TEXCOORD_VIEW, 0, FLOAT, v, "VEC2"));
     }

@@ -1,0 +1,157 @@
+//! A baked file written a chunk of vertices at a time, for bakes too large to hold every
+//! vertex's transfer in memory (`bake --memory-limit`). The JSON chunk, the mesh's views and
+//! the size of the transfer view are known before any coefficient is: they are written first,
+//! and each chunk's coefficients go to their places in the planar transfer view. The bytes are
+//! those [`super::write_glb`] writes for the same bake.
+
+use std::ops::Range;
+use std::path::Path;
+use std::time::Instant;
+
+use super::{
+    check_finite_coeffs, encode_json, encode_mesh_views, groups, put_planar_block, transfer_bytes,
+    transfer_view, validate_shape, Shape, CHUNK_BIN, CHUNK_JSON, GLB_MAGIC, GLB_VERSION,
+};
+use crate::bake::stream::StreamedBake;
+use crate::bake::{Backend, BakeMetadata, BakeReport, Progress, Transfer};
+use crate::error::{Error, Result};
+use crate::fs::AtomicFile;
+
+/// A .glb being written: everything but the transfer is in place; [`GlbStream::put`] fills in
+/// the transfer of a run of vertices, [`GlbStream::commit`] puts the file in place.
+pub struct GlbStream {
+    file: AtomicFile,
+    /// File offset of the transfer view.
+    transfer_start: u64,
+    vertices: usize,
+    channels: u32,
+    bands: u32,
+}
+
+impl GlbStream {
+    /// Starts the file at `path` for the mesh and transfer shape of `shape`.
+    fn create(path: &Path, shape: Shape) -> Result<GlbStream> {
+        validate_shape(shape)?;
+        let transfer = shape.transfer;
+        let v = shape.scene.positions.len();
+        let mut bin = Vec::new();
+        let mut views = encode_mesh_views(shape.scene, &mut bin);
+        let transfer_len = transfer_bytes(v, transfer.channels, transfer.bands)
+            .expect("validate_shape bounds the file's size");
+        views.push(transfer_view(bin.len(), transfer_len));
+        let bin_len = bin.len() + transfer_len;
+        let mut json = encode_json(shape, None, None, views, bin_len)?;
+        json.resize(json.len().next_multiple_of(4), b' ');
+        // Every view's length is a multiple of 4, so the BIN chunk needs no padding.
+        debug_assert_eq!(bin_len % 4, 0);
+        let total = 12 + 8 + json.len() + 8 + bin_len;
+        let mut head = Vec::with_capacity(28 + json.len());
+        for word in [
+            GLB_MAGIC,
+            GLB_VERSION,
+            total as u32,
+            json.len() as u32,
+            CHUNK_JSON,
+        ] {
+            head.extend_from_slice(&word.to_le_bytes());
+        }
+        head.extend_from_slice(&json);
+        for word in [bin_len as u32, CHUNK_BIN] {
+            head.extend_from_slice(&word.to_le_bytes());
+        }
+        let mut file = AtomicFile::create(path)?;
+        file.set_len(total as u64)?;
+        file.write_at(0, &head)?;
+        file.write_at(head.len() as u64, &bin)?;
+        Ok(GlbStream {
+            file,
+            transfer_start: (head.len() + bin.len()) as u64,
+            vertices: v,
+            channels: transfer.channels,
+            bands: transfer.bands,
+        })
+    }
+
+    /// Writes the transfer of the vertices `first..first + chunk.vertex_count`.
+    fn put(&mut self, first: usize, chunk: &Transfer) -> Result<()> {
+        assert_eq!((chunk.bands, chunk.channels), (self.bands, self.channels));
+        assert!(first + chunk.vertex_count <= self.vertices);
+        check_finite_coeffs(chunk, first)?;
+        let mut block = Vec::with_capacity(16 * chunk.vertex_count);
+        for channel in 0..self.channels as usize {
+            for group in 0..groups(self.bands) {
+                block.clear();
+                put_planar_block(&mut block, chunk, channel, group);
+                let index = channel * groups(self.bands) + group;
+                let at = self.transfer_start + 16 * (index * self.vertices + first) as u64;
+                self.file.write_at(at, &block)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn commit(self) -> Result<()> {
+        self.file.commit()
+    }
+}
+
+/// Bakes `bake` to `path` `chunk` receivers at a time on `backend`: at no time is more than one
+/// chunk's transfer in memory. The file's bytes equal the whole bake's.
+pub fn bake_streamed(
+    bake: &StreamedBake,
+    backend: &Backend,
+    chunk: usize,
+    path: &Path,
+    progress: &dyn Progress,
+) -> Result<BakeReport> {
+    let started = Instant::now();
+    let metadata: BakeMetadata = bake.metadata(backend);
+    let shape_transfer = Transfer {
+        bands: metadata.bands,
+        channels: metadata.channels,
+        vertex_count: bake.scene().vertex_count(),
+        coeffs: Vec::new(),
+    };
+    let shape = Shape {
+        scene: bake.scene(),
+        transfer: &shape_transfer,
+        metadata: &metadata,
+        lightmap: None,
+    };
+    let mut file = GlbStream::create(path, shape)?;
+    let receivers = bake.receivers();
+    if chunk == 0 || receivers != shape_transfer.vertex_count {
+        return Err(Error::Options(format!(
+            "a streamed bake needs chunks of at least one receiver, one per vertex ({receivers} \
+             receivers, {} vertices)",
+            shape_transfer.vertex_count
+        )));
+    }
+    progress.stage("transfer", receivers as u64);
+    let mut rays_cast = 0;
+    for first in (0..receivers).step_by(chunk) {
+        let range: Range<usize> = first..(first + chunk).min(receivers);
+        let (transfer, rays) = bake.chunk(range, backend, progress)?;
+        file.put(first, &transfer)?;
+        rays_cast += rays;
+    }
+    file.commit()?;
+    let (prepare, vertex_map, seconds_prepare) = bake.prepared();
+    Ok(BakeReport {
+        prepare: prepare.clone(),
+        vertex_map: vertex_map.clone(),
+        receivers,
+        samples_used: bake.samples_used() as u32,
+        rays_cast,
+        bvh_nodes: bake.bvh_nodes(),
+        seconds_prepare,
+        seconds_transfer: started.elapsed().as_secs_f64(),
+        seconds_fit: 0.0,
+        fit: None,
+        texels: None,
+        adaptive: None,
+        bounces: Vec::new(),
+        gather_entries: 0,
+        backend: backend.describe(),
+    })
+}

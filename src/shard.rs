@@ -24,6 +24,29 @@ use crate::scene::Scene;
 
 const MAGIC: &[u8; 8] = b"prtpart1";
 
+/// Reads a part file with Python and numpy alone: `python3 reader.py file.part`. Prints the
+/// header, and the shapes and sums of the direct transfer `(receivers, coeffs)` and (for
+/// interreflection) the gather rows, as JSON.
+pub const PYTHON_READER: &str = r#"import json, struct, sys, numpy as np
+data = open(sys.argv[1], "rb").read()
+assert data[:8] == b"prtpart1"
+n = struct.unpack_from("<I", data, 8)[0]
+header, body = json.loads(data[12:12 + n]), data[12 + n:]
+R, K = header["receivers"], header["coeffs"]
+scalar = np.frombuffer(body, "<f4", R * K).reshape(R, K)
+out = {"header": header, "scalar_shape": scalar.shape, "scalar_sum": float(scalar.astype(np.float64).sum())}
+E = header.get("gather_entries")
+if E is not None:
+    at = 4 * R * K
+    offsets = np.frombuffer(body, "<u4", R + 1, at)
+    columns = np.frombuffer(body, "<u4", E, at + 4 * (R + 1))
+    weights = np.frombuffer(body, "<f4", E, at + 4 * (R + 1 + E))
+    assert offsets[0] == 0 and offsets[-1] == E and len(body) == at + 4 * (R + 1 + 2 * E)
+    out["weights_sum"] = float(weights.astype(np.float64).sum())
+    out["max_column"] = int(columns.max())
+print(json.dumps(out))
+"#;
+
 /// What a part says about itself and the bake it belongs to.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PartHeader {

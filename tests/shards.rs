@@ -262,3 +262,34 @@ fn kubernetes_manifest_is_an_indexed_job_of_n_shards_and_a_merge() {
         "{merging}"
     );
 }
+
+/// A part read by the documented numpy recipe (prt_gpu::shard::PYTHON_READER) holds what the
+/// library reads from it.
+#[test]
+fn parts_read_by_numpy_alone_match_the_library() {
+    if !prt_gpu::testing::python_with(&["numpy"]) {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for mode in ["shadowed", "interreflected"] {
+        let path = shard(d, BUNNY, &["--mode", mode], 1, 3);
+        let part = prt_gpu::shard::read_part(&path).unwrap();
+        let python = prt_gpu::testing::python_json(prt_gpu::shard::PYTHON_READER, &path);
+        let header = serde_json::to_value(&part.header).unwrap();
+        assert_eq!(python["header"], header);
+        let (receivers, coeffs) = (part.header.receivers as u64, part.header.coeffs as u64);
+        assert_eq!(python["scalar_shape"], serde_json::json!([receivers, coeffs]));
+        let sum: f64 = part.direct.scalar.iter().map(|&x| x as f64).sum();
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(1.0);
+        assert!(close(python["scalar_sum"].as_f64().unwrap(), sum), "{mode}");
+        if let Some(matrix) = &part.direct.matrix {
+            let weights: f64 = matrix.weights.iter().map(|&x| x as f64).sum();
+            assert!(close(python["weights_sum"].as_f64().unwrap(), weights));
+            let max_column = *matrix.columns.iter().max().unwrap() as u64;
+            assert_eq!(python["max_column"].as_u64().unwrap(), max_column);
+        } else {
+            assert!(python.get("weights_sum").is_none(), "{mode}");
+        }
+    }
+}

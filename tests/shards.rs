@@ -279,7 +279,10 @@ fn parts_read_by_numpy_alone_match_the_library() {
         let header = serde_json::to_value(&part.header).unwrap();
         assert_eq!(python["header"], header);
         let (receivers, coeffs) = (part.header.receivers as u64, part.header.coeffs as u64);
-        assert_eq!(python["scalar_shape"], serde_json::json!([receivers, coeffs]));
+        assert_eq!(
+            python["scalar_shape"],
+            serde_json::json!([receivers, coeffs])
+        );
         let sum: f64 = part.direct.scalar.iter().map(|&x| x as f64).sum();
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(1.0);
         assert!(close(python["scalar_sum"].as_f64().unwrap(), sum), "{mode}");

@@ -14,6 +14,15 @@ use common::prt_gpu;
 
 const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj");
 const SUBMIT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/slurm/bake-shards.sh");
+/// The bake both the Slurm jobs and the single process run.
+const OPTIONS: [&str; 6] = [
+    "--device",
+    "cpu",
+    "--samples",
+    "64",
+    "--mode",
+    "interreflected",
+];
 
 /// Whether a Slurm cluster with a usable node answers; panics under CI when none does.
 fn slurm_cluster_or_skip() -> bool {
@@ -49,14 +58,7 @@ fn submit_and_wait(dir: &Path, count: u32, shards: Option<&str>, output: &str) -
     submit
         .arg(SUBMIT)
         .args([&count.to_string(), output, BUNNY])
-        .args([
-            "--device",
-            "cpu",
-            "--samples",
-            "64",
-            "--mode",
-            "interreflected",
-        ])
+        .args(OPTIONS)
         .env("PRT_GPU", env!("CARGO_BIN_EXE_prt-gpu"))
         .env("PARTS_DIR", dir.join("parts"))
         .current_dir(dir);
@@ -125,21 +127,9 @@ fn slurm_array_shards_merge_to_the_single_process_bake() {
     }
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let single = prt_gpu(
-        &[
-            "bake",
-            BUNNY,
-            "--device",
-            "cpu",
-            "--samples",
-            "64",
-            "--mode",
-            "interreflected",
-            "-o",
-            "single.glb",
-        ],
-        d,
-    );
+    let mut single = vec!["bake", BUNNY, "-o", "single.glb"];
+    single.extend(OPTIONS);
+    let single = prt_gpu(&single, d);
     assert!(single.status.success());
     let single = std::fs::read(d.join("single.glb")).unwrap();
 

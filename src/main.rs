@@ -775,9 +775,14 @@ fn run_merge(args: MergeArgs) -> Result<()> {
         preview: args.preview,
         ..bake_args
     };
-    let mesh = match bake_args.meshes.as_slice() {
+    let given: Vec<PathBuf> = bake_args
+        .meshes
+        .iter()
+        .map(|m| header.directory.join(m))
+        .collect();
+    let mesh = match scene::batch::mesh_files(&given)?.as_slice() {
         [] => None,
-        [mesh] => Some(header.directory.join(mesh)),
+        [mesh] => Some(mesh.clone()),
         _ => {
             return Err(Error::Merge(format!(
                 "the parts' command bakes several meshes: {}",
@@ -867,8 +872,9 @@ fn merge_backend(options: &BakeOptions, parts_backend: &str) -> Result<Option<Gp
     }
     match GpuBaker::open(DeviceChoice::Gpu, None)? {
         Some(baker) => Ok(Some(baker)),
-        None => Err(Error::Options(format!(
-            "the parts were baked on {parts_backend}, and their bounces need a GPU adapter,              which this machine lacks"
+        None => Err(Error::Merge(format!(
+            "the parts were baked on {parts_backend}, and their bounces need a GPU adapter, \
+             which this machine lacks"
         ))),
     }
 }

@@ -26,6 +26,15 @@ use prt_gpu::shard::{self, Part, PartHeader};
 use prt_gpu::sweep::{self, SweepOptions};
 use prt_gpu::{chart, fs, glb, scene, Error, Result};
 
+/// `println!` that ends quietly when the reader of stdout has gone (`prt-gpu bake | head -1`),
+/// where the standard one panics: every report line of the CLI goes through it.
+macro_rules! println {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
 #[derive(Parser)]
 #[command(
     name = "prt-gpu",

@@ -756,3 +756,34 @@ fn bench_times_both_backends_and_names_the_adapter() {
     assert!(entries(dir.path()).is_empty(), "bench writes no files");
     dir.close().unwrap();
 }
+
+/// A reader of stdout that stops early (`prt-gpu bake | head -0`) ends the report quietly, not
+/// with a panic: the bake's file is still written and the exit is clean.
+#[test]
+fn a_closed_stdout_ends_the_report_quietly() {
+    let dir = tempfile::tempdir().unwrap();
+    let teapot = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_prt-gpu"))
+        .args([
+            "bake",
+            teapot,
+            "--device",
+            "cpu",
+            "--samples",
+            "64",
+            "-o",
+            "t.glb",
+        ])
+        .current_dir(dir.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The summary line comes at the end; its reader is gone long before.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(dir.path().join("t.glb").exists());
+}

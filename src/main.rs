@@ -16,6 +16,7 @@ use prt_gpu::bake::{
 };
 use prt_gpu::compress::{self, Cpca, CpcaOptions};
 use prt_gpu::device::{self, DeviceChoice, GpuContext};
+use prt_gpu::glb::Precision;
 use prt_gpu::light::{self, analytic, Mapping, ShLight};
 use prt_gpu::receivers::PointDensity;
 use prt_gpu::render::{self, Camera, ToneMap};
@@ -366,6 +367,12 @@ struct BakeArgs {
     /// COLOR_0; interreflected transfer when every albedo is grey), a third of the size.
     #[arg(long, value_enum, default_value_t = Storage::Rgb)]
     storage: Storage,
+    /// Precision of the stored per-vertex transfer: `f32`, or `f16` (IEEE half floats: half the
+    /// bytes, each coefficient within 2^-11 of its value relative; the added relit error is
+    /// reported). glTF has no half-float attributes, so an f16 file names its transfer view in
+    /// extras.prt instead of the _PRT_* attributes.
+    #[arg(long, value_enum, default_value_t = Precision::F32)]
+    precision: Precision,
     /// Store the transfer compressed by clustered PCA (Sloan et al. 2003): CLUSTERSxCOMPONENTS,
     /// e.g. 64x8 — per vertex a cluster and COMPONENTS weights, per cluster a mean and a basis —
     /// or auto:E, the smallest shape (of a grid of them) whose coefficient error is below E.
@@ -552,10 +559,35 @@ fn run_bake(args: BakeArgs) -> Result<()> {
     let options = bake_options(&args)?;
     options.validate()?;
     check_chunking(&args)?;
-    let baker = bake_backend(&options, args.device, args.adapter.as_deref())?;
+    let device = Device::new(|| bake_backend(&options, args.device, args.adapter.as_deref()));
     let progress = BarProgress::default();
     let mesh = meshes.first().cloned();
-    bake_one(&args, &mesh, args.output.clone(), &baker, None, &progress)
+    bake_one(&args, &mesh, args.output.clone(), &device, None, &progress)
+}
+
+/// A bake's device, opened on first use — after the input and options are checked, so that
+/// their errors come first — and then shared by every bake of a batch.
+struct Device<'a> {
+    opened: std::cell::OnceCell<Option<GpuBaker>>,
+    open: Box<dyn Fn() -> Result<Option<GpuBaker>> + 'a>,
+}
+
+impl<'a> Device<'a> {
+    fn new(open: impl Fn() -> Result<Option<GpuBaker>> + 'a) -> Device<'a> {
+        Device {
+            opened: std::cell::OnceCell::new(),
+            open: Box::new(open),
+        }
+    }
+
+    /// The GPU baker, or `None` for the CPU backend.
+    fn get(&self) -> Result<&Option<GpuBaker>> {
+        if let Some(baker) = self.opened.get() {
+            return Ok(baker);
+        }
+        let baker = (self.open)()?;
+        Ok(self.opened.get_or_init(|| baker))
+    }
 }
 
 /// `bake` of several meshes: one device, one line per mesh and a total; a mesh that fails is
@@ -586,13 +618,13 @@ fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
     options.validate()?;
     check_chunking(args)?;
     std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
-    let baker = bake_backend(&options, args.device, args.adapter.as_deref())?;
+    let device = Device::new(|| bake_backend(&options, args.device, args.adapter.as_deref()));
     let started = std::time::Instant::now();
     let mut failed = Vec::new();
     for (k, (mesh, output)) in meshes.iter().zip(outputs).enumerate() {
         let progress = BarProgress::in_batch(k + 1, meshes.len(), &stem(mesh));
         let mesh = Some(mesh.clone());
-        if let Err(error) = bake_one(args, &mesh, Some(output), &baker, None, &progress) {
+        if let Err(error) = bake_one(args, &mesh, Some(output), &device, None, &progress) {
             progress.finish();
             eprintln!("error: {error}");
             failed.push(mesh_shown(&mesh));
@@ -621,7 +653,7 @@ fn bake_one(
     args: &BakeArgs,
     mesh: &Option<PathBuf>,
     output: Option<PathBuf>,
-    baker: &Option<GpuBaker>,
+    device: &Device,
     merged: Option<(PartHeader, bake::DirectPass)>,
     progress: &BarProgress,
 ) -> Result<()> {
@@ -637,6 +669,7 @@ fn bake_one(
         fs::check_destination(preview)?;
     }
     note_samples_rounded(&options);
+    let baker = device.get()?;
     if merged.is_none() {
         if let Some(chunk) = memory_plan(args, &options, &scene, gltf.is_some())? {
             let planned = bake::stream::StreamedBake::plan(scene, &options)
@@ -688,10 +721,13 @@ fn bake_one(
             &report.vertex_map,
         )?),
         None => {
-            glb::write_glb_with(&output_path, &baked, cpca.as_ref())?;
+            glb::write_glb_as(&output_path, &baked, cpca.as_ref(), args.precision)?;
             None
         }
     };
+    if args.precision == Precision::F16 {
+        report_f16_error(&baked)?;
+    }
     let seconds_write = writing.elapsed().as_secs_f64();
     if let Some(preview) = &args.preview {
         match baker {
@@ -800,10 +836,11 @@ fn run_merge(args: MergeArgs) -> Result<()> {
         }
     };
     let options = bake_options(&bake_args)?;
-    let baker = merge_backend(&options, &header.backend)?;
+    let backend = header.backend.clone();
+    let device = Device::new(|| merge_backend(&options, &backend));
     let progress = BarProgress::default();
     let merged = Some((header, direct));
-    bake_one(&bake_args, &mesh, args.output, &baker, merged, &progress)
+    bake_one(&bake_args, &mesh, args.output, &device, merged, &progress)
 }
 
 /// How the bake of `scene` fits the memory limit: `None` whole, or streamed in chunks of that
@@ -826,13 +863,14 @@ fn memory_plan(
     let streamable = bake::stream::streams(options)
         && !gltf
         && args.compress.is_none()
+        && args.precision == Precision::F32
         && args.transfer.bands != Bands::Auto
         && args.preview.is_none();
     let cannot = match streamable {
         true => None,
         false => Some(
             "only shadowed and unshadowed per-vertex bakes of OBJ, PLY and the built-in scene, \
-             without --compress, --bands auto or --preview, stream in chunks",
+             without --compress, --precision f16, --bands auto or --preview, stream in chunks",
         ),
     };
     match (cannot, args.memory_limit) {
@@ -867,8 +905,8 @@ fn memory_plan(
 /// What besides the mesh decides a bake's output, as text for its fingerprint.
 fn fingerprinted_options(args: &BakeArgs, options: &BakeOptions) -> String {
     format!(
-        "{options:?} bands {:?} threshold {} compress {:?}",
-        args.transfer.bands, args.bands_threshold, args.compress
+        "{options:?} bands {:?} threshold {} compress {:?} precision {:?}",
+        args.transfer.bands, args.bands_threshold, args.compress, args.precision
     )
 }
 
@@ -949,6 +987,14 @@ fn check_output_forms(args: &BakeArgs, options: &BakeOptions, gltf: bool) -> Res
              glTF scenes baked in place and lightmaps are not compressed",
         );
     }
+    if args.precision == Precision::F16
+        && (gltf || args.compress.is_some() || options.lightmap.is_some())
+    {
+        return refuse(
+            "--precision f16 stores the per-vertex transfer of OBJ, PLY and the built-in scene; \
+             glTF scenes baked in place, compressed transfer and lightmaps keep their own storage",
+        );
+    }
     if gltf && options.storage == Storage::Lean {
         return refuse(
             "--storage lean stores OBJ, PLY and the built-in scene; a glTF scene baked in place \
@@ -961,6 +1007,31 @@ fn check_output_forms(args: &BakeArgs, options: &BakeOptions, gltf: bool) -> Res
              per vertex (lightmaps for glTF scenes are not supported yet)",
         );
     }
+    Ok(())
+}
+
+/// What storing `baked`'s transfer as half floats cost: bytes, and the relit error.
+fn report_f16_error(baked: &bake::BakedMesh) -> Result<()> {
+    let rounded = glb::rounded_to_f16(&baked.transfer);
+    let light = light::preview_light(baked.transfer.bands)?;
+    let exact = render::relight(&baked.transfer, &light)?;
+    let stored = render::relight(&rounded, &light)?;
+    let worst = baked
+        .transfer
+        .coeffs
+        .iter()
+        .zip(&rounded.coeffs)
+        .filter(|(x, _)| x.abs() >= 1e-4)
+        .map(|(x, r)| ((r - x) / x).abs())
+        .fold(0f32, f32::max);
+    eprintln!(
+        "precision f16: transfer {} bytes instead of {}; relit error {:.1e} under the preview \
+         light, worst coefficient {:.1e} relative (of those above 1e-4)",
+        baked.transfer.coeffs.len() * 2,
+        baked.transfer.coeffs.len() * 4,
+        compress::radiance_error(&exact, &stored),
+        worst
+    );
     Ok(())
 }
 

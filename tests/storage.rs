@@ -135,3 +135,123 @@ fn lean_storage_is_refused_where_it_does_not_apply() {
     );
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
 }
+
+/// Half-float files (`--precision f16`) hold every coefficient rounded to the nearest f16 and
+/// nothing else: read back exactly so, by the library and by numpy; each coefficient within
+/// 2^-11 of its value relative (above f16's normal range's floor), relit radiance within the
+/// bound that implies; the Khronos validator passes the file; half the transfer's bytes.
+#[test]
+fn half_float_files_hold_the_rounded_transfer_within_its_bound() {
+    use prt_gpu::glb::{rounded_to_f16, write_glb_as, Precision};
+    let dir = tempfile::tempdir().unwrap();
+    for (storage, mode) in [
+        (Storage::Rgb, Mode::Interreflected),
+        (Storage::Lean, Mode::Shadowed),
+    ] {
+        let baked = baked(mode, storage, None);
+        let (full, half) = (dir.path().join("f32.glb"), dir.path().join("f16.glb"));
+        write_glb(&full, &baked).unwrap();
+        write_glb_as(&half, &baked, None, Precision::F16).unwrap();
+        let read = read_glb(&half).unwrap();
+        let rounded = rounded_to_f16(&baked.transfer);
+        assert_eq!(
+            read.transfer, rounded,
+            "{storage:?}: not the rounded transfer"
+        );
+        assert_eq!(read.scene, baked.scene);
+        for (x, r) in baked.transfer.coeffs.iter().zip(&rounded.coeffs) {
+            // 2^-11 relative above the smallest normal half (2^-14); 2^-25 absolute below it.
+            let bound = (x.abs() * 2f32.powi(-11)).max(2f32.powi(-25));
+            assert!((r - x).abs() <= bound, "{x} stored as {r}");
+        }
+        // Relit, the error is at most 2^-11 of sum |t_k| |l_k| per vertex and channel.
+        let light = preview_light(4).unwrap();
+        let exact = relight_baked(&baked, &light).unwrap();
+        let stored = relight_baked(&read, &light).unwrap();
+        let n = 16;
+        for (v, (e, s)) in exact.iter().zip(&stored).enumerate() {
+            for c in 0..3 {
+                let channel = if baked.transfer.channels == 1 { 0 } else { c };
+                let t = baked.transfer.vertex_channel(v, channel);
+                let albedo = if storage == Storage::Lean {
+                    baked.scene.albedo[v][c]
+                } else {
+                    1.0
+                };
+                let scale: f32 = (0..n).map(|k| t[k].abs() * light.coeffs[k][c].abs()).sum();
+                let bound = albedo * (scale * 2f32.powi(-11) + 1e-6) + 1e-6;
+                assert!(
+                    (e[c] - s[c]).abs() <= bound,
+                    "vertex {v}: {} against {}",
+                    s[c],
+                    e[c]
+                );
+            }
+        }
+        let bytes = |p: &std::path::Path| std::fs::metadata(p).unwrap().len() as usize;
+        let transfer_bytes = baked.transfer.vertex_count * baked.transfer.channels as usize * 64;
+        assert_eq!(
+            bytes(&full) - bytes(&half),
+            transfer_bytes / 2 + json_difference(&full, &half)
+        );
+        if let Some(report) = common::validate_gltf(&half) {
+            assert_eq!(report.num_errors, 0, "{storage:?}: {report:?}");
+        }
+        if let Some(numpy) = prt_gpu::testing::numpy_reader_output(&half) {
+            let last: Vec<f64> = numpy["last_vertex"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .flat_map(|c| c.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()))
+                .collect();
+            let expected: Vec<f64> = (0..read.transfer.channels as usize)
+                .flat_map(|c| {
+                    read.transfer
+                        .vertex_channel(read.transfer.vertex_count - 1, c)
+                })
+                .map(|&x| x as f64)
+                .collect();
+            assert_eq!(last.len(), expected.len());
+            for (a, b) in last.iter().zip(&expected) {
+                // The same float, printed by Python and parsed back.
+                assert!(
+                    (a - b).abs() <= 1e-12 * b.abs(),
+                    "{storage:?}: numpy reads {a}, not {b}"
+                );
+            }
+        }
+    }
+}
+
+/// How much longer the f32 file's JSON chunk is (its transfer accessors) than the f16 file's.
+fn json_difference(full: &std::path::Path, half: &std::path::Path) -> usize {
+    let json_len = |p: &std::path::Path| {
+        let bytes = std::fs::read(p).unwrap();
+        u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize
+    };
+    json_len(full) - json_len(half)
+}
+
+#[test]
+fn half_floats_are_refused_where_the_transfer_has_other_storage() {
+    let dir = tempfile::tempdir().unwrap();
+    let box_glb = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/gltf/BoxTextured.glb"
+    );
+    let cases: [&[&str]; 3] = [
+        &["bake", box_glb, "--precision", "f16"],
+        &["bake", "--precision", "f16", "--compress", "8x4"],
+        &["bake", "--precision", "f16", "--lightmap", "64"],
+    ];
+    for args in cases {
+        let mut all = args.to_vec();
+        all.extend(["--device", "cpu", "--samples", "16", "-o", "out.glb"]);
+        let out = common::prt_gpu(&all, dir.path());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} baked");
+        assert_eq!(stderr.trim().lines().count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.contains("--precision f16"), "{args:?}: {stderr}");
+        assert!(prt_gpu::testing::entries(dir.path()).is_empty());
+    }
+}

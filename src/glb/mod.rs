@@ -39,10 +39,42 @@ pub mod scene;
 pub mod stream;
 use crate::scene::Scene;
 
+/// `extras.prt.transfer_precision` of a half-float transfer view.
+const FLOAT16: &str = "float16";
+
 /// How the transfer buffer view is laid out; written into `extras.prt.transfer_layout` and
 /// checked on reading, so a future layout change cannot be misread silently.
 pub const TRANSFER_LAYOUT: &str = "planar [channel][group][vertex][4] float32 little-endian, \
 coefficient k = 4*group + lane, lanes past bands^2 are zero";
+
+/// The layout of a half-float transfer view (`bake --precision f16`), which no accessor
+/// describes: glTF has no half-float component type, so the `_PRT_*` attributes are left out
+/// and `extras.prt.transfer_precision` is `"float16"`.
+pub const TRANSFER_LAYOUT_F16: &str = "planar [channel][group][vertex][4] float16 little-endian, \
+coefficient k = 4*group + lane, lanes past bands^2 are zero";
+
+/// How the transfer's coefficients are stored.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Precision {
+    /// float32, as `_PRT_*` vertex attributes.
+    #[default]
+    F32,
+    /// IEEE half floats (relative rounding error at most 2^-11), half the bytes; the view is
+    /// named by `extras.prt`, not by vertex attributes.
+    F16,
+}
+
+/// `transfer` as a half-float file stores it: every coefficient rounded to the nearest f16.
+pub fn rounded_to_f16(transfer: &Transfer) -> Transfer {
+    Transfer {
+        coeffs: transfer
+            .coeffs
+            .iter()
+            .map(|&x| half::f16::from_f32(x).to_f32())
+            .collect(),
+        ..transfer.clone()
+    }
+}
 
 /// Reads a baked file with Python and numpy alone: `python3 reader.py file.glb`.
 ///
@@ -53,12 +85,13 @@ data = open(sys.argv[1], "rb").read()
 n = struct.unpack_from("<I", data, 12)[0]  # JSON chunk length; BIN chunk data starts at 28 + n
 gltf, binary = json.loads(data[20:20 + n]), data[28 + n:]
 bv, acc = gltf["bufferViews"], gltf["accessors"]
-view = lambda i, dtype: np.frombuffer(binary, dtype, bv[i]["byteLength"] // 4, bv[i].get("byteOffset", 0))
+view = lambda i, dtype: np.frombuffer(binary, dtype, bv[i]["byteLength"] // np.dtype(dtype).itemsize, bv[i].get("byteOffset", 0))
 prim, prt = gltf["meshes"][0]["primitives"][0], gltf["meshes"][0]["extras"]["prt"]
+coefficient = "<f2" if prt.get("transfer_precision") == "float16" else "<f4"
 positions = view(acc[prim["attributes"]["POSITION"]]["bufferView"], "<f4").reshape(-1, 3)
 indices = view(acc[prim["indices"]]["bufferView"], "<u4").reshape(-1, 3)
 V, C, K = prt["vertices"], prt["channels"], prt["bands"] ** 2
-transfer = view(prt["transfer_buffer_view"], "<f4").reshape(C, -1, V, 4).transpose(2, 0, 1, 3).reshape(V, C, -1)[:, :, :K]
+transfer = view(prt["transfer_buffer_view"], coefficient).astype(np.float32).reshape(C, -1, V, 4).transpose(2, 0, 1, 3).reshape(V, C, -1)[:, :, :K]
 print(json.dumps({"positions": positions.shape, "indices": indices.shape, "transfer": transfer.shape, "last_vertex": transfer[-1].tolist()}))
 "#;
 
@@ -88,17 +121,35 @@ pub fn write_glb(path: &Path, baked: &BakedMesh) -> Result<()> {
 /// [`write_glb`], with the transfer stored compressed ([`compressed`]) when `cpca` is given
 /// (which must be the compression of `baked.transfer`).
 pub fn write_glb_with(path: &Path, baked: &BakedMesh, cpca: Option<&Cpca>) -> Result<()> {
+    write_glb_as(path, baked, cpca, Precision::F32)
+}
+
+/// [`write_glb_with`], the per-vertex transfer stored at `precision` (float16 refuses
+/// compressed transfer and lightmaps, which have their own storage).
+pub fn write_glb_as(
+    path: &Path,
+    baked: &BakedMesh,
+    cpca: Option<&Cpca>,
+    precision: Precision,
+) -> Result<()> {
     validate(baked)?;
+    if precision == Precision::F16 && (cpca.is_some() || baked.lightmap.is_some()) {
+        return Err(Error::Options(
+            "--precision f16 stores per-vertex transfer; compressed transfer and lightmaps \
+             have their own storage"
+                .into(),
+        ));
+    }
     if let Some(cpca) = cpca {
         validate_cpca(baked, cpca).map_err(Error::Geometry)?;
     }
     // Fails before encoding, so a typo in the directory costs no work.
     check_destination(path)?;
     let Some(texels) = &baked.lightmap else {
-        return write_atomically(path, &encode_valid(baked, None, cpca)?);
+        return write_atomically(path, &encode_valid(baked, None, cpca, precision)?);
     };
     let name = lightmap_file_name(path);
-    let bytes = encode_valid(baked, Some(&name), cpca)?;
+    let bytes = encode_valid(baked, Some(&name), cpca, precision)?;
     let exr_path = path.with_file_name(&name);
     check_destination(&exr_path)?;
     crate::lightmap::write_lightmap(&exr_path, &lightmap_of(texels))?;
@@ -290,7 +341,7 @@ fn read_prt_extras(path: &Path) -> Result<Option<PrtExtrasIn>> {
 /// referred to as [`DEFAULT_LIGHTMAP_URI`] (it is [`write_glb`] that names and writes it).
 pub fn encode_glb(baked: &BakedMesh) -> Result<Vec<u8>> {
     validate(baked)?;
-    encode_valid(baked, None, None)
+    encode_valid(baked, None, None, Precision::F32)
 }
 
 /// The lightmap reference of a file encoded without a name for it.
@@ -409,14 +460,19 @@ fn read_planar_transfer(bin: &[u8], plan: &Plan, path: &Path, coeffs: &mut [f32]
             format!("non-finite transfer coefficient of vertex at {i}"),
         )
     };
+    let size = if plan.half { 2 } else { 4 };
+    let value_at = |data: &[u8], at: usize| match plan.half {
+        true => half::f16::from_le_bytes([data[at], data[at + 1]]).to_f32(),
+        false => f32_at(data, at),
+    };
     for (block, span) in plan.transfer.iter().enumerate() {
         let (channel, group) = (block / plan.groups, block % plan.groups);
-        let data = span_bytes(bin, span, 16, path)?;
+        let data = span_bytes(bin, span, 4 * size, path)?;
         for vertex in 0..v {
             for lane in 0..4 {
                 let k = 4 * group + lane;
                 if k < n {
-                    let x = f32_at(data, vertex * span.stride + 4 * lane);
+                    let x = value_at(data, vertex * span.stride + size * lane);
                     if !x.is_finite() {
                         return Err(damaged(vertex));
                     }
@@ -583,6 +639,8 @@ struct PrtExtras<'a> {
     transfer_buffer_view: Option<usize>,
     transfer_layout: &'a str,
     #[serde(skip_serializing_if = "Option::is_none")]
+    transfer_precision: Option<&'a str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     lightmap: Option<LightmapExtras>,
     #[serde(skip_serializing_if = "Option::is_none")]
     cpca: Option<CpcaExtras>,
@@ -596,6 +654,8 @@ struct PrtExtrasIn {
     #[serde(default)]
     transfer_buffer_view: Option<usize>,
     transfer_layout: String,
+    #[serde(default)]
+    transfer_precision: Option<String>,
     #[serde(default)]
     lightmap: Option<LightmapExtras>,
     #[serde(default)]
@@ -835,17 +895,46 @@ fn encode_valid(
     baked: &BakedMesh,
     lightmap_uri: Option<&str>,
     cpca: Option<&Cpca>,
+    precision: Precision,
 ) -> Result<Vec<u8>> {
-    let (mut bin, mut views) = encode_bin(baked, cpca.is_none());
+    let (mut bin, mut views) = match precision {
+        Precision::F32 => encode_bin(baked, cpca.is_none()),
+        Precision::F16 => encode_bin_f16(baked),
+    };
     let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, &mut bin, &mut views));
+    let shape = Shape::of(baked);
     let json = encode_json(
-        Shape::of(baked),
+        shape,
         lightmap_uri,
         cpca_extras,
         views,
         bin.len(),
+        precision,
     )?;
     glb_container(json, bin)
+}
+
+/// The BIN chunk and its views with the transfer as half floats: the mesh's views, then the
+/// planar transfer at two bytes a coefficient.
+fn encode_bin_f16(baked: &BakedMesh) -> (Vec<u8>, Vec<BufferViewJson>) {
+    let mut bin = Vec::new();
+    let mut views = encode_mesh_views(&baked.scene, &mut bin);
+    let start = bin.len();
+    let transfer = &baked.transfer;
+    for channel in 0..transfer.channels as usize {
+        for group in 0..groups(transfer.bands) {
+            for vertex in 0..transfer.vertex_count {
+                let coeffs = transfer.vertex_channel(vertex, channel);
+                for k in 4 * group..4 * group + 4 {
+                    let x = half::f16::from_f32(coeffs.get(k).copied().unwrap_or(0.0));
+                    bin.extend_from_slice(&x.to_le_bytes());
+                }
+            }
+        }
+    }
+    // Each block is 8 bytes a vertex, so the view's length is a multiple of 4 already.
+    views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
+    (bin, views)
 }
 
 /// The JSON chunk of `baked` with the BIN chunk's `views` (`bin_len` bytes in all).
@@ -855,8 +944,10 @@ fn encode_json(
     cpca_extras: Option<CpcaExtras>,
     views: Vec<BufferViewJson>,
     bin_len: usize,
+    precision: Precision,
 ) -> Result<Vec<u8>> {
-    let (accessors, attributes) = accessors_and_attributes(shape, cpca_extras.is_none());
+    let attributes_hold_transfer = cpca_extras.is_none() && precision == Precision::F32;
+    let (accessors, attributes) = accessors_and_attributes(shape, attributes_hold_transfer);
     let doc = Document {
         asset: AssetJson {
             version: "2.0".into(),
@@ -876,7 +967,11 @@ fn encode_json(
                     metadata: shape.metadata,
                     vertices: shape.scene.positions.len(),
                     transfer_buffer_view: cpca_extras.is_none().then_some(TRANSFER_VIEW),
-                    transfer_layout: TRANSFER_LAYOUT,
+                    transfer_layout: match precision {
+                        Precision::F32 => TRANSFER_LAYOUT,
+                        Precision::F16 => TRANSFER_LAYOUT_F16,
+                    },
+                    transfer_precision: (precision == Precision::F16).then_some(FLOAT16),
                     cpca: cpca_extras,
                     lightmap: shape.lightmap.map(|texels| LightmapExtras {
                         uri: lightmap_uri.unwrap_or(DEFAULT_LIGHTMAP_URI).to_string(),
@@ -1153,6 +1248,8 @@ struct Plan {
     indices: Span,
     /// One per `(channel, group)`, channel-major.
     transfer: Vec<Span>,
+    /// Whether the transfer is stored as half floats (then `transfer`'s spans have stride 8).
+    half: bool,
     lightmap: Option<LightmapExtras>,
     /// `TEXCOORD_0`, present with a lightmap.
     texcoords: Option<Span>,
@@ -1207,7 +1304,17 @@ fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Resul
             prt.vertices
         )));
     }
+    let half = match prt.transfer_precision.as_deref() {
+        None => false,
+        Some(FLOAT16) if prt.cpca.is_none() => true,
+        Some(other) => {
+            return Err(bad(format!(
+                "extras.prt.transfer_precision {other:?} is not one this reader knows (float16)"
+            )))
+        }
+    };
     let transfer = match (&prt.cpca, prt.transfer_buffer_view) {
+        (None, Some(view)) if half => half_transfer_spans(doc, &prt, view, v).map_err(bad)?,
         (None, Some(view)) => {
             transfer_spans(doc, buffer_len, primitive, &prt, view, v).map_err(bad)?
         }
@@ -1228,6 +1335,7 @@ fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Resul
     };
     let meta = prt.metadata;
     Ok(Plan {
+        half,
         cpca: prt.cpca,
         lightmap: prt.lightmap,
         texcoords,
@@ -1279,7 +1387,11 @@ fn prt_extras(mesh: &MeshJson<serde_json::Value>) -> std::result::Result<PrtExtr
         .ok_or("not a prt-gpu file: the mesh has no extras.prt")?;
     let prt: PrtExtrasIn =
         serde_json::from_value(prt.clone()).map_err(|e| format!("invalid extras.prt: {e}"))?;
-    if prt.transfer_layout != TRANSFER_LAYOUT {
+    let layout = match prt.transfer_precision.as_deref() {
+        Some(FLOAT16) => TRANSFER_LAYOUT_F16,
+        _ => TRANSFER_LAYOUT,
+    };
+    if prt.transfer_layout != layout {
         return Err(format!(
             "unsupported transfer layout \"{}\"",
             prt.transfer_layout
@@ -1316,6 +1428,37 @@ fn same_count(span: Span, vertices: usize, what: &str) -> std::result::Result<Sp
 
 /// The spans of the `_PRT_*` attributes, one per `(channel, group)`, checked to follow the
 /// planar layout that `extras.prt` promises (what non-glTF readers rely on).
+/// The blocks of a half-float transfer view, which no accessor describes: checked against the
+/// view's length and the buffer (the view itself was checked by `check_buffer`).
+fn half_transfer_spans(
+    doc: &Document<serde_json::Value>,
+    prt: &PrtExtrasIn,
+    transfer_view: usize,
+    v: usize,
+) -> std::result::Result<Vec<Span>, String> {
+    let meta = &prt.metadata;
+    let view = doc
+        .buffer_views
+        .get(transfer_view)
+        .ok_or("extras.prt.transfer_buffer_view does not exist")?;
+    let blocks = meta.channels as usize * groups(meta.bands);
+    let expected = transfer_bytes(v, meta.channels, meta.bands).map(|n| n / 2);
+    if expected.map(|n| n as u64) != Some(view.byte_length) {
+        return Err(format!(
+            "the half-float transfer view has {} bytes, expected {v} vertices x {blocks} blocks x 8",
+            view.byte_length
+        ));
+    }
+    let start = view.byte_offset as usize;
+    Ok((0..blocks)
+        .map(|block| Span {
+            offset: start + block * v * 8,
+            stride: 8,
+            count: v,
+        })
+        .collect())
+}
+
 fn transfer_spans(
     doc: &Document<serde_json::Value>,
     buffer_len: u64,

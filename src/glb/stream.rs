@@ -40,7 +40,7 @@ impl GlbStream {
             .expect("validate_shape bounds the file's size");
         views.push(transfer_view(bin.len(), transfer_len));
         let bin_len = bin.len() + transfer_len;
-        let mut json = encode_json(shape, None, None, views, bin_len)?;
+        let mut json = encode_json(shape, None, None, views, bin_len, super::Precision::F32)?;
         json.resize(json.len().next_multiple_of(4), b' ');
         // Every view's length is a multiple of 4, so the BIN chunk needs no padding.
         debug_assert_eq!(bin_len % 4, 0);

@@ -32,5 +32,6 @@ pub mod shaders;
 pub mod surface;
 pub mod sweep;
 pub mod testing;
+pub mod view;
 
 pub use error::{Error, Result};

@@ -23,7 +23,7 @@ use prt_gpu::sampling::Sampling;
 use prt_gpu::sh::window::Window;
 use prt_gpu::sh::MAX_BANDS;
 use prt_gpu::sweep::{self, SweepOptions};
-use prt_gpu::{chart, fs, glb, scene, Error, Result};
+use prt_gpu::{chart, fs, glb, scene, view, Error, Result};
 
 #[derive(Parser)]
 #[command(
@@ -51,6 +51,8 @@ enum Command {
     Light(LightArgs),
     /// Relight baked files under a light and render them side by side to PNG or EXR.
     Render(RenderArgs),
+    /// Write a self-contained web viewer (one HTML file, WebGL2) of baked files and a light.
+    View(ViewArgs),
     /// Chart speed against accuracy: every sampling strategy and backend over a sweep of
     /// sample counts, against a high-sample reference bake (SVG or PNG, plus a CSV beside it).
     Chart(ChartArgs),
@@ -291,6 +293,23 @@ struct RenderArgs {
 }
 
 #[derive(clap::Args)]
+struct ViewArgs {
+    /// Baked .glb files (per vertex); the page switches between them.
+    #[arg(required = true)]
+    baked: Vec<PathBuf>,
+    /// The light: light.json (at least as many bands as every file), or an environment map
+    /// projected at the most bands of the files. Default: the preview's sky and sun.
+    #[arg(long)]
+    light: Option<PathBuf>,
+    /// Environment-map parameterization (with --light ENVMAP).
+    #[arg(long, value_enum)]
+    mapping: Option<Mapping>,
+    /// Output page.
+    #[arg(short, long, default_value = "viewer.html")]
+    output: PathBuf,
+}
+
+#[derive(clap::Args)]
 struct BakeArgs {
     /// Mesh to bake: a glTF scene (.gltf, .glb: written back with its transfer added), .obj,
     /// .ply or .ply.gz. Without it, the built-in scene (a sphere and a box on a ground plane
@@ -432,6 +451,7 @@ fn main() -> ExitCode {
         Command::Devices => run_devices(),
         Command::Light(args) => run_light(args),
         Command::Render(args) => run_render(args),
+        Command::View(args) => run_view(args),
         Command::Chart(args) => run_chart(args),
         Command::Bench(args) => run_bench(args),
     };
@@ -1191,6 +1211,50 @@ fn run_render(args: RenderArgs) -> Result<()> {
         args.output.display()
     );
     Ok(())
+}
+
+fn run_view(args: ViewArgs) -> Result<()> {
+    fs::check_destination(&args.output)?;
+    let mut bakes = Vec::new();
+    for path in &args.baked {
+        bakes.push((path.display().to_string(), glb::read_glb(path)?));
+    }
+    let bands = bakes
+        .iter()
+        .map(|(_, b)| b.metadata.bands)
+        .max()
+        .unwrap_or(1);
+    let light = match &args.light {
+        Some(light_path) => light::load(light_path, bands, args.mapping, false)?.light,
+        None => light::preview_light(bands)?,
+    };
+    let inputs: Vec<view::ViewerBake> = bakes
+        .iter()
+        .map(|(name, baked)| view::ViewerBake {
+            name: stem_name(name),
+            baked,
+        })
+        .collect();
+    view::write_viewer(&args.output, &inputs, &light)?;
+    let size = std::fs::metadata(&args.output)
+        .map(|m| m.len())
+        .unwrap_or(0);
+    println!(
+        "viewer of {} file(s), light of {} bands, {:.1} MB -> {}",
+        inputs.len(),
+        light.bands,
+        size as f64 / 1e6,
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// The file name the page lists a bake by.
+fn stem_name(path: &str) -> String {
+    Path::new(path)
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| path.to_string())
 }
 
 /// Any adapter, software ones included: rasterising a preview is cheap anywhere.

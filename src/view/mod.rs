@@ -1,0 +1,237 @@
+//! The web viewer: one self-contained HTML file that relights baked files in a browser with
+//! WebGL2, the run-time half of PRT for anyone to look at and for engine integrators to read.
+//!
+//! The page is our own JavaScript and GLSL (`assets/viewer/`, included verbatim so they stay
+//! readable files) plus the data, embedded as JSON with the binary arrays in base64: every
+//! vertex's position, its transfer exactly as the .glb stores it (channel-major, `bands^2`
+//! floats per channel), the albedo where the transfer leaves it out, and the light's SH
+//! coefficients. The page does what `render` does — one dot product per vertex and channel,
+//! interpolated across triangles, tone mapped per pixel, the SH light drawn behind as a sky —
+//! and rotates the light in the page with the same SH rotation as `sh::rotation`.
+
+use std::path::Path;
+
+use base64::Engine;
+use glam::Vec3;
+use serde::Serialize;
+
+use crate::bake::BakedMesh;
+use crate::error::{Error, Result};
+use crate::fs::write_atomically;
+use crate::light::ShLight;
+use crate::render::{bounds, Camera};
+
+/// The page: markup and style, with `{{TITLE}}`, `{{SHADERS}}`, `{{DATA}}` and `{{SCRIPT}}`
+/// replaced when the file is written.
+const PAGE: &str = include_str!("../../assets/viewer/viewer.html");
+/// The SH rotation (the Ivanic–Ruedenberg recurrence of `sh::rotation`) and basis.
+const SH_SCRIPT: &str = include_str!("../../assets/viewer/sh.js");
+/// Camera, input handling and drawing.
+const VIEWER_SCRIPT: &str = include_str!("../../assets/viewer/viewer.js");
+/// The shaders, each embedded as a `<script type="x-shader/...">` element of this id.
+const SHADERS: [(&str, &str); 5] = [
+    (
+        "tone-map",
+        include_str!("../../assets/viewer/tone_map.glsl"),
+    ),
+    ("mesh-vertex", include_str!("../../assets/viewer/mesh.vert")),
+    (
+        "mesh-fragment",
+        include_str!("../../assets/viewer/mesh.frag"),
+    ),
+    ("sky-vertex", include_str!("../../assets/viewer/sky.vert")),
+    ("sky-fragment", include_str!("../../assets/viewer/sky.frag")),
+];
+
+/// One baked file for the viewer, named as the page lists it.
+pub struct ViewerBake<'a> {
+    pub name: String,
+    pub baked: &'a BakedMesh,
+}
+
+/// The page's data: what `viewer.js` reads from the `prt-data` element.
+#[derive(Serialize)]
+struct PageData {
+    light: PageLight,
+    /// The camera when the URL gives none: `render`'s framing of the first file.
+    camera: PageCamera,
+    bakes: Vec<PageBake>,
+}
+
+#[derive(Serialize)]
+struct PageLight {
+    bands: u32,
+    coeffs: Vec<[f32; 3]>,
+}
+
+#[derive(Serialize)]
+struct PageCamera {
+    eye: [f32; 3],
+    target: [f32; 3],
+    fov: f32,
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+struct PageBake {
+    name: String,
+    mode: &'static str,
+    bands: u32,
+    channels: u32,
+    vertices: usize,
+    triangles: usize,
+    bounds_min: [f32; 3],
+    bounds_max: [f32; 3],
+    /// Base64 of little-endian f32 x, y, z per vertex.
+    positions: String,
+    /// Base64 of little-endian u32, three per triangle.
+    indices: String,
+    /// Base64 of little-endian f32, `channels * bands^2` per vertex, channel-major (the file's
+    /// layout).
+    transfer: String,
+    /// Base64 of little-endian f32 r, g, b per vertex where the transfer is albedo-free.
+    albedo: Option<String>,
+}
+
+/// Checks every input and writes the viewer to `path` atomically (nothing on failure).
+pub fn write_viewer(path: &Path, bakes: &[ViewerBake], light: &ShLight) -> Result<()> {
+    let html = viewer_html(bakes, light)?;
+    write_atomically(path, html.as_bytes())
+}
+
+/// The viewer page for `bakes` under `light`, checked: the light must have at least as many
+/// bands as every bake (the page dots the bake's `bands^2` coefficients with the light's).
+pub fn viewer_html(bakes: &[ViewerBake], light: &ShLight) -> Result<String> {
+    let first = bakes
+        .first()
+        .ok_or_else(|| Error::Options("view: no baked files".into()))?;
+    check_light(light)?;
+    let page_bakes = bakes
+        .iter()
+        .map(|bake| page_bake(bake, light.bands))
+        .collect::<Result<Vec<_>>>()?;
+    let camera = Camera::framing_scene(&first.baked.scene);
+    let data = PageData {
+        light: PageLight {
+            bands: light.bands,
+            coeffs: light.coeffs.clone(),
+        },
+        camera: PageCamera {
+            eye: camera.eye.to_array(),
+            target: camera.target.to_array(),
+            fov: camera.vertical_fov_deg,
+        },
+        bakes: page_bakes,
+    };
+    let json = serde_json::to_string(&data)
+        .map_err(|e| Error::Options(format!("view: cannot encode the page data: {e}")))?;
+    let title = bakes
+        .iter()
+        .map(|b| b.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ");
+    Ok(PAGE
+        .replace("{{TITLE}}", &escape_html(&title))
+        .replace("{{SHADERS}}", &shader_elements())
+        .replace("{{SCRIPT}}", &format!("{SH_SCRIPT}\n{VIEWER_SCRIPT}"))
+        .replace("{{DATA}}", &script_safe(&json)))
+}
+
+fn check_light(light: &ShLight) -> Result<()> {
+    let finite = light.coeffs.iter().flatten().all(|c| c.is_finite());
+    if light.bands == 0 || light.coeffs.len() != crate::sh::coeff_count(light.bands) || !finite {
+        return Err(Error::Options(format!(
+            "view: the light ({} bands, {} coefficients) is not a finite SH light",
+            light.bands,
+            light.coeffs.len()
+        )));
+    }
+    Ok(())
+}
+
+/// One file's arrays, refused where the page could not show it as baked.
+fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
+    let baked = bake.baked;
+    let transfer = &baked.transfer;
+    let refuse = |why: String| Err(Error::Options(format!("view: {}: {why}", bake.name)));
+    if baked.lightmap.is_some() {
+        return refuse(
+            "holds per-texel transfer (a lightmap), which the viewer does not draw yet".into(),
+        );
+    }
+    if transfer.bands == 0 || transfer.vertex_count == 0 || transfer.coeffs.is_empty() {
+        return refuse("holds no transfer".into());
+    }
+    if transfer.bands > light_bands {
+        return refuse(format!(
+            "baked with {} bands, but the light has only {light_bands}: project the light at {} bands or more",
+            transfer.bands, transfer.bands
+        ));
+    }
+    if !matches!(transfer.channels, 1 | 3)
+        || transfer.vertex_count != baked.scene.vertex_count()
+        || transfer.coeffs.len()
+            != transfer.vertex_count * transfer.channels as usize * transfer.coeffs_per_channel()
+    {
+        return refuse("its transfer does not match its vertices".into());
+    }
+    if baked.scene.triangles.is_empty() {
+        return refuse("has no triangles".into());
+    }
+    if !transfer.coeffs.iter().all(|c| c.is_finite())
+        || !baked.scene.positions.iter().all(|p| p.is_finite())
+    {
+        return refuse("holds non-finite positions or transfer".into());
+    }
+    let (min, max) = bounds(&baked.scene.positions);
+    let albedo = baked
+        .metadata
+        .albedo_free
+        .then(|| base64_f32(baked.scene.albedo.iter().flat_map(Vec3::to_array)));
+    Ok(PageBake {
+        name: bake.name.clone(),
+        mode: baked.metadata.mode.name(),
+        bands: transfer.bands,
+        channels: transfer.channels,
+        vertices: transfer.vertex_count,
+        triangles: baked.scene.triangles.len(),
+        bounds_min: min.to_array(),
+        bounds_max: max.to_array(),
+        positions: base64_f32(baked.scene.positions.iter().flat_map(Vec3::to_array)),
+        indices: base64_u32(baked.scene.triangles.iter().flatten().copied()),
+        transfer: base64_f32(transfer.coeffs.iter().copied()),
+        albedo,
+    })
+}
+
+fn base64_f32(values: impl Iterator<Item = f32>) -> String {
+    let bytes: Vec<u8> = values.flat_map(f32::to_le_bytes).collect();
+    base64::engine::general_purpose::STANDARD.encode(bytes)
+}
+
+fn base64_u32(values: impl Iterator<Item = u32>) -> String {
+    let bytes: Vec<u8> = values.flat_map(u32::to_le_bytes).collect();
+    base64::engine::general_purpose::STANDARD.encode(bytes)
+}
+
+fn shader_elements() -> String {
+    SHADERS
+        .iter()
+        .map(|(id, source)| {
+            format!("<script type=\"x-shader/glsl\" id=\"{id}\">\n{source}</script>\n")
+        })
+        .collect()
+}
+
+/// JSON made safe inside a `<script>` element: `<` only occurs in strings, where `\u003c`
+/// means the same, so no `</script>` can end the element early.
+fn script_safe(json: &str) -> String {
+    json.replace('<', "\\u003c")
+}
+
+fn escape_html(text: &str) -> String {
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}

@@ -23,7 +23,7 @@ use prt_gpu::sampling::Sampling;
 use prt_gpu::sh::window::Window;
 use prt_gpu::sh::MAX_BANDS;
 use prt_gpu::sweep::{self, SweepOptions};
-use prt_gpu::{chart, fs, glb, scene, view, Error, Result};
+use prt_gpu::{chart, fs, glb, scene, view, x3d, Error, Result};
 
 #[derive(Parser)]
 #[command(
@@ -53,6 +53,9 @@ enum Command {
     Render(RenderArgs),
     /// Write a self-contained web viewer (one HTML file, WebGL2) of baked files and a light.
     View(ViewArgs),
+    /// Export a baked file for other run-times.
+    #[command(subcommand)]
+    Export(ExportCommand),
     /// Chart speed against accuracy: every sampling strategy and backend over a sweep of
     /// sample counts, against a high-sample reference bake (SVG or PNG, plus a CSV beside it).
     Chart(ChartArgs),
@@ -292,6 +295,41 @@ struct RenderArgs {
     output: PathBuf,
 }
 
+#[derive(Subcommand)]
+enum ExportCommand {
+    /// An X3D scene (XML): the transfer as per-vertex FloatVertexAttribute nodes and a
+    /// ComposedShader that dots them with the light, a field of the shader.
+    X3d(X3dArgs),
+}
+
+#[derive(clap::Args)]
+struct X3dArgs {
+    /// A baked .glb (per vertex).
+    baked: PathBuf,
+    /// The light: light.json (at least the file's bands), or an environment map projected at
+    /// the file's bands. Default: the preview's sky and sun.
+    #[arg(long)]
+    light: Option<PathBuf>,
+    /// Environment-map parameterization (with --light ENVMAP).
+    #[arg(long, value_enum)]
+    mapping: Option<Mapping>,
+    #[command(flatten)]
+    shaping: LightShaping,
+    /// The viewpoint: eye x,y,z, target x,y,z [, field of view in degrees]. Default: render's
+    /// framing.
+    #[arg(long, allow_hyphen_values = true)]
+    camera: Option<Camera>,
+    /// Exposure in stops, a field of the shader.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    exposure: f32,
+    /// Tone mapping in the shader.
+    #[arg(long, value_enum, default_value_t = ToneMap::Reinhard)]
+    tone_map: ToneMap,
+    /// Output scene.
+    #[arg(short, long, default_value = "scene.x3d")]
+    output: PathBuf,
+}
+
 #[derive(clap::Args)]
 struct ViewArgs {
     /// Baked .glb files (per vertex); the page switches between them.
@@ -452,6 +490,7 @@ fn main() -> ExitCode {
         Command::Light(args) => run_light(args),
         Command::Render(args) => run_render(args),
         Command::View(args) => run_view(args),
+        Command::Export(ExportCommand::X3d(args)) => run_export_x3d(args),
         Command::Chart(args) => run_chart(args),
         Command::Bench(args) => run_bench(args),
     };
@@ -1244,6 +1283,34 @@ fn run_view(args: ViewArgs) -> Result<()> {
         inputs.len(),
         light.bands,
         size as f64 / 1e6,
+        args.output.display()
+    );
+    Ok(())
+}
+
+fn run_export_x3d(args: X3dArgs) -> Result<()> {
+    fs::check_destination(&args.output)?;
+    let baked = glb::read_glb(&args.baked)?;
+    let bands = baked.metadata.bands;
+    let light = match &args.light {
+        Some(light_path) => light::load(light_path, bands, args.mapping, false)?.light,
+        None => light::preview_light(bands)?,
+    };
+    let light = shape(light, &args.shaping);
+    let options = x3d::X3dOptions {
+        camera: args
+            .camera
+            .unwrap_or_else(|| Camera::framing_scene(&baked.scene)),
+        exposure_stops: args.exposure,
+        tone_map: args.tone_map,
+    };
+    x3d::write_x3d(&args.output, &baked, &light, &options)?;
+    println!(
+        "exported {} vertices, {} bands x {} channel(s) in {} vertex attributes -> {}",
+        baked.scene.vertex_count(),
+        bands,
+        baked.transfer.channels,
+        x3d::transfer_attributes(&baked),
         args.output.display()
     );
     Ok(())

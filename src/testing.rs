@@ -97,8 +97,10 @@ pub fn lightmap_reader_output(path: &Path) -> Option<serde_json::Value> {
 
 /// Headless Chromium (Debian's `chromium`), for the web viewer's and the X3D export's tests:
 /// WebGL2 on SwiftShader, Chromium's software GL, so no GPU is needed.
+#[derive(Clone)]
 pub struct Chromium {
     program: String,
+    extra_flags: Vec<String>,
 }
 
 /// The flags that give WebGL2 in headless Chromium on a machine without a GPU (Chromium 156):
@@ -125,6 +127,7 @@ impl Chromium {
             if probe.is_ok_and(|o| o.status.success()) {
                 return Some(Chromium {
                     program: program.to_string(),
+                    extra_flags: Vec::new(),
                 });
             }
         }
@@ -134,6 +137,17 @@ impl Chromium {
         );
         eprintln!("skipping: chromium is not installed (apt-get install chromium)");
         None
+    }
+
+    /// This Chromium, reading pages only after `milliseconds` of virtual time, in which their
+    /// timers run at once: for pages that draw after loading (X_ITE). Not for timing pages:
+    /// their clock is virtual too.
+    pub fn after_virtual_time(&self, milliseconds: u32) -> Chromium {
+        let mut chromium = self.clone();
+        chromium
+            .extra_flags
+            .push(format!("--virtual-time-budget={milliseconds}"));
+        chromium
     }
 
     /// A screenshot of `url` in a `width x height` window, as RGB pixels, row-major.
@@ -162,10 +176,17 @@ impl Chromium {
         String::from_utf8_lossy(&out.stdout).into_owned()
     }
 
-    /// Runs Chromium with its own profile directory (tests run in parallel).
+    /// Runs Chromium with its own profile directory. One Chromium at a time per test binary:
+    /// pages timed on virtual time (X_ITE's) still load their scripts in real time, and two
+    /// browsers competing for the CPU made a page miss its budget.
     fn run(&self, profile: &Path, args: &[&str]) -> std::process::Output {
+        static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        let _turn = ONE_AT_A_TIME
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
         let out = Command::new(&self.program)
             .args(CHROMIUM_FLAGS)
+            .args(&self.extra_flags)
             .arg(format!(
                 "--user-data-dir={}",
                 profile.join("profile").display()

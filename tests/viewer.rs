@@ -371,3 +371,191 @@ fn view_refuses_files_it_cannot_show_with_one_line() {
         "viewer.txt",
     );
 }
+
+/// X_ITE's script, installed by ci/test.sh (npm ci in ci/x3d); `None` with a printed reason
+/// where it is missing, except under CI: a panic.
+fn x_ite_or_skip() -> Option<PathBuf> {
+    let script =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("ci/x3d/node_modules/x_ite/dist/x_ite.min.js");
+    if script.is_file() {
+        return Some(script);
+    }
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "X_ITE is missing under CI (ci/test.sh installs it)"
+    );
+    eprintln!("skipping: X_ITE is not installed (npm ci --prefix ci/x3d)");
+    None
+}
+
+/// The X3D test page (tests/data/x_ite_page.html) with X_ITE and the scene `x3d` filled in.
+fn write_x_ite_page(dir: &Path, x_ite: &Path, x3d: &str) -> PathBuf {
+    // X_ITE sizes its canvas from the element's own size: 100vw/100vh left it unsized when the
+    // screenshot was taken, so the window size is written in.
+    assert!(
+        !x3d.contains("</script"),
+        "the scene would end the page's script element"
+    );
+    let template = include_str!("data/x_ite_page.html");
+    let page = template
+        .replace("{{X_ITE}}", &format!("file://{}", x_ite.display()))
+        .replace("{{WIDTH}}", &WIDTH.to_string())
+        .replace("{{HEIGHT}}", &HEIGHT.to_string())
+        .replace("{{SCENE}}", x3d);
+    let path = dir.join("x_ite_page.html");
+    std::fs::write(&path, page).unwrap();
+    path
+}
+
+/// A screenshot of the X3D page once X_ITE has drawn: virtual time runs out before a busy
+/// machine has loaded X_ITE now and then, leaving a black window, so that is tried again.
+fn x_ite_screenshot(chromium: &Chromium, page: &Path) -> RgbImage {
+    let url = format!("file://{}", page.display());
+    for _ in 0..4 {
+        let shot = chromium.screenshot(&url, WIDTH, HEIGHT);
+        if shot.pixels().any(|p| p.0 != [0, 0, 0]) {
+            return shot;
+        }
+        eprintln!("X_ITE had not drawn when the screenshot was taken; again");
+    }
+    panic!("X_ITE drew nothing in four tries");
+}
+
+/// What X_ITE reported on loading `x3d`.
+fn x_ite_report(chromium: &Chromium, dir: &Path, x_ite: &Path, x3d: &str) -> serde_json::Value {
+    let page = write_x_ite_page(dir, x_ite, x3d);
+    for _ in 0..4 {
+        let dom = chromium.dump_dom(&format!("file://{}", page.display()));
+        match report_element(&dom).filter(|text| !text.is_empty()) {
+            Some(text) => return serde_json::from_str(text).unwrap(),
+            // As with the screenshots: X_ITE not loaded yet when virtual time ran out.
+            None => eprintln!("X_ITE had not reported when the page was read; again"),
+        }
+    }
+    panic!("the X3D page reported nothing in four tries");
+}
+
+#[test]
+fn x3d_export_loads_in_x_ite_and_matches_render() {
+    let Some(chromium) = chromium_and_adapter() else {
+        return;
+    };
+    let Some(x_ite) = x_ite_or_skip() else { return };
+    // X_ITE parses and draws after the page's load event; virtual time lets it finish.
+    let chromium = chromium.after_virtual_time(20_000);
+    let dir = tempfile::tempdir().unwrap();
+    let rgb = bake_teapot(dir.path(), "rgb.glb", 4, &[]);
+    let lean = bake_teapot(
+        dir.path(),
+        "lean.glb",
+        4,
+        &["--storage", "lean", "--albedo", "0.9,0.6,0.3"],
+    );
+    write_light(dir.path(), "light.json", 4, &[]);
+    let camera = another_camera(&rgb);
+    let cases: [(&Path, Vec<&str>); 2] = [
+        (&rgb, vec![]),
+        (
+            &lean,
+            vec![
+                "--camera",
+                &camera,
+                "--exposure",
+                "1.5",
+                "--tone-map",
+                "aces",
+            ],
+        ),
+    ];
+    for (baked, options) in cases {
+        let name = baked.to_str().unwrap();
+        let mut args = vec![
+            "export",
+            "x3d",
+            name,
+            "--light",
+            "light.json",
+            "-o",
+            "scene.x3d",
+        ];
+        args.extend(&options);
+        run_ok(&args, dir.path());
+        let x3d = std::fs::read_to_string(dir.path().join("scene.x3d")).unwrap();
+        let report = x_ite_report(&chromium, dir.path(), &x_ite, &x3d);
+        assert_eq!(report["loaded"], true, "{name}: {report}");
+        assert_eq!(report["shaderValid"], true, "{name}: {report}");
+        assert_eq!(
+            report["messages"],
+            serde_json::json!([]),
+            "{name}: {report}"
+        );
+
+        let mut render_options = options.clone();
+        render_options.extend(["--light", "light.json"]);
+        let expected = render(dir.path(), baked, &render_options);
+        assert!(has_contrast(&expected));
+        let page = dir.path().join("x_ite_page.html");
+        let shot = x_ite_screenshot(&chromium, &page);
+        let difference = Difference::of(&shot, &expected);
+        println!("x3d {name}: {difference:?}");
+        assert!(difference.within_tolerance(), "{name}: {difference:?}");
+    }
+}
+
+/// X_ITE's loader is the validity check, so it must catch what is wrong: a misspelt node,
+/// malformed XML, a shader that does not compile. (It passes over unknown or malformed field
+/// values silently: `numComponents='four'` loads without a word, so fields are not checked.)
+#[test]
+fn x_ite_reports_broken_x3d() {
+    let Some(chromium) = Chromium::find_or_skip() else {
+        return;
+    };
+    let Some(x_ite) = x_ite_or_skip() else { return };
+    let chromium = chromium.after_virtual_time(20_000);
+    let dir = tempfile::tempdir().unwrap();
+    bake_teapot(dir.path(), "teapot.glb", 2, &[]);
+    run_ok(
+        &["export", "x3d", "teapot.glb", "-o", "scene.x3d"],
+        dir.path(),
+    );
+    let x3d = std::fs::read_to_string(dir.path().join("scene.x3d")).unwrap();
+    let report = x_ite_report(&chromium, dir.path(), &x_ite, &x3d);
+    assert_eq!(report["shaderValid"], true, "{report}");
+    assert_eq!(report["messages"], serde_json::json!([]), "{report}");
+    let breakages = [
+        ("<Coordinate ", "<Coordinates "),
+        ("</Shape>", "</Shap>"),
+        ("sum += light[k] * t;", "sum += light[k] * t"),
+    ];
+    for (from, to) in breakages {
+        assert!(x3d.contains(from), "{from}");
+        let report = x_ite_report(&chromium, dir.path(), &x_ite, &x3d.replace(from, to));
+        let flagged = report["messages"].as_array().is_some_and(|m| !m.is_empty())
+            || report["shaderValid"] != true
+            || report["loaded"] != true;
+        assert!(flagged, "{to:?} went unnoticed: {report}");
+    }
+}
+
+#[test]
+fn export_x3d_refuses_what_it_cannot_write_with_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    bake_teapot(dir.path(), "teapot.glb", 4, &[]);
+    bake_teapot(dir.path(), "wide.glb", 5, &[]);
+    write_light(dir.path(), "two_bands.json", 2, &[]);
+    let plain = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gltf/BoxTextured.glb");
+    std::fs::copy(plain, dir.path().join("plain.glb")).unwrap();
+    let export = |file: &str, extra: &[&str], why: &str| {
+        let mut args = vec!["export", "x3d", file, "-o", "scene.x3d"];
+        args.extend(extra);
+        assert_refused(&args, dir.path(), why);
+    };
+    export("plain.glb", &[], "not a prt-gpu file");
+    export(
+        "teapot.glb",
+        &["--light", "two_bands.json"],
+        "the light has 2 bands",
+    );
+    // 5 bands x 3 channels = 75 floats: 19 attributes, more than WebGL leaves.
+    export("wide.glb", &[], "vertex attributes");
+}

@@ -342,6 +342,9 @@ struct ViewArgs {
     /// Environment-map parameterization (with --light ENVMAP).
     #[arg(long, value_enum)]
     mapping: Option<Mapping>,
+    /// Windowing and a starting rotation of the light (the page turns it further).
+    #[command(flatten)]
+    shaping: LightShaping,
     /// Output page.
     #[arg(short, long, default_value = "viewer.html")]
     output: PathBuf,
@@ -1267,6 +1270,7 @@ fn run_view(args: ViewArgs) -> Result<()> {
         Some(light_path) => light::load(light_path, bands, args.mapping, false)?.light,
         None => light::preview_light(bands)?,
     };
+    let light = shape(light, &args.shaping);
     let inputs: Vec<view::ViewerBake> = bakes
         .iter()
         .map(|(name, baked)| view::ViewerBake {

@@ -259,3 +259,28 @@ fn xml_attribute(text: &str) -> String {
         .replace('\'', "&apos;")
         .replace('"', "&quot;")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A point `distance` along X3D's default view direction, -Z, lands on the camera's view
+    /// axis once turned by the Viewpoint's orientation, and +Y lands on the camera's up.
+    #[test]
+    fn the_viewpoint_orientation_turns_the_default_view_onto_the_camera() {
+        for text in [
+            "3,2,4,0,0.5,0",
+            "0,5,0,0,0,0",
+            "-2,-1,0.5,1,1,1",
+            "0,0,5,0,0,0",
+        ] {
+            let camera: Camera = text.parse().unwrap();
+            let (axis, angle) = orientation(&camera);
+            let turn = Quat::from_axis_angle(axis, angle);
+            let (forward, _, up) = camera.view_basis();
+            assert!((turn * Vec3::NEG_Z - forward).length() < 1e-5, "{text}");
+            assert!((turn * Vec3::Y - up).length() < 1e-5, "{text}");
+            assert!((axis.length() - 1.0).abs() < 1e-5);
+        }
+    }
+}

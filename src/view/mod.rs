@@ -235,3 +235,103 @@ fn escape_html(text: &str) -> String {
         .replace('>', "&gt;")
         .replace('"', "&quot;")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::{bake, Backend, BakeOptions, Mode, NoProgress, TexelBake};
+    use crate::scene::builtin::icosphere;
+
+    fn sphere(bands: u32) -> BakedMesh {
+        let options = BakeOptions {
+            bands,
+            samples: 64,
+            mode: Mode::Unshadowed,
+            ..BakeOptions::default()
+        };
+        bake(
+            icosphere(Vec3::ZERO, 1.0, 1),
+            &options,
+            &Backend::Cpu,
+            &NoProgress,
+        )
+        .unwrap()
+        .0
+    }
+
+    /// The base64 string of `key` in the page data of `html`, decoded.
+    fn embedded_floats(html: &str, key: &str) -> Vec<f32> {
+        let start = html.find("id=\"prt-data\">").unwrap() + "id=\"prt-data\">".len();
+        let end = start + html[start..].find("</script>").unwrap();
+        let data: serde_json::Value = serde_json::from_str(&html[start..end]).unwrap();
+        let bytes = base64::engine::general_purpose::STANDARD
+            .decode(data["bakes"][0][key].as_str().unwrap())
+            .unwrap();
+        bytes
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect()
+    }
+
+    #[test]
+    fn the_page_embeds_the_files_arrays_bit_for_bit() {
+        let baked = sphere(3);
+        let light = ShLight::constant(3, [1.0; 3]);
+        let name = "a</script><b>.glb".to_string();
+        let html = viewer_html(
+            &[ViewerBake {
+                name,
+                baked: &baked,
+            }],
+            &light,
+        )
+        .unwrap();
+        assert_eq!(embedded_floats(&html, "transfer"), baked.transfer.coeffs);
+        let positions: Vec<f32> = baked
+            .scene
+            .positions
+            .iter()
+            .flat_map(|p| p.to_array())
+            .collect();
+        assert_eq!(embedded_floats(&html, "positions"), positions);
+        // A hostile name cannot end the data's script element or add markup.
+        assert_eq!(html.matches("</script>").count(), SHADERS.len() + 2);
+        assert!(!html.contains("<b>"));
+        for (id, _) in SHADERS {
+            assert!(html.contains(&format!("id=\"{id}\"")), "{id}");
+        }
+    }
+
+    #[test]
+    fn the_viewer_refuses_what_the_page_could_not_show() {
+        let baked = sphere(3);
+        let viewer = |baked: &BakedMesh, light: &ShLight| {
+            let bake = ViewerBake {
+                name: "x.glb".into(),
+                baked,
+            };
+            viewer_html(&[bake], light)
+        };
+        assert!(viewer(&baked, &ShLight::constant(3, [1.0; 3])).is_ok());
+        assert!(viewer(&baked, &ShLight::constant(5, [1.0; 3])).is_ok());
+        let narrow = viewer(&baked, &ShLight::constant(2, [1.0; 3])).unwrap_err();
+        assert!(narrow.to_string().contains("only 2"), "{narrow}");
+        let mut nan = ShLight::constant(3, [1.0; 3]);
+        nan.coeffs[4][1] = f32::NAN;
+        assert!(viewer(&baked, &nan).is_err());
+        let mut texels = baked.clone();
+        texels.lightmap = Some(TexelBake {
+            width: 1,
+            height: 1,
+            texcoords: vec![[0.5; 2]; baked.scene.vertex_count()],
+            transfer: baked.transfer.clone(),
+        });
+        let refused = viewer(&texels, &ShLight::constant(3, [1.0; 3])).unwrap_err();
+        assert!(refused.to_string().contains("lightmap"), "{refused}");
+        let mut empty = baked.clone();
+        empty.transfer.coeffs.clear();
+        empty.transfer.vertex_count = 0;
+        assert!(viewer(&empty, &ShLight::constant(3, [1.0; 3])).is_err());
+        assert!(viewer_html(&[], &ShLight::constant(3, [1.0; 3])).is_err());
+    }
+}

@@ -227,6 +227,53 @@ fn page_matches_render_for_each_file_camera_exposure_and_tone_map() {
     );
 }
 
+/// A lightmapped file: the page relights the four texels around each pixel's lightmap
+/// coordinates and blends them bilinearly, as render looks its relit texels up.
+#[test]
+fn lightmapped_page_matches_render() {
+    let Some(chromium) = chromium_and_adapter() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let baked = bake_teapot(dir.path(), "lightmapped.glb", 4, &["--lightmap", "128"]);
+    write_light(dir.path(), "light.json", 4, &[]);
+    run_ok(
+        &[
+            "view",
+            "lightmapped.glb",
+            "--light",
+            "light.json",
+            "-o",
+            "viewer.html",
+        ],
+        dir.path(),
+    );
+    let page = dir.path().join("viewer.html");
+    let camera = another_camera(&baked);
+    for (query, options) in [
+        (String::new(), vec!["--sky"]),
+        (
+            format!("cam={camera}&exposure=1&sky=0"),
+            vec!["--camera", &camera, "--exposure", "1"],
+        ),
+    ] {
+        let mut options = options;
+        options.extend(["--light", "light.json"]);
+        let expected = render(dir.path(), &baked, &options);
+        assert!(has_contrast(&expected));
+        let shot = chromium.screenshot(&page_url(&page, &query), WIDTH, HEIGHT);
+        let difference = Difference::of(&shot, &expected);
+        println!("lightmap {query}: {difference:?}");
+        assert!(difference.within_tolerance(), "{query}: {difference:?}");
+    }
+    // X3D carries per-vertex transfer only.
+    assert_refused(
+        &["export", "x3d", "lightmapped.glb", "-o", "scene.x3d"],
+        dir.path(),
+        "lightmap",
+    );
+}
+
 #[test]
 fn light_turned_in_the_page_matches_light_rotate() {
     let Some(chromium) = chromium_and_adapter() else {

@@ -132,19 +132,19 @@ function compile(gl, defines, parts) {
   return program;
 }
 
-// The transfer as a float texture: texel vertex * COEFFS + k holds coefficient k of every
-// channel (the file stores each vertex's channels one after the other: channel-major).
-function transferTexture(gl, bake) {
+// The transfer as a float texture: texel receiver * COEFFS + k holds coefficient k of every
+// channel (the file stores each receiver's channels one after the other: channel-major).
+// A receiver is a vertex, or a lightmap texel for a lightmapped file.
+function transferTexture(gl, bake, stored, receivers) {
   const coeffs = bake.bands * bake.bands;
-  const stored = decodeBase64(bake.transfer, Float32Array);
-  const texels = bake.vertices * coeffs;
+  const texels = receivers * coeffs;
   const height = Math.ceil(texels / TRANSFER_WIDTH);
   const channels = bake.channels;
   const data = new Float32Array(TRANSFER_WIDTH * height * channels);
-  for (let v = 0; v < bake.vertices; v++) {
+  for (let r = 0; r < receivers; r++) {
     for (let c = 0; c < channels; c++) {
-      const from = (v * channels + c) * coeffs;
-      for (let k = 0; k < coeffs; k++) data[(v * coeffs + k) * channels + c] = stored[from + k];
+      const from = (r * channels + c) * coeffs;
+      for (let k = 0; k < coeffs; k++) data[(r * coeffs + k) * channels + c] = stored[from + k];
     }
   }
   const texture = gl.createTexture();
@@ -157,33 +157,36 @@ function transferTexture(gl, bake) {
   return texture;
 }
 
+// The program, vertex arrays and transfer texture of one file: relit per vertex (mesh.vert),
+// or per texel of its lightmap (lightmap.vert, lightmap.frag).
 function meshResources(gl, bake) {
-  const program = compile(
-    gl,
-    `#define COEFFS ${bake.bands * bake.bands}\n#define CHANNELS ${bake.channels}\n#define TRANSFER_WIDTH ${TRANSFER_WIDTH}`,
-    { vertex: ["mesh-vertex"], fragment: ["tone-map", "mesh-fragment"] },
-  );
+  const lightmap = bake.lightmap;
+  const defines = `#define COEFFS ${bake.bands * bake.bands}\n#define CHANNELS ${bake.channels}\n` +
+    `#define TRANSFER_WIDTH ${TRANSFER_WIDTH}`;
+  const program = lightmap
+    ? compile(gl, defines, { vertex: ["lightmap-vertex"], fragment: ["tone-map", "transfer", "lightmap-fragment"] })
+    : compile(gl, defines, { vertex: ["transfer", "mesh-vertex"], fragment: ["tone-map", "mesh-fragment"] });
   const vao = gl.createVertexArray();
   gl.bindVertexArray(vao);
-  const attribute = (name, values) => {
+  const attribute = (name, values, size) => {
     const location = gl.getAttribLocation(program, name);
-    if (location < 0) return;
-    if (values === null) {
-      gl.disableVertexAttribArray(location);
-      return;
-    }
+    if (location < 0 || values === null) return;
     gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
     gl.bufferData(gl.ARRAY_BUFFER, values, gl.STATIC_DRAW);
     gl.enableVertexAttribArray(location);
-    gl.vertexAttribPointer(location, 3, gl.FLOAT, false, 0, 0);
+    gl.vertexAttribPointer(location, size, gl.FLOAT, false, 0, 0);
   };
-  attribute("position", decodeBase64(bake.positions, Float32Array));
-  attribute("albedo", bake.albedo ? decodeBase64(bake.albedo, Float32Array) : null);
+  attribute("position", decodeBase64(bake.positions, Float32Array), 3);
+  attribute("albedo", bake.albedo ? decodeBase64(bake.albedo, Float32Array) : null, 3);
+  if (lightmap) attribute("texcoord", decodeBase64(lightmap.texcoords, Float32Array), 2);
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, gl.createBuffer());
   gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, decodeBase64(bake.indices, Uint32Array), gl.STATIC_DRAW);
   gl.bindVertexArray(null);
+  const texture = lightmap
+    ? transferTexture(gl, bake, decodeBase64(lightmap.transfer, Float32Array), lightmap.width * lightmap.height)
+    : transferTexture(gl, bake, decodeBase64(bake.transfer, Float32Array), bake.vertices);
   const albedoLocation = gl.getAttribLocation(program, "albedo");
-  return { program, vao, texture: transferTexture(gl, bake), albedoLocation, hasAlbedo: !!bake.albedo };
+  return { program, vao, texture, albedoLocation, hasAlbedo: !!bake.albedo };
 }
 
 function uniforms(gl, program) {
@@ -276,6 +279,7 @@ class Viewer {
     gl.uniform1i(at("transfer"), 0);
     setToneMap(gl, at, state);
     if (!mesh.hasAlbedo && mesh.albedoLocation >= 0) gl.vertexAttrib3f(mesh.albedoLocation, 1, 1, 1);
+    if (bake.lightmap) gl.uniform2i(at("lightmap_size"), bake.lightmap.width, bake.lightmap.height);
     gl.enable(gl.DEPTH_TEST);
     gl.depthFunc(gl.LESS);
     gl.disable(gl.CULL_FACE); // both faces, as render draws them

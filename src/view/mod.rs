@@ -5,8 +5,10 @@
 //! readable files) plus the data, embedded as JSON with the binary arrays in base64: every
 //! vertex's position, its transfer exactly as the .glb stores it (channel-major, `bands^2`
 //! floats per channel), the albedo where the transfer leaves it out, and the light's SH
-//! coefficients. The page does what `render` does — one dot product per vertex and channel,
-//! interpolated across triangles, tone mapped per pixel, the SH light drawn behind as a sky —
+//! coefficients (a lightmapped file: its texels' transfer and lightmap coordinates instead).
+//! The page does what `render` does — one dot product per vertex and channel, interpolated
+//! across triangles (or per texel, looked up bilinearly), tone mapped per pixel, the SH light
+//! drawn behind as a sky —
 //! and rotates the light in the page with the same SH rotation as `sh::rotation`.
 
 use std::path::Path;
@@ -15,7 +17,7 @@ use base64::Engine;
 use glam::Vec3;
 use serde::Serialize;
 
-use crate::bake::BakedMesh;
+use crate::bake::{BakedMesh, TexelBake};
 use crate::error::{Error, Result};
 use crate::fs::write_atomically;
 use crate::light::ShLight;
@@ -29,15 +31,27 @@ const SH_SCRIPT: &str = include_str!("../../assets/viewer/sh.js");
 /// Camera, input handling and drawing.
 const VIEWER_SCRIPT: &str = include_str!("../../assets/viewer/viewer.js");
 /// The shaders, each embedded as a `<script type="x-shader/...">` element of this id.
-const SHADERS: [(&str, &str); 5] = [
+const SHADERS: [(&str, &str); 8] = [
     (
         "tone-map",
         include_str!("../../assets/viewer/tone_map.glsl"),
+    ),
+    (
+        "transfer",
+        include_str!("../../assets/viewer/transfer.glsl"),
     ),
     ("mesh-vertex", include_str!("../../assets/viewer/mesh.vert")),
     (
         "mesh-fragment",
         include_str!("../../assets/viewer/mesh.frag"),
+    ),
+    (
+        "lightmap-vertex",
+        include_str!("../../assets/viewer/lightmap.vert"),
+    ),
+    (
+        "lightmap-fragment",
+        include_str!("../../assets/viewer/lightmap.frag"),
     ),
     ("sky-vertex", include_str!("../../assets/viewer/sky.vert")),
     ("sky-fragment", include_str!("../../assets/viewer/sky.frag")),
@@ -91,6 +105,18 @@ struct PageBake {
     transfer: String,
     /// Base64 of little-endian f32 r, g, b per vertex where the transfer is albedo-free.
     albedo: Option<String>,
+    /// Per-texel transfer, where the file has a lightmap: it replaces `transfer` in the page.
+    lightmap: Option<PageLightmap>,
+}
+
+#[derive(Serialize)]
+struct PageLightmap {
+    width: u32,
+    height: u32,
+    /// Base64 of little-endian f32 u, v per vertex (glTF's convention).
+    texcoords: String,
+    /// Base64 of little-endian f32, `channels * bands^2` per texel, row-major, channel-major.
+    transfer: String,
 }
 
 /// Checks every input and writes the viewer to `path` atomically (nothing on failure).
@@ -154,11 +180,6 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
     let baked = bake.baked;
     let transfer = &baked.transfer;
     let refuse = |why: String| Err(Error::Options(format!("view: {}: {why}", bake.name)));
-    if baked.lightmap.is_some() {
-        return refuse(
-            "holds per-texel transfer (a lightmap), which the viewer does not draw yet".into(),
-        );
-    }
     if transfer.bands == 0 || transfer.vertex_count == 0 || transfer.coeffs.is_empty() {
         return refuse("holds no transfer".into());
     }
@@ -183,6 +204,11 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
     {
         return refuse("holds non-finite positions or transfer".into());
     }
+    let lightmap = baked.lightmap.as_ref().map(page_lightmap).transpose();
+    let lightmap = match lightmap {
+        Ok(lightmap) => lightmap,
+        Err(why) => return refuse(why),
+    };
     let (min, max) = bounds(&baked.scene.positions);
     let albedo = baked
         .metadata
@@ -201,6 +227,26 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
         indices: base64_u32(baked.scene.triangles.iter().flatten().copied()),
         transfer: base64_f32(transfer.coeffs.iter().copied()),
         albedo,
+        lightmap,
+    })
+}
+
+/// A lightmap's texels for the page, refused where they do not match the mesh.
+fn page_lightmap(texels: &TexelBake) -> std::result::Result<PageLightmap, String> {
+    let transfer = &texels.transfer;
+    let per_texel = transfer.channels as usize * transfer.coeffs_per_channel();
+    let expected = texels.width as usize * texels.height as usize * per_texel;
+    if texels.width == 0 || texels.height == 0 || transfer.coeffs.len() != expected {
+        return Err("its lightmap's texels do not match its size".into());
+    }
+    if !transfer.coeffs.iter().all(|c| c.is_finite()) {
+        return Err("its lightmap holds non-finite transfer".into());
+    }
+    Ok(PageLightmap {
+        width: texels.width,
+        height: texels.height,
+        texcoords: base64_f32(texels.texcoords.iter().flatten().copied()),
+        transfer: base64_f32(transfer.coeffs.iter().copied()),
     })
 }
 
@@ -239,7 +285,7 @@ fn escape_html(text: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bake::{bake, Backend, BakeOptions, Mode, NoProgress, TexelBake};
+    use crate::bake::{bake, Backend, BakeOptions, Mode, NoProgress};
     use crate::scene::builtin::icosphere;
 
     fn sphere(bands: u32) -> BakedMesh {
@@ -328,6 +374,14 @@ mod tests {
         });
         let refused = viewer(&texels, &ShLight::constant(3, [1.0; 3])).unwrap_err();
         assert!(refused.to_string().contains("lightmap"), "{refused}");
+        texels
+            .lightmap
+            .as_mut()
+            .unwrap()
+            .transfer
+            .coeffs
+            .truncate(9 * 3);
+        assert!(viewer(&texels, &ShLight::constant(3, [1.0; 3])).is_ok());
         let mut empty = baked.clone();
         empty.transfer.coeffs.clear();
         empty.transfer.vertex_count = 0;

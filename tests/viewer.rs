@@ -169,12 +169,15 @@ fn page_matches_render_for_each_file_camera_exposure_and_tone_map() {
         4,
         &["--storage", "lean", "--albedo", "0.9,0.6,0.3"],
     );
+    // Compressed (CPCA): the page shows the reconstruction; render relights the clusters.
+    let compressed = bake_teapot(dir.path(), "compressed.glb", 4, &["--compress", "8x4"]);
     write_light(dir.path(), "light.json", 4, &[]);
     run_ok(
         &[
             "view",
             "rgb.glb",
             "lean.glb",
+            "compressed.glb",
             "--light",
             "light.json",
             "-o",
@@ -185,9 +188,10 @@ fn page_matches_render_for_each_file_camera_exposure_and_tone_map() {
     let page = dir.path().join("viewer.html");
     let camera = another_camera(&rgb);
     let camera_query = format!("file=1&cam={camera}&exposure=1.5&tone=aces");
-    let cases: [(&Path, &str, Vec<&str>); 4] = [
+    let cases: [(&Path, &str, Vec<&str>); 5] = [
         (&rgb, "file=0", vec!["--sky"]),
         (&lean, "file=1", vec!["--sky"]),
+        (&compressed, "file=2", vec!["--sky"]),
         (
             &lean,
             &camera_query,
@@ -489,7 +493,7 @@ fn x3d_export_loads_in_x_ite_and_matches_render() {
     };
     let Some(x_ite) = x_ite_or_skip() else { return };
     // X_ITE parses and draws after the page's load event; virtual time lets it finish.
-    let chromium = chromium.after_virtual_time(20_000);
+    let chromium = chromium.after_virtual_time(120_000);
     let dir = tempfile::tempdir().unwrap();
     let rgb = bake_teapot(dir.path(), "rgb.glb", 4, &[]);
     let lean = bake_teapot(
@@ -558,7 +562,7 @@ fn x_ite_reports_broken_x3d() {
         return;
     };
     let Some(x_ite) = x_ite_or_skip() else { return };
-    let chromium = chromium.after_virtual_time(20_000);
+    let chromium = chromium.after_virtual_time(120_000);
     let dir = tempfile::tempdir().unwrap();
     bake_teapot(dir.path(), "teapot.glb", 2, &[]);
     run_ok(

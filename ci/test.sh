@@ -8,6 +8,8 @@ need_packages=()
 for package in mesa-vulkan-drivers libvulkan1; do
     dpkg -s "$package" >/dev/null 2>&1 || need_packages+=("$package")
 done
+# Headless Chromium shows the web viewer and, with X_ITE, the X3D export (tests/viewer.rs).
+command -v chromium >/dev/null || need_packages+=(chromium)
 # node and npm run the Khronos glTF-Validator (below).
 if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
     need_packages+=(nodejs npm)
@@ -23,7 +25,7 @@ if [ ${#need_packages[@]} -gt 0 ]; then
         apt-get update -qq
         apt-get install -y -qq --no-install-recommends "${need_packages[@]}" >/dev/null
     else
-        echo "ci/test.sh: missing ${need_packages[*]} (install them, or GPU and glTF-Validator tests will skip)" >&2
+        echo "ci/test.sh: missing ${need_packages[*]} (install them, or GPU, glTF-Validator and browser tests will skip)" >&2
     fi
 fi
 
@@ -62,6 +64,18 @@ if command -v npm >/dev/null && ! cmp -s "$validator/package-lock.json" "$instal
         cp "$validator/package-lock.json" "$installed_lock"
     else
         echo "ci/test.sh: the glTF-Validator is not installed" >&2
+    fi
+fi
+
+# X_ITE, the X3D browser the X3D export is loaded in (tests/viewer.rs), likewise pinned.
+x3d=ci/x3d
+installed_lock="$x3d/node_modules/.installed-package-lock.json"
+if command -v npm >/dev/null && ! cmp -s "$x3d/package-lock.json" "$installed_lock"; then
+    echo "ci/test.sh: installing X_ITE (npm ci --prefix $x3d)"
+    if npm ci --prefix "$x3d" --no-audit --no-fund --loglevel=error >/dev/null; then
+        cp "$x3d/package-lock.json" "$installed_lock"
+    else
+        echo "ci/test.sh: X_ITE is not installed" >&2
     fi
 fi
 

@@ -33,5 +33,7 @@ pub mod shard;
 pub mod surface;
 pub mod sweep;
 pub mod testing;
+pub mod view;
+pub mod x3d;
 
 pub use error::{Error, Result};

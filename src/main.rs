@@ -25,7 +25,7 @@ use prt_gpu::sh::window::Window;
 use prt_gpu::sh::MAX_BANDS;
 use prt_gpu::shard::{self, Part, PartHeader};
 use prt_gpu::sweep::{self, SweepOptions};
-use prt_gpu::{chart, fs, glb, scene, Error, Result};
+use prt_gpu::{chart, fs, glb, scene, view, x3d, Error, Result};
 
 /// `println!` that ends quietly when the reader of stdout has gone (`prt-gpu bake | head -1`),
 /// where the standard one panics: every report line of the CLI goes through it.
@@ -62,6 +62,11 @@ enum Command {
     Light(LightArgs),
     /// Relight baked files under a light and render them side by side to PNG or EXR.
     Render(RenderArgs),
+    /// Write a self-contained web viewer (one HTML file, WebGL2) of baked files and a light.
+    View(ViewArgs),
+    /// Export a baked file for other run-times.
+    #[command(subcommand)]
+    Export(ExportCommand),
     /// Chart speed against accuracy: every sampling strategy and backend over a sweep of
     /// sample counts, against a high-sample reference bake (SVG or PNG, plus a CSV beside it).
     Chart(ChartArgs),
@@ -317,6 +322,61 @@ struct RenderArgs {
     output: PathBuf,
 }
 
+#[derive(Subcommand)]
+enum ExportCommand {
+    /// An X3D scene (XML): the transfer as per-vertex FloatVertexAttribute nodes and a
+    /// ComposedShader that dots them with the light, a field of the shader.
+    X3d(X3dArgs),
+}
+
+#[derive(clap::Args)]
+struct X3dArgs {
+    /// A baked .glb (per vertex).
+    baked: PathBuf,
+    /// The light: light.json (at least the file's bands), or an environment map projected at
+    /// the file's bands. Default: the preview's sky and sun.
+    #[arg(long)]
+    light: Option<PathBuf>,
+    /// Environment-map parameterization (with --light ENVMAP).
+    #[arg(long, value_enum)]
+    mapping: Option<Mapping>,
+    #[command(flatten)]
+    shaping: LightShaping,
+    /// The viewpoint: eye x,y,z, target x,y,z [, field of view in degrees]. Default: render's
+    /// framing.
+    #[arg(long, allow_hyphen_values = true)]
+    camera: Option<Camera>,
+    /// Exposure in stops, a field of the shader.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    exposure: f32,
+    /// Tone mapping in the shader.
+    #[arg(long, value_enum, default_value_t = ToneMap::Reinhard)]
+    tone_map: ToneMap,
+    /// Output scene.
+    #[arg(short, long, default_value = "scene.x3d")]
+    output: PathBuf,
+}
+
+#[derive(clap::Args)]
+struct ViewArgs {
+    /// Baked .glb files (per vertex); the page switches between them.
+    #[arg(required = true)]
+    baked: Vec<PathBuf>,
+    /// The light: light.json (at least as many bands as every file), or an environment map
+    /// projected at the most bands of the files. Default: the preview's sky and sun.
+    #[arg(long)]
+    light: Option<PathBuf>,
+    /// Environment-map parameterization (with --light ENVMAP).
+    #[arg(long, value_enum)]
+    mapping: Option<Mapping>,
+    /// Windowing and a starting rotation of the light (the page turns it further).
+    #[command(flatten)]
+    shaping: LightShaping,
+    /// Output page.
+    #[arg(short, long, default_value = "viewer.html")]
+    output: PathBuf,
+}
+
 #[derive(clap::Args)]
 struct BakeArgs {
     /// Mesh to bake: a glTF scene (.gltf, .glb: written back with its transfer added), .obj,
@@ -518,6 +578,8 @@ fn main() -> ExitCode {
         Command::Devices => run_devices(),
         Command::Light(args) => run_light(args),
         Command::Render(args) => run_render(args),
+        Command::View(args) => run_view(args),
+        Command::Export(ExportCommand::X3d(args)) => run_export_x3d(args),
         Command::Chart(args) => run_chart(args),
         Command::Bench(args) => run_bench(args),
         Command::Merge(args) => run_merge(args),
@@ -1666,6 +1728,79 @@ fn run_render(args: RenderArgs) -> Result<()> {
         args.output.display()
     );
     Ok(())
+}
+
+fn run_view(args: ViewArgs) -> Result<()> {
+    fs::check_destination(&args.output)?;
+    let mut bakes = Vec::new();
+    for path in &args.baked {
+        bakes.push((path.display().to_string(), glb::read_glb(path)?));
+    }
+    let bands = bakes
+        .iter()
+        .map(|(_, b)| b.metadata.bands)
+        .max()
+        .unwrap_or(1);
+    let light = match &args.light {
+        Some(light_path) => light::load(light_path, bands, args.mapping, false)?.light,
+        None => light::preview_light(bands)?,
+    };
+    let light = shape(light, &args.shaping);
+    let inputs: Vec<view::ViewerBake> = bakes
+        .iter()
+        .map(|(name, baked)| view::ViewerBake {
+            name: stem_name(name),
+            baked,
+        })
+        .collect();
+    view::write_viewer(&args.output, &inputs, &light)?;
+    let size = std::fs::metadata(&args.output)
+        .map(|m| m.len())
+        .unwrap_or(0);
+    println!(
+        "viewer of {} file(s), light of {} bands, {:.1} MB -> {}",
+        inputs.len(),
+        light.bands,
+        size as f64 / 1e6,
+        args.output.display()
+    );
+    Ok(())
+}
+
+fn run_export_x3d(args: X3dArgs) -> Result<()> {
+    fs::check_destination(&args.output)?;
+    let baked = glb::read_glb(&args.baked)?;
+    let bands = baked.metadata.bands;
+    let light = match &args.light {
+        Some(light_path) => light::load(light_path, bands, args.mapping, false)?.light,
+        None => light::preview_light(bands)?,
+    };
+    let light = shape(light, &args.shaping);
+    let options = x3d::X3dOptions {
+        camera: args
+            .camera
+            .unwrap_or_else(|| Camera::framing_scene(&baked.scene)),
+        exposure_stops: args.exposure,
+        tone_map: args.tone_map,
+    };
+    x3d::write_x3d(&args.output, &baked, &light, &options)?;
+    println!(
+        "exported {} vertices, {} bands x {} channel(s) in {} vertex attributes -> {}",
+        baked.scene.vertex_count(),
+        bands,
+        baked.transfer.channels,
+        x3d::transfer_attributes(&baked),
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// The file name the page lists a bake by.
+fn stem_name(path: &str) -> String {
+    Path::new(path)
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| path.to_string())
 }
 
 /// Any adapter, software ones included: rasterising a preview is cheap anywhere.

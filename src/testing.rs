@@ -94,3 +94,143 @@ pub fn read_exr_rgba(path: &Path) -> (usize, Vec<[f32; 4]>) {
 pub fn lightmap_reader_output(path: &Path) -> Option<serde_json::Value> {
     python_with(&["numpy", "OpenEXR"]).then(|| python_json(crate::lightmap::PYTHON_READER, path))
 }
+
+/// Headless Chromium (Debian's `chromium`), for the web viewer's and the X3D export's tests:
+/// WebGL2 on SwiftShader, Chromium's software GL, so no GPU is needed.
+#[derive(Clone)]
+pub struct Chromium {
+    program: String,
+    extra_flags: Vec<String>,
+}
+
+/// The flags that give WebGL2 in headless Chromium on a machine without a GPU (Chromium 156):
+/// ANGLE on SwiftShader, which newer Chromium only allows when asked for explicitly; no
+/// sandbox (the tests may run as root); pixels one to one with CSS pixels.
+const CHROMIUM_FLAGS: [&str; 8] = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--hide-scrollbars",
+    "--force-device-scale-factor=1",
+    // Pages load their neighbours from file:// (X_ITE its scene and components).
+    "--allow-file-access-from-files",
+];
+
+impl Chromium {
+    /// Chromium where it is installed; where it is not, a printed reason and `None`, except
+    /// under CI (`CI` set), where `ci/test.sh` installs it: a panic.
+    pub fn find_or_skip() -> Option<Chromium> {
+        for program in ["chromium", "chromium-browser"] {
+            let probe = Command::new(program).arg("--version").output();
+            if probe.is_ok_and(|o| o.status.success()) {
+                return Some(Chromium {
+                    program: program.to_string(),
+                    extra_flags: Vec::new(),
+                });
+            }
+        }
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "chromium is missing under CI (ci/test.sh installs it)"
+        );
+        eprintln!("skipping: chromium is not installed (apt-get install chromium)");
+        None
+    }
+
+    /// This Chromium, reading pages only after `milliseconds` of virtual time, in which their
+    /// timers run at once: for pages that draw after loading (X_ITE). Not for timing pages:
+    /// their clock is virtual too.
+    pub fn after_virtual_time(&self, milliseconds: u32) -> Chromium {
+        let mut chromium = self.clone();
+        chromium
+            .extra_flags
+            .push(format!("--virtual-time-budget={milliseconds}"));
+        chromium
+    }
+
+    /// A screenshot of `url` in a `width x height` window, as RGB pixels, row-major.
+    pub fn screenshot(&self, url: &str, width: u32, height: u32) -> image::RgbImage {
+        let scratch = Scratch::new();
+        let png = scratch.0.join("screenshot.png");
+        self.run(
+            &scratch.0,
+            &[
+                &format!("--window-size={width},{height}"),
+                &format!("--screenshot={}", png.display()),
+                url,
+            ],
+        );
+        let image = image::open(&png)
+            .unwrap_or_else(|e| panic!("chromium's screenshot of {url}: {e}"))
+            .into_rgb8();
+        assert_eq!(image.dimensions(), (width, height), "screenshot of {url}");
+        image
+    }
+
+    /// The DOM of `url` once it has loaded (its scripts run), serialised.
+    pub fn dump_dom(&self, url: &str) -> String {
+        let scratch = Scratch::new();
+        let out = self.run(&scratch.0, &["--dump-dom", url]);
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
+
+    /// Runs Chromium with its own profile directory. One Chromium at a time per test binary:
+    /// pages timed on virtual time (X_ITE's) still load their scripts in real time, and two
+    /// browsers competing for the CPU made a page miss its budget.
+    fn run(&self, profile: &Path, args: &[&str]) -> std::process::Output {
+        static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        let _turn = ONE_AT_A_TIME
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        let out = Command::new(&self.program)
+            .args(CHROMIUM_FLAGS)
+            .args(&self.extra_flags)
+            .arg(format!(
+                "--user-data-dir={}",
+                profile.join("profile").display()
+            ))
+            .args(args)
+            .output()
+            .unwrap_or_else(|e| panic!("run {}: {e}", self.program));
+        assert!(
+            out.status.success(),
+            "chromium {args:?} failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out
+    }
+}
+
+/// The text of the element `<pre id="report" ...>` of a dumped DOM (the viewer's reports).
+pub fn report_element(dom: &str) -> Option<&str> {
+    let start = dom.find("<pre id=\"report\"")?;
+    let text_start = start + dom[start..].find('>')? + 1;
+    let text_end = text_start + dom[text_start..].find("</pre>")?;
+    Some(&dom[text_start..text_end])
+}
+
+/// A directory of its own for one Chromium run, removed afterwards (the library cannot use
+/// the tests' `tempfile`).
+struct Scratch(std::path::PathBuf);
+
+impl Scratch {
+    fn new() -> Scratch {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        static NEXT: AtomicUsize = AtomicUsize::new(0);
+        let dir = std::env::temp_dir().join(format!(
+            "prt-gpu-chromium-{}-{}",
+            std::process::id(),
+            NEXT.fetch_add(1, Ordering::Relaxed)
+        ));
+        std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+        Scratch(dir)
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}

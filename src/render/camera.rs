@@ -90,6 +90,13 @@ impl Camera {
         projection * view::look_at_mat4(self.eye, self.target, self.usable_up())
     }
 
+    /// The camera's unit forward, right and up vectors (right-handed: right = forward x up).
+    pub fn view_basis(&self) -> (Vec3, Vec3, Vec3) {
+        let forward = (self.target - self.eye).normalize();
+        let right = forward.cross(self.usable_up()).normalize();
+        (forward, right, right.cross(forward))
+    }
+
     /// `up` unless it is parallel to the view direction (looking straight down, say), where
     /// look-at would divide by zero; then any perpendicular-enough axis does.
     fn usable_up(&self) -> Vec3 {

@@ -1,0 +1,426 @@
+"use strict";
+// The viewer: reads the embedded bakes and light, draws the selected bake relit per vertex
+// (mesh.vert) over the light as a sky (sky.frag), and turns camera, light and exposure with
+// the mouse, the controls or the URL. Matches `prt-gpu render`: the same camera (look-at,
+// vertical field of view, near and far planes hugging the mesh), the same dot product, the
+// same tone mapping.
+
+const DATA = JSON.parse(document.getElementById("prt-data").textContent);
+const TONE_MAPS = ["none", "reinhard", "aces"];
+const TRANSFER_WIDTH = 4096; // texels per row of the transfer texture
+
+// ---- Small vector helpers (arrays of three numbers) ----
+const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+const add = (a, b) => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+const scale = (a, s) => [a[0] * s, a[1] * s, a[2] * s];
+const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+const length = (a) => Math.sqrt(dot(a, a));
+const normalize = (a) => scale(a, 1 / length(a));
+
+// ---- The state: everything a view depends on, read from and written to the URL ----
+function numbers(text, count) {
+  if (text === null) return null;
+  const values = text.split(",").map(Number);
+  return values.length >= count && values.every(Number.isFinite) ? values : null;
+}
+
+function initialState(params) {
+  const cam = numbers(params.get("cam"), 6);
+  const camera = cam
+    ? { eye: cam.slice(0, 3), target: cam.slice(3, 6), fov: cam.length > 6 ? cam[6] : 40 }
+    : { eye: DATA.camera.eye, target: DATA.camera.target, fov: DATA.camera.fov };
+  const rot = numbers(params.get("rot"), 3);
+  const file = Number(params.get("file") ?? 0);
+  const tone = params.get("tone") ?? "reinhard";
+  return {
+    camera,
+    rotation: rot ? rot.slice(0, 3) : [0, 0, 0],
+    exposure: Number(params.get("exposure") ?? 0) || 0,
+    tone: TONE_MAPS.includes(tone) ? tone : "reinhard",
+    file: Number.isInteger(file) && file >= 0 && file < DATA.bakes.length ? file : 0,
+    sky: params.get("sky") !== "0",
+  };
+}
+
+function stateQuery(state) {
+  const round = (v) => Number(v.toFixed(5));
+  const c = state.camera;
+  return `?cam=${[...c.eye, ...c.target, c.fov].map(round).join(",")}` +
+    `&rot=${state.rotation.map(round).join(",")}&exposure=${round(state.exposure)}` +
+    `&tone=${state.tone}&file=${state.file}&sky=${state.sky ? 1 : 0}`;
+}
+
+// ---- The camera: render::Camera's look-at and projection, in WebGL's clip space ----
+// `up` (+Y) unless it is parallel to the view direction; then +Z, then +X (Camera::usable_up).
+function usableUp(camera) {
+  const forward = normalize(sub(camera.target, camera.eye));
+  for (const up of [[0, 1, 0], [0, 0, 1], [1, 0, 0]]) {
+    if (length(cross(forward, up)) > 1e-3) return up;
+  }
+  return [0, 1, 0];
+}
+
+function cameraBasis(camera) {
+  const forward = normalize(sub(camera.target, camera.eye));
+  const right = normalize(cross(forward, usableUp(camera)));
+  const up = cross(right, forward);
+  return { forward, right, up };
+}
+
+// Near and far planes hugging the bounding sphere (render's depth_range).
+function depthRange(camera, bake) {
+  const center = scale(add(bake.boundsMin, bake.boundsMax), 0.5);
+  const halfDiagonal = length(sub(bake.boundsMax, bake.boundsMin)) * 0.5;
+  const floor = 1e-3 * Math.max(1, ...center.map(Math.abs));
+  const radius = Number.isFinite(halfDiagonal) ? Math.max(halfDiagonal, floor) : 1;
+  const distance = length(sub(center, camera.eye));
+  const far = (distance + radius) * 1.01;
+  const near = Math.max((distance - radius) * 0.99, far * 1e-4);
+  return [near, far];
+}
+
+// Column-major clip-from-world: a right-handed look-at, then a perspective projection to
+// WebGL's [-1, 1] depth (render uses [0, 1]; x and y are the same).
+function clipFromWorld(camera, aspect, near, far) {
+  const { forward, right, up } = cameraBasis(camera);
+  const f = 1 / Math.tan((camera.fov * Math.PI) / 360);
+  const view = [
+    [...right, -dot(right, camera.eye)],
+    [...up, -dot(up, camera.eye)],
+    [...scale(forward, -1), dot(forward, camera.eye)],
+    [0, 0, 0, 1],
+  ];
+  const projection = [
+    [f / aspect, 0, 0, 0],
+    [0, f, 0, 0],
+    [0, 0, (far + near) / (near - far), (2 * far * near) / (near - far)],
+    [0, 0, -1, 0],
+  ];
+  const out = new Float32Array(16);
+  for (let row = 0; row < 4; row++) {
+    for (let col = 0; col < 4; col++) {
+      let sum = 0;
+      for (let k = 0; k < 4; k++) sum += projection[row][k] * view[k][col];
+      out[col * 4 + row] = sum;
+    }
+  }
+  return out;
+}
+
+// ---- WebGL resources ----
+function decodeBase64(text, ArrayType) {
+  const bytes = Uint8Array.from(atob(text), (c) => c.charCodeAt(0));
+  return new ArrayType(bytes.buffer);
+}
+
+function compile(gl, defines, parts) {
+  const header = `#version 300 es\nprecision highp float;\nprecision highp int;\n${defines}\n`;
+  const source = (ids) => header + ids.map((id) => document.getElementById(id).textContent).join("\n");
+  const shader = (type, ids) => {
+    const s = gl.createShader(type);
+    gl.shaderSource(s, source(ids));
+    gl.compileShader(s);
+    if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error(gl.getShaderInfoLog(s));
+    return s;
+  };
+  const program = gl.createProgram();
+  gl.attachShader(program, shader(gl.VERTEX_SHADER, parts.vertex));
+  gl.attachShader(program, shader(gl.FRAGMENT_SHADER, parts.fragment));
+  gl.linkProgram(program);
+  if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
+  return program;
+}
+
+// The transfer as a float texture: texel receiver * COEFFS + k holds coefficient k of every
+// channel (the file stores each receiver's channels one after the other: channel-major).
+// A receiver is a vertex, or a lightmap texel for a lightmapped file.
+function transferTexture(gl, bake, stored, receivers) {
+  const coeffs = bake.bands * bake.bands;
+  const texels = receivers * coeffs;
+  const height = Math.ceil(texels / TRANSFER_WIDTH);
+  const channels = bake.channels;
+  const data = new Float32Array(TRANSFER_WIDTH * height * channels);
+  for (let r = 0; r < receivers; r++) {
+    for (let c = 0; c < channels; c++) {
+      const from = (r * channels + c) * coeffs;
+      for (let k = 0; k < coeffs; k++) data[(r * coeffs + k) * channels + c] = stored[from + k];
+    }
+  }
+  const texture = gl.createTexture();
+  gl.bindTexture(gl.TEXTURE_2D, texture);
+  gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+  const [internal, format] = channels === 3 ? [gl.RGB32F, gl.RGB] : [gl.R32F, gl.RED];
+  gl.texImage2D(gl.TEXTURE_2D, 0, internal, TRANSFER_WIDTH, height, 0, format, gl.FLOAT, data);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+  return texture;
+}
+
+// The program, vertex arrays and transfer texture of one file: relit per vertex (mesh.vert),
+// or per texel of its lightmap (lightmap.vert, lightmap.frag).
+function meshResources(gl, bake) {
+  const lightmap = bake.lightmap;
+  const defines = `#define COEFFS ${bake.bands * bake.bands}\n#define CHANNELS ${bake.channels}\n` +
+    `#define TRANSFER_WIDTH ${TRANSFER_WIDTH}`;
+  const program = lightmap
+    ? compile(gl, defines, { vertex: ["lightmap-vertex"], fragment: ["tone-map", "transfer", "lightmap-fragment"] })
+    : compile(gl, defines, { vertex: ["transfer", "mesh-vertex"], fragment: ["tone-map", "mesh-fragment"] });
+  const vao = gl.createVertexArray();
+  gl.bindVertexArray(vao);
+  const attribute = (name, values, size) => {
+    const location = gl.getAttribLocation(program, name);
+    if (location < 0 || values === null) return;
+    gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
+    gl.bufferData(gl.ARRAY_BUFFER, values, gl.STATIC_DRAW);
+    gl.enableVertexAttribArray(location);
+    gl.vertexAttribPointer(location, size, gl.FLOAT, false, 0, 0);
+  };
+  attribute("position", decodeBase64(bake.positions, Float32Array), 3);
+  attribute("albedo", bake.albedo ? decodeBase64(bake.albedo, Float32Array) : null, 3);
+  if (lightmap) attribute("texcoord", decodeBase64(lightmap.texcoords, Float32Array), 2);
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, gl.createBuffer());
+  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, decodeBase64(bake.indices, Uint32Array), gl.STATIC_DRAW);
+  gl.bindVertexArray(null);
+  const texture = lightmap
+    ? transferTexture(gl, bake, decodeBase64(lightmap.transfer, Float32Array), lightmap.width * lightmap.height)
+    : transferTexture(gl, bake, decodeBase64(bake.transfer, Float32Array), bake.vertices);
+  const albedoLocation = gl.getAttribLocation(program, "albedo");
+  return { program, vao, texture, albedoLocation, hasAlbedo: !!bake.albedo };
+}
+
+function uniforms(gl, program) {
+  const cache = {};
+  return (name) => (name in cache ? cache[name] : (cache[name] = gl.getUniformLocation(program, name)));
+}
+
+function setToneMap(gl, at, state) {
+  gl.uniform1f(at("exposure_stops"), state.exposure);
+  gl.uniform1i(at("tone_map_kind"), TONE_MAPS.indexOf(state.tone));
+}
+
+// ---- Drawing ----
+class Viewer {
+  constructor(canvas, state) {
+    this.canvas = canvas;
+    this.state = state;
+    this.gl = canvas.getContext("webgl2", { antialias: false, preserveDrawingBuffer: true });
+    if (!this.gl) throw new Error("this browser has no WebGL2");
+    this.meshes = new Map();
+    this.sky = null;
+  }
+
+  mesh(index) {
+    if (!this.meshes.has(index)) this.meshes.set(index, meshResources(this.gl, DATA.bakes[index]));
+    return this.meshes.get(index);
+  }
+
+  skyProgram() {
+    if (!this.sky) {
+      const program = compile(this.gl, `#define LIGHT_BANDS ${DATA.light.bands}`,
+        { vertex: ["sky-vertex"], fragment: ["tone-map", "sky-fragment"] });
+      this.sky = { program, at: uniforms(this.gl, program) };
+    }
+    return this.sky;
+  }
+
+  // The light as the page uses it: the file's light turned by state.rotation.
+  light() {
+    const key = this.state.rotation.join(",");
+    if (this.lightKey !== key) {
+      this.lightKey = key;
+      this.rotatedLight = rotateLight(DATA.light.coeffs, DATA.light.bands, this.state.rotation);
+    }
+    return this.rotatedLight;
+  }
+
+  draw() {
+    const { gl, canvas, state } = this;
+    const width = Math.max(1, Math.round(canvas.clientWidth * devicePixelRatio));
+    const height = Math.max(1, Math.round(canvas.clientHeight * devicePixelRatio));
+    if (canvas.width !== width || canvas.height !== height) [canvas.width, canvas.height] = [width, height];
+    gl.viewport(0, 0, width, height);
+    gl.clearColor(0, 0, 0, 0);
+    gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+    const light = this.light();
+    if (state.sky) this.drawSky(light, width, height);
+    this.drawMesh(light, width / height);
+  }
+
+  drawSky(light, width, height) {
+    const { gl, state } = this;
+    const { program, at } = this.skyProgram();
+    const { forward, right, up } = cameraBasis(state.camera);
+    const tanHalf = Math.tan((state.camera.fov * Math.PI) / 360);
+    gl.useProgram(program);
+    gl.uniform3fv(at("light"), light.flat());
+    gl.uniform3fv(at("camera_forward"), forward);
+    gl.uniform3fv(at("camera_right"), right);
+    gl.uniform3fv(at("camera_up"), up);
+    gl.uniform2f(at("half_extent"), tanHalf * (width / height), tanHalf);
+    gl.uniform2f(at("viewport_size"), width, height);
+    setToneMap(gl, at, state);
+    gl.disable(gl.DEPTH_TEST);
+    gl.bindVertexArray(null);
+    gl.drawArrays(gl.TRIANGLES, 0, 3);
+  }
+
+  drawMesh(light, aspect) {
+    const { gl, state } = this;
+    const bake = DATA.bakes[state.file];
+    const mesh = this.mesh(state.file);
+    const at = uniforms(gl, mesh.program);
+    const [near, far] = depthRange(state.camera, bake);
+    gl.useProgram(mesh.program);
+    gl.uniformMatrix4fv(at("clip_from_world"), false, clipFromWorld(state.camera, aspect, near, far));
+    gl.uniform3fv(at("light"), light.slice(0, bake.bands * bake.bands).flat());
+    gl.activeTexture(gl.TEXTURE0);
+    gl.bindTexture(gl.TEXTURE_2D, mesh.texture);
+    gl.uniform1i(at("transfer"), 0);
+    setToneMap(gl, at, state);
+    if (!mesh.hasAlbedo && mesh.albedoLocation >= 0) gl.vertexAttrib3f(mesh.albedoLocation, 1, 1, 1);
+    if (bake.lightmap) gl.uniform2i(at("lightmap_size"), bake.lightmap.width, bake.lightmap.height);
+    gl.enable(gl.DEPTH_TEST);
+    gl.depthFunc(gl.LESS);
+    gl.disable(gl.CULL_FACE); // both faces, as render draws them
+    gl.bindVertexArray(mesh.vao);
+    gl.drawElements(gl.TRIANGLES, bake.triangles * 3, gl.UNSIGNED_INT, 0);
+    gl.bindVertexArray(null);
+  }
+}
+
+// ---- Input: mouse and controls change the state, which redraws and updates the URL ----
+function orbit(camera, dAzimuth, dElevation) {
+  const offset = sub(camera.eye, camera.target);
+  const distance = length(offset);
+  const elevation = Math.asin(Math.max(-1, Math.min(1, offset[1] / distance)));
+  const azimuth = Math.atan2(offset[0], offset[2]);
+  const limit = Math.PI / 2 - 1e-3;
+  const e = Math.max(-limit, Math.min(limit, elevation + dElevation));
+  const a = azimuth + dAzimuth;
+  const direction = [Math.cos(e) * Math.sin(a), Math.sin(e), Math.cos(e) * Math.cos(a)];
+  camera.eye = add(camera.target, scale(direction, distance));
+}
+
+function zoom(camera, factor) {
+  camera.eye = add(camera.target, scale(sub(camera.eye, camera.target), factor));
+}
+
+function connectInput(viewer, redraw) {
+  const { canvas, state } = viewer;
+  let last = null;
+  canvas.addEventListener("contextmenu", (e) => e.preventDefault());
+  canvas.addEventListener("pointerdown", (e) => {
+    last = { x: e.clientX, y: e.clientY, light: e.shiftKey || e.button === 2 };
+    canvas.setPointerCapture(e.pointerId);
+  });
+  canvas.addEventListener("pointerup", () => { last = null; });
+  canvas.addEventListener("pointermove", (e) => {
+    if (!last) return;
+    const [dx, dy] = [e.clientX - last.x, e.clientY - last.y];
+    [last.x, last.y] = [e.clientX, e.clientY];
+    if (last.light) {
+      state.rotation[0] += dx * 0.5; // yaw about +Y
+      state.rotation[1] += dy * 0.5; // pitch about +X
+    } else {
+      orbit(state.camera, -dx * 0.01, dy * 0.01);
+    }
+    redraw();
+  });
+  canvas.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    zoom(state.camera, Math.exp(e.deltaY * 0.001));
+    redraw();
+  }, { passive: false });
+  const fileSelect = document.getElementById("file");
+  DATA.bakes.forEach((bake, i) => fileSelect.add(new Option(`${i + 1}: ${bake.name} (${bake.mode}, ${bake.bands} bands)`, i)));
+  const exposure = document.getElementById("exposure");
+  const tone = document.getElementById("tone");
+  const sky = document.getElementById("sky");
+  const show = () => {
+    fileSelect.value = state.file;
+    exposure.value = state.exposure;
+    document.getElementById("exposure-value").textContent = state.exposure.toFixed(1);
+    tone.value = state.tone;
+    sky.checked = state.sky;
+  };
+  fileSelect.addEventListener("change", () => { state.file = Number(fileSelect.value); redraw(); });
+  exposure.addEventListener("input", () => { state.exposure = Number(exposure.value); redraw(); });
+  tone.addEventListener("change", () => { state.tone = tone.value; redraw(); });
+  sky.addEventListener("change", () => { state.sky = sky.checked; redraw(); });
+  window.addEventListener("keydown", (e) => {
+    const index = Number(e.key) - 1;
+    if (index >= 0 && index < DATA.bakes.length) { state.file = index; redraw(); }
+  });
+  window.addEventListener("resize", redraw);
+  return show;
+}
+
+// ---- Reports for tests and measurements, as JSON in #report ----
+function report(value) {
+  const element = document.getElementById("report");
+  element.textContent = JSON.stringify(value);
+}
+
+// Frame time: `frames` draws, each waited for by reading one pixel back (so the time is the
+// GPU's work too, not only the queueing of commands).
+function bench(viewer, frames) {
+  const gl = viewer.gl;
+  const pixel = new Uint8Array(4);
+  viewer.draw();
+  gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);
+  const start = performance.now();
+  for (let i = 0; i < frames; i++) {
+    viewer.state.rotation[0] += 360 / frames; // a new light every frame, as when dragging
+    viewer.draw();
+    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);
+  }
+  const elapsed = performance.now() - start;
+  const bake = DATA.bakes[viewer.state.file];
+  return {
+    frames,
+    ms_per_frame: elapsed / frames,
+    width: viewer.canvas.width,
+    height: viewer.canvas.height,
+    vertices: bake.vertices,
+    triangles: bake.triangles,
+    bands: bake.bands,
+    renderer: gl.getParameter(gl.RENDERER),
+  };
+}
+
+function main() {
+  const params = new URLSearchParams(location.search);
+  const state = initialState(params);
+  if (params.get("ui") === "0") document.getElementById("controls").hidden = true;
+  const viewer = new Viewer(document.getElementById("view"), state);
+  let show = () => {};
+  let pending = false;
+  const redraw = () => {
+    if (pending) return;
+    pending = true;
+    requestAnimationFrame(() => {
+      pending = false;
+      viewer.draw();
+      show();
+      document.getElementById("url").textContent = stateQuery(state);
+      history.replaceState(null, "", stateQuery(state));
+    });
+  };
+  show = connectInput(viewer, redraw);
+  // The first frame is drawn at once, so a headless screenshot taken at load sees it.
+  viewer.draw();
+  show();
+  document.getElementById("url").textContent = stateQuery(state);
+  const frames = Number(params.get("bench"));
+  if (frames > 0) report(bench(viewer, frames));
+  if (params.get("report") === "light") report({ bands: DATA.light.bands, coeffs: viewer.light() });
+}
+
+try {
+  main();
+} catch (error) {
+  document.getElementById("message").textContent = `prt-gpu view: ${error.message}`;
+  report({ error: String(error.message) });
+  throw error;
+}

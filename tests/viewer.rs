@@ -1,0 +1,612 @@
+//! The web viewer (`prt-gpu view`) in headless Chromium: its screenshots against `prt-gpu
+//! render` of the same bake, camera, light and exposure; the light turned in the page against
+//! `prt-gpu light --rotate`; inputs it must refuse. Chromium draws with SwiftShader (software
+//! GL) and render with wgpu, so pixels differ along silhouettes and by rounding; the
+//! tolerances below are stated with each check.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::prt_gpu;
+use image::RgbImage;
+use prt_gpu::testing::{entries, report_element, Chromium};
+
+const WIDTH: u32 = 320;
+const HEIGHT: u32 = 240;
+
+/// A pixel counts as different when a channel differs by more than this (of 255): well above
+/// rounding and the software rasterisers' interpolation, well below what shading changes do.
+const PIXEL_THRESHOLD: u8 = 12;
+/// At most this fraction of pixels may differ: silhouette pixels, where the two rasterisers'
+/// coverage rules and depth precision disagree.
+const MAX_DIFFERENT_FRACTION: f64 = 0.005;
+/// Mean absolute difference over all pixels and channels, in 8-bit steps (seen: about 0.013,
+/// with 0.01% of pixels beyond the threshold, on the teapot at 320x240).
+const MAX_MEAN_DIFFERENCE: f64 = 0.25;
+
+fn run_ok(args: &[&str], dir: &Path) -> String {
+    let out = prt_gpu(args, dir);
+    assert!(
+        out.status.success(),
+        "prt-gpu {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn teapot() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/teapot.obj")
+}
+
+/// Bakes the teapot (shadowed, `bands` bands, CPU) into `dir`, with `extra` options.
+fn bake_teapot(dir: &Path, name: &str, bands: u32, extra: &[&str]) -> PathBuf {
+    let teapot = teapot();
+    let bands = bands.to_string();
+    let mut args = vec![
+        "bake",
+        teapot.to_str().unwrap(),
+        "--bands",
+        &bands,
+        "--samples",
+        "256",
+        "--mode",
+        "shadowed",
+        "--device",
+        "cpu",
+        "-o",
+        name,
+    ];
+    args.extend_from_slice(extra);
+    run_ok(&args, dir);
+    dir.join(name)
+}
+
+/// A sky, ground and sun light of `bands` bands, written to `dir/name`, with `extra` options.
+fn write_light(dir: &Path, name: &str, bands: u32, extra: &[&str]) {
+    let bands = bands.to_string();
+    let mut args = vec![
+        "light",
+        "--sky",
+        "0.6,0.7,0.9",
+        "--ground",
+        "0.2,0.15,0.1",
+        "--sun",
+        "0.5,0.8,0.3",
+        "--bands",
+        &bands,
+        "-o",
+        name,
+    ];
+    args.extend_from_slice(extra);
+    run_ok(&args, dir);
+}
+
+fn page_url(page: &Path, query: &str) -> String {
+    format!("file://{}?ui=0&{query}", page.display())
+}
+
+/// `prt-gpu render` of `baked` at the test size with `extra` options, as RGB.
+fn render(dir: &Path, baked: &Path, extra: &[&str]) -> RgbImage {
+    let (width, height) = (WIDTH.to_string(), HEIGHT.to_string());
+    let mut args = vec![
+        "render",
+        baked.to_str().unwrap(),
+        "--width",
+        &width,
+        "--height",
+        &height,
+        "-o",
+        "render.png",
+    ];
+    args.extend_from_slice(extra);
+    run_ok(&args, dir);
+    image::open(dir.join("render.png")).unwrap().into_rgb8()
+}
+
+#[derive(Debug)]
+struct Difference {
+    mean: f64,
+    different_fraction: f64,
+}
+
+impl Difference {
+    fn of(a: &RgbImage, b: &RgbImage) -> Difference {
+        assert_eq!(a.dimensions(), b.dimensions());
+        let mut sum = 0u64;
+        let mut different = 0usize;
+        for (p, q) in a.pixels().zip(b.pixels()) {
+            let channel = |c: usize| p.0[c].abs_diff(q.0[c]);
+            sum += (0..3).map(|c| channel(c) as u64).sum::<u64>();
+            different += usize::from((0..3).any(|c| channel(c) > PIXEL_THRESHOLD));
+        }
+        let pixels = a.pixels().len();
+        Difference {
+            mean: sum as f64 / (3 * pixels) as f64,
+            different_fraction: different as f64 / pixels as f64,
+        }
+    }
+
+    fn within_tolerance(&self) -> bool {
+        self.mean <= MAX_MEAN_DIFFERENCE && self.different_fraction <= MAX_DIFFERENT_FRACTION
+    }
+}
+
+/// Whether the render is not empty: some pixels lit, some not (so agreeing means something).
+fn has_contrast(image: &RgbImage) -> bool {
+    let luma: Vec<u8> = image.pixels().map(|p| p.0[1]).collect();
+    let (lo, hi) = (luma.iter().min().unwrap(), luma.iter().max().unwrap());
+    hi - lo > 100
+}
+
+/// A camera other than the framing one: turned 100 degrees about the vertical, a little
+/// closer, a narrower field of view; in the form of `--camera` and the page's `cam=`.
+fn another_camera(baked: &Path) -> String {
+    let scene = prt_gpu::glb::read_glb(baked).unwrap().scene;
+    let framed = prt_gpu::render::Camera::framing_scene(&scene);
+    let turn = glam::Quat::from_rotation_y(100f32.to_radians());
+    let eye = framed.target + turn * (framed.eye - framed.target) * 0.8;
+    let t = framed.target;
+    format!("{},{},{},{},{},{},35", eye.x, eye.y, eye.z, t.x, t.y, t.z)
+}
+
+fn chromium_and_adapter() -> Option<Chromium> {
+    let chromium = Chromium::find_or_skip()?;
+    prt_gpu::device::any_adapter_or_skip()?;
+    Some(chromium)
+}
+
+#[test]
+fn page_matches_render_for_each_file_camera_exposure_and_tone_map() {
+    let Some(chromium) = chromium_and_adapter() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let rgb = bake_teapot(dir.path(), "rgb.glb", 4, &[]);
+    let lean = bake_teapot(
+        dir.path(),
+        "lean.glb",
+        4,
+        &["--storage", "lean", "--albedo", "0.9,0.6,0.3"],
+    );
+    // Compressed (CPCA): the page shows the reconstruction; render relights the clusters.
+    let compressed = bake_teapot(dir.path(), "compressed.glb", 4, &["--compress", "8x4"]);
+    write_light(dir.path(), "light.json", 4, &[]);
+    run_ok(
+        &[
+            "view",
+            "rgb.glb",
+            "lean.glb",
+            "compressed.glb",
+            "--light",
+            "light.json",
+            "-o",
+            "viewer.html",
+        ],
+        dir.path(),
+    );
+    let page = dir.path().join("viewer.html");
+    let camera = another_camera(&rgb);
+    let camera_query = format!("file=1&cam={camera}&exposure=1.5&tone=aces");
+    let cases: [(&Path, &str, Vec<&str>); 5] = [
+        (&rgb, "file=0", vec!["--sky"]),
+        (&lean, "file=1", vec!["--sky"]),
+        (&compressed, "file=2", vec!["--sky"]),
+        (
+            &lean,
+            &camera_query,
+            vec![
+                "--sky",
+                "--camera",
+                &camera,
+                "--exposure",
+                "1.5",
+                "--tone-map",
+                "aces",
+            ],
+        ),
+        (
+            &rgb,
+            "file=0&sky=0&exposure=-0.5",
+            vec!["--exposure", "-0.5"],
+        ),
+    ];
+    for (baked, query, options) in cases {
+        let mut options = options;
+        options.extend(["--light", "light.json"]);
+        let expected = render(dir.path(), baked, &options);
+        assert!(has_contrast(&expected), "{query}: the render shows nothing");
+        let shot = chromium.screenshot(&page_url(&page, query), WIDTH, HEIGHT);
+        let difference = Difference::of(&shot, &expected);
+        println!("{query}: {difference:?}");
+        assert!(difference.within_tolerance(), "{query}: {difference:?}");
+    }
+    // The comparison can tell: a stop of exposure more is far outside the tolerance.
+    let expected = render(dir.path(), &rgb, &["--sky", "--light", "light.json"]);
+    let brighter = chromium.screenshot(&page_url(&page, "file=0&exposure=1"), WIDTH, HEIGHT);
+    let difference = Difference::of(&brighter, &expected);
+    assert!(
+        difference.mean > 10.0 * MAX_MEAN_DIFFERENCE,
+        "{difference:?}"
+    );
+}
+
+/// A lightmapped file: the page relights the four texels around each pixel's lightmap
+/// coordinates and blends them bilinearly, as render looks its relit texels up.
+#[test]
+fn lightmapped_page_matches_render() {
+    let Some(chromium) = chromium_and_adapter() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let baked = bake_teapot(dir.path(), "lightmapped.glb", 4, &["--lightmap", "128"]);
+    write_light(dir.path(), "light.json", 4, &[]);
+    run_ok(
+        &[
+            "view",
+            "lightmapped.glb",
+            "--light",
+            "light.json",
+            "-o",
+            "viewer.html",
+        ],
+        dir.path(),
+    );
+    let page = dir.path().join("viewer.html");
+    let camera = another_camera(&baked);
+    for (query, options) in [
+        (String::new(), vec!["--sky"]),
+        (
+            format!("cam={camera}&exposure=1&sky=0"),
+            vec!["--camera", &camera, "--exposure", "1"],
+        ),
+    ] {
+        let mut options = options;
+        options.extend(["--light", "light.json"]);
+        let expected = render(dir.path(), &baked, &options);
+        assert!(has_contrast(&expected));
+        let shot = chromium.screenshot(&page_url(&page, &query), WIDTH, HEIGHT);
+        let difference = Difference::of(&shot, &expected);
+        println!("lightmap {query}: {difference:?}");
+        assert!(difference.within_tolerance(), "{query}: {difference:?}");
+    }
+    // X3D carries per-vertex transfer only.
+    assert_refused(
+        &["export", "x3d", "lightmapped.glb", "-o", "scene.x3d"],
+        dir.path(),
+        "lightmap",
+    );
+}
+
+#[test]
+fn light_turned_in_the_page_matches_light_rotate() {
+    let Some(chromium) = chromium_and_adapter() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let baked = bake_teapot(dir.path(), "teapot.glb", 4, &[]);
+    write_light(dir.path(), "light.json", 4, &[]);
+    write_light(dir.path(), "turned.json", 4, &["--rotate", "70,-35,20"]);
+    run_ok(
+        &[
+            "view",
+            "teapot.glb",
+            "--light",
+            "light.json",
+            "-o",
+            "viewer.html",
+        ],
+        dir.path(),
+    );
+    let page = dir.path().join("viewer.html");
+    let expected = render(dir.path(), &baked, &["--sky", "--light", "turned.json"]);
+    let shot = chromium.screenshot(&page_url(&page, "rot=70,-35,20"), WIDTH, HEIGHT);
+    let difference = Difference::of(&shot, &expected);
+    println!("rotated: {difference:?}");
+    assert!(difference.within_tolerance(), "{difference:?}");
+    // Unturned, the page is far from the turned render: the rotation is what agrees.
+    let unturned = chromium.screenshot(&page_url(&page, ""), WIDTH, HEIGHT);
+    assert!(!Difference::of(&unturned, &expected).within_tolerance());
+}
+
+/// The page's rotation of every coefficient, for a light of many bands (more than the bake:
+/// the page rotates all the light's bands for its sky), against `prt-gpu light --rotate`.
+#[test]
+fn page_rotates_every_band_as_the_library_does() {
+    let Some(chromium) = Chromium::find_or_skip() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    bake_teapot(dir.path(), "teapot.glb", 2, &[]);
+    for (bands, rotation) in [(9, "70,-35,20"), (16, "-120,80,-45")] {
+        write_light(dir.path(), "light.json", bands, &["--tutorial"]);
+        write_light(
+            dir.path(),
+            "turned.json",
+            bands,
+            &["--tutorial", "--rotate", rotation],
+        );
+        run_ok(
+            &[
+                "view",
+                "teapot.glb",
+                "--light",
+                "light.json",
+                "-o",
+                "viewer.html",
+            ],
+            dir.path(),
+        );
+        let page = dir.path().join("viewer.html");
+        let dom = chromium.dump_dom(&page_url(&page, &format!("report=light&rot={rotation}")));
+        let report: serde_json::Value =
+            serde_json::from_str(report_element(&dom).expect("the page reports its light"))
+                .unwrap();
+        let turned = prt_gpu::light::read_json(&dir.path().join("turned.json")).unwrap();
+        let original = prt_gpu::light::read_json(&dir.path().join("light.json")).unwrap();
+        let page_coeffs = report["coeffs"].as_array().unwrap();
+        assert_eq!(page_coeffs.len(), turned.coeffs.len());
+        let scale = original
+            .coeffs
+            .iter()
+            .flatten()
+            .fold(0f32, |m, c| m.max(c.abs()));
+        let mut worst = 0f32;
+        for (k, (got, want)) in page_coeffs.iter().zip(&turned.coeffs).enumerate() {
+            for c in 0..3 {
+                let got = got[c].as_f64().unwrap() as f32;
+                worst = worst.max((got - want[c]).abs());
+                assert!(
+                    (got - want[c]).abs() <= 1e-5 * scale,
+                    "{bands} bands, k {k}: {got} vs {}",
+                    want[c]
+                );
+            }
+        }
+        println!("{bands} bands: worst difference {worst:e} (largest coefficient {scale})");
+        // Not trivially equal: the rotation moved the coefficients.
+        let moved = original
+            .coeffs
+            .iter()
+            .zip(&turned.coeffs)
+            .any(|(a, b)| (a[1] - b[1]).abs() > 0.1 * scale);
+        assert!(moved);
+    }
+}
+
+fn assert_refused(args: &[&str], dir: &Path, why: &str) {
+    let before = entries(dir);
+    let out = prt_gpu(args, dir);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} was accepted");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
+    assert!(
+        stderr.starts_with("error:") && stderr.contains(why),
+        "{args:?}: {stderr}"
+    );
+    assert_eq!(entries(dir), before, "{args:?} left files behind");
+}
+
+#[test]
+fn view_refuses_files_it_cannot_show_with_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    bake_teapot(dir.path(), "teapot.glb", 4, &[]);
+    write_light(dir.path(), "two_bands.json", 2, &[]);
+    let plain = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gltf/BoxTextured.glb");
+    std::fs::copy(plain, dir.path().join("plain.glb")).unwrap();
+    assert_refused(
+        &["view", "plain.glb", "-o", "viewer.html"],
+        dir.path(),
+        "not a prt-gpu file",
+    );
+    assert_refused(
+        &[
+            "view",
+            "teapot.glb",
+            "--light",
+            "two_bands.json",
+            "-o",
+            "viewer.html",
+        ],
+        dir.path(),
+        "only 2",
+    );
+    assert_refused(
+        &["view", "missing.glb", "-o", "viewer.html"],
+        dir.path(),
+        "missing.glb",
+    );
+    assert_refused(
+        &["view", "teapot.glb", "-o", "viewer.txt/"],
+        dir.path(),
+        "viewer.txt",
+    );
+}
+
+/// X_ITE's script, installed by ci/test.sh (npm ci in ci/x3d); `None` with a printed reason
+/// where it is missing, except under CI: a panic.
+fn x_ite_or_skip() -> Option<PathBuf> {
+    let script =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("ci/x3d/node_modules/x_ite/dist/x_ite.min.js");
+    if script.is_file() {
+        return Some(script);
+    }
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "X_ITE is missing under CI (ci/test.sh installs it)"
+    );
+    eprintln!("skipping: X_ITE is not installed (npm ci --prefix ci/x3d)");
+    None
+}
+
+/// The X3D test page (tests/data/x_ite_page.html) with X_ITE and the scene `x3d` filled in.
+fn write_x_ite_page(dir: &Path, x_ite: &Path, x3d: &str) -> PathBuf {
+    // X_ITE sizes its canvas from the element's own size: 100vw/100vh left it unsized when the
+    // screenshot was taken, so the window size is written in.
+    assert!(
+        !x3d.contains("</script"),
+        "the scene would end the page's script element"
+    );
+    let template = include_str!("data/x_ite_page.html");
+    let page = template
+        .replace("{{X_ITE}}", &format!("file://{}", x_ite.display()))
+        .replace("{{WIDTH}}", &WIDTH.to_string())
+        .replace("{{HEIGHT}}", &HEIGHT.to_string())
+        .replace("{{SCENE}}", x3d);
+    let path = dir.join("x_ite_page.html");
+    std::fs::write(&path, page).unwrap();
+    path
+}
+
+/// A screenshot of the X3D page once X_ITE has drawn: virtual time runs out before a busy
+/// machine has loaded X_ITE now and then, leaving a black window, so that is tried again.
+fn x_ite_screenshot(chromium: &Chromium, page: &Path) -> RgbImage {
+    let url = format!("file://{}", page.display());
+    for _ in 0..4 {
+        let shot = chromium.screenshot(&url, WIDTH, HEIGHT);
+        if shot.pixels().any(|p| p.0 != [0, 0, 0]) {
+            return shot;
+        }
+        eprintln!("X_ITE had not drawn when the screenshot was taken; again");
+    }
+    panic!("X_ITE drew nothing in four tries");
+}
+
+/// What X_ITE reported on loading `x3d`.
+fn x_ite_report(chromium: &Chromium, dir: &Path, x_ite: &Path, x3d: &str) -> serde_json::Value {
+    let page = write_x_ite_page(dir, x_ite, x3d);
+    for _ in 0..4 {
+        let dom = chromium.dump_dom(&format!("file://{}", page.display()));
+        match report_element(&dom).filter(|text| !text.is_empty()) {
+            Some(text) => return serde_json::from_str(text).unwrap(),
+            // As with the screenshots: X_ITE not loaded yet when virtual time ran out.
+            None => eprintln!("X_ITE had not reported when the page was read; again"),
+        }
+    }
+    panic!("the X3D page reported nothing in four tries");
+}
+
+#[test]
+fn x3d_export_loads_in_x_ite_and_matches_render() {
+    let Some(chromium) = chromium_and_adapter() else {
+        return;
+    };
+    let Some(x_ite) = x_ite_or_skip() else { return };
+    // X_ITE parses and draws after the page's load event; virtual time lets it finish.
+    let chromium = chromium.after_virtual_time(120_000);
+    let dir = tempfile::tempdir().unwrap();
+    let rgb = bake_teapot(dir.path(), "rgb.glb", 4, &[]);
+    let lean = bake_teapot(
+        dir.path(),
+        "lean.glb",
+        4,
+        &["--storage", "lean", "--albedo", "0.9,0.6,0.3"],
+    );
+    write_light(dir.path(), "light.json", 4, &[]);
+    let camera = another_camera(&rgb);
+    let cases: [(&Path, Vec<&str>); 2] = [
+        (&rgb, vec![]),
+        (
+            &lean,
+            vec![
+                "--camera",
+                &camera,
+                "--exposure",
+                "1.5",
+                "--tone-map",
+                "aces",
+            ],
+        ),
+    ];
+    for (baked, options) in cases {
+        let name = baked.to_str().unwrap();
+        let mut args = vec![
+            "export",
+            "x3d",
+            name,
+            "--light",
+            "light.json",
+            "-o",
+            "scene.x3d",
+        ];
+        args.extend(&options);
+        run_ok(&args, dir.path());
+        let x3d = std::fs::read_to_string(dir.path().join("scene.x3d")).unwrap();
+        let report = x_ite_report(&chromium, dir.path(), &x_ite, &x3d);
+        assert_eq!(report["loaded"], true, "{name}: {report}");
+        assert_eq!(report["shaderValid"], true, "{name}: {report}");
+        assert_eq!(
+            report["messages"],
+            serde_json::json!([]),
+            "{name}: {report}"
+        );
+
+        let mut render_options = options.clone();
+        render_options.extend(["--light", "light.json"]);
+        let expected = render(dir.path(), baked, &render_options);
+        assert!(has_contrast(&expected));
+        let page = dir.path().join("x_ite_page.html");
+        let shot = x_ite_screenshot(&chromium, &page);
+        let difference = Difference::of(&shot, &expected);
+        println!("x3d {name}: {difference:?}");
+        assert!(difference.within_tolerance(), "{name}: {difference:?}");
+    }
+}
+
+/// X_ITE's loader is the validity check, so it must catch what is wrong: a misspelt node,
+/// malformed XML, a shader that does not compile. (It passes over unknown or malformed field
+/// values silently: `numComponents='four'` loads without a word, so fields are not checked.)
+#[test]
+fn x_ite_reports_broken_x3d() {
+    let Some(chromium) = Chromium::find_or_skip() else {
+        return;
+    };
+    let Some(x_ite) = x_ite_or_skip() else { return };
+    let chromium = chromium.after_virtual_time(120_000);
+    let dir = tempfile::tempdir().unwrap();
+    bake_teapot(dir.path(), "teapot.glb", 2, &[]);
+    run_ok(
+        &["export", "x3d", "teapot.glb", "-o", "scene.x3d"],
+        dir.path(),
+    );
+    let x3d = std::fs::read_to_string(dir.path().join("scene.x3d")).unwrap();
+    let report = x_ite_report(&chromium, dir.path(), &x_ite, &x3d);
+    assert_eq!(report["shaderValid"], true, "{report}");
+    assert_eq!(report["messages"], serde_json::json!([]), "{report}");
+    let breakages = [
+        ("<Coordinate ", "<Coordinates "),
+        ("</Shape>", "</Shap>"),
+        ("sum += light[k] * t;", "sum += light[k] * t"),
+    ];
+    for (from, to) in breakages {
+        assert!(x3d.contains(from), "{from}");
+        let report = x_ite_report(&chromium, dir.path(), &x_ite, &x3d.replace(from, to));
+        let flagged = report["messages"].as_array().is_some_and(|m| !m.is_empty())
+            || report["shaderValid"] != true
+            || report["loaded"] != true;
+        assert!(flagged, "{to:?} went unnoticed: {report}");
+    }
+}
+
+#[test]
+fn export_x3d_refuses_what_it_cannot_write_with_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    bake_teapot(dir.path(), "teapot.glb", 4, &[]);
+    bake_teapot(dir.path(), "wide.glb", 5, &[]);
+    write_light(dir.path(), "two_bands.json", 2, &[]);
+    let plain = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gltf/BoxTextured.glb");
+    std::fs::copy(plain, dir.path().join("plain.glb")).unwrap();
+    let export = |file: &str, extra: &[&str], why: &str| {
+        let mut args = vec!["export", "x3d", file, "-o", "scene.x3d"];
+        args.extend(extra);
+        assert_refused(&args, dir.path(), why);
+    };
+    export("plain.glb", &[], "not a prt-gpu file");
+    export(
+        "teapot.glb",
+        &["--light", "two_bands.json"],
+        "the light has 2 bands",
+    );
+    // 5 bands x 3 channels = 75 floats: 19 attributes, more than WebGL leaves.
+    export("wide.glb", &[], "vertex attributes");
+}

@@ -87,11 +87,10 @@ gltf, binary = json.loads(data[20:20 + n]), data[28 + n:]
 bv, acc = gltf["bufferViews"], gltf["accessors"]
 view = lambda i, dtype: np.frombuffer(binary, dtype, bv[i]["byteLength"] // np.dtype(dtype).itemsize, bv[i].get("byteOffset", 0))
 prim, prt = gltf["meshes"][0]["primitives"][0], gltf["meshes"][0]["extras"]["prt"]
-coefficient = "<f2" if prt.get("transfer_precision") == "float16" else "<f4"
 positions = view(acc[prim["attributes"]["POSITION"]]["bufferView"], "<f4").reshape(-1, 3)
 indices = view(acc[prim["indices"]]["bufferView"], "<u4").reshape(-1, 3)
-V, C, K = prt["vertices"], prt["channels"], prt["bands"] ** 2
-transfer = view(prt["transfer_buffer_view"], coefficient).astype(np.float32).reshape(C, -1, V, 4).transpose(2, 0, 1, 3).reshape(V, C, -1)[:, :, :K]
+V, C, K, f = prt["vertices"], prt["channels"], prt["bands"] ** 2, "<f2" if prt.get("transfer_precision") == "float16" else "<f4"
+transfer = view(prt["transfer_buffer_view"], f).astype(np.float32).reshape(C, -1, V, 4).transpose(2, 0, 1, 3).reshape(V, C, -1)[:, :, :K]
 print(json.dumps({"positions": positions.shape, "indices": indices.shape, "transfer": transfer.shape, "last_vertex": transfer[-1].tolist()}))
 "#;
 

@@ -729,6 +729,25 @@ pub fn direct_transfer_and_gather_matrix(
     Ok((scaled(out.sums, inputs), matrix, out.stats))
 }
 
+/// The closest hit of every ray that hits something, `(sample, hit)` per receiver, from the
+/// closest-hit pass (what interreflection gathers from; local lights' depth maps measure it).
+pub fn closest_hits(
+    baker: &GpuBaker,
+    inputs: &DirectInputs,
+    chunking: Chunking,
+    progress: &dyn Progress,
+) -> Result<Vec<Vec<(u32, Hit)>>> {
+    let out = run(
+        baker,
+        inputs,
+        Mode::Interreflected,
+        chunking,
+        false,
+        progress,
+    )?;
+    Ok(out.hits)
+}
+
 /// Albedo-free direct transfer of every vertex, `[vertex][k]`, computed on the GPU.
 pub fn direct_transfer(
     baker: &GpuBaker,

@@ -1,0 +1,213 @@
+//! Point and spot lights inside the scene, and the direct light they give each receiver.
+//!
+//! Radiometry: a point light of intensity `I` (W/sr, the same in every direction) gives a
+//! surface at distance `r` whose normal makes angle `theta` with the direction to the light
+//! the irradiance `E = I cos(theta) / r^2` where it is visible; a Lambertian surface of albedo
+//! `rho` then leaves with radiance `rho E / pi`. A spot light is a point light whose intensity
+//! is `I` inside a cone about its direction and 0 outside (a hard edge).
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::depth::{visibility, DepthLookup, DirectionGrid};
+use crate::bvh::Bvh;
+use crate::error::{Error, Result};
+use crate::ray::Ray;
+
+/// A light at a point of the scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LocalLight {
+    pub position: Vec3,
+    /// Radiant intensity, W/sr.
+    pub intensity: f32,
+    pub spot: Option<Spot>,
+}
+
+/// A spot light's cone.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spot {
+    /// Unit direction the cone opens towards.
+    pub direction: Vec3,
+    /// Cosine of the cone's half angle.
+    pub cos_half_angle: f32,
+}
+
+impl LocalLight {
+    pub fn point(position: Vec3, intensity: f32) -> Self {
+        LocalLight {
+            position,
+            intensity,
+            spot: None,
+        }
+    }
+
+    /// Checks that the light is finite, its intensity non-negative and any cone sensible.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |what: String| Err(Error::Options(what));
+        if !self.position.is_finite() || !self.intensity.is_finite() || self.intensity < 0.0 {
+            return bad(format!(
+                "light at {} of intensity {}: need a finite position and an intensity >= 0",
+                self.position, self.intensity
+            ));
+        }
+        if let Some(spot) = self.spot {
+            let unit = (spot.direction.length() - 1.0).abs() < 1e-3;
+            if !unit || !(-1.0..=1.0).contains(&spot.cos_half_angle) {
+                return bad(format!(
+                    "spot light at {}: its direction must be a unit vector and its half angle \
+                     within 0 to 180 degrees",
+                    self.position
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Intensity towards `point` (the cone's edge is hard).
+    pub fn intensity_towards(&self, point: Vec3) -> f32 {
+        match self.spot {
+            None => self.intensity,
+            Some(spot) => {
+                let out = (point - self.position).normalize_or_zero();
+                if out.dot(spot.direction) >= spot.cos_half_angle {
+                    self.intensity
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+
+    /// Unshadowed irradiance at a surface point with unit normal `normal`: `I cos / r^2`.
+    pub fn unshadowed_irradiance(&self, point: Vec3, normal: Vec3) -> f32 {
+        let to_light = self.position - point;
+        let r2 = to_light.length_squared();
+        if r2 == 0.0 {
+            return 0.0;
+        }
+        let cosine = normal.dot(to_light) / r2.sqrt();
+        if cosine <= 0.0 {
+            return 0.0;
+        }
+        self.intensity_towards(point) * cosine / r2
+    }
+}
+
+/// What the direct light of a receiver depends on: where it is, where its rays start, and
+/// its tangent frame (the depth maps' frame).
+pub struct ReceiverFrames<'a> {
+    pub positions: &'a [Vec3],
+    pub normals: &'a [Vec3],
+    pub origins: &'a [Vec3],
+    pub frames: &'a [[Vec3; 3]],
+}
+
+/// Irradiance at every receiver from `lights`, visibility from the depth maps.
+pub fn irradiance_from_depth(
+    receivers: &ReceiverFrames,
+    lookup: &dyn DepthLookup,
+    grid: &DirectionGrid,
+    lights: &[LocalLight],
+) -> Vec<f32> {
+    (0..receivers.positions.len())
+        .into_par_iter()
+        .with_min_len(512)
+        .map(|p| {
+            lights
+                .iter()
+                .map(|light| {
+                    let open =
+                        light.unshadowed_irradiance(receivers.positions[p], receivers.normals[p]);
+                    if open == 0.0 {
+                        return 0.0;
+                    }
+                    let origin = receivers.origins[p];
+                    open * visibility(
+                        lookup,
+                        grid,
+                        p,
+                        &receivers.frames[p],
+                        origin,
+                        light.position,
+                    )
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// Whether the segment from a receiver's ray origin to `light` is blocked: the shadow ray
+/// the depth maps stand in for.
+pub fn shadow_ray_blocked(bvh: &Bvh, origin: Vec3, light: Vec3) -> bool {
+    let to_light = light - origin;
+    let distance = to_light.length();
+    distance > 0.0 && bvh.occluded(&Ray::new(origin, to_light / distance), distance)
+}
+
+/// Irradiance at every receiver from `lights` with a real shadow ray per receiver and light:
+/// the reference the depth maps are tested against.
+pub fn irradiance_by_shadow_rays(
+    receivers: &ReceiverFrames,
+    bvh: &Bvh,
+    lights: &[LocalLight],
+) -> Vec<f32> {
+    (0..receivers.positions.len())
+        .into_par_iter()
+        .with_min_len(256)
+        .map(|p| {
+            lights
+                .iter()
+                .map(|light| {
+                    let open =
+                        light.unshadowed_irradiance(receivers.positions[p], receivers.normals[p]);
+                    let blocked =
+                        open > 0.0 && shadow_ray_blocked(bvh, receivers.origins[p], light.position);
+                    if blocked {
+                        0.0
+                    } else {
+                        open
+                    }
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// Direct exit radiance `rho E / pi` per receiver, RGB.
+pub fn direct_radiance(irradiance: &[f32], albedo: &[Vec3]) -> Vec<Vec3> {
+    irradiance
+        .iter()
+        .zip(albedo)
+        .map(|(&e, &rho)| rho * (e / std::f32::consts::PI))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn irradiance_falls_with_the_square_of_distance_and_the_cosine() {
+        let light = LocalLight::point(Vec3::new(0.0, 2.0, 0.0), 8.0);
+        let up = Vec3::Y;
+        assert!((light.unshadowed_irradiance(Vec3::ZERO, up) - 2.0).abs() < 1e-6);
+        // 60 degrees off the normal at distance 2: 8 * 0.5 / 4.
+        let tilted = Vec3::new(3f32.sqrt() / 2.0, 0.5, 0.0);
+        assert!((light.unshadowed_irradiance(Vec3::ZERO, tilted) - 1.0).abs() < 1e-5);
+        assert_eq!(light.unshadowed_irradiance(Vec3::ZERO, -up), 0.0);
+    }
+
+    #[test]
+    fn a_spot_lights_only_its_cone() {
+        let mut light = LocalLight::point(Vec3::new(0.0, 1.0, 0.0), 1.0);
+        light.spot = Some(Spot {
+            direction: -Vec3::Y,
+            cos_half_angle: (30f32).to_radians().cos(),
+        });
+        assert!(light.validate().is_ok());
+        assert_eq!(light.intensity_towards(Vec3::new(0.5, 0.0, 0.0)), 1.0);
+        assert_eq!(light.intensity_towards(Vec3::new(0.6, 0.0, 0.0)), 0.0);
+        light.intensity = f32::NAN;
+        assert!(light.validate().is_err());
+    }
+}

@@ -35,6 +35,8 @@ use crate::fs::{check_destination, write_atomically};
 use compressed::CpcaExtras;
 
 pub mod compressed;
+pub mod local;
+pub mod relit;
 pub mod scene;
 use crate::scene::Scene;
 
@@ -217,7 +219,7 @@ fn read_texels(
 }
 
 /// Whether `bytes` are a glTF scene baked in place ([`scene`]) rather than a single mesh.
-fn is_scene_file(bytes: &[u8]) -> bool {
+pub fn is_scene_file(bytes: &[u8]) -> bool {
     let Some(head) = bytes.get(..20) else {
         return false;
     };
@@ -851,12 +853,15 @@ fn encode_valid(
 /// per-vertex transfer and, with a lightmap, its coordinates.
 fn encode_bin(baked: &BakedMesh, planar: bool) -> (Vec<u8>, Vec<BufferViewJson>) {
     let (scene, transfer) = (&baked.scene, &baked.transfer);
-    let normals = scene.normals.as_deref().unwrap_or_default();
     let v = scene.positions.len();
     let t = scene.triangles.len();
     let groups = groups(transfer.bands);
     let mut bin = Vec::with_capacity(bin_len(v, t, transfer.channels, transfer.bands).unwrap_or(0));
     let mut views = Vec::new();
+    encode_mesh(scene, &mut bin, &mut views);
+    if !planar {
+        return (bin, views);
+    }
     let mut view = |bin: &Vec<u8>, start: usize, stride: Option<u64>, target: u32| {
         views.push(BufferViewJson {
             buffer: 0,
@@ -866,20 +871,6 @@ fn encode_bin(baked: &BakedMesh, planar: bool) -> (Vec<u8>, Vec<BufferViewJson>)
             target: Some(target),
         });
     };
-
-    for vectors in [&scene.positions[..], normals, &scene.albedo[..]] {
-        let start = bin.len();
-        put_f32s(&mut bin, vectors.iter().flat_map(|p| p.to_array()));
-        view(&bin, start, None, ARRAY_BUFFER);
-    }
-    let start = bin.len();
-    for &i in scene.triangles.iter().flatten() {
-        bin.extend_from_slice(&i.to_le_bytes());
-    }
-    view(&bin, start, None, ELEMENT_ARRAY_BUFFER);
-    if !planar {
-        return (bin, views);
-    }
     let start = bin.len();
     for channel in 0..transfer.channels as usize {
         for group in 0..groups {
@@ -905,6 +896,30 @@ fn encode_bin(baked: &BakedMesh, planar: bool) -> (Vec<u8>, Vec<BufferViewJson>)
     (bin, views)
 }
 
+/// The mesh's four views: positions, normals, albedo (`VEC3` float each), indices (`u32`).
+fn encode_mesh(scene: &Scene, bin: &mut Vec<u8>, views: &mut Vec<BufferViewJson>) {
+    let normals = scene.normals.as_deref().unwrap_or_default();
+    let mut view = |bin: &Vec<u8>, start: usize, target: u32| {
+        views.push(BufferViewJson {
+            buffer: 0,
+            byte_offset: start as u64,
+            byte_length: (bin.len() - start) as u64,
+            byte_stride: None,
+            target: Some(target),
+        });
+    };
+    for vectors in [&scene.positions[..], normals, &scene.albedo[..]] {
+        let start = bin.len();
+        put_f32s(bin, vectors.iter().flat_map(|p| p.to_array()));
+        view(bin, start, ARRAY_BUFFER);
+    }
+    let start = bin.len();
+    for &i in scene.triangles.iter().flatten() {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    view(bin, start, ELEMENT_ARRAY_BUFFER);
+}
+
 /// The accessors of the views [`encode_bin`] lays out, and the primitive's attributes.
 fn accessors_and_attributes(
     baked: &BakedMesh,
@@ -913,10 +928,7 @@ fn accessors_and_attributes(
     let (scene, transfer) = (&baked.scene, &baked.transfer);
     let v = scene.positions.len();
     let groups = groups(transfer.bands);
-    let (min, max) = scene.positions.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
+    let (mut accessors, mut attributes) = mesh_accessors(scene);
     let accessor = |view: usize, offset: usize, component, count, kind: &str| AccessorJson {
         buffer_view: Some(view),
         byte_offset: offset as u64,
@@ -927,20 +939,6 @@ fn accessors_and_attributes(
         max: None,
         sparse: None,
     };
-    let mut accessors = vec![
-        AccessorJson {
-            min: Some(min.to_array().to_vec()),
-            max: Some(max.to_array().to_vec()),
-            ..accessor(0, 0, FLOAT, v, "VEC3")
-        },
-        accessor(1, 0, FLOAT, v, "VEC3"),
-        accessor(2, 0, FLOAT, v, "VEC3"),
-        accessor(3, 0, UNSIGNED_INT, 3 * scene.triangles.len(), "SCALAR"),
-    ];
-    let mut attributes: BTreeMap<String, usize> = [("POSITION", 0), ("NORMAL", 1), ("COLOR_0", 2)]
-        .into_iter()
-        .map(|(name, index)| (name.to_string(), index))
-        .collect();
     let planar_channels = if planar {
         transfer.channels as usize
     } else {
@@ -958,6 +956,41 @@ fn accessors_and_attributes(
         attributes.insert("TEXCOORD_0".into(), accessors.len());
         accessors.push(accessor(TEXCOORD_VIEW, 0, FLOAT, v, "VEC2"));
     }
+    (accessors, attributes)
+}
+
+/// The accessors of [`encode_mesh`]'s views and the primitive's `POSITION`, `NORMAL` and
+/// `COLOR_0` attributes.
+fn mesh_accessors(scene: &Scene) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
+    let v = scene.positions.len();
+    let (min, max) = scene.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let accessor = |view: usize, offset: usize, component, count, kind: &str| AccessorJson {
+        buffer_view: Some(view),
+        byte_offset: offset as u64,
+        component_type: component,
+        count: count as u64,
+        kind: kind.to_string(),
+        min: None,
+        max: None,
+        sparse: None,
+    };
+    let accessors = vec![
+        AccessorJson {
+            min: Some(min.to_array().to_vec()),
+            max: Some(max.to_array().to_vec()),
+            ..accessor(0, 0, FLOAT, v, "VEC3")
+        },
+        accessor(1, 0, FLOAT, v, "VEC3"),
+        accessor(2, 0, FLOAT, v, "VEC3"),
+        accessor(3, 0, UNSIGNED_INT, 3 * scene.triangles.len(), "SCALAR"),
+    ];
+    let attributes: BTreeMap<String, usize> = [("POSITION", 0), ("NORMAL", 1), ("COLOR_0", 2)]
+        .into_iter()
+        .map(|(name, index)| (name.to_string(), index))
+        .collect();
     (accessors, attributes)
 }
 

@@ -182,6 +182,98 @@ pub fn direct_radiance(irradiance: &[f32], albedo: &[Vec3]) -> Vec<Vec3> {
         .collect()
 }
 
+/// Parses `X,Y,Z[,I]` (intensity 1 when left out).
+pub fn parse_point_light(text: &str) -> Result<LocalLight> {
+    let v = numbers(text, "--point-light")?;
+    let light = match v[..] {
+        [x, y, z] => LocalLight::point(Vec3::new(x, y, z), 1.0),
+        [x, y, z, i] => LocalLight::point(Vec3::new(x, y, z), i),
+        _ => {
+            return Err(Error::Options(format!(
+                "--point-light {text:?}: expected X,Y,Z[,INTENSITY]"
+            )))
+        }
+    };
+    light.validate().map(|_| light)
+}
+
+/// Parses `X,Y,Z,DX,DY,DZ,ANGLE[,I]`: position, the direction the cone opens towards (any
+/// length), the cone's half angle in degrees, the intensity (1 when left out).
+pub fn parse_spot_light(text: &str) -> Result<LocalLight> {
+    let v = numbers(text, "--spot-light")?;
+    if !(7..=8).contains(&v.len()) {
+        return Err(Error::Options(format!(
+            "--spot-light {text:?}: expected X,Y,Z,DX,DY,DZ,HALF_ANGLE_DEGREES[,INTENSITY]"
+        )));
+    }
+    let direction = Vec3::new(v[3], v[4], v[5]).normalize_or_zero();
+    if direction == Vec3::ZERO || !(0.0..=180.0).contains(&v[6]) {
+        return Err(Error::Options(format!(
+            "--spot-light {text:?}: the direction must not be zero and the half angle must lie \
+             in 0 to 180 degrees"
+        )));
+    }
+    let light = LocalLight {
+        position: Vec3::new(v[0], v[1], v[2]),
+        intensity: v.get(7).copied().unwrap_or(1.0),
+        spot: Some(Spot {
+            direction,
+            cos_half_angle: v[6].to_radians().cos(),
+        }),
+    };
+    light.validate().map(|_| light)
+}
+
+fn numbers(text: &str, flag: &str) -> Result<Vec<f32>> {
+    text.split(',')
+        .map(|part| part.trim().parse::<f32>())
+        .collect::<std::result::Result<Vec<f32>, _>>()
+        .map_err(|e| Error::Options(format!("{flag} {text:?}: {e}")))
+}
+
+/// The lights of frame `frame` of `frames` on a circle: each turned about the vertical axis
+/// through `centre` by `360 * frame / frames` degrees (spot directions turned with them).
+pub fn on_circle(lights: &[LocalLight], centre: Vec3, frame: u32, frames: u32) -> Vec<LocalLight> {
+    let angle = std::f32::consts::TAU * frame as f32 / frames.max(1) as f32;
+    let turn = glam::Quat::from_rotation_y(angle);
+    lights
+        .iter()
+        .map(|light| LocalLight {
+            position: centre + turn * (light.position - centre),
+            spot: light.spot.map(|spot| Spot {
+                direction: turn * spot.direction,
+                ..spot
+            }),
+            ..*light
+        })
+        .collect()
+}
+
+/// One line naming the lights, for reports and the relit file.
+pub fn describe(lights: &[LocalLight]) -> String {
+    lights
+        .iter()
+        .map(|l| {
+            let p = l.position;
+            match l.spot {
+                None => format!("point light at {},{},{} of intensity {} W/sr", p.x, p.y, p.z, l.intensity),
+                Some(s) => format!(
+                    "spot light at {},{},{} towards {},{},{}, half angle {:.1} deg, intensity {} W/sr",
+                    p.x,
+                    p.y,
+                    p.z,
+                    s.direction.x,
+                    s.direction.y,
+                    s.direction.z,
+                    s.cos_half_angle.clamp(-1.0, 1.0).acos().to_degrees(),
+                    l.intensity
+                ),
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -63,8 +63,8 @@ impl Default for LocalOptions {
             samples: 256,
             seed: 1,
             bounces: 3,
-            grid_side: 24,
-            depth_clusters: 32,
+            grid_side: 16,
+            depth_clusters: 16,
             depth_components: 24,
             operator: OperatorShape {
                 clusters: 32,
@@ -357,7 +357,7 @@ pub fn compress_depth_maps(maps: &DepthMaps, options: &LocalOptions) -> Result<C
         &CpcaOptions {
             clusters: options.depth_clusters.min(maps.receivers() as u32).max(1),
             components: options.depth_components,
-            iterations: 6,
+            iterations: 4,
             seed: options.seed,
         },
     )
@@ -575,4 +575,132 @@ impl<'a> Relighter<'a> {
             indirect,
         }
     }
+}
+
+/// The sparse operator's bounces on the GPU (the bake's gather kernel): the gather matrix and
+/// the albedo uploaded once, then per frame one kernel pass per bounce.
+pub struct GpuSparse<'b> {
+    baker: &'b bake::gpu::GpuBaker,
+    matrix: bake::gpu::GpuGatherMatrix,
+    bounces: u32,
+}
+
+impl<'b> GpuSparse<'b> {
+    pub fn new(baker: &'b bake::gpu::GpuBaker, bake: &LocalBake) -> Result<Self> {
+        Ok(GpuSparse {
+            baker,
+            matrix: baker.upload_gather_matrix(&bake.matrix, &bake.scene.albedo, 1)?,
+            bounces: bake.options.bounces,
+        })
+    }
+
+    /// `(T + ... + T^B) direct`, as [`operator::sparse_indirect`] on the CPU.
+    pub fn indirect(&self, direct: &[Vec3]) -> Result<Vec<Vec3>> {
+        let mut previous: Vec<f32> = direct.iter().flat_map(|d| d.to_array()).collect();
+        let mut total = vec![Vec3::ZERO; direct.len()];
+        for _ in 0..self.bounces {
+            previous = self.baker.bounce(&self.matrix, &previous)?;
+            for (t, c) in total.iter_mut().zip(previous.chunks_exact(3)) {
+                *t += Vec3::new(c[0], c[1], c[2]);
+            }
+        }
+        Ok(total)
+    }
+}
+
+/// Per-frame relighting times, seconds, one entry per frame.
+#[derive(Clone, Debug, Default)]
+pub struct FrameTimes {
+    /// Irradiance from the compressed depth maps (shared by every operator).
+    pub irradiance: Vec<f64>,
+    /// Irradiance, direct radiance and the compressed operator.
+    pub compressed: Vec<f64>,
+    /// Irradiance, direct radiance and the sparse bounces on the CPU.
+    pub sparse: Vec<f64>,
+    /// Irradiance and direct radiance on the CPU, the sparse bounces on the GPU.
+    pub gpu_sparse: Vec<f64>,
+}
+
+fn mean_and_max_ms(times: &[f64]) -> (f64, f64) {
+    let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
+    let max = times.iter().cloned().fold(0.0, f64::max);
+    (1e3 * mean, 1e3 * max)
+}
+
+impl FrameTimes {
+    /// One line: mean and worst milliseconds per frame of each path.
+    pub fn report(&self, receivers: usize, gpu: Option<String>) -> String {
+        let part = |name: &str, times: &[f64]| {
+            let (mean, max) = mean_and_max_ms(times);
+            format!("{name} {mean:.2} ms (max {max:.2})")
+        };
+        let mut parts = vec![
+            part("irradiance from the depth maps", &self.irradiance),
+            part("+ compressed operator", &self.compressed),
+            part("+ sparse operator", &self.sparse),
+        ];
+        if let Some(adapter) = gpu {
+            parts.push(part(
+                &format!("+ sparse operator on the GPU ({adapter})"),
+                &self.gpu_sparse,
+            ));
+        }
+        format!(
+            "relighting per frame, {receivers} receivers, mean of {} frame(s): {}",
+            self.irradiance.len(),
+            parts.join("; ")
+        )
+    }
+}
+
+/// One frame timed on every path (the compressed and sparse operators on the CPU, the sparse
+/// one on the GPU when given); returns the frame of the `form` asked for.
+pub fn time_frame(
+    relighter: &Relighter,
+    lights: &[LocalLight],
+    form: OperatorForm,
+    gpu: Option<&GpuSparse>,
+    times: &mut FrameTimes,
+) -> Result<Frame> {
+    let started = Instant::now();
+    let irradiance = relighter.irradiance(lights);
+    let seconds_irradiance = started.elapsed().as_secs_f64();
+    times.irradiance.push(seconds_irradiance);
+    let mut chosen = None;
+    for (path, record) in [
+        (OperatorForm::Compressed, &mut times.compressed),
+        (OperatorForm::Sparse, &mut times.sparse),
+    ] {
+        let started = Instant::now();
+        let frame = relighter.frame_from_irradiance(irradiance.clone(), path);
+        record.push(seconds_irradiance + started.elapsed().as_secs_f64());
+        if path == form {
+            chosen = Some(frame);
+        }
+    }
+    if let Some(gpu) = gpu {
+        let started = Instant::now();
+        let direct = direct_radiance(&irradiance, &relighter.bake.scene.albedo);
+        gpu.indirect(&direct)?;
+        times
+            .gpu_sparse
+            .push(seconds_irradiance + started.elapsed().as_secs_f64());
+    }
+    Ok(chosen.expect("both forms are timed"))
+}
+
+/// Frame `index`'s image: `path` itself for a single frame, else `STEM_012.EXT`.
+pub fn frame_path(path: &std::path::Path, index: u32, frames: u32) -> std::path::PathBuf {
+    if frames <= 1 {
+        return path.to_path_buf();
+    }
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}_{index:03}.{}", ext.to_string_lossy()),
+        None => format!("{stem}_{index:03}"),
+    };
+    path.with_file_name(name)
 }

@@ -3,6 +3,11 @@
 //! albedo, and whose `extras.prt.relit` says so and under what light. Everything else is the
 //! file as it was, so an engine shows the lit scene with no shader of ours, and a relit bake
 //! can be compared with another renderer number for number.
+//!
+//! glTF keeps float colours in [0, 1] (the Khronos validator reports anything else as an
+//! error), so the radiance is divided by `extras.prt.relit.scale`, the largest component
+//! where that exceeds 1 (else 1): radiance = `COLOR_0 * scale`. Negative values (a
+//! compressed operator's ringing in the dark) are stored as 0.
 
 use std::path::Path;
 
@@ -11,7 +16,8 @@ use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
 
 /// `extras.prt.relit.color_0`: what `COLOR_0` now holds.
-pub const RELIT_COLOR: &str = "relit exit radiance, linear RGB (was the albedo)";
+pub const RELIT_COLOR: &str =
+    "relit exit radiance / scale, linear RGB, negative values as 0 (was the albedo)";
 
 /// The baked file `bytes` with `COLOR_0` replaced by `radiance` (one per vertex) and
 /// `extras.prt.relit = {color_0, light}`.
@@ -38,8 +44,15 @@ pub fn with_relit_colors(
     let target = bin
         .get_mut(range)
         .ok_or_else(|| damaged("COLOR_0 runs past the BIN chunk".into()))?;
+    let scale = radiance
+        .iter()
+        .flatten()
+        .fold(1.0f32, |largest, &x| largest.max(x));
+    if !scale.is_finite() {
+        return Err(Error::Options("the relit radiance is not finite".into()));
+    }
     for (slot, value) in target.chunks_exact_mut(4).zip(radiance.iter().flatten()) {
-        slot.copy_from_slice(&value.to_le_bytes());
+        slot.copy_from_slice(&(value.max(0.0) / scale).to_le_bytes());
     }
     let prt = doc
         .pointer_mut("/meshes/0/extras/prt")
@@ -47,7 +60,7 @@ pub fn with_relit_colors(
         .ok_or_else(|| damaged("no extras.prt: not a baked file".into()))?;
     prt.insert(
         "relit".into(),
-        serde_json::json!({ "color_0": RELIT_COLOR, "light": light }),
+        serde_json::json!({ "color_0": RELIT_COLOR, "scale": scale, "light": light }),
     );
     let json = serde_json::to_vec(&doc)
         .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))?;

@@ -303,6 +303,9 @@ struct RenderArgs {
     /// adapter, the sparse one on the GPU.
     #[arg(long, value_name = "N")]
     frames: Option<u32>,
+    /// With --frames: the circle's axis passes through X,Y,Z instead of the scene's centre.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true)]
+    orbit: Option<Vec3>,
     /// Local-lights bakes: the direct-to-indirect operator the images use.
     #[arg(long, value_enum, default_value_t = OperatorForm::Compressed)]
     operator: OperatorForm,
@@ -444,6 +447,18 @@ fn parse_cpca_shape(text: &str) -> std::result::Result<(u32, u32), String> {
             .map_err(|e| format!("expected CLUSTERSxCOMPONENTS, such as 64x8: {e}"))
     };
     Ok((number(clusters)?, number(components)?))
+}
+
+fn parse_point(text: &str) -> std::result::Result<Vec3, String> {
+    let v = text
+        .split(',')
+        .map(|part| part.trim().parse::<f32>())
+        .collect::<std::result::Result<Vec<f32>, _>>()
+        .map_err(|e| format!("expected X,Y,Z: {e}"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3::new(x, y, z)),
+        _ => Err("expected three finite numbers X,Y,Z".into()),
+    }
 }
 
 fn parse_rgb(text: &str) -> std::result::Result<Vec3, String> {
@@ -1189,9 +1204,13 @@ fn run_render(args: RenderArgs) -> Result<()> {
             return run_local_render(&args, only);
         }
     }
-    if !args.point_light.is_empty() || !args.spot_light.is_empty() || args.frames.is_some() {
+    let local_only = !args.point_light.is_empty()
+        || !args.spot_light.is_empty()
+        || args.frames.is_some()
+        || args.orbit.is_some();
+    if local_only {
         return Err(Error::Options(
-            "--point-light, --spot-light and --frames relight one local-lights bake \
+            "--point-light, --spot-light, --frames and --orbit relight one local-lights bake \
              (bake --mode local)"
                 .into(),
         ));
@@ -1386,7 +1405,8 @@ fn print_local_report(name: &str, report: &local::LocalReport, output: &Path) {
     println!(
         "local lights: {} receivers, {} triangles; gather matrix {} entries ({:.2} s); depth maps \
          {:.2} s, compressed {:.1} -> {:.1} MB, depth error {:.2}% ({:.2} s); {} example lights \
-         ({:.2} s); operator {:.1} MB, {:.0}% of cluster pairs kept ({:.2} s)",
+         ({:.2} s); operator {:.1} MB, {:.0}% of cluster pairs kept, error {:.2}% against the \
+         sparse bounces ({:.2} s)",
         report.receivers,
         report.triangles,
         report.gather_entries,
@@ -1400,6 +1420,7 @@ fn print_local_report(name: &str, report: &local::LocalReport, output: &Path) {
         report.seconds_examples,
         mb(report.operator_bytes),
         100.0 * report.operator_kept,
+        100.0 * report.operator_error,
         report.seconds_operator
     );
     println!(
@@ -1469,7 +1490,7 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
         None => None,
     };
     let (lo, hi) = render::bounds(&baked.scene.positions);
-    let centre = (lo + hi) * 0.5;
+    let centre = args.orbit.unwrap_or((lo + hi) * 0.5);
     let mut timing = local::FrameTimes::default();
     for f in 0..frames {
         let lights = local_lights::on_circle(&lights, centre, f, frames);

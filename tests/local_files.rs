@@ -154,12 +154,21 @@ fn assert_colors(colors: &[f64], expected: &[[f32; 3]]) {
     }
 }
 
+/// Fails the test with the command's stderr unless it succeeded.
+fn succeed(out: std::process::Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 #[test]
 fn a_relit_local_bake_holds_its_radiance_as_vertex_colours() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("room.prt.glb");
     glb::local::write_local_glb(&path, &small_bake()).unwrap();
-    let out = common::prt_gpu(
+    succeed(common::prt_gpu(
         &[
             "render",
             "room.prt.glb",
@@ -169,12 +178,7 @@ fn a_relit_local_bake_holds_its_radiance_as_vertex_colours() {
             "relit.glb",
         ],
         dir.path(),
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    ));
     let relit = dir.path().join("relit.glb");
     if let Some(report) = common::validate_gltf(&relit) {
         assert_eq!(report.num_errors, 0, "{report:?}");
@@ -198,7 +202,7 @@ fn a_relit_distant_bake_holds_its_radiance_as_vertex_colours() {
     let dir = tempfile::tempdir().unwrap();
     let bunny = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny.obj");
     let bunny = bunny.to_str().unwrap();
-    let out = common::prt_gpu(
+    succeed(common::prt_gpu(
         &[
             "bake",
             bunny,
@@ -210,12 +214,7 @@ fn a_relit_distant_bake_holds_its_radiance_as_vertex_colours() {
             "bunny.prt.glb",
         ],
         dir.path(),
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    ));
     let out = common::prt_gpu(&["render", "bunny.prt.glb", "-o", "relit.glb"], dir.path());
     assert!(
         out.status.success(),

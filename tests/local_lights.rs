@@ -11,7 +11,9 @@ use prt_gpu::bake::bounce::GatherMatrix;
 use prt_gpu::bake::{self, Backend, Mode, NoProgress};
 use prt_gpu::bvh::Bvh;
 use prt_gpu::local::build::{build_compressed, OperatorShape, SparseOperator};
-use prt_gpu::local::depth::{visibility, world_directions, DepthLookup, DepthMaps, DirectionGrid};
+use prt_gpu::local::depth::{
+    to_tangent, to_world, visibility, world_directions, DepthLookup, DepthMaps, DirectionGrid,
+};
 use prt_gpu::local::lights::{
     direct_radiance, irradiance_by_shadow_rays, irradiance_from_depth, shadow_ray_blocked,
     LocalLight,
@@ -80,16 +82,12 @@ fn away_from_boundary(
 ) -> bool {
     let to_light = light - origin;
     let distance = to_light.length();
-    let local = Vec3::new(
-        frame[0].dot(to_light),
-        frame[1].dot(to_light),
-        frame[2].dot(to_light),
-    );
-    grid.neighbours(local).iter().all(|&(cell, _)| {
-        let d = grid.direction(cell);
-        let world = frame[0] * d.x + frame[1] * d.y + frame[2] * d.z;
-        bvh.occluded(&Ray::new(origin, world), distance) == blocked
-    })
+    grid.neighbours(to_tangent(frame, to_light))
+        .iter()
+        .all(|&(cell, _)| {
+            let world = to_world(frame, grid.direction(cell));
+            bvh.occluded(&Ray::new(origin, world), distance) == blocked
+        })
 }
 
 #[test]
@@ -144,11 +142,7 @@ fn with_every_component_the_compressed_maps_are_the_maps() {
             let frame = &inputs.frames[p];
             let origin = inputs.bake.origins[p];
             let to_light = light - origin;
-            let local = Vec3::new(
-                frame[0].dot(to_light),
-                frame[1].dot(to_light),
-                frame[2].dot(to_light),
-            );
+            let local = to_tangent(frame, to_light);
             if local.z <= 0.0 {
                 continue;
             }
@@ -234,6 +228,18 @@ fn gather_matrix(scene: &Scene, samples: u32, seed: u64) -> (GatherMatrix, Local
     (pass.matrix.unwrap(), inputs)
 }
 
+fn receiver_frames<'a>(
+    scene: &'a Scene,
+    inputs: &'a LocalInputs,
+) -> local::lights::ReceiverFrames<'a> {
+    local::lights::ReceiverFrames {
+        positions: &scene.positions,
+        normals: normals(scene),
+        origins: &inputs.bake.origins,
+        frames: &inputs.frames,
+    }
+}
+
 fn area_total(values: &[Vec3], areas: &[f64]) -> f64 {
     values.iter().zip(areas).map(|(v, a)| v.x as f64 * a).sum()
 }
@@ -248,12 +254,7 @@ fn a_white_furnace_room_balances_indirect_against_direct() {
     let (scene, _) = prepare(room).unwrap();
     let areas = vertex_areas(&scene);
     let (matrix, inputs) = gather_matrix(&scene, 1024, 1);
-    let frames = local::lights::ReceiverFrames {
-        positions: &scene.positions,
-        normals: normals(&scene),
-        origins: &inputs.bake.origins,
-        frames: &inputs.frames,
-    };
+    let frames = receiver_frames(&scene, &inputs);
     // Off centre, so the direct light is far from uniform.
     let light = [LocalLight::point(Vec3::new(0.6, 1.7, -0.4), 5.0)];
     let irradiance = irradiance_by_shadow_rays(&frames, &inputs.bake.bvh, &light);
@@ -290,12 +291,7 @@ fn the_operator_matches_shadow_rays_and_gather_bounces() {
     let scene = &interior.scene;
     let (matrix_a, inputs) = gather_matrix(scene, 256, 1);
     let (matrix_b, _) = gather_matrix(scene, 256, 2);
-    let frames = local::lights::ReceiverFrames {
-        positions: &scene.positions,
-        normals: normals(scene),
-        origins: &inputs.bake.origins,
-        frames: &inputs.frames,
-    };
+    let frames = receiver_frames(&scene, &inputs);
     let compressed_maps = local::compress_depth_maps(&interior.maps, &interior.options).unwrap();
     let bounces = 3;
     for light in test_lights(3, 5) {
@@ -326,12 +322,7 @@ fn the_compressed_operator_converges_to_the_sparse_one() {
     let interior = interior();
     let scene = &interior.scene;
     let (matrix, inputs) = gather_matrix(scene, 128, 1);
-    let frames = local::lights::ReceiverFrames {
-        positions: &scene.positions,
-        normals: normals(scene),
-        origins: &inputs.bake.origins,
-        frames: &inputs.frames,
-    };
+    let frames = receiver_frames(&scene, &inputs);
     let options = LocalOptions {
         example_lights: 48,
         ..interior.options.clone()

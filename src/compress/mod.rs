@@ -90,7 +90,7 @@ pub fn compress(transfer: &Transfer, options: &CpcaOptions) -> Result<Cpca> {
 /// `channels` are 0: its rows are not SH transfer, so it has no [`Cpca::relight`] (which
 /// refuses it) and [`Cpca::reconstruct`] gives the rows back flat.
 pub fn compress_rows(rows: &[f32], dimension: usize, options: &CpcaOptions) -> Result<Cpca> {
-    if dimension == 0 || rows.len() % dimension != 0 {
+    if dimension == 0 || !rows.len().is_multiple_of(dimension) {
         return Err(Error::Options(format!(
             "compress: {} floats are not rows of {dimension}",
             rows.len()

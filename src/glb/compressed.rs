@@ -248,17 +248,3 @@ pub(super) fn u32s<X>(
         .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
         .collect())
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn readme_quotes_the_python_reader_verbatim() {
-        let readme = include_str!("../../README.md");
-        assert!(
-            readme.contains(PYTHON_READER),
-            "README.md's compressed-file snippet differs from glb::compressed::PYTHON_READER"
-        );
-    }
-}

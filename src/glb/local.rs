@@ -24,9 +24,8 @@ use serde::{Deserialize, Serialize};
 
 use super::compressed::{self, floats, u32s, CpcaExtras};
 use super::{
-    check_bin_head, check_head, encode_mesh, glb_container, mesh_accessors, parse_document,
-    AssetJson, BufferJson, BufferViewJson, Document, MeshJson, NodeJson, PrimitiveJson, SceneJson,
-    ARRAY_BUFFER, FLOAT, TRIANGLES, UNSIGNED_INT,
+    encode_mesh, mesh_accessors, mesh_glb, parse_document, split_chunks, BufferViewJson, Document,
+    ARRAY_BUFFER, FLOAT, UNSIGNED_INT,
 };
 use crate::bake::bounce::GatherMatrix;
 use crate::error::{Error, Result};
@@ -195,32 +194,12 @@ pub fn encode_local_glb(bake: &LocalBake) -> Result<Vec<u8>> {
             operator,
         },
     };
-    let doc = Document {
-        asset: AssetJson {
-            version: "2.0".into(),
-            generator: Some(format!("prt-gpu {}", env!("CARGO_PKG_VERSION"))),
-        },
-        scene: Some(0),
-        scenes: vec![SceneJson { nodes: vec![0] }],
-        nodes: vec![NodeJson { mesh: Some(0) }],
-        meshes: vec![MeshJson {
-            primitives: vec![PrimitiveJson {
-                attributes,
-                indices: Some(3),
-                mode: Some(TRIANGLES),
-            }],
-            extras: Some(serde_json::json!({ "prt": prt })),
-        }],
-        accessors,
-        buffer_views: views,
-        buffers: vec![BufferJson {
-            byte_length: bin.len() as u64,
-            uri: None,
-        }],
-    };
-    let json = serde_json::to_vec(&doc)
-        .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))?;
-    glb_container(json, bin)
+    mesh_glb(
+        serde_json::json!({ "prt": prt }),
+        (accessors, attributes),
+        views,
+        bin,
+    )
 }
 
 fn encode_operator(
@@ -293,17 +272,8 @@ pub fn read_local_glb(path: &Path) -> Result<LocalBake> {
 
 /// Decodes a local-lights file; `path` names it in errors.
 pub fn decode_local_glb(bytes: &[u8], path: &Path) -> Result<LocalBake> {
-    let head = bytes
-        .get(..20)
-        .ok_or_else(|| Error::baked(path, "too short to be a glTF binary (.glb) file"))?;
-    let json_len = check_head(head, bytes.len() as u64, path)?;
-    let bin_start = 20 + json_len;
-    let bin_head = bytes
-        .get(bin_start..bin_start + 8)
-        .ok_or_else(|| Error::baked(path, "no BIN chunk after the JSON chunk"))?;
-    let bin_len = check_bin_head(bin_head, bin_start as u64, bytes.len() as u64, path)?;
-    let bin = &bytes[bin_start + 8..bin_start + 8 + bin_len];
-    let doc = parse_document(&bytes[20..bin_start], path)?;
+    let (json, bin) = split_chunks(bytes, path)?;
+    let doc = parse_document(json, path)?;
     decode_parts(&doc, bin).map_err(|message| Error::baked(path, message))
 }
 
@@ -407,7 +377,7 @@ fn decode_mesh(
             .collect())
     };
     let index_count = doc.accessors[3].count as usize;
-    if index_count % 3 != 0 {
+    if !index_count.is_multiple_of(3) {
         return Err(format!("{index_count} indices are not whole triangles"));
     }
     let indices = u32s(doc, bin, 3, index_count, "index")?;
@@ -552,4 +522,15 @@ fn decode_operator(
         senders,
         sender_offsets,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_that_is_not_a_local_bake_is_not_taken_for_one() {
+        assert!(!is_local_file(b"glTF"));
+        assert!(!is_local_file(&[0u8; 64]));
+    }
 }

@@ -306,19 +306,26 @@ pub fn decode_glb(bytes: &[u8], path: &Path) -> Result<BakedMesh> {
 /// A lightmap's reference and the lightmap coordinates of every vertex.
 type LightmapParts = Option<(LightmapExtras, Vec<[f32; 2]>)>;
 
-fn decode_parts(bytes: &[u8], path: &Path) -> Result<(BakedMesh, LightmapParts, Option<Cpca>)> {
+/// The JSON and BIN chunks of a `.glb`, their headers checked against the file's length.
+fn split_chunks<'b>(bytes: &'b [u8], path: &Path) -> Result<(&'b [u8], &'b [u8])> {
     let head = bytes
         .get(..20)
         .ok_or_else(|| Error::baked(path, "too short to be a glTF binary (.glb) file"))?;
     let json_len = check_head(head, bytes.len() as u64, path)?;
-    let json = &bytes[20..20 + json_len];
     let bin_start = 20 + json_len;
     let bin_head = bytes
         .get(bin_start..bin_start + 8)
         .ok_or_else(|| Error::baked(path, "no BIN chunk after the JSON chunk"))?;
     let bin_len = check_bin_head(bin_head, bin_start as u64, bytes.len() as u64, path)?;
-    let bin = &bytes[bin_start + 8..bin_start + 8 + bin_len];
+    Ok((
+        &bytes[20..bin_start],
+        &bytes[bin_start + 8..bin_start + 8 + bin_len],
+    ))
+}
 
+fn decode_parts(bytes: &[u8], path: &Path) -> Result<(BakedMesh, LightmapParts, Option<Cpca>)> {
+    let (json, bin) = split_chunks(bytes, path)?;
+    let bin_len = bin.len();
     let doc = parse_document(json, path)?;
     let plan = plan(&doc, bin_len, path)?;
     let v = plan.vertices;
@@ -805,6 +812,37 @@ fn encode_valid(
     let (mut bin, mut views) = encode_bin(baked, cpca.is_none());
     let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, &mut bin, &mut views));
     let (accessors, attributes) = accessors_and_attributes(baked, cpca.is_none());
+    mesh_glb(
+        MeshExtras {
+            prt: PrtExtras {
+                metadata: &baked.metadata,
+                vertices: baked.scene.positions.len(),
+                transfer_buffer_view: cpca_extras.is_none().then_some(TRANSFER_VIEW),
+                transfer_layout: TRANSFER_LAYOUT,
+                cpca: cpca_extras,
+                lightmap: baked.lightmap.as_ref().map(|texels| LightmapExtras {
+                    uri: lightmap_uri.unwrap_or(DEFAULT_LIGHTMAP_URI).to_string(),
+                    width: texels.width,
+                    height: texels.height,
+                    texcoord: 0,
+                    layout: crate::lightmap::LAYOUT.to_string(),
+                }),
+            },
+        },
+        (accessors, attributes),
+        views,
+        bin,
+    )
+}
+
+/// The .glb of every baked file: one scene, one node, one mesh of one triangle primitive
+/// (indices in accessor 3) carrying `extras`, one buffer, the BIN chunk `bin`.
+fn mesh_glb<X: Serialize>(
+    extras: X,
+    (accessors, attributes): (Vec<AccessorJson>, BTreeMap<String, usize>),
+    views: Vec<BufferViewJson>,
+    bin: Vec<u8>,
+) -> Result<Vec<u8>> {
     let doc = Document {
         asset: AssetJson {
             version: "2.0".into(),
@@ -819,22 +857,7 @@ fn encode_valid(
                 indices: Some(3),
                 mode: Some(TRIANGLES),
             }],
-            extras: Some(MeshExtras {
-                prt: PrtExtras {
-                    metadata: &baked.metadata,
-                    vertices: baked.scene.positions.len(),
-                    transfer_buffer_view: cpca_extras.is_none().then_some(TRANSFER_VIEW),
-                    transfer_layout: TRANSFER_LAYOUT,
-                    cpca: cpca_extras,
-                    lightmap: baked.lightmap.as_ref().map(|texels| LightmapExtras {
-                        uri: lightmap_uri.unwrap_or(DEFAULT_LIGHTMAP_URI).to_string(),
-                        width: texels.width,
-                        height: texels.height,
-                        texcoord: 0,
-                        layout: crate::lightmap::LAYOUT.to_string(),
-                    }),
-                },
-            }),
+            extras: Some(extras),
         }],
         accessors,
         buffer_views: views,
@@ -929,16 +952,6 @@ fn accessors_and_attributes(
     let v = scene.positions.len();
     let groups = groups(transfer.bands);
     let (mut accessors, mut attributes) = mesh_accessors(scene);
-    let accessor = |view: usize, offset: usize, component, count, kind: &str| AccessorJson {
-        buffer_view: Some(view),
-        byte_offset: offset as u64,
-        component_type: component,
-        count: count as u64,
-        kind: kind.to_string(),
-        min: None,
-        max: None,
-        sparse: None,
-    };
     let planar_channels = if planar {
         transfer.channels as usize
     } else {
@@ -959,15 +972,9 @@ fn accessors_and_attributes(
     (accessors, attributes)
 }
 
-/// The accessors of [`encode_mesh`]'s views and the primitive's `POSITION`, `NORMAL` and
-/// `COLOR_0` attributes.
-fn mesh_accessors(scene: &Scene) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
-    let v = scene.positions.len();
-    let (min, max) = scene.positions.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
-    let accessor = |view: usize, offset: usize, component, count, kind: &str| AccessorJson {
+/// An accessor of `count` elements of `kind` at `offset` in view `view`, without bounds.
+fn accessor(view: usize, offset: usize, component: u32, count: usize, kind: &str) -> AccessorJson {
+    AccessorJson {
         buffer_view: Some(view),
         byte_offset: offset as u64,
         component_type: component,
@@ -976,7 +983,17 @@ fn mesh_accessors(scene: &Scene) -> (Vec<AccessorJson>, BTreeMap<String, usize>)
         min: None,
         max: None,
         sparse: None,
-    };
+    }
+}
+
+/// The accessors of [`encode_mesh`]'s views and the primitive's `POSITION`, `NORMAL` and
+/// `COLOR_0` attributes.
+fn mesh_accessors(scene: &Scene) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
+    let v = scene.positions.len();
+    let (min, max) = scene.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
     let accessors = vec![
         AccessorJson {
             min: Some(min.to_array().to_vec()),
@@ -1663,12 +1680,18 @@ mod tests {
     }
 
     #[test]
-    fn readme_quotes_the_python_reader_verbatim() {
+    fn readme_quotes_the_python_readers_verbatim() {
         let readme = include_str!("../../README.md");
-        assert!(
-            readme.contains(PYTHON_READER),
-            "README.md's Python snippet differs from PYTHON_READER"
-        );
+        for (reader, name) in [
+            (PYTHON_READER, "glb::PYTHON_READER"),
+            (compressed::PYTHON_READER, "glb::compressed::PYTHON_READER"),
+            (local::PYTHON_READER, "glb::local::PYTHON_READER"),
+        ] {
+            assert!(
+                readme.contains(reader),
+                "README.md's snippet differs from {name}"
+            );
+        }
     }
 
     #[test]

@@ -11,7 +11,7 @@
 
 use std::path::Path;
 
-use super::{check_bin_head, check_head, glb_container, FLOAT};
+use super::{glb_container, split_chunks, FLOAT};
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
 
@@ -28,18 +28,10 @@ pub fn with_relit_colors(
     light: &str,
 ) -> Result<Vec<u8>> {
     let damaged = |message: String| Error::baked(path, message);
-    let head = bytes
-        .get(..20)
-        .ok_or_else(|| damaged("too short to be a glTF binary (.glb) file".into()))?;
-    let json_len = check_head(head, bytes.len() as u64, path)?;
-    let bin_start = 20 + json_len;
-    let bin_head = bytes
-        .get(bin_start..bin_start + 8)
-        .ok_or_else(|| damaged("no BIN chunk after the JSON chunk".into()))?;
-    let bin_len = check_bin_head(bin_head, bin_start as u64, bytes.len() as u64, path)?;
-    let mut bin = bytes[bin_start + 8..bin_start + 8 + bin_len].to_vec();
-    let mut doc: serde_json::Value = serde_json::from_slice(&bytes[20..bin_start])
-        .map_err(|e| damaged(format!("invalid glTF JSON: {e}")))?;
+    let (json, bin) = split_chunks(bytes, path)?;
+    let mut bin = bin.to_vec();
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(json).map_err(|e| damaged(format!("invalid glTF JSON: {e}")))?;
     let range = color_range(&doc, radiance.len()).map_err(damaged)?;
     let target = bin
         .get_mut(range)
@@ -115,4 +107,68 @@ pub fn write_relit_copy(
     check_destination(output)?;
     let bytes = std::fs::read(source).map_err(|e| Error::io(source, e))?;
     write_atomically(output, &with_relit_colors(&bytes, source, radiance, light)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::{BakeMetadata, BakedMesh, Mode, Transfer};
+    use crate::scene::builtin;
+
+    fn baked_bytes() -> (Vec<u8>, usize) {
+        let scene = builtin::icosphere(glam::Vec3::ZERO, 1.0, 1);
+        let (scene, _) = crate::scene::prepare::prepare(scene).unwrap();
+        let v = scene.positions.len();
+        let baked = BakedMesh {
+            transfer: Transfer {
+                bands: 1,
+                channels: 1,
+                vertex_count: v,
+                coeffs: vec![0.5; v],
+            },
+            metadata: BakeMetadata {
+                tool: "prt-gpu".into(),
+                tool_version: "test".into(),
+                bands: 1,
+                channels: 1,
+                mode: Mode::Shadowed,
+                samples: 1,
+                sampling: "cosine".into(),
+                seed: 1,
+                backend: "cpu".into(),
+                sh_convention: String::new(),
+                radiometry: String::new(),
+                bounces: 0,
+                fit: Default::default(),
+                fit_points: None,
+                target_error: None,
+                albedo_free: false,
+            },
+            scene,
+            lightmap: None,
+        };
+        (super::super::encode_glb(&baked).unwrap(), v)
+    }
+
+    #[test]
+    fn colours_are_radiance_over_the_scale_and_the_rest_is_kept() {
+        let (bytes, v) = baked_bytes();
+        let mut radiance = vec![[0.25f32, 0.5, 0.75]; v];
+        radiance[1] = [4.0, -1.0, 2.0];
+        let relit = with_relit_colors(&bytes, Path::new("a.glb"), &radiance, "test").unwrap();
+        let back = super::super::decode_glb(&relit, Path::new("a.glb")).unwrap();
+        let original = super::super::decode_glb(&bytes, Path::new("a.glb")).unwrap();
+        assert_eq!(back.transfer, original.transfer);
+        assert_eq!(back.scene.positions, original.scene.positions);
+        assert_eq!(back.scene.albedo[0], glam::Vec3::new(0.0625, 0.125, 0.1875));
+        assert_eq!(back.scene.albedo[1], glam::Vec3::new(1.0, 0.0, 0.5));
+    }
+
+    #[test]
+    fn a_wrong_vertex_count_is_an_error() {
+        let (bytes, v) = baked_bytes();
+        let error =
+            with_relit_colors(&bytes, Path::new("a.glb"), &vec![[0.0; 3]; v + 1], "x").unwrap_err();
+        assert!(error.to_string().contains("COLOR_0"), "{error}");
+    }
 }

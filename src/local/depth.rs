@@ -85,6 +85,16 @@ pub fn from_hemi_octahedral(square: Vec2) -> Vec3 {
     Vec3::new(p.x, p.y, 1.0 - p.x.abs() - p.y.abs()).normalize()
 }
 
+/// A world vector in the tangent frame `(t, b, n)`.
+pub fn to_tangent(frame: &[Vec3; 3], v: Vec3) -> Vec3 {
+    Vec3::new(frame[0].dot(v), frame[1].dot(v), frame[2].dot(v))
+}
+
+/// A tangent-frame vector in the world.
+pub fn to_world(frame: &[Vec3; 3], v: Vec3) -> Vec3 {
+    frame[0] * v.x + frame[1] * v.y + frame[2] * v.z
+}
+
 /// Depth maps of every receiver, `[receiver][cell]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DepthMaps {
@@ -108,10 +118,10 @@ pub fn open_depth(bvh: &Bvh) -> f32 {
 
 /// The world directions of one receiver's cells.
 pub fn world_directions(grid: &DirectionGrid, normal: Vec3) -> Vec<Vec3> {
-    let [t, b, n] = tangent_frame(normal);
+    let frame = tangent_frame(normal);
     grid.directions()
         .into_iter()
-        .map(|d| t * d.x + b * d.y + n * d.z)
+        .map(|d| to_world(&frame, d))
         .collect()
 }
 
@@ -174,11 +184,7 @@ pub fn visibility(
 ) -> f32 {
     let to_light = light - origin;
     let distance = to_light.length();
-    let local = Vec3::new(
-        frame[0].dot(to_light),
-        frame[1].dot(to_light),
-        frame[2].dot(to_light),
-    );
+    let local = to_tangent(frame, to_light);
     if local.z <= 0.0 || distance == 0.0 {
         return 0.0;
     }

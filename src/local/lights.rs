@@ -102,16 +102,16 @@ pub struct ReceiverFrames<'a> {
     pub frames: &'a [[Vec3; 3]],
 }
 
-/// Irradiance at every receiver from `lights`, visibility from the depth maps.
-pub fn irradiance_from_depth(
+/// Irradiance at every receiver from `lights`: each light's unshadowed irradiance times
+/// `visible(receiver, light)` (asked only where the light reaches the receiver's front).
+fn irradiance_with(
     receivers: &ReceiverFrames,
-    lookup: &dyn DepthLookup,
-    grid: &DirectionGrid,
     lights: &[LocalLight],
+    visible: impl Fn(usize, &LocalLight) -> f32 + Sync,
 ) -> Vec<f32> {
     (0..receivers.positions.len())
         .into_par_iter()
-        .with_min_len(512)
+        .with_min_len(256)
         .map(|p| {
             lights
                 .iter()
@@ -119,21 +119,34 @@ pub fn irradiance_from_depth(
                     let open =
                         light.unshadowed_irradiance(receivers.positions[p], receivers.normals[p]);
                     if open == 0.0 {
-                        return 0.0;
+                        0.0
+                    } else {
+                        open * visible(p, light)
                     }
-                    let origin = receivers.origins[p];
-                    open * visibility(
-                        lookup,
-                        grid,
-                        p,
-                        &receivers.frames[p],
-                        origin,
-                        light.position,
-                    )
                 })
                 .sum()
         })
         .collect()
+}
+
+/// Irradiance at every receiver from `lights`, visibility from the depth maps.
+pub fn irradiance_from_depth(
+    receivers: &ReceiverFrames,
+    lookup: &dyn DepthLookup,
+    grid: &DirectionGrid,
+    lights: &[LocalLight],
+) -> Vec<f32> {
+    irradiance_with(receivers, lights, |p, light| {
+        let origin = receivers.origins[p];
+        visibility(
+            lookup,
+            grid,
+            p,
+            &receivers.frames[p],
+            origin,
+            light.position,
+        )
+    })
 }
 
 /// Whether the segment from a receiver's ray origin to `light` is blocked: the shadow ray
@@ -151,26 +164,13 @@ pub fn irradiance_by_shadow_rays(
     bvh: &Bvh,
     lights: &[LocalLight],
 ) -> Vec<f32> {
-    (0..receivers.positions.len())
-        .into_par_iter()
-        .with_min_len(256)
-        .map(|p| {
-            lights
-                .iter()
-                .map(|light| {
-                    let open =
-                        light.unshadowed_irradiance(receivers.positions[p], receivers.normals[p]);
-                    let blocked =
-                        open > 0.0 && shadow_ray_blocked(bvh, receivers.origins[p], light.position);
-                    if blocked {
-                        0.0
-                    } else {
-                        open
-                    }
-                })
-                .sum()
-        })
-        .collect()
+    irradiance_with(receivers, lights, |p, light| {
+        if shadow_ray_blocked(bvh, receivers.origins[p], light.position) {
+            0.0
+        } else {
+            1.0
+        }
+    })
 }
 
 /// Direct exit radiance `rho E / pi` per receiver, RGB.

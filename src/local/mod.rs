@@ -154,6 +154,9 @@ pub struct LocalReport {
     pub operator_bytes: usize,
     /// Sender blocks kept over all blocks.
     pub operator_kept: f64,
+    /// The compressed operator's indirect light against the sparse operator's, relative RMS,
+    /// mean over [`HELD_OUT_LIGHTS`] lights placed as the examples are but from another seed.
+    pub operator_error: f64,
     pub example_lights: usize,
     pub backend: String,
 }
@@ -199,8 +202,7 @@ pub fn bake_local(
     progress: &dyn Progress,
 ) -> Result<(LocalBake, LocalReport)> {
     options.validate()?;
-    let (scene, _) = prepare(scene)?;
-    bake_prepared(scene, options, backend, progress)
+    bake_prepared(prepare(scene)?.0, options, backend, progress)
 }
 
 /// Gather matrix, depth maps, their compression, example lights and the compressed operator
@@ -263,6 +265,7 @@ pub fn bake_prepared(
     let blocks = operator.clusters() * operator.clusters();
     report.operator_kept = operator.senders.len() as f64 / blocks.max(1) as f64;
     report.seconds_operator = started.elapsed().as_secs_f64();
+    report.operator_error = held_out_error(&scene, &inputs, &maps, &sparse, &operator, options);
     let open_depth = maps.open_depth;
     Ok((
         LocalBake {
@@ -422,6 +425,37 @@ pub fn in_free_space(scene: &Scene, normals: &[Vec3], bvh: &Bvh, p: Vec3) -> boo
             shading.dot(d) < 0.0
         }
     })
+}
+
+/// Lights the bake's report measures the compressed operator's error with.
+pub const HELD_OUT_LIGHTS: u32 = 8;
+
+/// The compressed operator's error against the sparse one (see [`LocalReport::operator_error`]).
+fn held_out_error(
+    scene: &Scene,
+    inputs: &LocalInputs,
+    maps: &DepthMaps,
+    sparse: &SparseOperator,
+    operator: &CompressedOperator,
+    options: &LocalOptions,
+) -> f64 {
+    let held_out = LocalOptions {
+        example_lights: HELD_OUT_LIGHTS,
+        seed: options.seed.wrapping_add(0x9e37_79b9),
+        ..options.clone()
+    };
+    let positions = example_light_positions(scene, &inputs.bake.bvh, &held_out);
+    let examples = example_irradiance(scene, inputs, maps, &positions);
+    let n = scene.positions.len();
+    let errors: Vec<f64> = examples
+        .chunks_exact(n.max(1))
+        .map(|irradiance| {
+            let direct = direct_radiance(irradiance, &scene.albedo);
+            let exact = sparse_indirect(sparse.matrix, sparse.albedo, sparse.bounces, &direct);
+            operator::relative_rms(&exact, &operator.indirect(irradiance))
+        })
+        .collect();
+    errors.iter().sum::<f64>() / errors.len().max(1) as f64
 }
 
 /// `[light][receiver]` irradiance of unit point lights at `positions`, visibility from the

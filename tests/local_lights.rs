@@ -12,7 +12,8 @@ use prt_gpu::bake::{self, Backend, Mode, NoProgress};
 use prt_gpu::bvh::Bvh;
 use prt_gpu::local::build::{build_compressed, OperatorShape, SparseOperator};
 use prt_gpu::local::depth::{
-    to_tangent, to_world, visibility, world_directions, DepthLookup, DepthMaps, DirectionGrid,
+    depth_maps_cpu, to_tangent, to_world, visibility, world_directions, DepthLookup, DepthMaps,
+    DirectionGrid,
 };
 use prt_gpu::local::lights::{
     direct_radiance, irradiance_by_shadow_rays, irradiance_from_depth, shadow_ray_blocked,
@@ -126,8 +127,17 @@ fn depth_map_shadows_agree_with_shadow_rays() {
 #[test]
 fn with_every_component_the_compressed_maps_are_the_maps() {
     let interior = interior();
-    let (inputs, maps) = (&interior.inputs, &interior.maps);
+    let inputs = &interior.inputs;
+    // An 8 x 8 grid: 64 components are every direction, and the PCA stays quick.
+    let grid = DirectionGrid { side: 8 };
+    let maps = &depth_maps_cpu(
+        &inputs.bake.bvh,
+        &inputs.bake.origins,
+        &inputs.bake.normals,
+        grid,
+    );
     let options = LocalOptions {
+        grid_side: grid.side,
         depth_components: maps.grid.len() as u32,
         ..interior.options.clone()
     };

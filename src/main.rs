@@ -1449,6 +1449,41 @@ fn parsed_lights(args: &RenderArgs) -> Result<Vec<LocalLight>> {
     Ok(lights)
 }
 
+/// `info` of a local-lights bake.
+fn print_local_info(path: &Path) -> Result<()> {
+    let baked = glb::local::read_local_glb(path)?;
+    let options = &baked.options;
+    let op = &baked.operator;
+    println!("file:         {}", path.display());
+    println!("vertices:     {}", baked.scene.positions.len());
+    println!("triangles:    {}", baked.scene.triangles.len());
+    println!("mode:         local (point and spot lights inside the scene)");
+    println!(
+        "gather:       {} entries from {} rays per receiver, {} bounces",
+        baked.matrix.columns.len(),
+        options.samples,
+        options.bounces
+    );
+    println!(
+        "depth maps:   {}x{} directions, {} clusters x {} components",
+        baked.grid.side,
+        baked.grid.side,
+        baked.depth.cluster_count(),
+        baked.depth.components
+    );
+    println!(
+        "operator:     {} clusters x {} components from {} example lights, {} of {} cluster \
+         pairs kept, {:.1} MB",
+        op.clusters(),
+        op.components,
+        options.example_lights,
+        op.senders.len(),
+        op.clusters() * op.clusters(),
+        op.byte_size() as f64 / 1e6
+    );
+    Ok(())
+}
+
 /// `render` of a local-lights bake: one image, a sequence (`--frames`), or a relit copy.
 fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
     if args.light.is_some() {
@@ -1544,6 +1579,9 @@ fn open_render_device(adapter: Option<&str>) -> Result<GpuContext> {
 /// Prints a baked file's description; a reader that stops early (`| head`) ends it quietly.
 fn run_info(path: &Path) -> Result<()> {
     use std::io::Write;
+    if glb::local::is_local_file(&std::fs::read(path).map_err(|e| Error::io(path, e))?) {
+        return print_local_info(path);
+    }
     let mut lines: Vec<String> = Vec::new();
     let (metadata, vertices, triangles) = glb::read_metadata(path)?;
     lines.push(format!("file:         {}", path.display()));

@@ -242,6 +242,16 @@ fn bad_local_input_is_one_line_and_leaves_no_file() {
     let path = dir.path().join("room.prt.glb");
     glb::local::write_local_glb(&path, &small_bake()).unwrap();
     let cases: &[&[&str]] = &[
+        &["render", "room.prt.glb", "room.prt.glb", "-o", "a.png"],
+        &[
+            "render",
+            "room.prt.glb",
+            "--light",
+            "light.json",
+            "--point-light=0,1,0",
+            "-o",
+            "a.png",
+        ],
         &["render", "room.prt.glb", "-o", "a.png"],
         &["render", "room.prt.glb", "--point-light=1,2", "-o", "a.png"],
         &[
@@ -305,6 +315,16 @@ fn bad_local_input_is_one_line_and_leaves_no_file() {
     assert_eq!(
         testing::entries(dir.path()),
         vec!["room.prt.glb".to_string()]
+    );
+    let info = common::prt_gpu(&["info", "room.prt.glb"], dir.path());
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        info.status.success() && text.contains("mode:         local"),
+        "{text}"
+    );
+    assert!(
+        text.contains("operator:     6 clusters x 4 components"),
+        "{text}"
     );
 }
 

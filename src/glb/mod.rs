@@ -1245,6 +1245,13 @@ fn prt_extras(mesh: &MeshJson<serde_json::Value>) -> std::result::Result<PrtExtr
         .as_ref()
         .and_then(|extras| extras.get("prt"))
         .ok_or("not a prt-gpu file: the mesh has no extras.prt")?;
+    if prt.get("mode").and_then(|m| m.as_str()) == Some("local") {
+        return Err(
+            "a local-lights bake (--mode local) holds no SH transfer: render it alone \
+             with --point-light or --spot-light"
+                .into(),
+        );
+    }
     let prt: PrtExtrasIn =
         serde_json::from_value(prt.clone()).map_err(|e| format!("invalid extras.prt: {e}"))?;
     if prt.transfer_layout != TRANSFER_LAYOUT {

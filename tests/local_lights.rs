@@ -301,7 +301,7 @@ fn the_operator_matches_shadow_rays_and_gather_bounces() {
     let scene = &interior.scene;
     let (matrix_a, inputs) = gather_matrix(scene, 256, 1);
     let (matrix_b, _) = gather_matrix(scene, 256, 2);
-    let frames = receiver_frames(&scene, &inputs);
+    let frames = receiver_frames(scene, &inputs);
     let compressed_maps = local::compress_depth_maps(&interior.maps, &interior.options).unwrap();
     let bounces = 3;
     for light in test_lights(3, 5) {
@@ -332,7 +332,7 @@ fn the_compressed_operator_converges_to_the_sparse_one() {
     let interior = interior();
     let scene = &interior.scene;
     let (matrix, inputs) = gather_matrix(scene, 128, 1);
-    let frames = receiver_frames(&scene, &inputs);
+    let frames = receiver_frames(scene, &inputs);
     let options = LocalOptions {
         example_lights: 48,
         ..interior.options.clone()

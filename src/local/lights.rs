@@ -302,4 +302,39 @@ mod tests {
         light.intensity = f32::NAN;
         assert!(light.validate().is_err());
     }
+
+    #[test]
+    fn lights_parse_and_bad_ones_are_one_line_errors() {
+        let point = parse_point_light("1,2,3").unwrap();
+        assert_eq!(
+            (point.position, point.intensity),
+            (Vec3::new(1.0, 2.0, 3.0), 1.0)
+        );
+        let spot = parse_spot_light("0,1,0,0,-2,0,60,5").unwrap();
+        let cone = spot.spot.unwrap();
+        assert_eq!((cone.direction, spot.intensity), (-Vec3::Y, 5.0));
+        assert!((cone.cos_half_angle - 0.5).abs() < 1e-6);
+        for bad in ["1,2", "1,2,3,-1", "a,b,c", "1,2,3,4,5", "1,2,3,nan"] {
+            let error = parse_point_light(bad).unwrap_err().to_string();
+            assert!(!error.contains('\n'), "{error}");
+        }
+        for bad in ["0,1,0,0,0,0,30", "0,1,0,0,-1,0,200", "0,1,0,0,-1,0"] {
+            assert!(parse_spot_light(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_circle_turns_lights_about_the_vertical_axis() {
+        let mut light = LocalLight::point(Vec3::new(3.0, 1.0, 2.0), 1.0);
+        light.spot = Some(Spot {
+            direction: Vec3::X,
+            cos_half_angle: 0.5,
+        });
+        let centre = Vec3::new(1.0, 5.0, 2.0);
+        let quarter = on_circle(&[light], centre, 1, 4)[0];
+        // A quarter turn about +Y takes +X to -Z.
+        assert!((quarter.position - Vec3::new(1.0, 1.0, 0.0)).length() < 1e-5);
+        assert!((quarter.spot.unwrap().direction - Vec3::NEG_Z).length() < 1e-5);
+        assert_eq!(on_circle(&[light], centre, 0, 4)[0], light);
+    }
 }

@@ -1486,9 +1486,10 @@ fn print_local_info(path: &Path) -> Result<()> {
 
 /// `render` of a local-lights bake: one image, a sequence (`--frames`), or a relit copy.
 fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
-    if args.light.is_some() {
+    if args.light.is_some() || args.sky {
         return Err(Error::Options(
-            "--light is distant light; a local-lights bake takes --point-light and --spot-light"
+            "--light and --sky are distant light; a local-lights bake takes --point-light and \
+             --spot-light"
                 .into(),
         ));
     }

@@ -364,9 +364,20 @@ fn frames_write_a_sequence_and_report_their_time() {
         "{stdout}"
     );
     let names = testing::entries(dir.path());
+    let mut means = Vec::new();
     for f in ["seq_000.png", "seq_001.png", "seq_002.png"] {
         assert!(names.contains(&f.to_string()), "{names:?}");
+        let image = image::open(dir.path().join(f)).unwrap().to_rgba8();
+        assert_eq!(image.dimensions(), (64, 48));
+        let sum: u64 = image
+            .pixels()
+            .map(|p| p[0] as u64 + p[1] as u64 + p[2] as u64)
+            .sum();
+        assert!(sum > 0, "{f} is black");
+        means.push(sum);
     }
+    // The light moves, so the frames differ.
+    assert!(means[0] != means[1] || means[1] != means[2], "{means:?}");
 }
 
 #[test]

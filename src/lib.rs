@@ -20,6 +20,7 @@ pub mod glb;
 pub mod gltf_validator;
 pub mod light;
 pub mod lightmap;
+pub mod local;
 pub mod morton;
 pub mod packet;
 pub mod ray;

@@ -18,6 +18,9 @@ use prt_gpu::compress::{self, Cpca, CpcaOptions};
 use prt_gpu::device::{self, DeviceChoice, GpuContext};
 use prt_gpu::glb::Precision;
 use prt_gpu::light::{self, analytic, Mapping, ShLight};
+use prt_gpu::local::build::OperatorShape;
+use prt_gpu::local::lights::{self as local_lights, LocalLight};
+use prt_gpu::local::{self, LocalOptions, OperatorForm};
 use prt_gpu::receivers::PointDensity;
 use prt_gpu::render::{self, Camera, ToneMap};
 use prt_gpu::sampling::Sampling;
@@ -155,8 +158,9 @@ struct TransferArgs {
     #[arg(long, default_value = "4", value_parser = parse_bands)]
     bands: Bands,
     /// Sample directions per vertex (rounded to the nearest square for stratified sampling).
-    #[arg(long, default_value_t = DEFAULT_SAMPLES)]
-    samples: u32,
+    /// Default 1024; 256 gather rays per receiver with --mode local.
+    #[arg(long)]
+    samples: Option<u32>,
     /// How sample directions are drawn and weighted. cosine (the default) casts every ray above
     /// the horizon, with the cosine in its density; see `prt-gpu chart`.
     #[arg(long, value_enum, default_value_t = DEFAULT_SAMPLING)]
@@ -194,7 +198,7 @@ impl TransferArgs {
                 Bands::Fixed(bands) => bands,
                 Bands::Auto => AUTO_MAX_BANDS,
             },
-            samples: self.samples,
+            samples: self.samples.unwrap_or(DEFAULT_SAMPLES),
             sampling: self.sampling,
             mode: self.mode,
             ..BakeOptions::default()
@@ -317,7 +321,28 @@ struct RenderArgs {
     /// Use the adapter whose name contains this text.
     #[arg(long)]
     adapter: Option<String>,
-    /// Output image: .png (tone-mapped sRGB) or .exr (linear HDR).
+    /// Local-lights bakes: a point light at X,Y,Z of radiant intensity I (W/sr, default 1;
+    /// irradiance I cos(theta) / r^2). Repeatable.
+    #[arg(long, value_name = "X,Y,Z[,I]", allow_hyphen_values = true)]
+    point_light: Vec<String>,
+    /// Local-lights bakes: a spot light at X,Y,Z opening towards DX,DY,DZ with a hard cone of
+    /// half angle A degrees, intensity I inside it (default 1). Repeatable.
+    #[arg(long, value_name = "X,Y,Z,DX,DY,DZ,A[,I]", allow_hyphen_values = true)]
+    spot_light: Vec<String>,
+    /// Local-lights bakes: render N frames with the lights carried once round a circle about
+    /// the vertical axis through the scene's centre (images OUTPUT_000.png, ...), and report
+    /// the per-frame relighting time of each operator on the CPU and, where there is an
+    /// adapter, the sparse one on the GPU.
+    #[arg(long, value_name = "N")]
+    frames: Option<u32>,
+    /// With --frames: the circle's axis passes through X,Y,Z instead of the scene's centre.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true)]
+    orbit: Option<Vec3>,
+    /// Local-lights bakes: the direct-to-indirect operator the images use.
+    #[arg(long, value_enum, default_value_t = OperatorForm::Compressed)]
+    operator: OperatorForm,
+    /// Output: an image, .png (tone-mapped sRGB) or .exr (linear HDR); or .glb: a copy of the
+    /// (one) baked file with each vertex's relit radiance as its COLOR_0.
     #[arg(short, long, default_value = "preview.png")]
     output: PathBuf,
 }
@@ -477,6 +502,30 @@ struct BakeArgs {
     /// GPU: at most this many samples per chunk, rounded up to a multiple of 32.
     #[arg(long, hide_short_help = true)]
     chunk_samples: Option<u32>,
+    #[command(flatten)]
+    local: LocalArgs,
+}
+
+/// `bake --mode local`: the depth maps and the compressed operator.
+#[derive(clap::Args)]
+struct LocalArgs {
+    /// Local mode: depth-map directions per side of the hemi-octahedral grid (N^2 per receiver).
+    #[arg(long, value_name = "N", default_value_t = LocalOptions::default().grid_side)]
+    depth_grid: u32,
+    /// Local mode: the depth maps compressed by clustered PCA, CLUSTERSxCOMPONENTS.
+    #[arg(long, value_name = "CxM", default_value = "32x24", value_parser = parse_cpca_shape)]
+    depth_compress: (u32, u32),
+    /// Local mode: the operator's receiver clusters and basis vectors of example light per
+    /// cluster, CLUSTERSxCOMPONENTS.
+    #[arg(long, value_name = "CxM", default_value = "32x8", value_parser = parse_cpca_shape)]
+    operator_compress: (u32, u32),
+    /// Local mode: point lights placed across the scene for the operator's PCA bases.
+    #[arg(long, default_value_t = LocalOptions::default().example_lights)]
+    example_lights: u32,
+    /// Local mode: drop a sender cluster's response in a receiver cluster below this fraction
+    /// (RMS) of the receiver cluster's response (0 keeps every non-zero one).
+    #[arg(long, default_value_t = LocalOptions::default().operator.sparsity)]
+    sparsity: f32,
 }
 
 /// `--compress`: a shape, or an error target to choose one by.
@@ -546,6 +595,18 @@ fn parse_cpca_shape(text: &str) -> std::result::Result<(u32, u32), String> {
     Ok((number(clusters)?, number(components)?))
 }
 
+fn parse_point(text: &str) -> std::result::Result<Vec3, String> {
+    let v = text
+        .split(',')
+        .map(|part| part.trim().parse::<f32>())
+        .collect::<std::result::Result<Vec<f32>, _>>()
+        .map_err(|e| format!("expected X,Y,Z: {e}"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3::new(x, y, z)),
+        _ => Err("expected three finite numbers X,Y,Z".into()),
+    }
+}
+
 fn parse_rgb(text: &str) -> std::result::Result<Vec3, String> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
     let values: std::result::Result<Vec<f32>, _> = match parts.len() {
@@ -608,6 +669,9 @@ fn usage_error_line(message: &str) -> String {
 }
 
 fn run_bake(args: BakeArgs) -> Result<()> {
+    if args.transfer.mode == Mode::Local {
+        return run_local_bake(args);
+    }
     let meshes = scene::batch::mesh_files(&args.meshes)?;
     if let Some(shard) = args.shard {
         return match meshes.as_slice() {
@@ -1672,6 +1736,25 @@ fn shape(light: ShLight, shaping: &LightShaping) -> ShLight {
 
 fn run_render(args: RenderArgs) -> Result<()> {
     fs::check_destination(&args.output)?;
+    if let [only] = &args.baked[..] {
+        if glb::local::is_local_file(&std::fs::read(only).map_err(|e| Error::io(only, e))?) {
+            return run_local_render(&args, only);
+        }
+    }
+    let local_only = !args.point_light.is_empty()
+        || !args.spot_light.is_empty()
+        || args.frames.is_some()
+        || args.orbit.is_some();
+    if local_only {
+        return Err(Error::Options(
+            "--point-light, --spot-light, --frames and --orbit relight one local-lights bake \
+             (bake --mode local)"
+                .into(),
+        ));
+    }
+    if is_glb(&args.output) {
+        return write_relit_distant(&args);
+    }
     let context = open_render_device(args.adapter.as_deref())?;
     let mut panels = Vec::new();
     for path in &args.baked {
@@ -1803,6 +1886,307 @@ fn stem_name(path: &str) -> String {
         .unwrap_or_else(|| path.to_string())
 }
 
+fn is_glb(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb"))
+}
+
+/// `render FILE --light ... -o relit.glb`: the file's relit radiance as COLOR_0 of a copy.
+fn write_relit_distant(args: &RenderArgs) -> Result<()> {
+    let [path] = &args.baked[..] else {
+        return Err(Error::Options(
+            "-o .glb writes the relit radiance of one baked file; give one".into(),
+        ));
+    };
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if glb::is_scene_file(&bytes) {
+        return Err(Error::Options(
+            "-o .glb: a glTF scene baked in place keeps its own vertex colours (not supported yet)"
+                .into(),
+        ));
+    }
+    let (baked, cpca) = glb::read_glb_compressed(path)?;
+    let bands = baked.metadata.bands;
+    let (light, name) = match &args.light {
+        Some(light_path) => (
+            light::load(light_path, bands, args.mapping, false)?.light,
+            light_path.display().to_string(),
+        ),
+        None => (
+            light::preview_light(bands)?,
+            "the preview sky and sun".to_string(),
+        ),
+    };
+    let light = shape(light, &args.shaping);
+    let radiance = match &cpca {
+        Some(cpca) => render::apply_albedo(&baked, cpca.relight(&light)?),
+        None => render::relight_baked(&baked, &light)?,
+    };
+    glb::relit::write_relit_copy(path, &args.output, &radiance, &name)?;
+    println!(
+        "relit {} vertices under {name} -> {} (COLOR_0 = exit radiance)",
+        radiance.len(),
+        args.output.display()
+    );
+    Ok(())
+}
+
+fn run_local_bake(args: BakeArgs) -> Result<()> {
+    check_local_flags(&args)?;
+    let options = local_options(&args);
+    options.validate()?;
+    let (scene, name) = match args.meshes.first() {
+        Some(path) => (scene::load(path)?, stem(path)),
+        None => (scene::builtin::interior_scene(), "interior".to_string()),
+    };
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
+    fs::check_destination(&output)?;
+    let mut scene = scene;
+    if let Some(albedo) = args.albedo {
+        scene.albedo.iter_mut().for_each(|a| *a = albedo);
+    }
+    let baker = bake_backend(
+        &BakeOptions::default(),
+        args.device,
+        args.adapter.as_deref(),
+    )?;
+    let backend = match &baker {
+        Some(baker) => Backend::Gpu {
+            baker,
+            chunking: Chunking::default(),
+        },
+        None => Backend::Cpu,
+    };
+    let progress = BarProgress::default();
+    let (baked, report) = local::bake_local(scene, &options, &backend, &progress)?;
+    progress.finish();
+    glb::local::write_local_glb(&output, &baked)?;
+    print_local_report(&name, &report, &output);
+    Ok(())
+}
+
+/// Refuses the transfer bake's options that mean nothing for local lights.
+fn check_local_flags(args: &BakeArgs) -> Result<()> {
+    let refused = [
+        (args.compress.is_some(), "--compress"),
+        (args.lightmap.is_some(), "--lightmap"),
+        (args.fit != Fit::Point, "--fit"),
+        (args.target_error.is_some(), "--target-error"),
+        (args.storage != Storage::Rgb, "--storage"),
+        (args.preview.is_some(), "--preview"),
+        (args.transfer.bands != Bands::Fixed(4), "--bands"),
+        (args.precision != Precision::F32, "--precision"),
+        (args.shard.is_some(), "--shard"),
+        (
+            args.out_dir.is_some() || args.meshes.len() > 1,
+            "a batch (--out-dir)",
+        ),
+    ];
+    match refused.iter().find(|(given, _)| *given) {
+        Some((_, flag)) => Err(Error::Options(format!(
+            "{flag} is for SH transfer; --mode local bakes depth maps and a direct-to-indirect \
+             operator (see --depth-grid, --depth-compress, --operator-compress)"
+        ))),
+        None => Ok(()),
+    }
+}
+
+fn local_options(args: &BakeArgs) -> LocalOptions {
+    let local = &args.local;
+    LocalOptions {
+        samples: args
+            .transfer
+            .samples
+            .unwrap_or(LocalOptions::default().samples),
+        seed: args.seed,
+        bounces: args.bounces,
+        grid_side: local.depth_grid,
+        depth_clusters: local.depth_compress.0,
+        depth_components: local.depth_compress.1,
+        operator: OperatorShape {
+            clusters: local.operator_compress.0,
+            components: local.operator_compress.1,
+            sparsity: local.sparsity,
+            seed: args.seed,
+        },
+        example_lights: local.example_lights,
+    }
+}
+
+fn print_local_report(name: &str, report: &local::LocalReport, output: &Path) {
+    let mb = |bytes: usize| bytes as f64 / 1e6;
+    println!(
+        "local lights: {} receivers, {} triangles; gather matrix {} entries ({:.2} s); depth maps \
+         {:.2} s, compressed {:.1} -> {:.1} MB, depth error {:.2}% ({:.2} s); {} example lights \
+         ({:.2} s); operator {:.1} MB, {:.0}% of cluster pairs kept, error {:.2}% against the \
+         sparse bounces ({:.2} s)",
+        report.receivers,
+        report.triangles,
+        report.gather_entries,
+        report.seconds_gather,
+        report.seconds_depth,
+        mb(report.depth_bytes_uncompressed),
+        mb(report.depth_bytes),
+        100.0 * report.depth_error,
+        report.seconds_depth_compress,
+        report.example_lights,
+        report.seconds_examples,
+        mb(report.operator_bytes),
+        100.0 * report.operator_kept,
+        100.0 * report.operator_error,
+        report.seconds_operator
+    );
+    println!(
+        "baked {name} for local lights: {} rays, {:.2} s on {} -> {}",
+        report.rays_cast,
+        report.seconds(),
+        report.backend,
+        output.display()
+    );
+}
+
+/// The lights given on the command line (at least one).
+fn parsed_lights(args: &RenderArgs) -> Result<Vec<LocalLight>> {
+    let mut lights = Vec::new();
+    for text in &args.point_light {
+        lights.push(local_lights::parse_point_light(text)?);
+    }
+    for text in &args.spot_light {
+        lights.push(local_lights::parse_spot_light(text)?);
+    }
+    if lights.is_empty() {
+        return Err(Error::Options(
+            "a local-lights bake needs --point-light or --spot-light".into(),
+        ));
+    }
+    Ok(lights)
+}
+
+/// `info` of a local-lights bake.
+fn print_local_info(path: &Path) -> Result<()> {
+    let baked = glb::local::read_local_glb(path)?;
+    let options = &baked.options;
+    let op = &baked.operator;
+    println!("file:         {}", path.display());
+    println!("vertices:     {}", baked.scene.positions.len());
+    println!("triangles:    {}", baked.scene.triangles.len());
+    println!("mode:         local (point and spot lights inside the scene)");
+    println!(
+        "gather:       {} entries from {} rays per receiver, {} bounces",
+        baked.matrix.columns.len(),
+        options.samples,
+        options.bounces
+    );
+    println!(
+        "depth maps:   {}x{} directions, {} clusters x {} components",
+        baked.grid.side,
+        baked.grid.side,
+        baked.depth.cluster_count(),
+        baked.depth.components
+    );
+    println!(
+        "operator:     {} clusters x {} components from {} example lights, {} of {} cluster \
+         pairs kept, {:.1} MB",
+        op.clusters(),
+        op.components,
+        options.example_lights,
+        op.senders.len(),
+        op.clusters() * op.clusters(),
+        op.byte_size() as f64 / 1e6
+    );
+    Ok(())
+}
+
+/// `render` of a local-lights bake: one image, a sequence (`--frames`), or a relit copy.
+fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
+    if args.light.is_some() || args.sky {
+        return Err(Error::Options(
+            "--light and --sky are distant light; a local-lights bake takes --point-light and \
+             --spot-light"
+                .into(),
+        ));
+    }
+    let lights = parsed_lights(args)?;
+    let baked = glb::local::read_local_glb(path)?;
+    let relighter = local::Relighter::new(&baked);
+    if is_glb(&args.output) {
+        if args.frames.is_some() {
+            return Err(Error::Options("--frames writes images, not .glb".into()));
+        }
+        let frame = relighter.frame(&lights, args.operator);
+        let name = local_lights::describe(&lights);
+        glb::relit::write_relit_copy(path, &args.output, &frame.total(), &name)?;
+        println!(
+            "relit {} vertices under {name} -> {}",
+            frame.direct.len(),
+            args.output.display()
+        );
+        return Ok(());
+    }
+    let frames = args.frames.unwrap_or(1);
+    if frames == 0 {
+        return Err(Error::Options("--frames must be at least 1".into()));
+    }
+    let camera = args
+        .camera
+        .unwrap_or_else(|| Camera::framing_scene(&baked.scene));
+    let context = open_render_device(args.adapter.as_deref())?;
+    let gpu = GpuBaker::open(DeviceChoice::Gpu, args.adapter.as_deref())
+        .ok()
+        .flatten();
+    let gpu_sparse = match &gpu {
+        Some(baker) => Some(local::GpuSparse::new(baker, &baked)?),
+        None => None,
+    };
+    let (lo, hi) = render::bounds(&baked.scene.positions);
+    let centre = args.orbit.unwrap_or((lo + hi) * 0.5);
+    let mut timing = local::FrameTimes::default();
+    for f in 0..frames {
+        let lights = local_lights::on_circle(&lights, centre, f, frames);
+        let frame = local::time_frame(
+            &relighter,
+            &lights,
+            args.operator,
+            gpu_sparse.as_ref(),
+            &mut timing,
+        )?;
+        let image = render::render(
+            &context,
+            &baked.scene,
+            &frame.total(),
+            &camera,
+            args.width,
+            args.height,
+        )?;
+        let output = local::frame_path(&args.output, f, frames);
+        render::write_image(
+            &output,
+            &image,
+            args.width,
+            args.height,
+            args.tone_map,
+            args.exposure,
+        )?;
+    }
+    println!(
+        "rendered {frames} frame(s) of {}x{} -> {}",
+        args.width,
+        args.height,
+        local::frame_path(&args.output, 0, frames).display()
+    );
+    println!(
+        "{}",
+        timing.report(
+            baked.scene.positions.len(),
+            gpu.as_ref().map(|g| g.context.adapter.label())
+        )
+    );
+    Ok(())
+}
+
 /// Any adapter, software ones included: rasterising a preview is cheap anywhere.
 fn open_render_device(adapter: Option<&str>) -> Result<GpuContext> {
     device::open(DeviceChoice::Gpu, adapter)?
@@ -1812,6 +2196,9 @@ fn open_render_device(adapter: Option<&str>) -> Result<GpuContext> {
 /// Prints a baked file's description; a reader that stops early (`| head`) ends it quietly.
 fn run_info(path: &Path) -> Result<()> {
     use std::io::Write;
+    if glb::local::is_local_file(&std::fs::read(path).map_err(|e| Error::io(path, e))?) {
+        return print_local_info(path);
+    }
     let mut lines: Vec<String> = Vec::new();
     let (metadata, vertices, triangles) = glb::read_metadata(path)?;
     lines.push(format!("file:         {}", path.display()));

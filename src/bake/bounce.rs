@@ -236,23 +236,29 @@ pub fn apply_cpu(
 ) -> Vec<f32> {
     let stride = 3 * coeffs;
     let mut next = vec![0.0f32; matrix.rows() * stride];
+    // One accumulator per rayon job, not per row: at one coefficient (local lights' frames)
+    // the allocation cost as much as the row.
     next.par_chunks_mut(stride)
         .enumerate()
-        .for_each(|(p, out)| {
-            let (columns, weights) = matrix.row(p);
-            let mut acc = vec![0.0f64; stride];
-            for (&j, &w) in columns.iter().zip(weights) {
-                let source = &previous[j as usize * stride..(j as usize + 1) * stride];
-                for (a, &t) in acc.iter_mut().zip(source) {
-                    *a += w as f64 * t as f64;
+        .with_min_len(64)
+        .for_each_init(
+            || vec![0.0f64; stride],
+            |acc, (p, out)| {
+                acc.fill(0.0);
+                let (columns, weights) = matrix.row(p);
+                for (&j, &w) in columns.iter().zip(weights) {
+                    let source = &previous[j as usize * stride..(j as usize + 1) * stride];
+                    for (a, &t) in acc.iter_mut().zip(source) {
+                        *a += w as f64 * t as f64;
+                    }
                 }
-            }
-            for c in 0..3 {
-                for k in 0..coeffs {
-                    out[c * coeffs + k] = (albedo[p][c] as f64 * acc[c * coeffs + k]) as f32;
+                for c in 0..3 {
+                    for k in 0..coeffs {
+                        out[c * coeffs + k] = (albedo[p][c] as f64 * acc[c * coeffs + k]) as f32;
+                    }
                 }
-            }
-        });
+            },
+        );
     next
 }
 

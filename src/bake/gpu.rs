@@ -717,16 +717,31 @@ pub fn direct_transfer_and_gather_matrix(
     chunking: Chunking,
     progress: &dyn Progress,
 ) -> Result<(Vec<f32>, GatherMatrix, GpuRun)> {
-    let out = run(
-        baker,
-        inputs,
-        Mode::Interreflected,
-        chunking,
-        false,
-        progress,
-    )?;
+    let out = closest_hit_run(baker, inputs, chunking, progress)?;
     let matrix = super::bounce::gather_matrix_from_vertex_hits(inputs, &out.hits);
     Ok((scaled(out.sums, inputs), matrix, out.stats))
+}
+
+/// The closest hit of every ray that hits something, `(sample, hit)` per receiver, from the
+/// closest-hit pass (what interreflection gathers from; local lights' depth maps measure it).
+pub fn closest_hits(
+    baker: &GpuBaker,
+    inputs: &DirectInputs,
+    chunking: Chunking,
+    progress: &dyn Progress,
+) -> Result<Vec<Vec<(u32, Hit)>>> {
+    Ok(closest_hit_run(baker, inputs, chunking, progress)?.hits)
+}
+
+/// Both passes with the closest-hit traversal, the hits kept.
+fn closest_hit_run(
+    baker: &GpuBaker,
+    inputs: &DirectInputs,
+    chunking: Chunking,
+    progress: &dyn Progress,
+) -> Result<RunOutput> {
+    let mode = Mode::Interreflected;
+    run(baker, inputs, mode, chunking, false, progress)
 }
 
 /// Albedo-free direct transfer of every vertex, `[vertex][k]`, computed on the GPU.

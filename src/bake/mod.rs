@@ -34,6 +34,9 @@ pub enum Mode {
     Shadowed,
     /// Shadowed transfer plus light reflected between surfaces (`--bounces`).
     Interreflected,
+    /// Point and spot lights inside the scene (`crate::local`): depth maps and the
+    /// direct-to-indirect operator, not SH transfer; baked by `local::bake_local`.
+    Local,
 }
 
 impl Mode {
@@ -42,6 +45,7 @@ impl Mode {
             Mode::Unshadowed => "unshadowed",
             Mode::Shadowed => "shadowed",
             Mode::Interreflected => "interreflected",
+            Mode::Local => "local",
         }
     }
 }
@@ -229,6 +233,13 @@ impl Default for BakeOptions {
 
 impl BakeOptions {
     pub fn validate(&self) -> Result<()> {
+        if self.mode == Mode::Local {
+            return Err(Error::Options(
+                "--mode local bakes depth maps and a direct-to-indirect operator, not SH \
+                 transfer (local::bake_local)"
+                    .into(),
+            ));
+        }
         if self.bands == 0 || self.bands > MAX_BANDS {
             return Err(Error::Options(format!(
                 "--bands {} is out of range (1 to {MAX_BANDS})",

@@ -19,7 +19,7 @@
 //! - `eigen.rs` finds a cluster's principal directions (Jacobi, subspace iteration).
 
 mod cluster;
-mod eigen;
+pub mod eigen;
 
 use rayon::prelude::*;
 
@@ -76,6 +76,45 @@ pub struct Cpca {
 /// Compresses `transfer`: k-means++ seeding from `options.seed`, then CPCA rounds.
 pub fn compress(transfer: &Transfer, options: &CpcaOptions) -> Result<Cpca> {
     let points = checked_points(transfer, options)?;
+    let (model, assignment) = compress_points(points, options);
+    Ok(finish(
+        (transfer.bands, transfer.channels),
+        points,
+        &model,
+        assignment,
+    ))
+}
+
+/// Compresses any rows of `dimension` floats (hemispherical depth maps, clustering
+/// features), as [`compress`] compresses transfer vectors. The result's `bands` and
+/// `channels` are 0: its rows are not SH transfer, so it has no [`Cpca::relight`] (which
+/// refuses it) and [`Cpca::reconstruct`] gives the rows back flat.
+pub fn compress_rows(rows: &[f32], dimension: usize, options: &CpcaOptions) -> Result<Cpca> {
+    if dimension == 0 || !rows.len().is_multiple_of(dimension) {
+        return Err(Error::Options(format!(
+            "compress: {} floats are not rows of {dimension}",
+            rows.len()
+        )));
+    }
+    if let Some(i) = rows.iter().position(|x| !x.is_finite()) {
+        return Err(Error::Options(format!(
+            "compress: value {} of row {} is {}",
+            i % dimension,
+            i / dimension,
+            rows[i]
+        )));
+    }
+    check_options(options, dimension, rows.len() / dimension)?;
+    let points = Points {
+        data: rows,
+        dimension,
+    };
+    let (model, assignment) = compress_points(points, options);
+    Ok(finish((0, 0), points, &model, assignment))
+}
+
+/// k-means++ seeding from `options.seed`, then CPCA rounds: the model and the assignment.
+fn compress_points(points: Points, options: &CpcaOptions) -> (Model, Vec<u32>) {
     let clusters = options.clusters as usize;
     let seeds = cluster::kmeans_plus_plus(points, clusters, options.seed);
     let seed_means = seeds.iter().flat_map(|&v| point(points, v)).collect();
@@ -90,7 +129,7 @@ pub fn compress(transfer: &Transfer, options: &CpcaOptions) -> Result<Cpca> {
         options.iterations,
         None,
     );
-    Ok(finish(transfer, points, &model, assignment))
+    (model, assignment)
 }
 
 /// Continues CPCA rounds from an earlier result `start` (its assignment and bases), with
@@ -119,7 +158,12 @@ pub fn refine(transfer: &Transfer, start: &Cpca, options: &CpcaOptions) -> Resul
         options.iterations,
         Some(warm),
     );
-    Ok(finish(transfer, points, &model, assignment))
+    Ok(finish(
+        (transfer.bands, transfer.channels),
+        points,
+        &model,
+        assignment,
+    ))
 }
 
 fn widen(values: &[f32]) -> Vec<f64> {
@@ -131,7 +175,12 @@ fn point(points: Points, vertex: usize) -> Vec<f64> {
 }
 
 /// The model in f32 with every vertex's coordinates.
-fn finish(transfer: &Transfer, points: Points, model: &Model, assignment: Vec<u32>) -> Cpca {
+fn finish(
+    (bands, channels): (u32, u32),
+    points: Points,
+    model: &Model,
+    assignment: Vec<u32>,
+) -> Cpca {
     let components = model.components;
     let mut weights = vec![0.0f32; assignment.len() * components];
     if components > 0 {
@@ -147,8 +196,8 @@ fn finish(transfer: &Transfer, points: Points, model: &Model, assignment: Vec<u3
             });
     }
     Cpca {
-        bands: transfer.bands,
-        channels: transfer.channels,
+        bands,
+        channels,
         dimension: model.dimension,
         components,
         means: narrow(&model.means),
@@ -279,6 +328,19 @@ impl Cpca {
                 self.vertex_count()
             )))
         }
+    }
+
+    /// Value `index` of row `vertex` as reconstructed, `mean + sum_j w_j basis_j` at that one
+    /// index: what a run-time reads when it needs a few values of a row, not all of them.
+    pub fn entry(&self, vertex: usize, index: usize) -> f32 {
+        let (n, m) = (self.dimension, self.components);
+        let c = self.assignment[vertex] as usize;
+        let weights = &self.weights[vertex * m..(vertex + 1) * m];
+        let basis = &self.bases[c * m * n..(c + 1) * m * n];
+        weights
+            .iter()
+            .zip(basis[index..].iter().step_by(n))
+            .fold(self.means[c * n + index], |sum, (w, b)| sum + w * b)
     }
 
     /// The transfer the compressed form stands for: `mean + sum_j w_j basis_j` per vertex.

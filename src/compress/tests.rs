@@ -435,3 +435,53 @@ fn wide_transfer_compression_time() {
         relative_error(&transfer, &cpca)
     );
 }
+
+#[test]
+fn rows_compress_as_transfer_does_and_entries_are_the_reconstruction() {
+    let transfer = baked();
+    let dimension = transfer.channels as usize * transfer.coeffs_per_channel();
+    let shape = CpcaOptions {
+        iterations: 3,
+        ..options(5, 6)
+    };
+    let as_transfer = compress(transfer, &shape).unwrap();
+    let as_rows = compress_rows(&transfer.coeffs, dimension, &shape).unwrap();
+    assert_eq!(as_rows.weights, as_transfer.weights);
+    assert_eq!(as_rows.assignment, as_transfer.assignment);
+    assert_eq!((as_rows.bands, as_rows.channels), (0, 0));
+    // A row form is not SH transfer: relighting refuses it.
+    assert!(as_rows.relight(&busy_light(2)).is_err());
+    let reconstructed = as_transfer.reconstruct();
+    for v in (0..transfer.vertex_count).step_by(97) {
+        for i in 0..dimension {
+            let full = reconstructed.coeffs[v * dimension + i];
+            let one = as_rows.entry(v, i);
+            assert!(
+                (full - one).abs() <= 1e-5 * (1.0 + full.abs()),
+                "{v}, {i}: {full} {one}"
+            );
+        }
+    }
+}
+
+#[test]
+fn bad_rows_are_one_line_errors() {
+    let two = options(2, 1);
+    for (rows, dimension) in [
+        (vec![1.0; 7], 3),
+        (vec![1.0; 6], 0),
+        (vec![1.0, f32::NAN, 0.0], 3),
+    ] {
+        let error = compress_rows(&rows, dimension, &two)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            !error.contains('\n') && error.contains("compress: "),
+            "{error}"
+        );
+    }
+    assert!(
+        compress_rows(&[1.0; 6], 3, &options(3, 1)).is_err(),
+        "more clusters than rows"
+    );
+}

@@ -111,58 +111,68 @@ pub(super) fn decode<X>(
         ));
     }
     let dimension = channels as usize * (bands * bands) as usize;
-    if extras.dimension != dimension || extras.clusters == 0 || extras.components > dimension {
+    if extras.dimension != dimension {
         return Err(format!(
-            "extras.prt.cpca has dimension {}, {} clusters and {} components for {channels} \
-             channels of {bands} bands",
-            extras.dimension, extras.clusters, extras.components
+            "extras.prt.cpca has dimension {} for {channels} channels of {bands} bands",
+            extras.dimension
+        ));
+    }
+    let rows = decode_rows(doc, bin, extras, vertices)?;
+    Ok(Cpca {
+        bands,
+        channels,
+        ..rows
+    })
+}
+
+/// Reads compressed rows of `extras.dimension` floats (`compress::compress_rows`; `bands` and
+/// `channels` 0), one per vertex.
+pub(super) fn decode_rows<X>(
+    doc: &Document<X>,
+    bin: &[u8],
+    extras: &CpcaExtras,
+    vertices: usize,
+) -> Result<Cpca, String> {
+    let dimension = extras.dimension;
+    if dimension == 0 || extras.clusters == 0 || extras.components > dimension {
+        return Err(format!(
+            "compressed rows of dimension {dimension} in {} clusters of {} components",
+            extras.clusters, extras.components
         ));
     }
     let (k, m) = (extras.clusters, extras.components);
-    let view = |index: usize, count: usize, what: &str| -> Result<&[u8], String> {
-        let view = doc
-            .buffer_views
-            .get(index)
-            .ok_or(format!("the {what} buffer view does not exist"))?;
-        let start = view.byte_offset as usize;
-        let bytes = bin
-            .get(start..start + view.byte_length as usize)
-            .ok_or(format!("the {what} buffer view runs past the BIN chunk"))?;
-        if bytes.len() != 4 * count {
-            return Err(format!(
-                "the {what} view has {} bytes, expected {}",
-                bytes.len(),
-                4 * count
-            ));
-        }
-        Ok(bytes)
-    };
-    let floats = |bytes: &[u8], what: &str| -> Result<Vec<f32>, String> {
-        let values: Vec<f32> = bytes
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect();
-        match values.iter().position(|x| !x.is_finite()) {
-            Some(i) => Err(format!("non-finite {what} value at {i}")),
-            None => Ok(values),
-        }
+    let count = |a: usize, b: usize| {
+        a.checked_mul(b)
+            .ok_or_else(|| format!("{a} x {b} values overflow"))
     };
     let means = floats(
-        view(extras.means_buffer_view, k * dimension, "means")?,
+        doc,
+        bin,
+        extras.means_buffer_view,
+        count(k, dimension)?,
         "mean",
     )?;
     let bases = floats(
-        view(extras.bases_buffer_view, k * m * dimension, "bases")?,
+        doc,
+        bin,
+        extras.bases_buffer_view,
+        count(count(k, m)?, dimension)?,
         "basis",
     )?;
     let weights = floats(
-        view(extras.weights_buffer_view, vertices * m, "weights")?,
+        doc,
+        bin,
+        extras.weights_buffer_view,
+        count(vertices, m)?,
         "weight",
     )?;
-    let assignment: Vec<u32> = view(extras.assignment_buffer_view, vertices, "assignment")?
-        .chunks_exact(4)
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
+    let assignment = u32s(
+        doc,
+        bin,
+        extras.assignment_buffer_view,
+        vertices,
+        "assignment",
+    )?;
     if let Some(v) = assignment.iter().position(|&a| a as usize >= k) {
         return Err(format!(
             "vertex {v} is assigned to cluster {} but there are only {k}",
@@ -170,8 +180,8 @@ pub(super) fn decode<X>(
         ));
     }
     Ok(Cpca {
-        bands,
-        channels,
+        bands: 0,
+        channels: 0,
         dimension,
         components: m,
         means,
@@ -181,16 +191,60 @@ pub(super) fn decode<X>(
     })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn readme_quotes_the_python_reader_verbatim() {
-        let readme = include_str!("../../README.md");
-        assert!(
-            readme.contains(PYTHON_READER),
-            "README.md's compressed-file snippet differs from glb::compressed::PYTHON_READER"
-        );
+/// The bytes of buffer view `index`, which must hold exactly `count` 4-byte values.
+pub(super) fn view_bytes<'b, X>(
+    doc: &Document<X>,
+    bin: &'b [u8],
+    index: usize,
+    count: usize,
+    what: &str,
+) -> Result<&'b [u8], String> {
+    let view = doc
+        .buffer_views
+        .get(index)
+        .ok_or(format!("the {what} buffer view does not exist"))?;
+    let start = view.byte_offset as usize;
+    let bytes = start
+        .checked_add(view.byte_length as usize)
+        .and_then(|end| bin.get(start..end))
+        .ok_or(format!("the {what} buffer view runs past the BIN chunk"))?;
+    if Some(bytes.len()) != count.checked_mul(4) {
+        return Err(format!(
+            "the {what} view has {} bytes, expected 4 x {count}",
+            bytes.len()
+        ));
     }
+    Ok(bytes)
+}
+
+/// `count` finite little-endian floats from buffer view `index`.
+pub(super) fn floats<X>(
+    doc: &Document<X>,
+    bin: &[u8],
+    index: usize,
+    count: usize,
+    what: &str,
+) -> Result<Vec<f32>, String> {
+    let values: Vec<f32> = view_bytes(doc, bin, index, count, what)?
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    match values.iter().position(|x| !x.is_finite()) {
+        Some(i) => Err(format!("non-finite {what} value at {i}")),
+        None => Ok(values),
+    }
+}
+
+/// `count` little-endian u32 from buffer view `index`.
+pub(super) fn u32s<X>(
+    doc: &Document<X>,
+    bin: &[u8],
+    index: usize,
+    count: usize,
+    what: &str,
+) -> Result<Vec<u32>, String> {
+    Ok(view_bytes(doc, bin, index, count, what)?
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect())
 }

@@ -35,6 +35,8 @@ use crate::fs::{check_destination, write_atomically};
 use compressed::CpcaExtras;
 
 pub mod compressed;
+pub mod local;
+pub mod relit;
 pub mod scene;
 pub mod stream;
 use crate::scene::Scene;
@@ -268,7 +270,7 @@ fn read_texels(
 }
 
 /// Whether `bytes` are a glTF scene baked in place ([`scene`]) rather than a single mesh.
-fn is_scene_file(bytes: &[u8]) -> bool {
+pub fn is_scene_file(bytes: &[u8]) -> bool {
     let Some(head) = bytes.get(..20) else {
         return false;
     };
@@ -355,19 +357,26 @@ pub fn decode_glb(bytes: &[u8], path: &Path) -> Result<BakedMesh> {
 /// A lightmap's reference and the lightmap coordinates of every vertex.
 type LightmapParts = Option<(LightmapExtras, Vec<[f32; 2]>)>;
 
-fn decode_parts(bytes: &[u8], path: &Path) -> Result<(BakedMesh, LightmapParts, Option<Cpca>)> {
+/// The JSON and BIN chunks of a `.glb`, their headers checked against the file's length.
+fn split_chunks<'b>(bytes: &'b [u8], path: &Path) -> Result<(&'b [u8], &'b [u8])> {
     let head = bytes
         .get(..20)
         .ok_or_else(|| Error::baked(path, "too short to be a glTF binary (.glb) file"))?;
     let json_len = check_head(head, bytes.len() as u64, path)?;
-    let json = &bytes[20..20 + json_len];
     let bin_start = 20 + json_len;
     let bin_head = bytes
         .get(bin_start..bin_start + 8)
         .ok_or_else(|| Error::baked(path, "no BIN chunk after the JSON chunk"))?;
     let bin_len = check_bin_head(bin_head, bin_start as u64, bytes.len() as u64, path)?;
-    let bin = &bytes[bin_start + 8..bin_start + 8 + bin_len];
+    Ok((
+        &bytes[20..bin_start],
+        &bytes[bin_start + 8..bin_start + 8 + bin_len],
+    ))
+}
 
+fn decode_parts(bytes: &[u8], path: &Path) -> Result<(BakedMesh, LightmapParts, Option<Cpca>)> {
+    let (json, bin) = split_chunks(bytes, path)?;
+    let bin_len = bin.len();
     let doc = parse_document(json, path)?;
     let plan = plan(&doc, bin_len, path)?;
     let v = plan.vertices;
@@ -946,7 +955,49 @@ fn encode_json(
     precision: Precision,
 ) -> Result<Vec<u8>> {
     let attributes_hold_transfer = cpca_extras.is_none() && precision == Precision::F32;
-    let (accessors, attributes) = accessors_and_attributes(shape, attributes_hold_transfer);
+    let accessors = accessors_and_attributes(shape, attributes_hold_transfer);
+    let extras = MeshExtras {
+        prt: PrtExtras {
+            metadata: shape.metadata,
+            vertices: shape.scene.positions.len(),
+            transfer_buffer_view: cpca_extras.is_none().then_some(TRANSFER_VIEW),
+            transfer_layout: match precision {
+                Precision::F32 => TRANSFER_LAYOUT,
+                Precision::F16 => TRANSFER_LAYOUT_F16,
+            },
+            transfer_precision: (precision == Precision::F16).then_some(FLOAT16),
+            cpca: cpca_extras,
+            lightmap: shape.lightmap.map(|texels| LightmapExtras {
+                uri: lightmap_uri.unwrap_or(DEFAULT_LIGHTMAP_URI).to_string(),
+                width: texels.width,
+                height: texels.height,
+                texcoord: 0,
+                layout: crate::lightmap::LAYOUT.to_string(),
+            }),
+        },
+    };
+    mesh_json(extras, accessors, views, bin_len)
+}
+
+/// The .glb of every baked file: one scene, one node, one mesh of one triangle primitive
+/// (indices in accessor 3) carrying `extras`, one buffer, the BIN chunk `bin`.
+fn mesh_glb<X: Serialize>(
+    extras: X,
+    accessors: (Vec<AccessorJson>, BTreeMap<String, usize>),
+    views: Vec<BufferViewJson>,
+    bin: Vec<u8>,
+) -> Result<Vec<u8>> {
+    let json = mesh_json(extras, accessors, views, bin.len())?;
+    glb_container(json, bin)
+}
+
+/// The JSON chunk of [`mesh_glb`], for a BIN chunk of `bin_len` bytes.
+fn mesh_json<X: Serialize>(
+    extras: X,
+    (accessors, attributes): (Vec<AccessorJson>, BTreeMap<String, usize>),
+    views: Vec<BufferViewJson>,
+    bin_len: usize,
+) -> Result<Vec<u8>> {
     let doc = Document {
         asset: AssetJson {
             version: "2.0".into(),
@@ -961,26 +1012,7 @@ fn encode_json(
                 indices: Some(3),
                 mode: Some(TRIANGLES),
             }],
-            extras: Some(MeshExtras {
-                prt: PrtExtras {
-                    metadata: shape.metadata,
-                    vertices: shape.scene.positions.len(),
-                    transfer_buffer_view: cpca_extras.is_none().then_some(TRANSFER_VIEW),
-                    transfer_layout: match precision {
-                        Precision::F32 => TRANSFER_LAYOUT,
-                        Precision::F16 => TRANSFER_LAYOUT_F16,
-                    },
-                    transfer_precision: (precision == Precision::F16).then_some(FLOAT16),
-                    cpca: cpca_extras,
-                    lightmap: shape.lightmap.map(|texels| LightmapExtras {
-                        uri: lightmap_uri.unwrap_or(DEFAULT_LIGHTMAP_URI).to_string(),
-                        width: texels.width,
-                        height: texels.height,
-                        texcoord: 0,
-                        layout: crate::lightmap::LAYOUT.to_string(),
-                    }),
-                },
-            }),
+            extras: Some(extras),
         }],
         accessors,
         buffer_views: views,
@@ -1089,34 +1121,7 @@ fn accessors_and_attributes(
     let (scene, transfer) = (shape.scene, shape.transfer);
     let v = scene.positions.len();
     let groups = groups(transfer.bands);
-    let (min, max) = scene.positions.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
-    let accessor = |view: usize, offset: usize, component, count, kind: &str| AccessorJson {
-        buffer_view: Some(view),
-        byte_offset: offset as u64,
-        component_type: component,
-        count: count as u64,
-        kind: kind.to_string(),
-        min: None,
-        max: None,
-        sparse: None,
-    };
-    let mut accessors = vec![
-        AccessorJson {
-            min: Some(min.to_array().to_vec()),
-            max: Some(max.to_array().to_vec()),
-            ..accessor(0, 0, FLOAT, v, "VEC3")
-        },
-        accessor(1, 0, FLOAT, v, "VEC3"),
-        accessor(2, 0, FLOAT, v, "VEC3"),
-        accessor(3, 0, UNSIGNED_INT, 3 * scene.triangles.len(), "SCALAR"),
-    ];
-    let mut attributes: BTreeMap<String, usize> = [("POSITION", 0), ("NORMAL", 1), ("COLOR_0", 2)]
-        .into_iter()
-        .map(|(name, index)| (name.to_string(), index))
-        .collect();
+    let (mut accessors, mut attributes) = mesh_accessors(scene);
     let planar_channels = if planar {
         transfer.channels as usize
     } else {
@@ -1134,6 +1139,45 @@ fn accessors_and_attributes(
         attributes.insert("TEXCOORD_0".into(), accessors.len());
         accessors.push(accessor(TEXCOORD_VIEW, 0, FLOAT, v, "VEC2"));
     }
+    (accessors, attributes)
+}
+
+/// An accessor of `count` elements of `kind` at `offset` in view `view`, without bounds.
+fn accessor(view: usize, offset: usize, component: u32, count: usize, kind: &str) -> AccessorJson {
+    AccessorJson {
+        buffer_view: Some(view),
+        byte_offset: offset as u64,
+        component_type: component,
+        count: count as u64,
+        kind: kind.to_string(),
+        min: None,
+        max: None,
+        sparse: None,
+    }
+}
+
+/// The accessors of [`encode_mesh`]'s views and the primitive's `POSITION`, `NORMAL` and
+/// `COLOR_0` attributes.
+fn mesh_accessors(scene: &Scene) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
+    let v = scene.positions.len();
+    let (min, max) = scene.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let accessors = vec![
+        AccessorJson {
+            min: Some(min.to_array().to_vec()),
+            max: Some(max.to_array().to_vec()),
+            ..accessor(0, 0, FLOAT, v, "VEC3")
+        },
+        accessor(1, 0, FLOAT, v, "VEC3"),
+        accessor(2, 0, FLOAT, v, "VEC3"),
+        accessor(3, 0, UNSIGNED_INT, 3 * scene.triangles.len(), "SCALAR"),
+    ];
+    let attributes: BTreeMap<String, usize> = [("POSITION", 0), ("NORMAL", 1), ("COLOR_0", 2)]
+        .into_iter()
+        .map(|(name, index)| (name.to_string(), index))
+        .collect();
     (accessors, attributes)
 }
 
@@ -1384,6 +1428,13 @@ fn prt_extras(mesh: &MeshJson<serde_json::Value>) -> std::result::Result<PrtExtr
         .as_ref()
         .and_then(|extras| extras.get("prt"))
         .ok_or("not a prt-gpu file: the mesh has no extras.prt")?;
+    if prt.get("mode").and_then(|m| m.as_str()) == Some("local") {
+        return Err(
+            "a local-lights bake (--mode local) holds no SH transfer: render it alone \
+             with --point-light or --spot-light"
+                .into(),
+        );
+    }
     let prt: PrtExtrasIn =
         serde_json::from_value(prt.clone()).map_err(|e| format!("invalid extras.prt: {e}"))?;
     let layout = match prt.transfer_precision.as_deref() {
@@ -1854,12 +1905,18 @@ mod tests {
     }
 
     #[test]
-    fn readme_quotes_the_python_reader_verbatim() {
+    fn readme_quotes_the_python_readers_verbatim() {
         let readme = include_str!("../../README.md");
-        assert!(
-            readme.contains(PYTHON_READER),
-            "README.md's Python snippet differs from PYTHON_READER"
-        );
+        for (reader, name) in [
+            (PYTHON_READER, "glb::PYTHON_READER"),
+            (compressed::PYTHON_READER, "glb::compressed::PYTHON_READER"),
+            (local::PYTHON_READER, "glb::local::PYTHON_READER"),
+        ] {
+            assert!(
+                readme.contains(reader),
+                "README.md's snippet differs from {name}"
+            );
+        }
     }
 
     #[test]

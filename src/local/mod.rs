@@ -1,0 +1,786 @@
+//! Local lights by direct-to-indirect transfer (Lehmann-style meshless PCA PRT; the paper in
+//! `../shared/references/meshless-pca-prt.txt`): point and spot lights that move *inside* the
+//! scene, where everything else in this tool assumes distant light.
+//!
+//! Bake (`prt-gpu bake --mode local`), per receiver (the prepared mesh's vertices):
+//! - a hemispherical depth map (`depth.rs`), compressed per cluster of receivers by PCA
+//!   (`compress::compress_rows`), so that the direct light of any light position can be
+//!   evaluated with a handful of dot products;
+//! - the direct-to-indirect operator (`operator.rs`): the gather matrix of interreflection
+//!   (`bake::bounce`) bounced B times (sparse form), and its compression by PCA of example
+//!   direct light (`build.rs`).
+//!
+//! Run time ([`Relighter`]): irradiance per receiver from the lights and the compressed depth
+//! maps, direct radiance `albedo E / pi`, indirect radiance from the operator, their sum.
+
+pub mod build;
+pub mod depth;
+pub mod lights;
+pub mod operator;
+
+use std::time::Instant;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::bake::bounce::GatherMatrix;
+use crate::bake::{self, Backend, BakeInputs, BakeOptions, Mode, Progress};
+use crate::bvh::Bvh;
+use crate::compress::{compress_rows, Cpca, CpcaOptions};
+use crate::error::{Error, Result};
+use crate::ray::{offset_ray_origin, Ray, RAY_T_MAX};
+use crate::sampling::{tangent_frame, DirectionFrame, Pcg32, SampleSet, Sampling};
+use crate::scene::prepare::prepare;
+use crate::scene::Scene;
+use crate::sh::ShTable;
+use build::{build_compressed, OperatorShape, SparseOperator};
+use depth::{depth_maps_cpu, DepthLookup, DepthMaps, DirectionGrid};
+use lights::{direct_radiance, irradiance_from_depth, LocalLight, ReceiverFrames};
+use operator::{sparse_indirect, CompressedOperator};
+
+/// What a local-lights bake is asked for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LocalOptions {
+    /// Cosine-distributed gather rays per receiver (the gather matrix's samples).
+    pub samples: u32,
+    pub seed: u64,
+    /// Bounces of the direct-to-indirect operator (indirect light after 1 to B bounces).
+    pub bounces: u32,
+    /// Depth-map directions per side: `side^2` per receiver.
+    pub grid_side: u32,
+    /// Clusters and PCA components of the compressed depth maps.
+    pub depth_clusters: u32,
+    pub depth_components: u32,
+    /// The compressed operator's shape.
+    pub operator: OperatorShape,
+    /// Example lights for the operator's PCA bases.
+    pub example_lights: u32,
+}
+
+impl Default for LocalOptions {
+    fn default() -> Self {
+        LocalOptions {
+            samples: 256,
+            seed: 1,
+            bounces: 3,
+            grid_side: 16,
+            depth_clusters: 32,
+            depth_components: 24,
+            operator: OperatorShape {
+                clusters: 32,
+                components: 8,
+                sparsity: 0.01,
+                seed: 1,
+            },
+            example_lights: 256,
+        }
+    }
+}
+
+impl LocalOptions {
+    pub fn validate(&self) -> Result<()> {
+        let refuse = |message: String| Err(Error::Options(message));
+        if !(1..=crate::sampling::MAX_SAMPLES).contains(&self.samples) {
+            return refuse(format!("--samples {} is out of range", self.samples));
+        }
+        if self.bounces == 0 || self.bounces > bake::MAX_BOUNCES {
+            return refuse(format!(
+                "--bounces {} is out of range for local lights (1 to {})",
+                self.bounces,
+                bake::MAX_BOUNCES
+            ));
+        }
+        if !(2..=depth::MAX_GRID_SIDE).contains(&self.grid_side) {
+            return refuse(format!(
+                "--depth-grid {} is out of range (2 to {})",
+                self.grid_side,
+                depth::MAX_GRID_SIDE
+            ));
+        }
+        let directions = self.grid_side * self.grid_side;
+        if self.depth_clusters == 0 || self.depth_components > directions {
+            return refuse(format!(
+                "--depth-compress {}x{}: need at least one cluster and at most {directions} \
+                 components (the directions per map)",
+                self.depth_clusters, self.depth_components
+            ));
+        }
+        let op = &self.operator;
+        if op.clusters == 0 || op.components == 0 || op.components > self.example_lights {
+            return refuse(format!(
+                "--operator-compress {}x{}: need at least one cluster and 1 to --example-lights \
+                 ({}) components",
+                op.clusters, op.components, self.example_lights
+            ));
+        }
+        if !(0.0..1.0).contains(&op.sparsity) {
+            return refuse(format!("--sparsity {} must lie in [0, 1)", op.sparsity));
+        }
+        Ok(())
+    }
+}
+
+/// A local-lights bake: the prepared scene and everything a run time needs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LocalBake {
+    pub scene: Scene,
+    pub options: LocalOptions,
+    /// The depth maps' grid and the depth of rays that leave the scene.
+    pub grid: DirectionGrid,
+    pub open_depth: f32,
+    /// Compressed depth maps, one row of `grid.len()` per receiver.
+    pub depth: Cpca,
+    /// The gather matrix (the sparse operator with `options.bounces`).
+    pub matrix: GatherMatrix,
+    pub operator: CompressedOperator,
+}
+
+/// What a local bake did.
+#[derive(Clone, Debug, Default)]
+pub struct LocalReport {
+    pub receivers: usize,
+    pub triangles: usize,
+    pub rays_cast: u64,
+    pub seconds_gather: f64,
+    pub seconds_depth: f64,
+    pub seconds_depth_compress: f64,
+    pub seconds_examples: f64,
+    pub seconds_operator: f64,
+    /// RMS of the compressed depths' error over the RMS depth.
+    pub depth_error: f64,
+    pub depth_bytes_uncompressed: usize,
+    pub depth_bytes: usize,
+    pub gather_entries: usize,
+    pub operator_bytes: usize,
+    /// Sender blocks kept over all blocks.
+    pub operator_kept: f64,
+    /// The compressed operator's indirect light against the sparse operator's, relative RMS,
+    /// mean over [`HELD_OUT_LIGHTS`] lights placed as the examples are but from another seed.
+    pub operator_error: f64,
+    pub example_lights: usize,
+    pub backend: String,
+}
+
+impl LocalReport {
+    pub fn seconds(&self) -> f64 {
+        self.seconds_gather
+            + self.seconds_depth
+            + self.seconds_depth_compress
+            + self.seconds_examples
+            + self.seconds_operator
+    }
+}
+
+/// The bake's inputs for a prepared scene: the gather bake's (cosine samples, one band) and
+/// the receivers' tangent frames.
+pub struct LocalInputs {
+    pub bake: BakeInputs,
+    pub frames: Vec<[Vec3; 3]>,
+}
+
+impl LocalInputs {
+    pub fn new(scene: &Scene, options: &LocalOptions) -> Self {
+        let bake_options = BakeOptions {
+            bands: 1,
+            samples: options.samples,
+            sampling: Sampling::Cosine,
+            seed: options.seed,
+            mode: Mode::Interreflected,
+            ..BakeOptions::default()
+        };
+        let bake = BakeInputs::for_options(scene, &bake_options);
+        let frames = bake.normals.iter().map(|&n| tangent_frame(n)).collect();
+        LocalInputs { bake, frames }
+    }
+}
+
+/// The bake: prepare the scene, then [`bake_prepared`].
+pub fn bake_local(
+    scene: Scene,
+    options: &LocalOptions,
+    backend: &Backend,
+    progress: &dyn Progress,
+) -> Result<(LocalBake, LocalReport)> {
+    options.validate()?;
+    bake_prepared(prepare(scene)?.0, options, backend, progress)
+}
+
+/// Gather matrix, depth maps, their compression, example lights and the compressed operator
+/// for a prepared scene.
+pub fn bake_prepared(
+    scene: Scene,
+    options: &LocalOptions,
+    backend: &Backend,
+    progress: &dyn Progress,
+) -> Result<(LocalBake, LocalReport)> {
+    options.validate()?;
+    let mut report = LocalReport {
+        receivers: scene.positions.len(),
+        triangles: scene.triangles.len(),
+        backend: backend.describe(),
+        ..Default::default()
+    };
+    let mut inputs = LocalInputs::new(&scene, options);
+    let started = Instant::now();
+    let pass = bake::direct_pass(&inputs.bake.view(), Mode::Interreflected, backend, progress)?;
+    let matrix = pass
+        .matrix
+        .expect("interreflected passes build the gather matrix");
+    report.rays_cast = pass.rays_cast;
+    report.gather_entries = matrix.columns.len();
+    report.seconds_gather = started.elapsed().as_secs_f64();
+
+    let started = Instant::now();
+    let grid = DirectionGrid {
+        side: options.grid_side,
+    };
+    progress.stage("depth maps", 1);
+    let maps = depth_maps(&scene, &mut inputs, grid, backend)?;
+    progress.advance(1);
+    report.rays_cast += (maps.receivers() * grid.len()) as u64;
+    report.seconds_depth = started.elapsed().as_secs_f64();
+
+    let started = Instant::now();
+    let depth = compress_depth_maps(&maps, options)?;
+    report.depth_error = depth_error(&maps, &depth);
+    report.depth_bytes_uncompressed = 4 * maps.depths.len();
+    report.depth_bytes = depth.byte_size();
+    report.seconds_depth_compress = started.elapsed().as_secs_f64();
+
+    let started = Instant::now();
+    let positions = example_light_positions(&scene, &inputs.bake.bvh, options);
+    report.example_lights = positions.len();
+    let examples = example_irradiance(&scene, &inputs, &maps, &positions);
+    report.seconds_examples = started.elapsed().as_secs_f64();
+
+    let started = Instant::now();
+    let sparse = SparseOperator {
+        matrix: &matrix,
+        albedo: &scene.albedo,
+        bounces: options.bounces,
+    };
+    let features = clustering_features(&scene, inputs.bake.bvh.extent());
+    let operator = build_compressed(&sparse, &features, 6, &examples, options.operator)?;
+    report.operator_bytes = operator.byte_size();
+    let blocks = operator.clusters() * operator.clusters();
+    report.operator_kept = operator.senders.len() as f64 / blocks.max(1) as f64;
+    report.seconds_operator = started.elapsed().as_secs_f64();
+    report.operator_error = held_out_error(&scene, &inputs, &maps, &sparse, &operator, options);
+    let open_depth = maps.open_depth;
+    Ok((
+        LocalBake {
+            scene,
+            options: options.clone(),
+            grid,
+            open_depth,
+            depth,
+            matrix,
+            operator,
+        },
+        report,
+    ))
+}
+
+/// Depth maps of the receivers of `inputs` on the backend (the GPU's closest-hit kernel, or
+/// the CPU BVH).
+pub fn depth_maps(
+    scene: &Scene,
+    inputs: &mut LocalInputs,
+    grid: DirectionGrid,
+    backend: &Backend,
+) -> Result<DepthMaps> {
+    let owned = &mut inputs.bake;
+    match backend {
+        Backend::Cpu => Ok(depth_maps_cpu(
+            &owned.bvh,
+            &owned.origins,
+            &owned.normals,
+            grid,
+        )),
+        Backend::Gpu { baker, chunking } => {
+            // The gather bake's inputs with the grid's directions as a tangent-frame set.
+            let grid_set = SampleSet {
+                directions: grid.directions(),
+                weight: 1.0,
+                frame: DirectionFrame::Tangent,
+            };
+            let table = ShTable::new(1, &grid_set.directions);
+            let samples = std::mem::replace(&mut owned.samples, grid_set);
+            let table = std::mem::replace(&mut owned.table, table);
+            let hits = bake::gpu::closest_hits(baker, &owned.view(), *chunking, &bake::NoProgress);
+            owned.samples = samples;
+            owned.table = table;
+            Ok(depth_maps_from_hits(
+                scene,
+                &owned.origins,
+                grid,
+                &owned.bvh,
+                &hits?,
+            ))
+        }
+    }
+}
+
+/// Depth maps from closest hits `(cell, hit)` per receiver: the distance from the ray origin
+/// to the hit point (barycentric interpolation of the hit triangle's corners).
+pub fn depth_maps_from_hits(
+    scene: &Scene,
+    origins: &[Vec3],
+    grid: DirectionGrid,
+    bvh: &Bvh,
+    hits: &[Vec<(u32, bake::bounce::Hit)>],
+) -> DepthMaps {
+    let open = depth::open_depth(bvh);
+    let cells = grid.len();
+    let mut depths = vec![open; origins.len() * cells];
+    depths
+        .par_chunks_mut(cells)
+        .zip(hits.par_iter().zip(origins))
+        .for_each(|(row, (own, &origin))| {
+            for &(cell, hit) in own {
+                let corners =
+                    scene.triangles[hit.triangle as usize].map(|i| scene.positions[i as usize]);
+                let point =
+                    corners[0] * (1.0 - hit.u - hit.v) + corners[1] * hit.u + corners[2] * hit.v;
+                row[cell as usize] = (point - origin).length().min(open);
+            }
+        });
+    DepthMaps {
+        grid,
+        open_depth: open,
+        depths,
+    }
+}
+
+/// The depth maps compressed by clustered PCA.
+pub fn compress_depth_maps(maps: &DepthMaps, options: &LocalOptions) -> Result<Cpca> {
+    compress_rows(
+        &maps.depths,
+        maps.grid.len(),
+        &CpcaOptions {
+            clusters: options.depth_clusters.min(maps.receivers() as u32).max(1),
+            components: options.depth_components,
+            iterations: 4,
+            seed: options.seed,
+        },
+    )
+}
+
+/// RMS error of the compressed depths over the RMS depth.
+pub fn depth_error(maps: &DepthMaps, depth: &Cpca) -> f64 {
+    let cells = maps.grid.len();
+    let (diff, norm) = (0..maps.receivers())
+        .into_par_iter()
+        .map(|p| {
+            (0..cells).fold((0.0f64, 0.0f64), |(d, n), cell| {
+                let exact = maps.depth(p, cell) as f64;
+                let e = depth.depth(p, cell) as f64 - exact;
+                (d + e * e, n + exact * exact)
+            })
+        })
+        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    (diff / norm.max(f64::MIN_POSITIVE)).sqrt()
+}
+
+/// Positions for the example lights: uniform in the scene's box (shrunk by 5% each side),
+/// kept where none of six axis rays first meets the back of a surface (the point is not
+/// inside an object); at most 64 draws per light kept.
+pub fn example_light_positions(scene: &Scene, bvh: &Bvh, options: &LocalOptions) -> Vec<Vec3> {
+    let (lo, hi) = bounds(&scene.positions);
+    let margin = (hi - lo) * 0.05;
+    let (lo, hi) = (lo + margin, hi - margin);
+    let normals = scene.normals.as_deref().unwrap_or_default();
+    let mut rng = Pcg32::new(options.seed ^ 0x11_6874);
+    let wanted = options.example_lights as usize;
+    let mut kept = Vec::with_capacity(wanted);
+    for _ in 0..wanted * 64 {
+        if kept.len() == wanted {
+            break;
+        }
+        let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let p = lo + (hi - lo) * u;
+        if in_free_space(scene, normals, bvh, p) {
+            kept.push(p);
+        }
+    }
+    kept
+}
+
+/// Whether none of the six axis rays from `p` first meets the back of a surface.
+pub fn in_free_space(scene: &Scene, normals: &[Vec3], bvh: &Bvh, p: Vec3) -> bool {
+    [
+        Vec3::X,
+        Vec3::NEG_X,
+        Vec3::Y,
+        Vec3::NEG_Y,
+        Vec3::Z,
+        Vec3::NEG_Z,
+    ]
+    .iter()
+    .all(|&d| match bvh.closest_hit(&Ray::new(p, d), RAY_T_MAX) {
+        None => true,
+        Some((triangle, hit)) => {
+            let [a, b, c] = scene.triangles[triangle as usize].map(|i| normals[i as usize]);
+            let shading = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+            shading.dot(d) < 0.0
+        }
+    })
+}
+
+/// Lights the bake's report measures the compressed operator's error with.
+pub const HELD_OUT_LIGHTS: u32 = 8;
+
+/// The compressed operator's error against the sparse one (see [`LocalReport::operator_error`]).
+fn held_out_error(
+    scene: &Scene,
+    inputs: &LocalInputs,
+    maps: &DepthMaps,
+    sparse: &SparseOperator,
+    operator: &CompressedOperator,
+    options: &LocalOptions,
+) -> f64 {
+    let held_out = LocalOptions {
+        example_lights: HELD_OUT_LIGHTS,
+        seed: options.seed.wrapping_add(0x9e37_79b9),
+        ..options.clone()
+    };
+    let positions = example_light_positions(scene, &inputs.bake.bvh, &held_out);
+    let examples = example_irradiance(scene, inputs, maps, &positions);
+    let n = scene.positions.len();
+    let errors: Vec<f64> = examples
+        .chunks_exact(n.max(1))
+        .map(|irradiance| {
+            let direct = direct_radiance(irradiance, &scene.albedo);
+            let exact = sparse_indirect(sparse.matrix, sparse.albedo, sparse.bounces, &direct);
+            operator::relative_rms(&exact, &operator.indirect(irradiance))
+        })
+        .collect();
+    errors.iter().sum::<f64>() / errors.len().max(1) as f64
+}
+
+/// `[light][receiver]` irradiance of unit point lights at `positions`, visibility from the
+/// exact depth maps.
+fn example_irradiance(
+    scene: &Scene,
+    inputs: &LocalInputs,
+    maps: &DepthMaps,
+    positions: &[Vec3],
+) -> Vec<f32> {
+    let normals = scene.normals.as_deref().unwrap_or_default();
+    let frames = ReceiverFrames {
+        positions: &scene.positions,
+        normals,
+        origins: &inputs.bake.origins,
+        frames: &inputs.frames,
+    };
+    positions
+        .iter()
+        .flat_map(|&p| {
+            irradiance_from_depth(&frames, maps, &maps.grid, &[LocalLight::point(p, 1.0)])
+        })
+        .collect()
+}
+
+/// Per receiver: position over the scene's extent, and normal at a quarter of that weight
+/// (clusters stay compact in space and do not mix a floor with the wall beside it).
+fn clustering_features(scene: &Scene, extent: f32) -> Vec<f32> {
+    let normals = scene.normals.as_deref().unwrap_or_default();
+    scene
+        .positions
+        .iter()
+        .zip(normals)
+        .flat_map(|(&p, &n)| {
+            let p = p / extent.max(f32::MIN_POSITIVE);
+            let n = n * 0.25;
+            [p.x, p.y, p.z, n.x, n.y, n.z]
+        })
+        .collect()
+}
+
+fn bounds(points: &[Vec3]) -> (Vec3, Vec3) {
+    points.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    )
+}
+
+/// The largest side of the points' box: the BVH's `extent` (its root box is the triangles'),
+/// so the run time finds the bake's ray origins without a tree.
+pub fn scene_extent(points: &[Vec3]) -> f32 {
+    let (lo, hi) = bounds(points);
+    (hi - lo).max_element().max(0.0)
+}
+
+/// Which form of the operator a frame uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum OperatorForm {
+    /// Clusters, PCA bases of example direct light, responses per cluster pair.
+    Compressed,
+    /// The gather matrix bounced B times.
+    Sparse,
+}
+
+/// The run time: what a frame needs besides the lights, worked out once.
+pub struct Relighter<'a> {
+    pub bake: &'a LocalBake,
+    pub origins: Vec<Vec3>,
+    pub frames: Vec<[Vec3; 3]>,
+}
+
+/// One frame's radiance, RGB per receiver.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    pub irradiance: Vec<f32>,
+    pub direct: Vec<Vec3>,
+    pub indirect: Vec<Vec3>,
+}
+
+impl Frame {
+    /// Direct plus indirect.
+    pub fn total(&self) -> Vec<[f32; 3]> {
+        self.direct
+            .iter()
+            .zip(&self.indirect)
+            .map(|(d, i)| (*d + *i).to_array())
+            .collect()
+    }
+}
+
+impl<'a> Relighter<'a> {
+    pub fn new(bake: &'a LocalBake) -> Self {
+        let normals = bake.scene.normals.as_deref().unwrap_or_default();
+        let extent = scene_extent(&bake.scene.positions);
+        let origins = bake
+            .scene
+            .positions
+            .iter()
+            .zip(normals)
+            .map(|(&p, &n)| offset_ray_origin(p, n, extent))
+            .collect();
+        let frames = normals.iter().map(|&n| tangent_frame(n)).collect();
+        Relighter {
+            bake,
+            origins,
+            frames,
+        }
+    }
+
+    pub fn receiver_frames(&self) -> ReceiverFrames<'_> {
+        ReceiverFrames {
+            positions: &self.bake.scene.positions,
+            normals: self.bake.scene.normals.as_deref().unwrap_or_default(),
+            origins: &self.origins,
+            frames: &self.frames,
+        }
+    }
+
+    /// Irradiance per receiver, visibility from the compressed depth maps.
+    pub fn irradiance(&self, lights: &[LocalLight]) -> Vec<f32> {
+        irradiance_from_depth(
+            &self.receiver_frames(),
+            &self.bake.depth,
+            &self.bake.grid,
+            lights,
+        )
+    }
+
+    /// Direct and indirect radiance for `lights` with the chosen operator.
+    pub fn frame(&self, lights: &[LocalLight], form: OperatorForm) -> Frame {
+        let irradiance = self.irradiance(lights);
+        self.frame_from_irradiance(irradiance, form)
+    }
+
+    /// The rest of a frame once the irradiance is known.
+    pub fn frame_from_irradiance(&self, irradiance: Vec<f32>, form: OperatorForm) -> Frame {
+        let bake = self.bake;
+        let direct = direct_radiance(&irradiance, &bake.scene.albedo);
+        let indirect = match form {
+            OperatorForm::Compressed => bake.operator.indirect(&irradiance),
+            OperatorForm::Sparse => sparse_indirect(
+                &bake.matrix,
+                &bake.scene.albedo,
+                bake.options.bounces,
+                &direct,
+            ),
+        };
+        Frame {
+            irradiance,
+            direct,
+            indirect,
+        }
+    }
+}
+
+/// The sparse operator's bounces on the GPU (the bake's gather kernel): the gather matrix and
+/// the albedo uploaded once, then per frame one kernel pass per bounce.
+pub struct GpuSparse<'b> {
+    baker: &'b bake::gpu::GpuBaker,
+    matrix: bake::gpu::GpuGatherMatrix,
+    bounces: u32,
+}
+
+impl<'b> GpuSparse<'b> {
+    pub fn new(baker: &'b bake::gpu::GpuBaker, bake: &LocalBake) -> Result<Self> {
+        Ok(GpuSparse {
+            baker,
+            matrix: baker.upload_gather_matrix(&bake.matrix, &bake.scene.albedo, 1)?,
+            bounces: bake.options.bounces,
+        })
+    }
+
+    /// `(T + ... + T^B) direct`, as [`operator::sparse_indirect`] on the CPU.
+    pub fn indirect(&self, direct: &[Vec3]) -> Result<Vec<Vec3>> {
+        let mut previous: Vec<f32> = direct.iter().flat_map(|d| d.to_array()).collect();
+        let mut total = vec![Vec3::ZERO; direct.len()];
+        for _ in 0..self.bounces {
+            previous = self.baker.bounce(&self.matrix, &previous)?;
+            for (t, c) in total.iter_mut().zip(previous.chunks_exact(3)) {
+                *t += Vec3::new(c[0], c[1], c[2]);
+            }
+        }
+        Ok(total)
+    }
+}
+
+/// Per-frame relighting times, seconds, one entry per frame.
+#[derive(Clone, Debug, Default)]
+pub struct FrameTimes {
+    /// Irradiance from the compressed depth maps (shared by every operator).
+    pub irradiance: Vec<f64>,
+    /// Irradiance, direct radiance and the compressed operator.
+    pub compressed: Vec<f64>,
+    /// Irradiance, direct radiance and the sparse bounces on the CPU.
+    pub sparse: Vec<f64>,
+    /// Irradiance and direct radiance on the CPU, the sparse bounces on the GPU.
+    pub gpu_sparse: Vec<f64>,
+}
+
+fn mean_and_max_ms(times: &[f64]) -> (f64, f64) {
+    let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
+    let max = times.iter().cloned().fold(0.0, f64::max);
+    (1e3 * mean, 1e3 * max)
+}
+
+impl FrameTimes {
+    /// One line: mean and worst milliseconds per frame of each path.
+    pub fn report(&self, receivers: usize, gpu: Option<String>) -> String {
+        let part = |name: &str, times: &[f64]| {
+            let (mean, max) = mean_and_max_ms(times);
+            format!("{name} {mean:.2} ms (max {max:.2})")
+        };
+        let mut parts = vec![
+            part("irradiance from the depth maps", &self.irradiance),
+            part("+ compressed operator", &self.compressed),
+            part("+ sparse operator", &self.sparse),
+        ];
+        if let Some(adapter) = gpu {
+            parts.push(part(
+                &format!("+ sparse operator on the GPU ({adapter})"),
+                &self.gpu_sparse,
+            ));
+        }
+        format!(
+            "relighting per frame, {receivers} receivers, mean of {} frame(s): {}",
+            self.irradiance.len(),
+            parts.join("; ")
+        )
+    }
+}
+
+/// One frame timed on every path (the compressed and sparse operators on the CPU, the sparse
+/// one on the GPU when given); returns the frame of the `form` asked for.
+pub fn time_frame(
+    relighter: &Relighter,
+    lights: &[LocalLight],
+    form: OperatorForm,
+    gpu: Option<&GpuSparse>,
+    times: &mut FrameTimes,
+) -> Result<Frame> {
+    let started = Instant::now();
+    let irradiance = relighter.irradiance(lights);
+    let seconds_irradiance = started.elapsed().as_secs_f64();
+    times.irradiance.push(seconds_irradiance);
+    let mut chosen = None;
+    for (path, record) in [
+        (OperatorForm::Compressed, &mut times.compressed),
+        (OperatorForm::Sparse, &mut times.sparse),
+    ] {
+        let started = Instant::now();
+        let frame = relighter.frame_from_irradiance(irradiance.clone(), path);
+        record.push(seconds_irradiance + started.elapsed().as_secs_f64());
+        if path == form {
+            chosen = Some(frame);
+        }
+    }
+    if let Some(gpu) = gpu {
+        let started = Instant::now();
+        let direct = direct_radiance(&irradiance, &relighter.bake.scene.albedo);
+        gpu.indirect(&direct)?;
+        times
+            .gpu_sparse
+            .push(seconds_irradiance + started.elapsed().as_secs_f64());
+    }
+    Ok(chosen.expect("both forms are timed"))
+}
+
+/// Frame `index`'s image: `path` itself for a single frame, else `STEM_012.EXT`.
+pub fn frame_path(path: &std::path::Path, index: u32, frames: u32) -> std::path::PathBuf {
+    if frames <= 1 {
+        return path.to_path_buf();
+    }
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}_{index:03}.{}", ext.to_string_lossy()),
+        None => format!("{stem}_{index:03}"),
+    };
+    path.with_file_name(name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::builtin;
+
+    #[test]
+    fn frames_are_numbered_only_when_there_are_several() {
+        let path = std::path::Path::new("out/seq.png");
+        assert_eq!(frame_path(path, 0, 1), path);
+        assert_eq!(
+            frame_path(path, 7, 30),
+            std::path::Path::new("out/seq_007.png")
+        );
+    }
+
+    #[test]
+    fn the_interior_is_closed_and_free_space_is_told_from_inside_objects() {
+        let (scene, _) = prepare(builtin::interior_scene()).unwrap();
+        let bvh = Bvh::build(&scene.positions, &scene.triangles);
+        let normals = scene.normals.as_deref().unwrap();
+        // No ray from the middle of either room leaves the scene.
+        let mut rng = Pcg32::new(4);
+        for room in [Vec3::new(-2.0, 1.2, 1.0), Vec3::new(1.6, 1.2, 1.0)] {
+            assert!(in_free_space(&scene, normals, &bvh, room));
+            for _ in 0..2000 {
+                let d = Vec3::new(
+                    rng.next_f32() - 0.5,
+                    rng.next_f32() - 0.5,
+                    rng.next_f32() - 0.5,
+                );
+                let ray = Ray::new(room, d.normalize());
+                assert!(bvh.closest_hit(&ray, RAY_T_MAX).is_some(), "{room} {d}");
+            }
+        }
+        // Inside the table top, the wall and the ball.
+        for inside in [
+            Vec3::new(-2.0, 0.75, 0.0),
+            Vec3::new(0.125, 1.0, -1.0),
+            Vec3::new(-0.875, 0.375, -1.25),
+        ] {
+            assert!(!in_free_space(&scene, normals, &bvh, inside), "{inside}");
+        }
+        assert_eq!(scene_extent(&scene.positions), bvh.extent());
+    }
+}

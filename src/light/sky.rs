@@ -171,14 +171,15 @@ mod tests {
                 }
             }
         }
-        // The copy carries the same light: its integral over the sphere is the map's.
+        // The copy carries the same light: its integral over the sphere is the map's (to f32
+        // rounding of the means).
         let (a, b) = (
             total(&image, Mapping::Latlong),
             total(&copy, Mapping::Latlong),
         );
         for c in 0..3 {
             assert!(
-                (a[c] - b[c]).abs() < 1e-9 * a[c].abs().max(1.0),
+                (a[c] - b[c]).abs() < 1e-6 * a[c].abs().max(1.0),
                 "{a:?} {b:?}"
             );
         }

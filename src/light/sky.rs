@@ -129,8 +129,8 @@ mod tests {
         for y in 0..image.height {
             for x in 0..image.width {
                 let w = pixel_solid_angle(mapping, image.width, image.height, x, y);
-                for c in 0..3 {
-                    sum[c] += w * image.pixel(x, y)[c] as f64;
+                for (total, value) in sum.iter_mut().zip(image.pixel(x, y)) {
+                    *total += w * value as f64;
                 }
             }
         }
@@ -160,8 +160,8 @@ mod tests {
                     [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(i, j)| (2 * tx + i, 2 * ty + j))
                 {
                     let w = pixel_solid_angle(Mapping::Latlong, 16, 8, x, y);
-                    for c in 0..3 {
-                        sum[c] += w * image.pixel(x, y)[c] as f64;
+                    for (total, value) in sum.iter_mut().zip(image.pixel(x, y)) {
+                        *total += w * value as f64;
                     }
                     sum[3] += w;
                 }

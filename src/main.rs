@@ -17,7 +17,7 @@ use prt_gpu::bake::{
 use prt_gpu::compress::{self, Cpca, CpcaOptions};
 use prt_gpu::device::{self, DeviceChoice, GpuContext};
 use prt_gpu::glb::Precision;
-use prt_gpu::light::{self, analytic, Mapping, ShLight};
+use prt_gpu::light::{self, analytic, EnvImage, Mapping, ShLight};
 use prt_gpu::local::build::OperatorShape;
 use prt_gpu::local::lights::{self as local_lights, LocalLight};
 use prt_gpu::local::{self, LocalOptions, OperatorForm};
@@ -1824,11 +1824,13 @@ fn run_view(args: ViewArgs) -> Result<()> {
         .map(|(_, b)| b.metadata.bands)
         .max()
         .unwrap_or(1);
-    let light = match &args.light {
-        Some(light_path) => light::load(light_path, bands, args.mapping, false)?.light,
-        None => light::preview_light(bands)?,
-    };
-    let light = shape(light, &args.shaping);
+    let (light, map) = view_light(&args, bands)?;
+    let rotation = args.shaping.rotate.unwrap_or(Vec3::ZERO);
+    let sky = map.as_ref().map(|(image, mapping)| view::ViewerSky {
+        image,
+        mapping: *mapping,
+        yaw_pitch_roll: [rotation.x as f64, rotation.y as f64, rotation.z as f64],
+    });
     let inputs: Vec<view::ViewerBake> = bakes
         .iter()
         .map(|(name, baked)| view::ViewerBake {
@@ -1836,18 +1838,39 @@ fn run_view(args: ViewArgs) -> Result<()> {
             baked,
         })
         .collect();
-    view::write_viewer(&args.output, &inputs, &light)?;
+    view::write_viewer(&args.output, &inputs, &light, sky.as_ref())?;
     let size = std::fs::metadata(&args.output)
         .map(|m| m.len())
         .unwrap_or(0);
     println!(
-        "viewer of {} file(s), light of {} bands, {:.1} MB -> {}",
+        "viewer of {} file(s), light of {} bands{}, {:.1} MB -> {}",
         inputs.len(),
         light.bands,
+        if sky.is_some() {
+            ", the map as the sky"
+        } else {
+            ""
+        },
         size as f64 / 1e6,
         args.output.display()
     );
     Ok(())
+}
+
+/// The viewer's light, shaped, and the environment map it was projected from (if it was).
+fn view_light(args: &ViewArgs, bands: u32) -> Result<(ShLight, Option<(EnvImage, Mapping)>)> {
+    let (light, map) = match &args.light {
+        Some(light_path) => {
+            let loaded = light::load(light_path, bands, args.mapping, false)?;
+            let map = match loaded.mapping {
+                Some(mapping) => Some((light::envmap::load(light_path)?, mapping)),
+                None => None,
+            };
+            (loaded.light, map)
+        }
+        None => (light::preview_light(bands)?, None),
+    };
+    Ok((shape(light, &args.shaping), map))
 }
 
 fn run_export_x3d(args: X3dArgs) -> Result<()> {

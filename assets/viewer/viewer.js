@@ -1,6 +1,7 @@
 "use strict";
 // The viewer: reads the embedded bakes and light, draws the selected bake relit per vertex
-// (mesh.vert) over the light as a sky (sky.frag), and turns camera, light and exposure with
+// (mesh.vert) over a sky: the environment map where the page embeds one (sky_map.frag), else
+// the SH light (sky.frag); and turns camera, light and exposure with
 // the mouse, the controls or the URL. Matches `prt-gpu render`: the same camera (look-at,
 // vertical field of view, near and far planes hugging the mesh), the same dot product, the
 // same tone mapping.
@@ -39,8 +40,15 @@ function initialState(params) {
     exposure: Number(params.get("exposure") ?? 0) || 0,
     tone: TONE_MAPS.includes(tone) ? tone : "reinhard",
     file: Number.isInteger(file) && file >= 0 && file < DATA.bakes.length ? file : 0,
-    sky: params.get("sky") !== "0",
+    sky: skyChoice(params.get("sky")),
   };
+}
+
+// What is drawn behind the model: "map" (the environment map, where the page holds one),
+// "sh" (the SH light) or "0" (nothing). Default and "1": the map where there is one.
+function skyChoice(param) {
+  if (param === "0" || param === "sh") return param;
+  return DATA.light.map ? "map" : "sh";
 }
 
 function stateQuery(state) {
@@ -48,7 +56,7 @@ function stateQuery(state) {
   const c = state.camera;
   return `?cam=${[...c.eye, ...c.target, c.fov].map(round).join(",")}` +
     `&rot=${state.rotation.map(round).join(",")}&exposure=${round(state.exposure)}` +
-    `&tone=${state.tone}&file=${state.file}&sky=${state.sky ? 1 : 0}`;
+    `&tone=${state.tone}&file=${state.file}&sky=${state.sky}`;
 }
 
 // ---- The camera: render::Camera's look-at and projection, in WebGL's clip space ----
@@ -199,6 +207,21 @@ function setToneMap(gl, at, state) {
   gl.uniform1i(at("tone_map_kind"), TONE_MAPS.indexOf(state.tone));
 }
 
+// The map's lat-long copy as a half-float texture, row 0 (the top, +Y) first: texture
+// coordinate v runs down the map as light::mapping's rows do.
+function skyMapTexture(gl, map) {
+  const texture = gl.createTexture();
+  gl.bindTexture(gl.TEXTURE_2D, texture);
+  gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+  gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGB16F, map.width, map.height, 0, gl.RGB, gl.HALF_FLOAT,
+    decodeBase64(map.rgb, Uint16Array));
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.REPEAT);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+  return texture;
+}
+
 // ---- Drawing ----
 class Viewer {
   constructor(canvas, state) {
@@ -208,6 +231,7 @@ class Viewer {
     if (!this.gl) throw new Error("this browser has no WebGL2");
     this.meshes = new Map();
     this.sky = null;
+    this.skyMap = null;
   }
 
   mesh(index) {
@@ -222,6 +246,15 @@ class Viewer {
       this.sky = { program, at: uniforms(this.gl, program) };
     }
     return this.sky;
+  }
+
+  skyMapProgram() {
+    if (!this.skyMap) {
+      const program = compile(this.gl, "", { vertex: ["sky-vertex"], fragment: ["tone-map", "sky-map-fragment"] });
+      const texture = skyMapTexture(this.gl, DATA.light.map);
+      this.skyMap = { program, texture, at: uniforms(this.gl, program) };
+    }
+    return this.skyMap;
   }
 
   // The light as the page uses it: the file's light turned by state.rotation.
@@ -243,17 +276,39 @@ class Viewer {
     gl.clearColor(0, 0, 0, 0);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
     const light = this.light();
-    if (state.sky) this.drawSky(light, width, height);
+    if (state.sky === "map" && DATA.light.map) this.drawSkyMap(width, height);
+    else if (state.sky !== "0") this.drawSky(light, width, height);
     this.drawMesh(light, width / height);
   }
 
   drawSky(light, width, height) {
-    const { gl, state } = this;
+    const { gl } = this;
     const { program, at } = this.skyProgram();
-    const { forward, right, up } = cameraBasis(state.camera);
-    const tanHalf = Math.tan((state.camera.fov * Math.PI) / 360);
     gl.useProgram(program);
     gl.uniform3fv(at("light"), light.flat());
+    this.drawBackdrop(at, width, height);
+  }
+
+  // The map turned as the light is: first by the rotation it was written with, then by the
+  // page's. The rows of R, read as GLSL's columns, give R's transpose: map from world.
+  drawSkyMap(width, height) {
+    const { gl, state } = this;
+    const { program, texture, at } = this.skyMapProgram();
+    const turn = matrixProduct(yawPitchRollMatrix(...state.rotation),
+      yawPitchRollMatrix(...DATA.light.map.yawPitchRoll));
+    gl.useProgram(program);
+    gl.uniformMatrix3fv(at("map_from_world"), false, turn.flat());
+    gl.activeTexture(gl.TEXTURE0);
+    gl.bindTexture(gl.TEXTURE_2D, texture);
+    gl.uniform1i(at("sky_map"), 0);
+    this.drawBackdrop(at, width, height);
+  }
+
+  // The screen-filling triangle of a sky, its view rays from the camera.
+  drawBackdrop(at, width, height) {
+    const { gl, state } = this;
+    const { forward, right, up } = cameraBasis(state.camera);
+    const tanHalf = Math.tan((state.camera.fov * Math.PI) / 360);
     gl.uniform3fv(at("camera_forward"), forward);
     gl.uniform3fv(at("camera_right"), right);
     gl.uniform3fv(at("camera_up"), up);
@@ -342,12 +397,13 @@ function connectInput(viewer, redraw) {
     exposure.value = state.exposure;
     document.getElementById("exposure-value").textContent = state.exposure.toFixed(1);
     tone.value = state.tone;
-    sky.checked = state.sky;
+    sky.value = state.sky;
   };
   fileSelect.addEventListener("change", () => { state.file = Number(fileSelect.value); redraw(); });
   exposure.addEventListener("input", () => { state.exposure = Number(exposure.value); redraw(); });
   tone.addEventListener("change", () => { state.tone = tone.value; redraw(); });
-  sky.addEventListener("change", () => { state.sky = sky.checked; redraw(); });
+  if (!DATA.light.map) sky.querySelector('option[value="map"]').remove();
+  sky.addEventListener("change", () => { state.sky = sky.value; redraw(); });
   window.addEventListener("keydown", (e) => {
     const index = Number(e.key) - 1;
     if (index >= 0 && index < DATA.bakes.length) { state.file = index; redraw(); }

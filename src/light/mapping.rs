@@ -229,6 +229,20 @@ fn latlong_direction(width: usize, height: usize, x: usize, y: usize) -> DVec3 {
     )
 }
 
+/// Where a lat-long image of `width x height` looks along `direction`: the continuous position
+/// (x, y) in pixels from the top-left corner, the inverse of the pixel-centre directions above
+/// (pixel (x, y) looks along `direction` at position (x + 0.5, y + 0.5)). x lies in [0, width],
+/// wrapping around; y in [0, height].
+pub fn latlong_position(width: usize, height: usize, direction: DVec3) -> (f64, f64) {
+    let d = direction.normalize();
+    let azimuth = d.z.atan2(d.x);
+    let elevation = d.y.clamp(-1.0, 1.0).asin();
+    (
+        (azimuth + PI) / (2.0 * PI) * width as f64,
+        (0.5 - elevation / PI) * height as f64,
+    )
+}
+
 fn elevation_azimuth(sin_e: f64, cos_e: f64, cos_a: f64, sin_a: f64) -> DVec3 {
     DVec3::new(cos_e * cos_a, sin_e, cos_e * sin_a)
 }

@@ -3,6 +3,7 @@
 //! - [`envmap`] reads environment-map files as linear RGB images;
 //! - [`mapping`] says how each parameterization maps pixels to directions and solid angles;
 //! - [`mod@project`] turns an environment map into SH coefficients;
+//! - [`sky`] makes a small lat-long copy of a map to draw as a sky, and looks it up;
 //! - [`analytic`] gives closed-form projections of analytic lights;
 //! - [`mod@file`] reads and writes light.json.
 
@@ -11,6 +12,7 @@ pub mod envmap;
 pub mod file;
 pub mod mapping;
 pub mod project;
+pub mod sky;
 
 pub use envmap::EnvImage;
 pub use file::{read_json, write_json};

@@ -8,19 +8,22 @@
 //! coefficients (a lightmapped file: its texels' transfer and lightmap coordinates instead).
 //! The page does what `render` does — one dot product per vertex and channel, interpolated
 //! across triangles (or per texel, looked up bilinearly), tone mapped per pixel, the SH light
-//! drawn behind as a sky —
+//! drawn behind as a sky (the environment map itself, as a small lat-long copy, where the
+//! light is one) —
 //! and rotates the light in the page with the same SH rotation as `sh::rotation`.
 
 use std::path::Path;
 
 use base64::Engine;
 use glam::Vec3;
+use half::f16;
 use serde::Serialize;
 
 use crate::bake::{BakedMesh, TexelBake};
 use crate::error::{Error, Result};
 use crate::fs::write_atomically;
-use crate::light::ShLight;
+use crate::light::sky::latlong_copy;
+use crate::light::{EnvImage, Mapping, ShLight};
 use crate::render::{bounds, Camera};
 
 /// The page: markup and style, with `{{TITLE}}`, `{{SHADERS}}`, `{{DATA}}` and `{{SCRIPT}}`
@@ -31,7 +34,7 @@ const SH_SCRIPT: &str = include_str!("../../assets/viewer/sh.js");
 /// Camera, input handling and drawing.
 const VIEWER_SCRIPT: &str = include_str!("../../assets/viewer/viewer.js");
 /// The shaders, each embedded as a `<script type="x-shader/...">` element of this id.
-const SHADERS: [(&str, &str); 8] = [
+const SHADERS: [(&str, &str); 9] = [
     (
         "tone-map",
         include_str!("../../assets/viewer/tone_map.glsl"),
@@ -55,7 +58,23 @@ const SHADERS: [(&str, &str); 8] = [
     ),
     ("sky-vertex", include_str!("../../assets/viewer/sky.vert")),
     ("sky-fragment", include_str!("../../assets/viewer/sky.frag")),
+    (
+        "sky-map-fragment",
+        include_str!("../../assets/viewer/sky_map.frag"),
+    ),
 ];
+
+/// The widest lat-long copy of an environment map the page embeds (half as high): 512 x 256
+/// texels of three half floats, about 1 MB of base64.
+pub const SKY_MAP_MAX_WIDTH: usize = 512;
+
+/// An environment map to draw as the sky: the map, its mapping, and the rotation (yaw, pitch,
+/// roll in degrees, as `ShLight::rotated`) the light was given before the page turns it.
+pub struct ViewerSky<'a> {
+    pub image: &'a EnvImage,
+    pub mapping: Mapping,
+    pub yaw_pitch_roll: [f64; 3],
+}
 
 /// One baked file for the viewer, named as the page lists it.
 pub struct ViewerBake<'a> {
@@ -76,6 +95,20 @@ struct PageData {
 struct PageLight {
     bands: u32,
     coeffs: Vec<[f32; 3]>,
+    /// The environment map as a lat-long sky, where the light is one.
+    map: Option<PageSkyMap>,
+}
+
+#[derive(Serialize)]
+#[serde(rename_all = "camelCase")]
+struct PageSkyMap {
+    width: usize,
+    height: usize,
+    /// Base64 of little-endian IEEE half floats r, g, b per texel, row-major, row 0 the top
+    /// (+Y), laid out as `light::mapping`'s lat-long.
+    rgb: String,
+    /// The rotation the light was given before the page's, in degrees.
+    yaw_pitch_roll: [f64; 3],
 }
 
 #[derive(Serialize)]
@@ -120,14 +153,25 @@ struct PageLightmap {
 }
 
 /// Checks every input and writes the viewer to `path` atomically (nothing on failure).
-pub fn write_viewer(path: &Path, bakes: &[ViewerBake], light: &ShLight) -> Result<()> {
-    let html = viewer_html(bakes, light)?;
+pub fn write_viewer(
+    path: &Path,
+    bakes: &[ViewerBake],
+    light: &ShLight,
+    sky: Option<&ViewerSky>,
+) -> Result<()> {
+    let html = viewer_html(bakes, light, sky)?;
     write_atomically(path, html.as_bytes())
 }
 
 /// The viewer page for `bakes` under `light`, checked: the light must have at least as many
 /// bands as every bake (the page dots the bake's `bands^2` coefficients with the light's).
-pub fn viewer_html(bakes: &[ViewerBake], light: &ShLight) -> Result<String> {
+/// With `sky`, the page also embeds a lat-long copy of the map (at most
+/// [`SKY_MAP_MAX_WIDTH`] wide) and draws it behind the model.
+pub fn viewer_html(
+    bakes: &[ViewerBake],
+    light: &ShLight,
+    sky: Option<&ViewerSky>,
+) -> Result<String> {
     let first = bakes
         .first()
         .ok_or_else(|| Error::Options("view: no baked files".into()))?;
@@ -141,6 +185,7 @@ pub fn viewer_html(bakes: &[ViewerBake], light: &ShLight) -> Result<String> {
         light: PageLight {
             bands: light.bands,
             coeffs: light.coeffs.clone(),
+            map: sky.map(page_sky_map).transpose()?,
         },
         camera: PageCamera {
             eye: camera.eye.to_array(),
@@ -173,6 +218,24 @@ fn check_light(light: &ShLight) -> Result<()> {
         )));
     }
     Ok(())
+}
+
+/// The map's lat-long copy as half floats (radiance beyond what a half float holds saturates
+/// at 65504).
+fn page_sky_map(sky: &ViewerSky) -> Result<PageSkyMap> {
+    let copy = latlong_copy(sky.image, sky.mapping, SKY_MAP_MAX_WIDTH)?;
+    let bytes: Vec<u8> = copy
+        .pixels
+        .iter()
+        .flatten()
+        .flat_map(|&c| f16::from_f32(c.clamp(0.0, f16::MAX.to_f32())).to_le_bytes())
+        .collect();
+    Ok(PageSkyMap {
+        width: copy.width,
+        height: copy.height,
+        rgb: base64::engine::general_purpose::STANDARD.encode(bytes),
+        yaw_pitch_roll: sky.yaw_pitch_roll,
+    })
 }
 
 /// One file's arrays, refused where the page could not show it as baked.
@@ -330,6 +393,7 @@ mod tests {
                 baked: &baked,
             }],
             &light,
+            None,
         )
         .unwrap();
         assert_eq!(embedded_floats(&html, "transfer"), baked.transfer.coeffs);
@@ -356,7 +420,7 @@ mod tests {
                 name: "x.glb".into(),
                 baked,
             };
-            viewer_html(&[bake], light)
+            viewer_html(&[bake], light, None)
         };
         assert!(viewer(&baked, &ShLight::constant(3, [1.0; 3])).is_ok());
         assert!(viewer(&baked, &ShLight::constant(5, [1.0; 3])).is_ok());
@@ -386,6 +450,6 @@ mod tests {
         empty.transfer.coeffs.clear();
         empty.transfer.vertex_count = 0;
         assert!(viewer(&empty, &ShLight::constant(3, [1.0; 3])).is_err());
-        assert!(viewer_html(&[], &ShLight::constant(3, [1.0; 3])).is_err());
+        assert!(viewer_html(&[], &ShLight::constant(3, [1.0; 3]), None).is_err());
     }
 }

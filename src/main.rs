@@ -2255,14 +2255,17 @@ fn run_info(path: &Path) -> Result<()> {
         )),
         None => lines.push(format!("fit:          {}", metadata.fit.name())),
     }
-    let (lightmap, compression) = glb::read_references(path)?;
-    if let Some(lightmap) = lightmap {
+    let references = glb::read_references(path)?;
+    if references.precision == Precision::F16 {
+        lines.push("precision:    f16 (IEEE half floats, named by extras.prt)".to_string());
+    }
+    if let Some(lightmap) = references.lightmap {
         lines.push(format!(
             "lightmap:     {}x{} texels in {} (TEXCOORD_{})",
             lightmap.width, lightmap.height, lightmap.uri, lightmap.texcoord
         ));
     }
-    if let Some(cpca) = compression {
+    if let Some(cpca) = references.cpca {
         lines.push(format!(
             "compressed:   CPCA, {} clusters x {} components",
             cpca.clusters, cpca.components

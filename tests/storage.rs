@@ -255,3 +255,33 @@ fn half_floats_are_refused_where_the_transfer_has_other_storage() {
         assert!(prt_gpu::testing::entries(dir.path()).is_empty());
     }
 }
+
+/// `info` says a file's transfer is half floats.
+#[test]
+fn info_names_half_float_transfer() {
+    let dir = tempfile::tempdir().unwrap();
+    let bake = [
+        "bake",
+        "--device",
+        "cpu",
+        "--samples",
+        "16",
+        "--precision",
+        "f16",
+        "-o",
+        "h.glb",
+    ];
+    assert!(common::prt_gpu(&bake, dir.path()).status.success());
+    let info = common::prt_gpu(&["info", "h.glb"], dir.path());
+    let stdout = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        info.status.success(),
+        "{}",
+        String::from_utf8_lossy(&info.stderr)
+    );
+    assert!(stdout.contains("precision:    f16"), "{stdout}");
+    let bake = ["bake", "--device", "cpu", "--samples", "16", "-o", "f.glb"];
+    assert!(common::prt_gpu(&bake, dir.path()).status.success());
+    let info = common::prt_gpu(&["info", "f.glb"], dir.path());
+    assert!(!String::from_utf8_lossy(&info.stdout).contains("precision"));
+}

@@ -316,8 +316,25 @@ pub fn read_metadata(path: &Path) -> Result<(BakeMetadata, usize, usize)> {
 /// What a single-mesh baked file refers to beside its transfer: its lightmap
 /// (`extras.prt.lightmap`) and how its transfer is compressed (`extras.prt.cpca`), each if
 /// any; the JSON only is parsed.
-pub fn read_references(path: &Path) -> Result<(Option<LightmapExtras>, Option<CpcaExtras>)> {
-    Ok(read_prt_extras(path)?.map_or((None, None), |prt| (prt.lightmap, prt.cpca)))
+pub fn read_references(path: &Path) -> Result<References> {
+    Ok(
+        read_prt_extras(path)?.map_or_else(References::default, |prt| References {
+            precision: match prt.transfer_precision.as_deref() {
+                Some(FLOAT16) => Precision::F16,
+                _ => Precision::F32,
+            },
+            lightmap: prt.lightmap,
+            cpca: prt.cpca,
+        }),
+    )
+}
+
+/// What a baked file's `extras.prt` says about where and how its transfer is stored.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct References {
+    pub lightmap: Option<LightmapExtras>,
+    pub cpca: Option<CpcaExtras>,
+    pub precision: Precision,
 }
 
 /// `extras.prt` of a single-mesh baked file (`None` for a glTF scene baked in place).

@@ -54,30 +54,23 @@ if [ "$(id -u)" -eq 0 ] && command -v slurmctld >/dev/null; then
     ci/slurm/start-cluster.sh || echo "ci/test.sh: the Slurm cluster did not start" >&2
 fi
 
-# The Khronos glTF-Validator, which every written file must pass (src/gltf_validator.rs), at the
-# version pinned in its package-lock.json. Installed again only when the lock file changed since.
-validator=ci/gltf-validator
-installed_lock="$validator/node_modules/.installed-package-lock.json"
-if command -v npm >/dev/null && ! cmp -s "$validator/package-lock.json" "$installed_lock"; then
-    echo "ci/test.sh: installing the glTF-Validator (npm ci --prefix $validator)"
-    if npm ci --prefix "$validator" --no-audit --no-fund --loglevel=error >/dev/null; then
-        cp "$validator/package-lock.json" "$installed_lock"
-    else
-        echo "ci/test.sh: the glTF-Validator is not installed" >&2
+# npm packages the tests run, each at the version pinned in its package-lock.json; installed
+# again only when the lock file changed since.
+install_pinned() { # DIR WHAT
+    local installed_lock="$1/node_modules/.installed-package-lock.json"
+    if command -v npm >/dev/null && ! cmp -s "$1/package-lock.json" "$installed_lock"; then
+        echo "ci/test.sh: installing $2 (npm ci --prefix $1)"
+        if npm ci --prefix "$1" --no-audit --no-fund --loglevel=error >/dev/null; then
+            cp "$1/package-lock.json" "$installed_lock"
+        else
+            echo "ci/test.sh: $2 is not installed" >&2
+        fi
     fi
-fi
-
-# X_ITE, the X3D browser the X3D export is loaded in (tests/viewer.rs), likewise pinned.
-x3d=ci/x3d
-installed_lock="$x3d/node_modules/.installed-package-lock.json"
-if command -v npm >/dev/null && ! cmp -s "$x3d/package-lock.json" "$installed_lock"; then
-    echo "ci/test.sh: installing X_ITE (npm ci --prefix $x3d)"
-    if npm ci --prefix "$x3d" --no-audit --no-fund --loglevel=error >/dev/null; then
-        cp "$x3d/package-lock.json" "$installed_lock"
-    else
-        echo "ci/test.sh: X_ITE is not installed" >&2
-    fi
-fi
+}
+# The Khronos glTF-Validator, which every written file must pass (src/gltf_validator.rs).
+install_pinned ci/gltf-validator "the glTF-Validator"
+# X_ITE, the X3D browser the X3D export is loaded in (tests/viewer.rs).
+install_pinned ci/x3d "X_ITE"
 
 # Mesa's drivers complain on stderr without a runtime directory (headless machines).
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"

@@ -1861,12 +1861,8 @@ fn run_view(args: ViewArgs) -> Result<()> {
 fn view_light(args: &ViewArgs, bands: u32) -> Result<(ShLight, Option<(EnvImage, Mapping)>)> {
     let (light, map) = match &args.light {
         Some(light_path) => {
-            let loaded = light::load(light_path, bands, args.mapping, false)?;
-            let map = match loaded.mapping {
-                Some(mapping) => Some((light::envmap::load(light_path)?, mapping)),
-                None => None,
-            };
-            (loaded.light, map)
+            let (loaded, image) = light::load_with_image(light_path, bands, args.mapping, false)?;
+            (loaded.light, image.zip(loaded.mapping))
         }
         None => (light::preview_light(bands)?, None),
     };

@@ -106,26 +106,39 @@ pub fn load(
     mapping: Option<Mapping>,
     skip_invalid: bool,
 ) -> Result<LoadedLight> {
+    load_with_image(path, bands, mapping, skip_invalid).map(|(light, _)| light)
+}
+
+/// [`load`], also giving the environment map it projected (`None` for light.json), for a
+/// caller that shows the map itself (the viewer's sky) without reading the file again.
+pub fn load_with_image(
+    path: &Path,
+    bands: u32,
+    mapping: Option<Mapping>,
+    skip_invalid: bool,
+) -> Result<(LoadedLight, Option<EnvImage>)> {
     let is_json = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
     if is_json {
         let light = read_json(path)?;
-        return Ok(LoadedLight {
+        let loaded = LoadedLight {
             light,
             mapping: None,
             skipped_pixels: 0,
-        });
+        };
+        return Ok((loaded, None));
     }
     let image = envmap::load(path)?;
     let mapping =
         Mapping::resolve(mapping, image.width, image.height).map_err(|m| Error::light(path, m))?;
     let projection = project_with(&image, mapping, bands, &ProjectOptions { skip_invalid })?;
-    Ok(LoadedLight {
+    let loaded = LoadedLight {
         light: projection.light,
         mapping: Some(mapping),
         skipped_pixels: projection.skipped,
-    })
+    };
+    Ok((loaded, Some(image)))
 }
 
 /// A light from six cube faces, +X, -X, +Y, -Y, +Z, -Z (each oriented as in the horizontal

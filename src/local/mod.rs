@@ -201,7 +201,6 @@ pub fn bake_local(
     backend: &Backend,
     progress: &dyn Progress,
 ) -> Result<(LocalBake, LocalReport)> {
-    options.validate()?;
     bake_prepared(prepare(scene)?.0, options, backend, progress)
 }
 

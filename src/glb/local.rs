@@ -13,7 +13,8 @@
 //!   `columns` (u32), `weights` (f32): one bounce is `next[p] = albedo[p] sum weights * prev`;
 //! - `operator`: the compressed direct-to-indirect operator (`local::operator`): `members`
 //!   and `offsets` (u32, the receivers by cluster), `means` (f32, per member), `bases` (f32,
-//!   per cluster `[component][member]`), `mean_response` (f32 `[vertex][3]`), `senders` and
+//!   projection rows per cluster `[component][member]`: a frame's coordinates are
+//!   `bases . (E - means)`), `mean_response` (f32 `[vertex][3]`), `senders` and
 //!   `sender_offsets` (u32, the sender clusters kept per receiver cluster), `responses`
 //!   (f32, per receiver cluster, per member `[channel][kept sender][component]`) and
 //!   `response_offsets` (u32, where each receiver cluster's responses start, in floats).

@@ -1,7 +1,8 @@
 //! Building the compressed direct-to-indirect operator (the meshless PCA paper, sections
-//! 4.3.1 and 4.3.2): cluster the receivers, find per cluster a PCA basis of the irradiance
-//! that example lights placed across the scene give it, and send every basis vector (and the
-//! examples' mean) through the sparse bounces once.
+//! 4.3.1 and 4.3.2): cluster the receivers, find per cluster a basis of the irradiance that
+//! example lights placed across the scene give it (chosen for its first bounce, see
+//! [`cluster_fit`]), and send every basis vector (and the examples' mean) through the sparse
+//! bounces once.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -62,24 +63,28 @@ pub fn build_compressed(
     let (members, offsets) = members_by_cluster(&cpca.assignment, clusters);
     let m = shape.components as usize;
     let lights = examples.len() / n.max(1);
-    let fits: Vec<(Vec<f32>, Vec<f32>)> = (0..clusters)
+    let first_bounce = FirstBounce::new(operator.matrix, operator.albedo);
+    let fits: Vec<ClusterFit> = (0..clusters)
         .into_par_iter()
         .map(|c| {
             let own = &members[offsets[c] as usize..offsets[c + 1] as usize];
-            cluster_basis(own, examples, n, lights, m)
+            cluster_fit(own, examples, n, lights, m, &first_bounce)
         })
         .collect();
+    drop(first_bounce);
     let mut result = CompressedOperator {
         components: m,
         members,
         offsets,
         ..Default::default()
     };
-    for (mean, basis) in fits {
-        result.means.extend(mean);
-        result.bases.extend(basis);
+    let mut basis = Vec::with_capacity(n * m);
+    for fit in fits {
+        result.means.extend(fit.mean);
+        result.bases.extend(fit.projection);
+        basis.extend(fit.basis);
     }
-    let all = responses(operator, &mut result);
+    let all = responses(operator, &basis, &mut result);
     sparsify(&mut result, all, shape.sparsity);
     Ok(result)
 }
@@ -98,70 +103,191 @@ fn members_by_cluster(assignment: &[u32], clusters: usize) -> (Vec<u32>, Vec<u32
     (members, offsets)
 }
 
-/// One cluster's mean example irradiance and `m` orthonormal basis vectors over its
-/// members (`[k][member]`): the leading eigenvectors of the examples' covariance, found from
-/// their `lights x lights` Gram matrix (as many lights as a few hundred, members as many as a
-/// few thousand). Directions the examples do not span are zero vectors.
-fn cluster_basis(
+/// The gather matrix by columns (who receives from each receiver), with the weights of the
+/// first bounce's irradiance-to-radiance map: `rho_p G[p, q] rho_q / pi` (albedo as the mean
+/// of its channels), the metric the bases are chosen in.
+struct FirstBounce {
+    column_offsets: Vec<u32>,
+    rows: Vec<u32>,
+    weights: Vec<f32>,
+}
+
+impl FirstBounce {
+    fn new(matrix: &GatherMatrix, albedo: &[Vec3]) -> Self {
+        let n = matrix.rows();
+        let grey: Vec<f32> = albedo.iter().map(|a| (a.x + a.y + a.z) / 3.0).collect();
+        let mut column_offsets = vec![0u32; n + 1];
+        for &q in &matrix.columns {
+            column_offsets[q as usize + 1] += 1;
+        }
+        for q in 0..n {
+            column_offsets[q + 1] += column_offsets[q];
+        }
+        let mut next = column_offsets.clone();
+        let mut rows = vec![0u32; matrix.columns.len()];
+        let mut weights = vec![0.0f32; matrix.columns.len()];
+        for p in 0..n {
+            let (columns, row_weights) = matrix.row(p);
+            for (&q, &w) in columns.iter().zip(row_weights) {
+                let slot = next[q as usize] as usize;
+                next[q as usize] += 1;
+                rows[slot] = p as u32;
+                weights[slot] = grey[p] * w * grey[q as usize] / std::f32::consts::PI;
+            }
+        }
+        FirstBounce {
+            column_offsets,
+            rows,
+            weights,
+        }
+    }
+
+    /// `(receiver, member index, weight)` of every entry whose sender is one of `members`,
+    /// sorted by receiver.
+    fn entries_from(&self, members: &[u32]) -> Vec<(u32, u32, f32)> {
+        let mut entries = Vec::new();
+        for (i, &q) in members.iter().enumerate() {
+            let range = self.column_offsets[q as usize] as usize
+                ..self.column_offsets[q as usize + 1] as usize;
+            for (&p, &w) in self.rows[range.clone()].iter().zip(&self.weights[range]) {
+                entries.push((p, i as u32, w));
+            }
+        }
+        entries.sort_unstable_by_key(|e| e.0);
+        entries
+    }
+}
+
+/// One cluster's fit: the examples' mean over its members, the `m` projection rows
+/// `[k][member]` a frame's irradiance is projected with, and the `m` basis vectors
+/// `[k][member]` whose responses are stored.
+struct ClusterFit {
+    mean: Vec<f32>,
+    projection: Vec<f32>,
+    basis: Vec<f32>,
+}
+
+/// One sender cluster's fit, chosen for what the operator does with its irradiance rather
+/// than for the irradiance itself. A close light leaves a sharp spot that a few basis
+/// vectors of irradiance cannot follow (PCA of the examples' irradiance left 68% of a new
+/// light's irradiance unexplained on the interior), but the bounce blurs it, so the error
+/// that matters is the residual's response. With `F` the cluster's first bounce
+/// ([`FirstBounce`]) and `X` the centred examples, the basis is `B = X V S^-1` from the
+/// leading eigenpairs `(V, S^2)` of `(F X)^T (F X)`, so `U = F B` are the leading left
+/// singular vectors of the examples' first-bounce responses; the projection rows are
+/// `U^T F`, so a frame's coordinates give the best `m`-term approximation of its own first
+/// bounce in that span (reduced-rank regression). Eigenvalues below `1e-12` of the largest
+/// leave zero vectors.
+fn cluster_fit(
     members: &[u32],
     examples: &[f32],
     n: usize,
     lights: usize,
     m: usize,
-) -> (Vec<f32>, Vec<f32>) {
+    first_bounce: &FirstBounce,
+) -> ClusterFit {
     let size = members.len();
-    let rows: Vec<Vec<f64>> = (0..lights)
-        .map(|l| {
-            members
-                .iter()
-                .map(|&p| examples[l * n + p as usize] as f64)
-                .collect()
-        })
-        .collect();
     let mut mean = vec![0.0f64; size];
-    for row in &rows {
-        mean.iter_mut().zip(row).for_each(|(a, x)| *a += x);
-    }
-    mean.iter_mut().for_each(|a| *a /= lights.max(1) as f64);
-    let centred: Vec<Vec<f64>> = rows
-        .into_iter()
-        .map(|row| row.iter().zip(&mean).map(|(x, mu)| x - mu).collect())
-        .collect();
-    let mut gram = vec![0.0f64; lights * lights];
-    for i in 0..lights {
-        for j in 0..=i {
-            let g: f64 = centred[i].iter().zip(&centred[j]).map(|(a, b)| a * b).sum();
-            gram[i * lights + j] = g;
-            gram[j * lights + i] = g;
+    for l in 0..lights {
+        for (a, &p) in mean.iter_mut().zip(members) {
+            *a += examples[l * n + p as usize] as f64;
         }
     }
+    mean.iter_mut().for_each(|a| *a /= lights.max(1) as f64);
+    // Centred examples by member, `[member][light]`.
+    let centred: Vec<f64> = members
+        .iter()
+        .zip(&mean)
+        .flat_map(|(&p, mu)| (0..lights).map(move |l| examples[l * n + p as usize] as f64 - mu))
+        .collect();
+    let entries = first_bounce.entries_from(members);
+    let gram = response_gram(&entries, &centred, lights);
     let wanted = m.min(lights);
     let (values, vectors) = top_eigenvectors(&gram, lights, wanted, &[]);
     let largest = values.first().copied().unwrap_or(0.0);
-    let mut basis = vec![0.0f32; m * size];
+    let mut basis = vec![0.0f64; m * size];
     for k in 0..wanted {
         if !(values[k] > 1e-12 * largest && values[k] > 0.0) {
             continue;
         }
-        let u = &vectors[k * lights..(k + 1) * lights];
-        let mut b = vec![0.0f64; size];
-        for (weight, row) in u.iter().zip(&centred) {
-            b.iter_mut().zip(row).for_each(|(b, x)| *b += weight * x);
+        let v = &vectors[k * lights..(k + 1) * lights];
+        let scale = 1.0 / values[k].sqrt();
+        for (i, out) in basis[k * size..(k + 1) * size].iter_mut().enumerate() {
+            let x = &centred[i * lights..(i + 1) * lights];
+            *out = scale * x.iter().zip(v).map(|(a, b)| a * b).sum::<f64>();
         }
-        let norm = b.iter().map(|x| x * x).sum::<f64>().sqrt();
-        if norm > 0.0 {
-            for (out, x) in basis[k * size..(k + 1) * size].iter_mut().zip(&b) {
-                *out = (x / norm) as f32;
+    }
+    let projection = projection_rows(&entries, &basis, size, m);
+    let to_f32 = |v: &[f64]| v.iter().map(|&x| x as f32).collect();
+    ClusterFit {
+        mean: to_f32(&mean),
+        projection: to_f32(&projection),
+        basis: to_f32(&basis),
+    }
+}
+
+/// `(F X)^T (F X)` for the first-bounce entries of a cluster (sorted by receiver) and its
+/// centred examples `[member][light]`: one receiver's response row at a time.
+fn response_gram(entries: &[(u32, u32, f32)], centred: &[f64], lights: usize) -> Vec<f64> {
+    let mut gram = vec![0.0f64; lights * lights];
+    let mut response = vec![0.0f64; lights];
+    for run in entries.chunk_by(|a, b| a.0 == b.0) {
+        response.fill(0.0);
+        for &(_, i, w) in run {
+            let x = &centred[i as usize * lights..(i as usize + 1) * lights];
+            response
+                .iter_mut()
+                .zip(x)
+                .for_each(|(r, x)| *r += w as f64 * x);
+        }
+        for i in 0..lights {
+            let ri = response[i];
+            if ri == 0.0 {
+                continue;
+            }
+            let row = &mut gram[i * lights..i * lights + i + 1];
+            row.iter_mut()
+                .zip(&response[..=i])
+                .for_each(|(g, rj)| *g += ri * rj);
+        }
+    }
+    for i in 0..lights {
+        for j in 0..i {
+            gram[j * lights + i] = gram[i * lights + j];
+        }
+    }
+    gram
+}
+
+/// `(F B)^T F`, `[k][member]`: the rows that project a frame's irradiance onto the span of
+/// the basis's first-bounce responses.
+fn projection_rows(entries: &[(u32, u32, f32)], basis: &[f64], size: usize, m: usize) -> Vec<f64> {
+    let mut rows = vec![0.0f64; m * size];
+    let mut response = vec![0.0f64; m];
+    for run in entries.chunk_by(|a, b| a.0 == b.0) {
+        response.fill(0.0);
+        for &(_, i, w) in run {
+            for (k, r) in response.iter_mut().enumerate() {
+                *r += w as f64 * basis[k * size + i as usize];
+            }
+        }
+        for &(_, i, w) in run {
+            for (k, r) in response.iter().enumerate() {
+                rows[k * size + i as usize] += w as f64 * r;
             }
         }
     }
-    (mean.iter().map(|&x| x as f32).collect(), basis)
+    rows
 }
 
 /// The operator applied to the means (column 0) and to every cluster's basis vectors
 /// (column `1 + c * m + k`), as irradiance turned into direct radiance `albedo E / pi`:
 /// `[receiver][3][column]` (receiver order). Sets `result.mean_response`.
-fn responses(operator: &SparseOperator, result: &mut CompressedOperator) -> Vec<f32> {
+fn responses(
+    operator: &SparseOperator,
+    basis: &[f32],
+    result: &mut CompressedOperator,
+) -> Vec<f32> {
     let n = operator.albedo.len();
     let m = result.components;
     let clusters = result.clusters();
@@ -188,7 +314,7 @@ fn responses(operator: &SparseOperator, result: &mut CompressedOperator) -> Vec<
         }
         let start = result.offsets[c] as usize;
         let size = result.offsets[c + 1] as usize - start;
-        result.bases[start * m + k * size + (index - start)]
+        basis[start * m + k * size + (index - start)]
     };
     let mut all = vec![0.0f32; n * 3 * columns];
     for first in (0..columns).step_by(COLUMNS_PER_BATCH) {

@@ -69,7 +69,7 @@ impl Default for LocalOptions {
             operator: OperatorShape {
                 clusters: 32,
                 components: 8,
-                sparsity: 0.01,
+                sparsity: 0.02,
                 seed: 1,
             },
             example_lights: 256,

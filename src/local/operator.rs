@@ -6,12 +6,14 @@
 //! Two forms, as the meshless PCA paper has them:
 //!
 //! - **sparse**: B sparse matrix products a frame (exact for the gather matrix);
-//! - **compressed**: receivers in clusters; per cluster a PCA basis of example direct-light
-//!   vectors (irradiance from lights placed across the scene) and their mean; the operator
-//!   applied once at bake time to every basis vector and to the means. A frame projects its
-//!   irradiance onto each cluster's basis (`a_sk = b_sk . (E_s - mu_s)`) and sums the stored
-//!   responses, `I = K mu + sum_s sum_k a_sk K b_sk`, keeping only the sender clusters whose
-//!   response in a receiver cluster is not negligible.
+//! - **compressed**: receivers in clusters; per cluster the mean of example irradiance
+//!   (lights placed across the scene), basis vectors `b_sk` spanned by the centred examples
+//!   and projection rows `w_sk` (`build.rs` chooses both for the first bounce of the
+//!   examples, not for their irradiance); the operator applied once at bake time to every
+//!   basis vector and to the means. A frame projects its irradiance with each cluster's rows
+//!   (`a_sk = w_sk . (E_s - mu_s)`; the file's `bases`) and sums the stored responses,
+//!   `I = K mu + sum_s sum_k a_sk K b_sk`, keeping only the sender clusters whose response in
+//!   a receiver cluster is not negligible.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -65,8 +67,8 @@ pub struct CompressedOperator {
     pub offsets: Vec<u32>,
     /// The examples' mean irradiance, per member (in `members` order).
     pub means: Vec<f32>,
-    /// Per cluster `[component][member]`, clusters one after another (cluster c starts at
-    /// `offsets[c] * components`).
+    /// Projection rows per cluster `[component][member]`, clusters one after another
+    /// (cluster c starts at `offsets[c] * components`); not orthonormal.
     pub bases: Vec<f32>,
     /// `K mu` per receiver (receiver order), RGB.
     pub mean_response: Vec<Vec3>,
@@ -89,7 +91,7 @@ impl CompressedOperator {
         &self.members[self.offsets[c] as usize..self.offsets[c + 1] as usize]
     }
 
-    /// The coordinates of the irradiance along every cluster's basis, `[cluster][k]`.
+    /// The irradiance's coordinates in every cluster's basis, `[cluster][k]`.
     pub fn project(&self, irradiance: &[f32]) -> Vec<f32> {
         let m = self.components;
         (0..self.clusters())

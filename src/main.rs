@@ -2156,8 +2156,8 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
     let gpu = GpuBaker::open(DeviceChoice::Gpu, args.adapter.as_deref())
         .ok()
         .flatten();
-    let gpu_sparse = match &gpu {
-        Some(baker) => Some(local::GpuSparse::new(baker, &baked)?),
+    let gpu_paths = match &gpu {
+        Some(baker) => Some(local::GpuPaths::new(baker, &baked)?),
         None => None,
     };
     let (lo, hi) = render::bounds(&baked.scene.positions);
@@ -2169,7 +2169,7 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
             &relighter,
             &lights,
             args.operator,
-            gpu_sparse.as_ref(),
+            gpu_paths.as_ref(),
             &mut timing,
         )?;
         let image = render::render(

@@ -24,6 +24,9 @@ const VISIBILITY_WGSL: &str = include_str!("../wgsl/visibility.wgsl");
 const PROJECT_WGSL: &str = include_str!("../wgsl/project.wgsl");
 const GATHER_WGSL: &str = include_str!("../wgsl/gather.wgsl");
 const RENDER_WGSL: &str = include_str!("../wgsl/render.wgsl");
+const COMPRESSED_COMMON_WGSL: &str = include_str!("../wgsl/compressed_common.wgsl");
+const COMPRESSED_PROJECT_WGSL: &str = include_str!("../wgsl/compressed_project.wgsl");
+const COMPRESSED_RESPOND_WGSL: &str = include_str!("../wgsl/compressed_respond.wgsl");
 
 /// Constants every kernel sees. `{:?}` prints the shortest decimal that parses back to the
 /// same f32, so WGSL gets the exact Rust values.
@@ -54,6 +57,22 @@ pub fn project_kernel() -> String {
     format!("{}{PROJECT_WGSL}", prelude())
 }
 
+/// The compressed operator's projection kernel (local lights).
+pub fn compressed_project_kernel() -> String {
+    format!(
+        "{}{COMPRESSED_COMMON_WGSL}\n{COMPRESSED_PROJECT_WGSL}",
+        prelude()
+    )
+}
+
+/// The compressed operator's response kernel (local lights).
+pub fn compressed_respond_kernel() -> String {
+    format!(
+        "{}{COMPRESSED_COMMON_WGSL}\n{COMPRESSED_RESPOND_WGSL}",
+        prelude()
+    )
+}
+
 /// The bounce (gather) kernel.
 pub fn gather_kernel() -> String {
     format!("{}{GATHER_WGSL}", prelude())
@@ -71,6 +90,7 @@ mod tests {
     use crate::bake::gpu::{GatherParams, ProjectParams, VisibilityParams};
     use crate::bvh::gpu::GpuNode;
     use crate::bvh::BvhTriangle;
+    use crate::local::gpu::CompressedParams;
     use crate::render::RenderParams;
     use std::mem::{offset_of, size_of};
 
@@ -117,10 +137,28 @@ mod tests {
         parse(&project_kernel());
         parse(&gather_kernel());
         parse(&render_shader());
+        parse(&compressed_project_kernel());
+        parse(&compressed_respond_kernel());
     }
 
     #[test]
     fn shared_structs_match_their_wgsl_twins() {
+        for kernel in [compressed_project_kernel(), compressed_respond_kernel()] {
+            assert_eq!(
+                wgsl_layout(&parse(&kernel), "CompressedParams"),
+                rust_layout!(
+                    CompressedParams,
+                    clusters,
+                    components,
+                    members,
+                    entry_begin,
+                    entry_limit,
+                    accumulate,
+                    pad0,
+                    pad1
+                )
+            );
+        }
         let visibility = parse(&visibility_kernel());
         let project = parse(&project_kernel());
         // The visibility kernel reads nodes and triangles as vec4<u32> words at these offsets

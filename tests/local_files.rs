@@ -431,4 +431,15 @@ fn cpu_and_gpu_agree() {
     assert!(error < 1e-5, "{error}");
     let reference = sparse_indirect(&bake.matrix, &scene.albedo, options.bounces, &frame.direct);
     assert_eq!(reference, frame.indirect);
+    // The compressed operator: one pass per kernel, and 7 terms a pass (the passes that add).
+    let expected = bake.operator.indirect(&frame.irradiance);
+    assert!(expected.iter().any(|v| v.max_element() > 0.0));
+    for terms in [local::gpu::TERMS_PER_PASS, 7] {
+        let mut on_gpu = local::gpu::GpuCompressed::new(baker, &bake.operator).unwrap();
+        on_gpu.terms_per_pass = terms;
+        let indirect = on_gpu.indirect(&frame.irradiance).unwrap();
+        let error = relative_rms(&expected, &indirect);
+        println!("compressed operator, {terms} terms a pass: GPU against CPU {error:e}");
+        assert!(error < 1e-5, "{terms} terms a pass: {error}");
+    }
 }

@@ -15,6 +15,7 @@
 
 pub mod build;
 pub mod depth;
+pub mod gpu;
 pub mod lights;
 pub mod operator;
 
@@ -641,6 +642,21 @@ impl<'b> GpuSparse<'b> {
     }
 }
 
+/// Both operators on the GPU, uploaded once for a sequence of frames.
+pub struct GpuPaths<'b> {
+    pub sparse: GpuSparse<'b>,
+    pub compressed: gpu::GpuCompressed<'b>,
+}
+
+impl<'b> GpuPaths<'b> {
+    pub fn new(baker: &'b bake::gpu::GpuBaker, bake: &LocalBake) -> Result<Self> {
+        Ok(GpuPaths {
+            sparse: GpuSparse::new(baker, bake)?,
+            compressed: gpu::GpuCompressed::new(baker, &bake.operator)?,
+        })
+    }
+}
+
 /// Per-frame relighting times, seconds, one entry per frame.
 #[derive(Clone, Debug, Default)]
 pub struct FrameTimes {
@@ -652,6 +668,9 @@ pub struct FrameTimes {
     pub sparse: Vec<f64>,
     /// Irradiance and direct radiance on the CPU, the sparse bounces on the GPU.
     pub gpu_sparse: Vec<f64>,
+    /// Irradiance and direct radiance on the CPU, the compressed operator on the GPU
+    /// (upload of the irradiance and read-back of the result included).
+    pub gpu_compressed: Vec<f64>,
 }
 
 fn mean_and_max_ms(times: &[f64]) -> (f64, f64) {
@@ -674,6 +693,10 @@ impl FrameTimes {
         ];
         if let Some(adapter) = gpu {
             parts.push(part(
+                &format!("+ compressed operator on the GPU ({adapter})"),
+                &self.gpu_compressed,
+            ));
+            parts.push(part(
                 &format!("+ sparse operator on the GPU ({adapter})"),
                 &self.gpu_sparse,
             ));
@@ -686,13 +709,13 @@ impl FrameTimes {
     }
 }
 
-/// One frame timed on every path (the compressed and sparse operators on the CPU, the sparse
-/// one on the GPU when given); returns the frame of the `form` asked for.
+/// One frame timed on every path (the compressed and sparse operators on the CPU, and on the
+/// GPU when given); returns the frame of the `form` asked for.
 pub fn time_frame(
     relighter: &Relighter,
     lights: &[LocalLight],
     form: OperatorForm,
-    gpu: Option<&GpuSparse>,
+    gpu: Option<&GpuPaths>,
     times: &mut FrameTimes,
 ) -> Result<Frame> {
     let started = Instant::now();
@@ -713,8 +736,14 @@ pub fn time_frame(
     }
     if let Some(gpu) = gpu {
         let started = Instant::now();
+        direct_radiance(&irradiance, &relighter.bake.scene.albedo);
+        gpu.compressed.indirect(&irradiance)?;
+        times
+            .gpu_compressed
+            .push(seconds_irradiance + started.elapsed().as_secs_f64());
+        let started = Instant::now();
         let direct = direct_radiance(&irradiance, &relighter.bake.scene.albedo);
-        gpu.indirect(&direct)?;
+        gpu.sparse.indirect(&direct)?;
         times
             .gpu_sparse
             .push(seconds_irradiance + started.elapsed().as_secs_f64());

@@ -2160,6 +2160,9 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
         Some(baker) => Some(local::GpuPaths::new(baker, &baked)?),
         None => None,
     };
+    if let Some(Err(why)) = gpu_paths.as_ref().map(|paths| &paths.compressed) {
+        eprintln!("the compressed operator is not timed on the GPU: {why}");
+    }
     let (lo, hi) = render::bounds(&baked.scene.positions);
     let centre = args.orbit.unwrap_or((lo + hi) * 0.5);
     let mut timing = local::FrameTimes::default();

@@ -645,14 +645,16 @@ impl<'b> GpuSparse<'b> {
 /// Both operators on the GPU, uploaded once for a sequence of frames.
 pub struct GpuPaths<'b> {
     pub sparse: GpuSparse<'b>,
-    pub compressed: gpu::GpuCompressed<'b>,
+    /// Or why it could not be uploaded (responses larger than one storage binding): the
+    /// frames are then timed without it.
+    pub compressed: std::result::Result<gpu::GpuCompressed<'b>, String>,
 }
 
 impl<'b> GpuPaths<'b> {
     pub fn new(baker: &'b bake::gpu::GpuBaker, bake: &LocalBake) -> Result<Self> {
         Ok(GpuPaths {
             sparse: GpuSparse::new(baker, bake)?,
-            compressed: gpu::GpuCompressed::new(baker, &bake.operator)?,
+            compressed: gpu::GpuCompressed::new(baker, &bake.operator).map_err(|e| e.to_string()),
         })
     }
 }
@@ -692,10 +694,14 @@ impl FrameTimes {
             part("+ sparse operator", &self.sparse),
         ];
         if let Some(adapter) = gpu {
-            parts.push(part(
-                &format!("+ compressed operator on the GPU ({adapter})"),
-                &self.gpu_compressed,
-            ));
+            if self.gpu_compressed.is_empty() {
+                parts.push("+ compressed operator on the GPU: not run".into());
+            } else {
+                parts.push(part(
+                    &format!("+ compressed operator on the GPU ({adapter})"),
+                    &self.gpu_compressed,
+                ));
+            }
             parts.push(part(
                 &format!("+ sparse operator on the GPU ({adapter})"),
                 &self.gpu_sparse,
@@ -735,12 +741,14 @@ pub fn time_frame(
         }
     }
     if let Some(gpu) = gpu {
-        let started = Instant::now();
-        direct_radiance(&irradiance, &relighter.bake.scene.albedo);
-        gpu.compressed.indirect(&irradiance)?;
-        times
-            .gpu_compressed
-            .push(seconds_irradiance + started.elapsed().as_secs_f64());
+        if let Ok(compressed) = &gpu.compressed {
+            let started = Instant::now();
+            direct_radiance(&irradiance, &relighter.bake.scene.albedo);
+            compressed.indirect(&irradiance)?;
+            times
+                .gpu_compressed
+                .push(seconds_irradiance + started.elapsed().as_secs_f64());
+        }
         let started = Instant::now();
         let direct = direct_radiance(&irradiance, &relighter.bake.scene.albedo);
         gpu.sparse.indirect(&direct)?;

@@ -517,7 +517,7 @@ struct LocalArgs {
     depth_compress: (u32, u32),
     /// Local mode: the operator's receiver clusters and basis vectors of example light per
     /// cluster, CLUSTERSxCOMPONENTS.
-    #[arg(long, value_name = "CxM", default_value = "32x8", value_parser = parse_cpca_shape)]
+    #[arg(long, value_name = "CxM", default_value = "64x16", value_parser = parse_cpca_shape)]
     operator_compress: (u32, u32),
     /// Local mode: point lights placed across the scene for the operator's PCA bases.
     #[arg(long, default_value_t = LocalOptions::default().example_lights)]
@@ -2040,7 +2040,7 @@ fn print_local_report(name: &str, report: &local::LocalReport, output: &Path) {
     println!(
         "local lights: {} receivers, {} triangles; gather matrix {} entries ({:.2} s); depth maps \
          {:.2} s, compressed {:.1} -> {:.1} MB, depth error {:.2}% ({:.2} s); {} example lights \
-         ({:.2} s); operator {:.1} MB, {:.0}% of cluster pairs kept, error {:.2}% against the \
+         ({:.2} s); operator {:.1} MB, {:.0}% of terms kept, error {:.2}% against the \
          sparse bounces ({:.2} s)",
         report.receivers,
         report.triangles,
@@ -2107,13 +2107,13 @@ fn print_local_info(path: &Path) -> Result<()> {
         baked.depth.components
     );
     println!(
-        "operator:     {} clusters x {} components from {} example lights, {} of {} cluster \
-         pairs kept, {:.1} MB",
+        "operator:     {} clusters x {} components from {} example lights, {} of {} terms \
+         (sender cluster, component) kept over all receiver clusters, {:.1} MB",
         op.clusters(),
         op.components,
         options.example_lights,
-        op.senders.len(),
-        op.clusters() * op.clusters(),
+        op.terms.len(),
+        op.clusters() * op.clusters() * op.components,
         op.byte_size() as f64 / 1e6
     );
     Ok(())

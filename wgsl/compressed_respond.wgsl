@@ -1,10 +1,11 @@
-// Responses: one invocation per (member, channel): the mean's response plus the kept sender
-// clusters' stored responses dotted with their coordinates, written to the member's receiver.
+// Responses: one invocation per (member, channel): the mean's response plus the stored
+// responses of the receiver cluster's kept terms dotted with their coordinates, written to the
+// member's receiver.
 // `member_info[i]` = (receiver, receiver cluster, first float of the member's responses, 0).
 
 @group(0) @binding(1) var<storage, read> member_info: array<vec4<u32>>;
-@group(0) @binding(2) var<storage, read> senders: array<u32>;
-@group(0) @binding(3) var<storage, read> sender_offsets: array<u32>;
+@group(0) @binding(2) var<storage, read> terms: array<u32>;
+@group(0) @binding(3) var<storage, read> term_offsets: array<u32>;
 @group(0) @binding(4) var<storage, read> responses: array<f32>;
 @group(0) @binding(5) var<storage, read> mean_response: array<f32>;
 @group(0) @binding(6) var<storage, read> coordinates: array<f32>;
@@ -16,18 +17,16 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (index >= params.members * 3u) {
         return;
     }
-    let m = params.components;
     let info = member_info[index / 3u];
     let channel = index % 3u;
-    let first_sender = sender_offsets[info.y];
-    let width = (sender_offsets[info.y + 1u] - first_sender) * m;
+    let first_term = term_offsets[info.y];
+    let width = term_offsets[info.y + 1u] - first_term;
     let row = info.z + channel * width;
     let begin = min(params.entry_begin, width);
     let end = min(begin + params.entry_limit, width);
     var total = 0.0;
     for (var j = begin; j < end; j += 1u) {
-        let sender = senders[first_sender + j / m];
-        total += responses[row + j] * coordinates[sender * m + j % m];
+        total += responses[row + j] * coordinates[terms[first_term + j]];
     }
     let out = info.x * 3u + channel;
     if (params.accumulate != 0u) {

@@ -14,8 +14,9 @@
 //! - `operator`: the compressed direct-to-indirect operator (`local::operator`): `members`
 //!   and `offsets` (u32, the receivers by cluster), `means` (f32, per member), `bases` (f32,
 //!   projection rows per cluster `[component][member]`: a frame's coordinates are
-//!   `bases . (E - means)`), `mean_response` (f32 `[vertex][3]`), `senders` and
-//!   `sender_offsets` (u32, the sender clusters kept per receiver cluster), `responses`
+//!   `bases . (E - means)`), `mean_response` (f32 `[vertex][3]`), `terms` and
+//!   `term_offsets` (u32, the terms `sender * components + component` kept per receiver
+//!   cluster), `responses`
 //!   (f32, per receiver cluster, per member `[channel][kept sender][component]`) and
 //!   `response_offsets` (u32, where each receiver cluster's responses start, in floats).
 
@@ -40,9 +41,9 @@ use crate::scene::Scene;
 /// The layout of `extras.prt.local`'s views; written and checked on reading.
 pub const LOCAL_LAYOUT: &str = "depth: cpca rows of grid_side^2 hemi-octahedral cells; \
 gather: csr row_offsets u32, columns u32, weights f32; operator: members u32, offsets u32, \
-means f32, bases f32 [cluster][component][member], mean_response f32 [vertex][3], senders u32, \
-sender_offsets u32, responses f32 [cluster][member][channel][sender][component], \
-response_offsets u32; little-endian";
+means f32, bases f32 [cluster][component][member], mean_response f32 [vertex][3], terms u32 \
+(sender * components + component), term_offsets u32, responses f32 \
+[cluster][member][channel][term], response_offsets u32; little-endian";
 
 /// Radiometry of local lights, as written into the file.
 pub const LOCAL_RADIOMETRY: &str = "point light of intensity I (W/sr): irradiance E = I V \
@@ -69,8 +70,8 @@ g = local["gather"]; offsets, columns, weights = (view(g["row_offsets_buffer_vie
 row_sums = [float(weights[offsets[p]:offsets[p + 1]].sum()) for p in range(5)]
 o = local["operator"]; K = o["components"]; u = lambda k: view(o[k + "_buffer_view"], "<u4")
 f = lambda k: view(o[k + "_buffer_view"], "<f4")
-members, offs, mu, B, senders, so, R, ro = (u("members"), u("offsets"), f("means"), f("bases"),
-    u("senders"), u("sender_offsets"), f("responses"), u("response_offsets"))
+members, offs, mu, B, terms, to, R, ro = (u("members"), u("offsets"), f("means"), f("bases"),
+    u("terms"), u("term_offsets"), f("responses"), u("response_offsets"))
 E, I = np.ones(V), f("mean_response").reshape(V, 3).astype(np.float64)
 C = len(offs) - 1
 coords = np.zeros((C, K))
@@ -78,8 +79,8 @@ for c in range(C):
     m = members[offs[c]:offs[c + 1]]
     coords[c] = B[offs[c] * K:offs[c + 1] * K].reshape(K, len(m)) @ (E[m] - mu[offs[c]:offs[c + 1]])
 for r in range(C):
-    m, s = members[offs[r]:offs[r + 1]], senders[so[r]:so[r + 1]]
-    I[m] += R[ro[r]:ro[r + 1]].reshape(len(m), 3, len(s) * K) @ coords[s].reshape(-1)
+    m, t = members[offs[r]:offs[r + 1]], terms[to[r]:to[r + 1]]
+    I[m] += R[ro[r]:ro[r + 1]].reshape(len(m), 3, len(t)) @ coords.reshape(-1)[t]
 print(json.dumps({"last_depth": last_depth.tolist(), "row_sums": row_sums, "indirect": I[:5].tolist()}))
 "#;
 
@@ -125,15 +126,15 @@ pub struct OperatorExtras {
     pub components: usize,
     pub sparsity: f32,
     pub seed: u64,
-    pub senders: usize,
+    pub terms: usize,
     pub responses: usize,
     pub members_buffer_view: usize,
     pub offsets_buffer_view: usize,
     pub means_buffer_view: usize,
     pub bases_buffer_view: usize,
     pub mean_response_buffer_view: usize,
-    pub senders_buffer_view: usize,
-    pub sender_offsets_buffer_view: usize,
+    pub terms_buffer_view: usize,
+    pub term_offsets_buffer_view: usize,
     pub responses_buffer_view: usize,
     pub response_offsets_buffer_view: usize,
 }
@@ -226,15 +227,15 @@ fn encode_operator(
         components: op.components,
         sparsity: shape.sparsity,
         seed: shape.seed,
-        senders: op.senders.len(),
+        terms: op.terms.len(),
         responses: op.responses.len(),
         members_buffer_view: push_u32(&op.members),
         offsets_buffer_view: push_u32(&op.offsets),
         means_buffer_view: means,
         bases_buffer_view: bases,
         mean_response_buffer_view: mean_response,
-        senders_buffer_view: push_u32(&op.senders),
-        sender_offsets_buffer_view: push_u32(&op.sender_offsets),
+        terms_buffer_view: push_u32(&op.terms),
+        term_offsets_buffer_view: push_u32(&op.term_offsets),
         responses_buffer_view: responses,
         response_offsets_buffer_view: push_u32(&response_offsets),
     })
@@ -471,18 +472,12 @@ fn decode_operator(
     }
     let offsets = u32s(doc, bin, e.offsets_buffer_view, k + 1, "cluster offset")?;
     check_offsets(&offsets, v, "cluster")?;
-    let senders = u32s(doc, bin, e.senders_buffer_view, e.senders, "sender")?;
-    if senders.iter().any(|&s| s as usize >= k) {
-        return Err("a kept sender cluster is out of range".into());
+    let terms = u32s(doc, bin, e.terms_buffer_view, e.terms, "term")?;
+    if terms.iter().any(|&t| t as usize >= k * m) {
+        return Err("a kept term is out of range".into());
     }
-    let sender_offsets = u32s(
-        doc,
-        bin,
-        e.sender_offsets_buffer_view,
-        k + 1,
-        "sender offset",
-    )?;
-    check_offsets(&sender_offsets, e.senders, "sender")?;
+    let term_offsets = u32s(doc, bin, e.term_offsets_buffer_view, k + 1, "term offset")?;
+    check_offsets(&term_offsets, e.terms, "term")?;
     let response_offsets = u32s(
         doc,
         bin,
@@ -493,8 +488,8 @@ fn decode_operator(
     check_offsets(&response_offsets, e.responses, "response")?;
     for r in 0..k {
         let size = (offsets[r + 1] - offsets[r]) as u64;
-        let kept = (sender_offsets[r + 1] - sender_offsets[r]) as u64;
-        if (response_offsets[r + 1] - response_offsets[r]) as u64 != size * 3 * kept * m as u64 {
+        let kept = (term_offsets[r + 1] - term_offsets[r]) as u64;
+        if (response_offsets[r + 1] - response_offsets[r]) as u64 != size * 3 * kept {
             return Err(format!(
                 "receiver cluster {r}'s responses have the wrong length"
             ));
@@ -519,8 +514,8 @@ fn decode_operator(
         response_offsets: response_offsets.iter().map(|&o| o as u64).collect(),
         members,
         offsets,
-        senders,
-        sender_offsets,
+        terms,
+        term_offsets,
     })
 }
 

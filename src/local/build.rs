@@ -20,8 +20,8 @@ pub struct OperatorShape {
     pub clusters: u32,
     /// Basis vectors of example irradiance per cluster.
     pub components: u32,
-    /// A sender cluster's response in a receiver cluster is dropped when its energy is below
-    /// `sparsity^2` of that receiver cluster's total (0 keeps every non-zero block).
+    /// In each receiver cluster, the least terms are dropped while their expected energy
+    /// together stays within `sparsity^2` of the cluster's total (0 keeps every term).
     pub sparsity: f32,
     /// Seed of the clustering.
     pub seed: u64,
@@ -85,7 +85,8 @@ pub fn build_compressed(
         basis.extend(fit.basis);
     }
     let all = responses(operator, &basis, &mut result);
-    sparsify(&mut result, all, shape.sparsity);
+    let power = coordinate_power(&result, examples, n);
+    sparsify(&mut result, all, &power, shape.sparsity);
     Ok(result)
 }
 
@@ -355,50 +356,72 @@ fn responses(
     all
 }
 
-/// Keeps, per receiver cluster, the sender clusters whose responses there carry more than
-/// `sparsity^2` of the cluster's response energy, and stores their responses compactly.
-fn sparsify(result: &mut CompressedOperator, all: Vec<f32>, sparsity: f32) {
-    let m = result.components;
-    let clusters = result.clusters();
-    let columns = 1 + clusters * m;
-    let kept: Vec<Vec<u32>> = (0..clusters)
+/// The mean square of each coordinate `s * m + k` over the example lights: how much each
+/// term carries for lights like them.
+fn coordinate_power(result: &CompressedOperator, examples: &[f32], n: usize) -> Vec<f64> {
+    let mut power = vec![0.0f64; result.clusters() * result.components];
+    let lights = examples.len() / n.max(1);
+    for irradiance in examples.chunks_exact(n.max(1)) {
+        for (p, a) in power.iter_mut().zip(result.project(irradiance)) {
+            *p += (a as f64) * (a as f64) / lights as f64;
+        }
+    }
+    power
+}
+
+/// Keeps, per receiver cluster, the terms `(s, k)` that matter there: a term's expected
+/// energy is its response's energy over the cluster's members and channels times its
+/// coordinate's mean square over the examples (`power`); the smallest terms are dropped as
+/// long as what they carry together stays within `sparsity^2` of the cluster's total, so the
+/// dropped part's RMS is at most `sparsity` of the kept part's, for lights like the examples.
+/// Stores the kept terms' responses compactly.
+fn sparsify(result: &mut CompressedOperator, all: Vec<f32>, power: &[f64], sparsity: f32) {
+    let terms = power.len();
+    let columns = 1 + terms;
+    let kept: Vec<Vec<u32>> = (0..result.clusters())
         .into_par_iter()
         .map(|r| {
-            let mut energy = vec![0.0f64; clusters];
+            let mut energy = vec![0.0f64; terms];
             for &p in result.cluster_members(r) {
                 let row = &all[p as usize * 3 * columns..(p as usize + 1) * 3 * columns];
                 for c in 0..3 {
-                    for (s, e) in energy.iter_mut().enumerate() {
-                        let start = c * columns + 1 + s * m;
-                        *e += row[start..start + m]
-                            .iter()
-                            .map(|&x| (x as f64) * (x as f64))
-                            .sum::<f64>();
+                    let responses = &row[c * columns + 1..(c + 1) * columns];
+                    for (e, &x) in energy.iter_mut().zip(responses) {
+                        *e += (x as f64) * (x as f64);
                     }
                 }
             }
-            let total: f64 = energy.iter().sum();
-            let floor = (sparsity as f64).powi(2) * total;
-            (0..clusters as u32)
-                .filter(|&s| energy[s as usize] > floor)
-                .collect()
+            energy.iter_mut().zip(power).for_each(|(e, p)| *e *= p);
+            let budget = (sparsity as f64).powi(2) * energy.iter().sum::<f64>();
+            let mut order: Vec<usize> = (0..terms).collect();
+            order.sort_by(|&a, &b| energy[a].total_cmp(&energy[b]));
+            let mut dropped = 0.0;
+            let mut keep = vec![true; terms];
+            for t in order {
+                if dropped + energy[t] > budget {
+                    break;
+                }
+                dropped += energy[t];
+                keep[t] = false;
+            }
+            (0..terms as u32).filter(|&t| keep[t as usize]).collect()
         })
         .collect();
-    result.sender_offsets = vec![0];
+    result.term_offsets = vec![0];
     result.response_offsets = vec![0];
-    for (r, senders) in kept.iter().enumerate() {
+    for (r, own) in kept.iter().enumerate() {
         let members = &result.members[result.offsets[r] as usize..result.offsets[r + 1] as usize];
         for &p in members {
             let row = &all[p as usize * 3 * columns..(p as usize + 1) * 3 * columns];
             for c in 0..3 {
-                for &s in senders {
-                    let start = c * columns + 1 + s as usize * m;
-                    result.responses.extend_from_slice(&row[start..start + m]);
-                }
+                let responses = &row[c * columns + 1..(c + 1) * columns];
+                result
+                    .responses
+                    .extend(own.iter().map(|&t| responses[t as usize]));
             }
         }
-        result.senders.extend(senders);
-        result.sender_offsets.push(result.senders.len() as u32);
+        result.terms.extend(own);
+        result.term_offsets.push(result.terms.len() as u32);
         result.response_offsets.push(result.responses.len() as u64);
     }
 }

@@ -1,8 +1,8 @@
 //! The compressed direct-to-indirect operator on the GPU: the operator uploaded once, then per
 //! frame the irradiance uploaded, one projection pass per cluster chunk of members
 //! (`wgsl/compressed_project.wgsl`) and one response pass per chunk of kept terms
-//! (`wgsl/compressed_respond.wgsl`), the indirect radiance read back. CPU twin:
-//! [`CompressedOperator::indirect`].
+//! (`wgsl/compressed_respond.wgsl`), the indirect radiance read back.
+//! CPU twin: local::operator::CompressedOperator::indirect.
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
@@ -37,7 +37,7 @@ pub struct GpuCompressed<'b> {
     respond: wgpu::ComputePipeline,
     /// members, offsets, means, bases (the projection's inputs besides the irradiance).
     projection_inputs: [wgpu::Buffer; 4],
-    /// member_info, senders, sender_offsets, responses, mean_response.
+    /// member_info, terms, term_offsets, responses, mean_response.
     response_inputs: [wgpu::Buffer; 5],
     clusters: u32,
     components: u32,
@@ -52,8 +52,7 @@ pub struct GpuCompressed<'b> {
 fn member_info(op: &CompressedOperator) -> Result<Vec<[u32; 4]>> {
     let mut info = Vec::with_capacity(op.members.len());
     for r in 0..op.clusters() {
-        let kept = (op.sender_offsets[r + 1] - op.sender_offsets[r]) as u64;
-        let width = 3 * kept * op.components as u64;
+        let width = 3 * (op.term_offsets[r + 1] - op.term_offsets[r]) as u64;
         for (i, &p) in op.cluster_members(r).iter().enumerate() {
             let start = op.response_offsets[r] + i as u64 * width;
             let start = u32::try_from(start).map_err(|_| {
@@ -102,7 +101,7 @@ impl<'b> GpuCompressed<'b> {
             .max()
             .unwrap_or(0);
         let widest_row = (0..op.clusters())
-            .map(|r| (op.sender_offsets[r + 1] - op.sender_offsets[r]) * op.components as u32)
+            .map(|r| op.term_offsets[r + 1] - op.term_offsets[r])
             .max()
             .unwrap_or(0);
         Ok(GpuCompressed {
@@ -117,8 +116,8 @@ impl<'b> GpuCompressed<'b> {
             ],
             response_inputs: [
                 ctx.storage("operator member info", &info),
-                ctx.storage("operator senders", &op.senders),
-                ctx.storage("operator sender offsets", &op.sender_offsets),
+                ctx.storage("operator terms", &op.terms),
+                ctx.storage("operator sender offsets", &op.term_offsets),
                 ctx.storage("operator responses", &op.responses),
                 ctx.storage("operator mean response", &mean_response),
             ],
@@ -164,13 +163,13 @@ impl<'b> GpuCompressed<'b> {
                 &buffers,
             )
         })?;
-        let [info, senders, sender_offsets, responses, mean_response] = &self.response_inputs;
+        let [info, terms, term_offsets, responses, mean_response] = &self.response_inputs;
         let respond_group = ctx.checked("binding the response buffers", || {
             let buffers = [
                 &params,
                 info,
-                senders,
-                sender_offsets,
+                terms,
+                term_offsets,
                 responses,
                 mean_response,
                 &coordinates,

@@ -68,9 +68,9 @@ impl Default for LocalOptions {
             depth_clusters: 32,
             depth_components: 24,
             operator: OperatorShape {
-                clusters: 32,
-                components: 8,
-                sparsity: 0.02,
+                clusters: 64,
+                components: 16,
+                sparsity: 0.03,
                 seed: 1,
             },
             example_lights: 256,
@@ -262,8 +262,8 @@ pub fn bake_prepared(
     let features = clustering_features(&scene, inputs.bake.bvh.extent());
     let operator = build_compressed(&sparse, &features, 6, &examples, options.operator)?;
     report.operator_bytes = operator.byte_size();
-    let blocks = operator.clusters() * operator.clusters();
-    report.operator_kept = operator.senders.len() as f64 / blocks.max(1) as f64;
+    let all_terms = operator.clusters() * operator.clusters() * operator.components;
+    report.operator_kept = operator.terms.len() as f64 / all_terms.max(1) as f64;
     report.seconds_operator = started.elapsed().as_secs_f64();
     report.operator_error = held_out_error(&scene, &inputs, &maps, &sparse, &operator, options);
     let open_depth = maps.open_depth;

@@ -12,8 +12,8 @@
 //!   examples, not for their irradiance); the operator applied once at bake time to every
 //!   basis vector and to the means. A frame projects its irradiance with each cluster's rows
 //!   (`a_sk = w_sk . (E_s - mu_s)`; the file's `bases`) and sums the stored responses,
-//!   `I = K mu + sum_s sum_k a_sk K b_sk`, keeping only the sender clusters whose response in
-//!   a receiver cluster is not negligible.
+//!   `I = K mu + sum_s sum_k a_sk K b_sk`, keeping in each receiver cluster only the terms
+//!   `(s, k)` that are not negligible there.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -72,12 +72,12 @@ pub struct CompressedOperator {
     pub bases: Vec<f32>,
     /// `K mu` per receiver (receiver order), RGB.
     pub mean_response: Vec<Vec3>,
-    /// Per receiver cluster r, the sender clusters kept: `senders[sender_offsets[r]..
-    /// sender_offsets[r + 1]]`.
-    pub senders: Vec<u32>,
-    pub sender_offsets: Vec<u32>,
-    /// Per member of each receiver cluster (in `members` order), `[channel][kept sender][k]`;
-    /// member i of cluster r starts at `response_offsets[r] + i * 3 * kept_r * components`.
+    /// Per receiver cluster r, the terms kept: indices `s * components + k` into the
+    /// coordinates, `terms[term_offsets[r]..term_offsets[r + 1]]`, ascending.
+    pub terms: Vec<u32>,
+    pub term_offsets: Vec<u32>,
+    /// Per member of each receiver cluster (in `members` order), `[channel][kept term]`;
+    /// member i of cluster r starts at `response_offsets[r] + i * 3 * kept_r`.
     pub responses: Vec<f32>,
     pub response_offsets: Vec<u64>,
 }
@@ -115,19 +115,14 @@ impl CompressedOperator {
 
     /// Indirect radiance per receiver (receiver order) for the irradiance `irradiance`.
     pub fn indirect(&self, irradiance: &[f32]) -> Vec<Vec3> {
-        let m = self.components;
         let coordinates = self.project(irradiance);
         let mut out = self.mean_response.clone();
         let per_cluster: Vec<Vec<(u32, Vec3)>> = (0..self.clusters())
             .into_par_iter()
             .map(|r| {
-                let senders = &self.senders
-                    [self.sender_offsets[r] as usize..self.sender_offsets[r + 1] as usize];
-                let gathered: Vec<f32> = senders
-                    .iter()
-                    .flat_map(|&s| &coordinates[s as usize * m..(s as usize + 1) * m])
-                    .copied()
-                    .collect();
+                let terms =
+                    &self.terms[self.term_offsets[r] as usize..self.term_offsets[r + 1] as usize];
+                let gathered: Vec<f32> = terms.iter().map(|&t| coordinates[t as usize]).collect();
                 let width = gathered.len();
                 let base = self.response_offsets[r] as usize;
                 self.cluster_members(r)
@@ -155,8 +150,8 @@ impl CompressedOperator {
             + self.responses.len()
             + self.members.len()
             + self.offsets.len()
-            + self.senders.len()
-            + self.sender_offsets.len())
+            + self.terms.len()
+            + self.term_offsets.len())
             + 8 * self.response_offsets.len()
     }
 }

@@ -91,6 +91,8 @@ fn away_from_boundary(
         })
 }
 
+/// At the default depth compression (64x24) 99.45% agree when written (99.07% at the former
+/// 32x24); every disagreement is compression error (the uncompressed maps agree on all).
 #[test]
 fn depth_map_shadows_agree_with_shadow_rays() {
     let interior = interior();
@@ -295,6 +297,9 @@ fn a_white_furnace_room_balances_indirect_against_direct() {
     }
 }
 
+/// The depth maps' visibility changes the indirect light by less than the gather's sampling
+/// error: 0.56%, 1.18%, 3.07% against 1.50%, 1.81%, 4.86% when written (the 1.18% was 1.67%
+/// with the former depth compression, 32x24).
 #[test]
 fn the_operator_matches_shadow_rays_and_gather_bounces() {
     let interior = interior();

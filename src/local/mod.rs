@@ -65,7 +65,7 @@ impl Default for LocalOptions {
             seed: 1,
             bounces: 3,
             grid_side: 16,
-            depth_clusters: 32,
+            depth_clusters: 64,
             depth_components: 24,
             operator: OperatorShape {
                 clusters: 64,

@@ -331,10 +331,14 @@ struct RenderArgs {
     spot_light: Vec<String>,
     /// Local-lights bakes: render N frames with the lights carried once round a circle about
     /// the vertical axis through the scene's centre (images OUTPUT_000.png, ...), and report
-    /// the per-frame relighting time of each operator on the CPU and, where there is an
-    /// adapter, the sparse one on the GPU.
+    /// the per-frame relighting time of each operator on the CPU and on the GPU (--device).
     #[arg(long, value_name = "N")]
     frames: Option<u32>,
+    /// Local-lights bakes: where the relighting runs besides the CPU. `gpu`: both operators on
+    /// any adapter (lavapipe included), an error without one; `cpu`: the CPU only; `auto`: the
+    /// GPU too where an adapter opens.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    device: DeviceChoice,
     /// With --frames: the circle's axis passes through X,Y,Z instead of the scene's centre.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true)]
     orbit: Option<Vec3>,
@@ -2153,9 +2157,13 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
         .camera
         .unwrap_or_else(|| Camera::framing_scene(&baked.scene));
     let context = open_render_device(args.adapter.as_deref())?;
-    let gpu = GpuBaker::open(DeviceChoice::Gpu, args.adapter.as_deref())
-        .ok()
-        .flatten();
+    let gpu = match args.device {
+        DeviceChoice::Cpu => None,
+        DeviceChoice::Gpu => GpuBaker::open(DeviceChoice::Gpu, args.adapter.as_deref())?,
+        DeviceChoice::Auto => GpuBaker::open(DeviceChoice::Gpu, args.adapter.as_deref())
+            .ok()
+            .flatten(),
+    };
     let gpu_paths = match &gpu {
         Some(baker) => Some(local::GpuPaths::new(baker, &baked)?),
         None => None,

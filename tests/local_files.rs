@@ -339,6 +339,8 @@ fn frames_write_a_sequence_and_report_their_time() {
             "--point-light=0.5,1,0,2",
             "--frames",
             "3",
+            "--device",
+            "gpu",
             "--width",
             "64",
             "--height",
@@ -359,8 +361,12 @@ fn frames_write_a_sequence_and_report_their_time() {
         );
         return;
     }
+    // The images need an adapter, so the relighting runs on it too: both operators timed there.
     assert!(
-        stdout.contains("relighting per frame") && stdout.contains("compressed operator"),
+        stdout.contains("relighting per frame")
+            && stdout.contains("+ compressed operator ")
+            && stdout.contains("+ compressed operator on the GPU (")
+            && stdout.contains("+ sparse operator on the GPU ("),
         "{stdout}"
     );
     let names = testing::entries(dir.path());

@@ -457,3 +457,105 @@ fn at_the_defaults_the_compressed_operator_is_close_on_held_out_lights() {
     assert!(mean < 0.12, "{mean}");
     assert!(report.operator_error < 0.12, "{}", report.operator_error);
 }
+
+/// Pruning keeps, in each receiver cluster, every term but the least, whose expected energy
+/// (response energy there times the coordinate's mean square over the example lights)
+/// together stays within `sparsity^2` of the cluster's total, and no more could be dropped;
+/// the kept terms' responses are the unpruned operator's.
+#[test]
+fn pruning_drops_the_least_terms_within_the_budget() {
+    let interior = interior();
+    let scene = &interior.scene;
+    let (matrix, inputs) = gather_matrix(scene, 64, 3);
+    let frames = receiver_frames(scene, &inputs);
+    let lights = test_lights(32, 11);
+    let examples: Vec<f32> = lights
+        .iter()
+        .flat_map(|&p| {
+            irradiance_from_depth(
+                &frames,
+                &interior.maps,
+                &interior.maps.grid,
+                &[LocalLight::point(p, 1.0)],
+            )
+        })
+        .collect();
+    let sparse = SparseOperator {
+        matrix: &matrix,
+        albedo: &scene.albedo,
+        bounces: 1,
+    };
+    let features: Vec<f32> = scene
+        .positions
+        .iter()
+        .flat_map(|p| (*p / 8.0).to_array())
+        .collect();
+    let build = |sparsity: f32| {
+        let shape = OperatorShape {
+            clusters: 12,
+            components: 6,
+            sparsity,
+            seed: 2,
+        };
+        build_compressed(&sparse, &features, 3, &examples, shape).unwrap()
+    };
+    let (all, pruned) = (build(0.0), build(0.1));
+    let n = scene.positions.len();
+    let mut power = vec![0.0f64; all.clusters() * all.components];
+    for e in examples.chunks_exact(n) {
+        for (p, a) in power.iter_mut().zip(all.project(e)) {
+            *p += (a as f64).powi(2) / 32.0;
+        }
+    }
+    let mut dropped_somewhere = false;
+    for r in 0..all.clusters() {
+        let terms = |op: &prt_gpu::local::operator::CompressedOperator| {
+            op.terms[op.term_offsets[r] as usize..op.term_offsets[r + 1] as usize].to_vec()
+        };
+        let (every, kept) = (terms(&all), terms(&pruned));
+        let size = (all.offsets[r + 1] - all.offsets[r]) as usize;
+        let energy = |t: u32| -> f64 {
+            let j = every.iter().position(|&u| u == t).unwrap();
+            let width = every.len();
+            let start = all.response_offsets[r] as usize;
+            let rows = &all.responses[start..start + size * 3 * width];
+            rows.chunks_exact(width)
+                .map(|row| (row[j] as f64).powi(2))
+                .sum::<f64>()
+                * power[t as usize]
+        };
+        let total: f64 = every.iter().map(|&t| energy(t)).sum();
+        let dropped: Vec<u32> = every
+            .iter()
+            .copied()
+            .filter(|t| !kept.contains(t))
+            .collect();
+        let dropped_energy: f64 = dropped.iter().map(|&t| energy(t)).sum();
+        assert!(kept.iter().all(|t| every.contains(t)), "cluster {r}");
+        assert!(dropped_energy <= 0.01 * total * (1.0 + 1e-9), "cluster {r}");
+        let least_kept = kept
+            .iter()
+            .map(|&t| energy(t))
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            dropped_energy + least_kept > 0.01 * total * (1.0 - 1e-9),
+            "cluster {r}: {least_kept} more could have been dropped"
+        );
+        dropped_somewhere |= !dropped.is_empty();
+        // The kept terms' responses are the unpruned ones, column for column.
+        let (start_all, start_kept) = (
+            all.response_offsets[r] as usize,
+            pruned.response_offsets[r] as usize,
+        );
+        for i in 0..size * 3 {
+            for (k, &t) in kept.iter().enumerate() {
+                let j = every.iter().position(|&u| u == t).unwrap();
+                assert_eq!(
+                    pruned.responses[start_kept + i * kept.len() + k],
+                    all.responses[start_all + i * every.len() + j]
+                );
+            }
+        }
+    }
+    assert!(dropped_somewhere);
+}

@@ -440,12 +440,33 @@ fn cpu_and_gpu_agree() {
     // The compressed operator: one pass per kernel, and 7 terms a pass (the passes that add).
     let expected = bake.operator.indirect(&frame.irradiance);
     assert!(expected.iter().any(|v| v.max_element() > 0.0));
-    for terms in [local::gpu::TERMS_PER_PASS, 7] {
-        let mut on_gpu = local::gpu::GpuCompressed::new(baker, &bake.operator).unwrap();
+    // And its responses in runs no larger than the largest cluster's (a small binding limit).
+    let offsets = &bake.operator.response_offsets;
+    let largest_cluster = 4 * offsets.windows(2).map(|w| w[1] - w[0]).max().unwrap();
+    for (terms, binding) in [
+        (local::gpu::TERMS_PER_PASS, u64::MAX),
+        (7, u64::MAX),
+        (7, largest_cluster),
+    ] {
+        let mut on_gpu =
+            local::gpu::GpuCompressed::with_binding_limit(baker, &bake.operator, binding).unwrap();
         on_gpu.terms_per_pass = terms;
+        let runs = on_gpu.response_runs();
+        assert_eq!(runs > 1, binding == largest_cluster, "{runs} runs");
         let indirect = on_gpu.indirect(&frame.irradiance).unwrap();
         let error = relative_rms(&expected, &indirect);
-        println!("compressed operator, {terms} terms a pass: GPU against CPU {error:e}");
-        assert!(error < 1e-5, "{terms} terms a pass: {error}");
+        println!(
+            "compressed operator, {terms} terms a pass, {runs} runs: GPU against CPU {error:e}"
+        );
+        assert!(error < 1e-5, "{terms} terms a pass, {runs} runs: {error}");
     }
+    // A binding smaller than one cluster's responses is a one-line error.
+    let error = local::gpu::GpuCompressed::with_binding_limit(baker, &bake.operator, 4)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        error.contains("exceed one storage binding") && !error.contains('\n'),
+        "{error}"
+    );
 }

@@ -37,49 +37,100 @@ pub struct GpuCompressed<'b> {
     respond: wgpu::ComputePipeline,
     /// members, offsets, means, bases (the projection's inputs besides the irradiance).
     projection_inputs: [wgpu::Buffer; 4],
-    /// member_info, terms, term_offsets, responses, mean_response.
-    response_inputs: [wgpu::Buffer; 5],
+    /// terms, term_offsets, mean_response (every chunk's).
+    response_inputs: [wgpu::Buffer; 3],
+    /// Receiver clusters in runs whose responses fit one storage binding.
+    chunks: Vec<ResponseChunk>,
     clusters: u32,
     components: u32,
     members: u32,
     largest_cluster: u32,
-    widest_row: u32,
     /// Terms per pass ([`TERMS_PER_PASS`]; smaller in tests, to exercise the passes that add).
     pub terms_per_pass: u32,
 }
 
-/// Per member (in `members` order): its receiver, its cluster and where its responses start.
-fn member_info(op: &CompressedOperator) -> Result<Vec<[u32; 4]>> {
-    let mut info = Vec::with_capacity(op.members.len());
-    for r in 0..op.clusters() {
+/// A run of receiver clusters: its members' info and its responses.
+struct ResponseChunk {
+    member_info: wgpu::Buffer,
+    responses: wgpu::Buffer,
+    members: u32,
+    widest_row: u32,
+}
+
+/// Runs of receiver clusters `[first, end)` whose responses take at most `max_floats` each.
+fn chunk_clusters(op: &CompressedOperator, max_floats: u64) -> Result<Vec<(usize, usize)>> {
+    let offsets = &op.response_offsets;
+    let mut runs = Vec::new();
+    let mut first = 0;
+    while first < op.clusters() {
+        let mut end = first;
+        while end < op.clusters() && offsets[end + 1] - offsets[first] <= max_floats {
+            end += 1;
+        }
+        if end == first {
+            return Err(Error::Gpu(format!(
+                "receiver cluster {first}'s responses ({} MB) exceed one storage binding \
+                 ({} MB) on this adapter",
+                4 * (offsets[first + 1] - offsets[first]) / 1_000_000,
+                4 * max_floats / 1_000_000
+            )));
+        }
+        runs.push((first, end));
+        first = end;
+    }
+    Ok(runs)
+}
+
+/// Per member of clusters `[first, end)`: its receiver, its cluster and where its responses
+/// start within the run's.
+fn member_info(op: &CompressedOperator, first: usize, end: usize) -> Vec<[u32; 4]> {
+    let base = op.response_offsets[first];
+    let mut info = Vec::new();
+    for r in first..end {
         let width = 3 * (op.term_offsets[r + 1] - op.term_offsets[r]) as u64;
         for (i, &p) in op.cluster_members(r).iter().enumerate() {
-            let start = op.response_offsets[r] + i as u64 * width;
-            let start = u32::try_from(start).map_err(|_| {
-                Error::Gpu("the compressed operator's responses exceed 2^32 floats".into())
-            })?;
-            info.push([p, r as u32, start, 0]);
+            let start = op.response_offsets[r] - base + i as u64 * width;
+            info.push([p, r as u32, start as u32, 0]);
         }
     }
-    Ok(info)
+    info
 }
 
 impl<'b> GpuCompressed<'b> {
+    /// Uploads the operator, its responses in runs that fit the adapter's storage bindings.
     pub fn new(baker: &'b GpuBaker, op: &CompressedOperator) -> Result<Self> {
-        let ctx = &baker.context;
-        let max_binding = ctx
-            .limits
+        let limits = &baker.context.limits;
+        let max_binding = limits
             .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
-        if 4 * op.responses.len() as u64 > max_binding {
-            return Err(Error::Gpu(format!(
-                "the compressed operator's responses ({} MB) exceed one storage binding \
-                 ({} MB) on this adapter",
-                4 * op.responses.len() / 1_000_000,
-                max_binding / 1_000_000
-            )));
-        }
-        let info = member_info(op)?;
+            .min(limits.max_buffer_size);
+        Self::with_binding_limit(baker, op, max_binding)
+    }
+
+    /// [`Self::new`] with responses split into runs of at most `max_binding` bytes (tests
+    /// use a small one to exercise the runs); indices stay within u32.
+    pub fn with_binding_limit(
+        baker: &'b GpuBaker,
+        op: &CompressedOperator,
+        max_binding: u64,
+    ) -> Result<Self> {
+        let ctx = &baker.context;
+        let max_floats = (max_binding / 4).min(u32::MAX as u64);
+        let chunks = chunk_clusters(op, max_floats)?
+            .into_iter()
+            .map(|(first, end)| ResponseChunk {
+                member_info: ctx.storage("operator member info", &member_info(op, first, end)),
+                responses: ctx.storage(
+                    "operator responses",
+                    &op.responses
+                        [op.response_offsets[first] as usize..op.response_offsets[end] as usize],
+                ),
+                members: op.offsets[end] - op.offsets[first],
+                widest_row: (first..end)
+                    .map(|r| op.term_offsets[r + 1] - op.term_offsets[r])
+                    .max()
+                    .unwrap_or(0),
+            })
+            .collect();
         let (project, respond) =
             ctx.checked("compiling the compressed-operator kernels", || {
                 (
@@ -100,10 +151,6 @@ impl<'b> GpuCompressed<'b> {
             .map(|c| op.offsets[c + 1] - op.offsets[c])
             .max()
             .unwrap_or(0);
-        let widest_row = (0..op.clusters())
-            .map(|r| op.term_offsets[r + 1] - op.term_offsets[r])
-            .max()
-            .unwrap_or(0);
         Ok(GpuCompressed {
             baker,
             project,
@@ -115,19 +162,22 @@ impl<'b> GpuCompressed<'b> {
                 ctx.storage("operator bases", &op.bases),
             ],
             response_inputs: [
-                ctx.storage("operator member info", &info),
                 ctx.storage("operator terms", &op.terms),
-                ctx.storage("operator sender offsets", &op.term_offsets),
-                ctx.storage("operator responses", &op.responses),
+                ctx.storage("operator term offsets", &op.term_offsets),
                 ctx.storage("operator mean response", &mean_response),
             ],
+            chunks,
             clusters: op.clusters() as u32,
             components: op.components as u32,
             members: op.members.len() as u32,
             largest_cluster,
-            widest_row,
             terms_per_pass: TERMS_PER_PASS,
         })
+    }
+
+    /// How many runs the responses are uploaded in.
+    pub fn response_runs(&self) -> usize {
+        self.chunks.len()
     }
 
     /// Indirect radiance per receiver for `irradiance`, as [`CompressedOperator::indirect`].
@@ -145,11 +195,11 @@ impl<'b> GpuCompressed<'b> {
         let coordinates = ctx.output("operator coordinates", 4 * coordinates_count as u64);
         let bytes = 4 * 3 * self.members as u64;
         let indirect = ctx.output("indirect radiance", bytes);
-        let params = ctx.uniform("compressed params", &CompressedParams::default());
+        let uniform = ctx.uniform("compressed params", &CompressedParams::default());
         let [members, offsets, means, bases] = &self.projection_inputs;
         let project_group = ctx.checked("binding the projection buffers", || {
             let buffers = [
-                &params,
+                &uniform,
                 members,
                 offsets,
                 means,
@@ -163,41 +213,41 @@ impl<'b> GpuCompressed<'b> {
                 &buffers,
             )
         })?;
-        let [info, terms, term_offsets, responses, mean_response] = &self.response_inputs;
-        let respond_group = ctx.checked("binding the response buffers", || {
-            let buffers = [
-                &params,
-                info,
-                terms,
-                term_offsets,
-                responses,
-                mean_response,
-                &coordinates,
-                &indirect,
-            ];
-            ctx.bind_buffers(
-                "compressed respond",
-                &self.respond.get_bind_group_layout(0),
-                &buffers,
-            )
-        })?;
-        let kernels = [
-            (
+        for pass in 0..self.passes(self.largest_cluster) {
+            let params = self.params(self.members, pass);
+            self.run_pass(
                 &self.project,
                 &project_group,
+                &uniform,
+                &params,
                 coordinates_count,
-                self.largest_cluster,
-            ),
-            (
-                &self.respond,
-                &respond_group,
-                3 * self.members,
-                self.widest_row,
-            ),
-        ];
-        for (kernel, group, invocations, longest) in kernels {
-            for pass in 0..longest.div_ceil(self.terms_per_pass.max(1)).max(1) {
-                self.run_pass(kernel, group, &params, invocations, pass)?;
+            )?;
+        }
+        let [terms, term_offsets, mean_response] = &self.response_inputs;
+        for chunk in &self.chunks {
+            let respond_group = ctx.checked("binding the response buffers", || {
+                let buffers = [
+                    &uniform,
+                    &chunk.member_info,
+                    terms,
+                    term_offsets,
+                    &chunk.responses,
+                    mean_response,
+                    &coordinates,
+                    &indirect,
+                ];
+                let layout = self.respond.get_bind_group_layout(0);
+                ctx.bind_buffers("compressed respond", &layout, &buffers)
+            })?;
+            for pass in 0..self.passes(chunk.widest_row) {
+                let params = self.params(chunk.members, pass);
+                self.run_pass(
+                    &self.respond,
+                    &respond_group,
+                    &uniform,
+                    &params,
+                    3 * chunk.members,
+                )?;
             }
         }
         let values: Vec<f32> = ctx.read_back(&indirect, bytes)?;
@@ -207,30 +257,38 @@ impl<'b> GpuCompressed<'b> {
             .collect())
     }
 
-    /// One pass of a kernel over terms `pass * terms_per_pass ..`, adding to the passes before.
+    /// Passes for loops of up to `longest` terms.
+    fn passes(&self, longest: u32) -> u32 {
+        longest.div_ceil(self.terms_per_pass.max(1)).max(1)
+    }
+
+    /// The uniforms of pass `pass` over `members` members, adding to the passes before.
+    fn params(&self, members: u32, pass: u32) -> CompressedParams {
+        let per_pass = self.terms_per_pass.max(1);
+        CompressedParams {
+            clusters: self.clusters,
+            components: self.components,
+            members,
+            entry_begin: pass * per_pass,
+            entry_limit: per_pass,
+            accumulate: (pass > 0) as u32,
+            pad0: 0,
+            pad1: 0,
+        }
+    }
+
+    /// One pass of a kernel with `params`, `invocations` invocations.
     fn run_pass(
         &self,
         kernel: &wgpu::ComputePipeline,
         group: &wgpu::BindGroup,
-        params: &wgpu::Buffer,
+        uniform: &wgpu::Buffer,
+        params: &CompressedParams,
         invocations: u32,
-        pass: u32,
     ) -> Result<()> {
         let ctx = &self.baker.context;
-        ctx.queue.write_buffer(
-            params,
-            0,
-            bytemuck::bytes_of(&CompressedParams {
-                clusters: self.clusters,
-                components: self.components,
-                members: self.members,
-                entry_begin: pass * self.terms_per_pass.max(1),
-                entry_limit: self.terms_per_pass.max(1),
-                accumulate: (pass > 0) as u32,
-                pad0: 0,
-                pad1: 0,
-            }),
-        );
+        ctx.queue
+            .write_buffer(uniform, 0, bytemuck::bytes_of(params));
         ctx.checked("running the compressed-operator kernels", || {
             let mut encoder = ctx
                 .device

@@ -645,8 +645,8 @@ impl<'b> GpuSparse<'b> {
 /// Both operators on the GPU, uploaded once for a sequence of frames.
 pub struct GpuPaths<'b> {
     pub sparse: GpuSparse<'b>,
-    /// Or why it could not be uploaded (responses larger than one storage binding): the
-    /// frames are then timed without it.
+    /// Or why it could not be uploaded (one receiver cluster's responses larger than a
+    /// storage binding): the frames are then timed without it.
     pub compressed: std::result::Result<gpu::GpuCompressed<'b>, String>,
 }
 

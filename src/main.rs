@@ -335,8 +335,8 @@ struct RenderArgs {
     #[arg(long, value_name = "N")]
     frames: Option<u32>,
     /// Local-lights bakes: where the relighting runs besides the CPU. `gpu`: both operators on
-    /// any adapter (lavapipe included), an error without one; `cpu`: the CPU only; `auto`: the
-    /// GPU too where an adapter opens.
+    /// any adapter (lavapipe included), an error without one; `cpu`: the CPU only; `auto`: a
+    /// hardware GPU too where there is one.
     #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
     device: DeviceChoice,
     /// With --frames: the circle's axis passes through X,Y,Z instead of the scene's centre.
@@ -2160,7 +2160,7 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
     let gpu = match args.device {
         DeviceChoice::Cpu => None,
         DeviceChoice::Gpu => GpuBaker::open(DeviceChoice::Gpu, args.adapter.as_deref())?,
-        DeviceChoice::Auto => GpuBaker::open(DeviceChoice::Gpu, args.adapter.as_deref())
+        DeviceChoice::Auto => GpuBaker::open(DeviceChoice::Auto, args.adapter.as_deref())
             .ok()
             .flatten(),
     };

@@ -452,10 +452,11 @@ struct BakeArgs {
     /// COLOR_0; interreflected transfer when every albedo is grey), a third of the size.
     #[arg(long, value_enum, default_value_t = Storage::Rgb)]
     storage: Storage,
-    /// Precision of the stored per-vertex transfer: `f32`, or `f16` (IEEE half floats: half the
-    /// bytes, each coefficient within 2^-11 of its value relative; the added relit error is
-    /// reported). glTF has no half-float attributes, so an f16 file names its transfer view in
-    /// extras.prt instead of the _PRT_* attributes.
+    /// Precision of the stored transfer: `f32`, or `f16` (IEEE half floats: half the bytes,
+    /// each value within 2^-11 of itself relative; the added relit error is reported). glTF has
+    /// no half-float attributes, so an f16 file names its transfer view in extras.prt instead of
+    /// the _PRT_* attributes. With --compress, the means, bases and weights are half floats and
+    /// each cluster index takes the fewest bytes that hold it (1 up to 256 clusters).
     #[arg(long, value_enum, default_value_t = Precision::F32)]
     precision: Precision,
     /// Store the transfer compressed by clustered PCA (Sloan et al. 2003): CLUSTERSxCOMPONENTS,
@@ -835,7 +836,7 @@ fn bake_one(
         options.bands = choose_auto_bands(&mut baked, args.bands_threshold);
     }
     let cpca = match args.compress {
-        Some(shape) => Some(compress_transfer(&baked, shape)?),
+        Some(shape) => Some(compress_transfer(&baked, shape, args.precision)?),
         None => None,
     };
     let writing = std::time::Instant::now();
@@ -851,7 +852,7 @@ fn bake_one(
             None
         }
     };
-    if args.precision == Precision::F16 {
+    if args.precision == Precision::F16 && cpca.is_none() {
         report_f16_error(&baked)?;
     }
     let seconds_write = writing.elapsed().as_secs_f64();
@@ -1113,12 +1114,10 @@ fn check_output_forms(args: &BakeArgs, options: &BakeOptions, gltf: bool) -> Res
              glTF scenes baked in place and lightmaps are not compressed",
         );
     }
-    if args.precision == Precision::F16
-        && (gltf || args.compress.is_some() || options.lightmap.is_some())
-    {
+    if args.precision == Precision::F16 && (gltf || options.lightmap.is_some()) {
         return refuse(
-            "--precision f16 stores the per-vertex transfer of OBJ, PLY and the built-in scene; \
-             glTF scenes baked in place, compressed transfer and lightmaps keep their own storage",
+            "--precision f16 stores the per-vertex or compressed transfer of OBJ, PLY and the \
+             built-in scene; glTF scenes baked in place and lightmaps keep their own storage",
         );
     }
     if gltf && options.storage == Storage::Lean {
@@ -1202,8 +1201,13 @@ fn bake_options(args: &BakeArgs) -> Result<BakeOptions> {
     })
 }
 
-/// The baked transfer compressed to `(clusters, components)`, with its sizes and errors said.
-fn compress_transfer(baked: &bake::BakedMesh, compression: Compression) -> Result<Cpca> {
+/// The baked transfer compressed to `(clusters, components)` and rounded as a file at
+/// `precision` stores it, with its sizes and errors (those of the stored form) said.
+fn compress_transfer(
+    baked: &bake::BakedMesh,
+    compression: Compression,
+    precision: Precision,
+) -> Result<Cpca> {
     let started = std::time::Instant::now();
     let (cpca, options) = match compression {
         Compression::Shape(clusters, components) => {
@@ -1218,15 +1222,20 @@ fn compress_transfer(baked: &bake::BakedMesh, compression: Compression) -> Resul
             compress::choose(&baked.transfer, error, CpcaOptions::default().seed)?
         }
     };
+    let cpca = cpca.rounded(precision);
     let (clusters, components) = (options.clusters, options.components);
     let seconds = started.elapsed().as_secs_f64();
     let before = compress::uncompressed_bytes(&baked.transfer);
-    let after = cpca.byte_size();
+    let after = cpca.byte_size(precision);
     let light = light::preview_light(baked.transfer.bands)?;
+    let half = match precision {
+        Precision::F32 => "",
+        Precision::F16 => " as half floats",
+    };
     eprintln!(
         "compressed: {clusters} clusters x {components} components in {seconds:.2} s, {after} \
-         bytes of {before} ({:.1}x smaller); coefficient error {:.2}%, relit error {:.2}% under \
-         the preview light",
+         bytes{half} of {before} ({:.1}x smaller); coefficient error {:.2}%, relit error {:.2}% \
+         under the preview light",
         before as f64 / after as f64,
         100.0 * compress::relative_error(&baked.transfer, &cpca),
         100.0 * compress::relit_error(&baked.transfer, &cpca, &light)?

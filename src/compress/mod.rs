@@ -26,6 +26,7 @@ use rayon::prelude::*;
 use crate::bake::Transfer;
 use crate::error::{Error, Result};
 use crate::light::ShLight;
+use crate::precision::Precision;
 use cluster::{Model, Points};
 
 /// How hard to compress.
@@ -417,29 +418,51 @@ impl Cpca {
         vector_radiance(t, self.channels as usize, light)
     }
 
-    /// Bytes to store this as float32 means, bases and weights plus one cluster index per
-    /// vertex: `4 * clusters * dimension * (1 + components) + 4 * vertices * components +
-    /// index_bytes * vertices`, where an index takes 2 bytes (u16) for up to 65,536 clusters,
-    /// else 4 (u32).
-    pub fn byte_size(&self) -> usize {
+    /// Bytes the baked file stores this in at `precision` ([`stored_bytes`]).
+    pub fn byte_size(&self, precision: Precision) -> usize {
         stored_bytes(
-            self.cluster_count(),
-            self.components,
+            (self.cluster_count(), self.components),
             self.dimension,
             self.vertex_count(),
+            precision,
         )
+    }
+
+    /// This as stored at `precision` and read back: means, bases and weights rounded (the
+    /// assignment is exact at any precision).
+    pub fn rounded(&self, precision: Precision) -> Cpca {
+        Cpca {
+            means: precision.round_all(&self.means),
+            bases: precision.round_all(&self.bases),
+            weights: precision.round_all(&self.weights),
+            ..self.clone()
+        }
     }
 }
 
-/// [`Cpca::byte_size`] for a shape.
+/// Bytes of a compressed transfer of `(clusters, components)` in the baked file: means, bases
+/// and weights at `precision`, `precision.bytes() * (clusters * dimension * (1 + components) +
+/// vertices * components)`, plus `index_bytes(clusters, precision)` per vertex.
 pub fn stored_bytes(
-    clusters: usize,
-    components: usize,
+    (clusters, components): (usize, usize),
     dimension: usize,
     vertices: usize,
+    precision: Precision,
 ) -> usize {
-    let index_bytes = if clusters <= 1 << 16 { 2 } else { 4 };
-    4 * clusters * dimension * (1 + components) + 4 * vertices * components + index_bytes * vertices
+    precision.bytes() * (clusters * dimension * (1 + components) + vertices * components)
+        + index_bytes(clusters, precision) * vertices
+}
+
+/// Bytes of one vertex's cluster index: a float32 file keeps u32 (its layout since the first
+/// compressed files); a half-float file the narrowest that holds every cluster, u8 up to 256
+/// clusters, u16 up to 65,536, else u32.
+pub fn index_bytes(clusters: usize, precision: Precision) -> usize {
+    match precision {
+        Precision::F32 => 4,
+        Precision::F16 if clusters <= 1 << 8 => 1,
+        Precision::F16 if clusters <= 1 << 16 => 2,
+        Precision::F16 => 4,
+    }
 }
 
 /// Bytes of the transfer as float32: 4 per coefficient.
@@ -524,7 +547,7 @@ fn relative_rms(reference: impl Iterator<Item = f64>, other: impl Iterator<Item 
     }
 }
 
-/// The smallest [`Cpca`] (by [`Cpca::byte_size`]) on a grid of cluster and component counts
+/// The smallest [`Cpca`] (by [`Cpca::byte_size`] at float32) on a grid of cluster and component counts
 /// whose [`relative_error`] is at most `target_relative_error`, with the options that made it.
 ///
 /// The grid is clusters 1, 4, 16, 64, 256 by components 1, 2, 4, 8, 16, ... (within the
@@ -584,7 +607,10 @@ fn grid(dimension: usize, vertices: usize) -> Vec<(u32, u32)> {
     let mut shapes: Vec<(usize, usize)> = clusters
         .flat_map(|k| components.iter().map(move |&m| (k, m)))
         .collect();
-    shapes.sort_by_key(|&(k, m)| (stored_bytes(k, m, dimension, vertices), k, m));
+    shapes.sort_by_key(|&(k, m)| {
+        let bytes = stored_bytes((k, m), dimension, vertices, Precision::F32);
+        (bytes, k, m)
+    });
     if vertices > 0 {
         shapes.push((1, dimension));
     }

@@ -836,7 +836,12 @@ fn bake_one(
         options.bands = choose_auto_bands(&mut baked, args.bands_threshold);
     }
     let cpca = match args.compress {
-        Some(shape) => Some(compress_transfer(&baked, shape, args.precision)?),
+        Some(shape) => Some(compress_transfer(
+            &baked,
+            shape,
+            args.precision,
+            baker.as_ref().map(|b| &b.context),
+        )?),
         None => None,
     };
     let writing = std::time::Instant::now();
@@ -1202,13 +1207,41 @@ fn bake_options(args: &BakeArgs) -> Result<BakeOptions> {
 }
 
 /// The baked transfer compressed to `(clusters, components)` and rounded as a file at
-/// `precision` stores it, with its sizes and errors (those of the stored form) said.
+/// `precision` stores it, with its sizes and errors (those of the stored form) said. The
+/// assignment steps run on `gpu` where the bake ran on a hardware one: a software adapter
+/// (lavapipe) runs on the same cores as the CPU path and took 7-12 times as long
+/// (docs/performance.md).
 fn compress_transfer(
     baked: &bake::BakedMesh,
     compression: Compression,
     precision: Precision,
+    gpu: Option<&prt_gpu::device::GpuContext>,
 ) -> Result<Cpca> {
     let started = std::time::Instant::now();
+    let transfer = &baked.transfer;
+    let points = compress::Points {
+        data: &transfer.coeffs,
+        dimension: transfer.channels as usize * transfer.coeffs_per_channel(),
+    };
+    let most_components = match compression {
+        Compression::Shape(_, components) => components as usize,
+        Compression::Target(_) => points.dimension,
+    };
+    let gpu_assigner = match gpu.filter(|context| !context.adapter.is_software()) {
+        Some(context) => match compress::gpu::GpuAssigner::new(context, points, most_components) {
+            Ok(assigner) => Some((assigner, context.adapter.label())),
+            Err(Error::Options(why)) => {
+                eprintln!("note: {why}; clustering on the CPU");
+                None
+            }
+            Err(e) => return Err(e),
+        },
+        None => None,
+    };
+    let (assigner, ran_on): (&dyn compress::Assigner, String) = match &gpu_assigner {
+        Some((assigner, label)) => (assigner, format!("gpu: {label}")),
+        None => (&compress::CpuAssigner, "cpu".into()),
+    };
     let (cpca, options) = match compression {
         Compression::Shape(clusters, components) => {
             let options = CpcaOptions {
@@ -1216,10 +1249,13 @@ fn compress_transfer(
                 components,
                 ..CpcaOptions::default()
             };
-            (compress::compress(&baked.transfer, &options)?, options)
+            (
+                compress::compress_with(transfer, &options, assigner)?,
+                options,
+            )
         }
         Compression::Target(error) => {
-            compress::choose(&baked.transfer, error, CpcaOptions::default().seed)?
+            compress::choose_with(transfer, error, CpcaOptions::default().seed, assigner)?
         }
     };
     let cpca = cpca.rounded(precision);
@@ -1233,9 +1269,9 @@ fn compress_transfer(
         Precision::F16 => " as half floats",
     };
     eprintln!(
-        "compressed: {clusters} clusters x {components} components in {seconds:.2} s, {after} \
-         bytes{half} of {before} ({:.1}x smaller); coefficient error {:.2}%, relit error {:.2}% \
-         under the preview light",
+        "compressed: {clusters} clusters x {components} components in {seconds:.2} s \
+         ({ran_on}), {after} bytes{half} of {before} ({:.1}x smaller); coefficient error \
+         {:.2}%, relit error {:.2}% under the preview light",
         before as f64 / after as f64,
         100.0 * compress::relative_error(&baked.transfer, &cpca),
         100.0 * compress::relit_error(&baked.transfer, &cpca, &light)?

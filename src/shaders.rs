@@ -24,6 +24,7 @@ const VISIBILITY_WGSL: &str = include_str!("../wgsl/visibility.wgsl");
 const PROJECT_WGSL: &str = include_str!("../wgsl/project.wgsl");
 const GATHER_WGSL: &str = include_str!("../wgsl/gather.wgsl");
 const RENDER_WGSL: &str = include_str!("../wgsl/render.wgsl");
+const CPCA_ASSIGN_WGSL: &str = include_str!("../wgsl/cpca_assign.wgsl");
 
 /// Constants every kernel sees. `{:?}` prints the shortest decimal that parses back to the
 /// same f32, so WGSL gets the exact Rust values.
@@ -59,6 +60,11 @@ pub fn gather_kernel() -> String {
     format!("{}{GATHER_WGSL}", prelude())
 }
 
+/// The CPCA assignment kernel (`compress::gpu`).
+pub fn cpca_assign_kernel() -> String {
+    format!("{}{CPCA_ASSIGN_WGSL}", prelude())
+}
+
 /// The preview renderer's vertex and fragment shaders.
 pub fn render_shader() -> String {
     format!("{}{RENDER_WGSL}", prelude())
@@ -71,6 +77,7 @@ mod tests {
     use crate::bake::gpu::{GatherParams, ProjectParams, VisibilityParams};
     use crate::bvh::gpu::GpuNode;
     use crate::bvh::BvhTriangle;
+    use crate::compress::gpu::AssignParams;
     use crate::render::RenderParams;
     use std::mem::{offset_of, size_of};
 
@@ -117,6 +124,7 @@ mod tests {
         parse(&project_kernel());
         parse(&gather_kernel());
         parse(&render_shader());
+        parse(&cpca_assign_kernel());
     }
 
     #[test]
@@ -184,6 +192,20 @@ mod tests {
                 coeff_count,
                 entry_begin,
                 entry_limit,
+                accumulate,
+                pad0,
+                pad1
+            )
+        );
+        assert_eq!(
+            wgsl_layout(&parse(&cpca_assign_kernel()), "AssignParams"),
+            rust_layout!(
+                AssignParams,
+                vertex_count,
+                dimension,
+                components,
+                cluster_begin,
+                cluster_end,
                 accumulate,
                 pad0,
                 pad1

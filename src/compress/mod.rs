@@ -20,6 +20,7 @@
 
 mod cluster;
 pub mod eigen;
+pub mod gpu;
 
 use rayon::prelude::*;
 
@@ -27,7 +28,7 @@ use crate::bake::Transfer;
 use crate::error::{Error, Result};
 use crate::light::ShLight;
 use crate::precision::Precision;
-use cluster::{Model, Points};
+pub use cluster::{Assigner, CpuAssigner, Model, Points};
 
 /// How hard to compress.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -76,8 +77,19 @@ pub struct Cpca {
 
 /// Compresses `transfer`: k-means++ seeding from `options.seed`, then CPCA rounds.
 pub fn compress(transfer: &Transfer, options: &CpcaOptions) -> Result<Cpca> {
+    compress_with(transfer, options, &CpuAssigner)
+}
+
+/// [`compress`] with the assignment steps on `assigner` (a GPU's: [`gpu::GpuAssigner`]). The
+/// same assigner, seed and inputs give the same bits; a GPU assigns in f32 where the CPU uses
+/// f64, so near-ties may go the other way and the two results differ slightly.
+pub fn compress_with(
+    transfer: &Transfer,
+    options: &CpcaOptions,
+    assigner: &dyn Assigner,
+) -> Result<Cpca> {
     let points = checked_points(transfer, options)?;
-    let (model, assignment) = compress_points(points, options);
+    let (model, assignment) = compress_points(points, options, assigner)?;
     Ok(finish(
         (transfer.bands, transfer.channels),
         points,
@@ -110,27 +122,30 @@ pub fn compress_rows(rows: &[f32], dimension: usize, options: &CpcaOptions) -> R
         data: rows,
         dimension,
     };
-    let (model, assignment) = compress_points(points, options);
+    let (model, assignment) = compress_points(points, options, &CpuAssigner)?;
     Ok(finish((0, 0), points, &model, assignment))
 }
 
 /// k-means++ seeding from `options.seed`, then CPCA rounds: the model and the assignment.
-fn compress_points(points: Points, options: &CpcaOptions) -> (Model, Vec<u32>) {
+fn compress_points(
+    points: Points,
+    options: &CpcaOptions,
+    assigner: &dyn Assigner,
+) -> Result<(Model, Vec<u32>)> {
     let clusters = options.clusters as usize;
     let seeds = cluster::kmeans_plus_plus(points, clusters, options.seed);
     let seed_means = seeds.iter().flat_map(|&v| point(points, v)).collect();
     let mut seeding = Model::new(points.dimension, 0, seed_means, Vec::new());
-    let (mut assignment, mut residuals) = cluster::assign(points, &seeding);
+    let (mut assignment, mut residuals) = assigner.assign(points, &seeding)?;
     cluster::fill_empty_clusters(points, &mut seeding, &mut assignment, &mut residuals);
-    let (model, assignment) = cluster::iterate(
+    cluster::iterate(
         points,
         assignment,
-        clusters,
-        options.components as usize,
+        (clusters, options.components as usize),
         options.iterations,
         None,
-    );
-    (model, assignment)
+        assigner,
+    )
 }
 
 /// Continues CPCA rounds from an earlier result `start` (its assignment and bases), with
@@ -154,11 +169,11 @@ pub fn refine(transfer: &Transfer, start: &Cpca, options: &CpcaOptions) -> Resul
     let (model, assignment) = cluster::iterate(
         points,
         start.assignment.clone(),
-        options.clusters as usize,
-        options.components as usize,
+        (options.clusters as usize, options.components as usize),
         options.iterations,
         Some(warm),
-    );
+        &CpuAssigner,
+    )?;
     Ok(finish(
         (transfer.bands, transfer.channels),
         points,
@@ -560,6 +575,16 @@ pub fn choose(
     target_relative_error: f64,
     seed: u64,
 ) -> Result<(Cpca, CpcaOptions)> {
+    choose_with(transfer, target_relative_error, seed, &CpuAssigner)
+}
+
+/// [`choose`] with the assignment steps on `assigner`.
+pub fn choose_with(
+    transfer: &Transfer,
+    target_relative_error: f64,
+    seed: u64,
+    assigner: &dyn Assigner,
+) -> Result<(Cpca, CpcaOptions)> {
     if !(target_relative_error >= 0.0 && target_relative_error.is_finite()) {
         return Err(Error::Options(format!(
             "choose: target relative error {target_relative_error} (need a finite number >= 0)"
@@ -583,7 +608,7 @@ pub fn choose(
             seed,
             ..CpcaOptions::default()
         };
-        let cpca = compress(transfer, &options)?;
+        let cpca = compress_with(transfer, &options, assigner)?;
         let error = relative_error(transfer, &cpca);
         if error <= target_relative_error {
             return Ok((cpca, options));

@@ -6,7 +6,7 @@ use std::sync::Mutex;
 
 use clap::{Parser, Subcommand};
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 use prt_gpu::bake::adaptive::TargetError;
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
@@ -31,12 +31,31 @@ use prt_gpu::sweep::{self, SweepOptions};
 use prt_gpu::{chart, fs, glb, scene, view, x3d, Error, Result};
 
 /// `println!` that ends quietly when the reader of stdout has gone (`prt-gpu bake | head -1`),
-/// where the standard one panics: every report line of the CLI goes through it.
+/// where the standard one panics: every report line of the CLI goes through it. The progress
+/// bars step aside while it prints, so a line never lands inside a bar.
 macro_rules! println {
     ($($arg:tt)*) => {{
         use std::io::Write as _;
-        let _ = writeln!(std::io::stdout(), $($arg)*);
+        let line = format!($($arg)*);
+        bars().suspend(|| {
+            let _ = writeln!(std::io::stdout(), "{line}");
+        });
     }};
+}
+
+/// `eprintln!` with the progress bars stepped aside, as [`println!`].
+macro_rules! eprintln {
+    ($($arg:tt)*) => {{
+        let line = format!($($arg)*);
+        bars().suspend(|| std::eprintln!("{line}"));
+    }};
+}
+
+/// Every progress bar of the run, drawn together on stderr (hidden when stderr is not a
+/// terminal): a batch's bar over all its meshes, and the bar of the stage running.
+fn bars() -> &'static MultiProgress {
+    static BARS: std::sync::OnceLock<MultiProgress> = std::sync::OnceLock::new();
+    BARS.get_or_init(MultiProgress::new)
 }
 
 #[derive(Parser)]
@@ -748,7 +767,10 @@ fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
     let device = Device::new(|| bake_backend(&options, args.device, args.adapter.as_deref()));
     let started = std::time::Instant::now();
     let mut failed = Vec::new();
+    let weights = scene::batch::work_weights(meshes);
+    let overall = batch_bar(weights.iter().sum());
     for (k, (mesh, output)) in meshes.iter().zip(outputs).enumerate() {
+        overall.set_message(format!("batch {}/{}", k + 1, meshes.len()));
         let progress = BarProgress::in_batch(k + 1, meshes.len(), &stem(mesh));
         let mesh = Some(mesh.clone());
         if let Err(error) = bake_one(args, &mesh, Some(output), &device, None, &progress) {
@@ -756,7 +778,9 @@ fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
             eprintln!("error: {error}");
             failed.push(mesh_shown(&mesh));
         }
+        overall.inc(weights[k]);
     }
+    overall.finish_and_clear();
     println!(
         "batch: {} of {} meshes baked in {:.2} s -> {}",
         meshes.len() - failed.len(),
@@ -2332,6 +2356,18 @@ fn stem(path: &Path) -> String {
     scene::batch::mesh_name(path)
 }
 
+/// The bar over a whole batch, above each mesh's stage bars: its length is the meshes' work
+/// (`scene::batch::work_weights`), so its rate and eta follow the bytes baked, not the count.
+fn batch_bar(total: u64) -> ProgressBar {
+    let bar = bars().add(ProgressBar::new(total));
+    bar.set_style(
+        ProgressStyle::with_template("{msg:>10} [{bar:40}] {percent}%, eta {eta}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar
+}
+
 /// A progress bar on stderr; indicatif hides it when stderr is not a terminal.
 #[derive(Default)]
 struct BarProgress {
@@ -2342,7 +2378,8 @@ struct BarProgress {
 
 impl Progress for BarProgress {
     fn stage(&self, name: &str, total: u64) {
-        let bar = ProgressBar::new(total).with_message(format!("{}{name}", self.prefix));
+        let bar =
+            bars().add(ProgressBar::new(total).with_message(format!("{}{name}", self.prefix)));
         bar.set_style(
             ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len}, eta {eta}")
                 .expect("static template")

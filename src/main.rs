@@ -916,6 +916,7 @@ fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Shard) -> Res
         ))
     });
     fs::check_destination(&output)?;
+    check_shard_memory(args, &options, &scene, shard)?;
     note_samples_rounded(&options);
     check_chunking(args)?;
     let fingerprint = shard::fingerprint(&scene, &fingerprinted_options(args, &options));
@@ -1054,6 +1055,52 @@ fn memory_plan(
                 format_bytes(limit)
             );
             Ok(None)
+        }
+    }
+}
+
+/// A shard is not streamed: its share of the receivers and the mesh must fit at once. Over an
+/// explicit `--memory-limit` it is refused, naming the fewest shards that would fit; over the
+/// memory this machine has, it goes ahead with a warning.
+fn check_shard_memory(
+    args: &BakeArgs,
+    options: &BakeOptions,
+    scene: &scene::Scene,
+    shard: bake::Shard,
+) -> Result<()> {
+    use bake::stream::{format_bytes, MemoryNeed};
+    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), options);
+    let Some(limit) = args.memory_limit.or_else(device::available_memory) else {
+        return Ok(());
+    };
+    let shard_need = need.shard(shard.count, options);
+    if shard_need <= limit {
+        return Ok(());
+    }
+    let advice = match need.shards_within(limit, options) {
+        Some(count) => format!("{count} or more shards would each fit"),
+        None => format!(
+            "the mesh and its BVH alone need about {}, so no shard count fits",
+            format_bytes(need.fixed)
+        ),
+    };
+    let message = format!(
+        "shard {}/{} needs about {}; {advice}",
+        shard.index,
+        shard.count,
+        format_bytes(shard_need)
+    );
+    match args.memory_limit {
+        Some(_) => Err(Error::Options(format!(
+            "--memory-limit {}: {message}",
+            format_bytes(limit)
+        ))),
+        None => {
+            eprintln!(
+                "warning: {message} within the {} this machine has available",
+                format_bytes(limit)
+            );
+            Ok(())
         }
     }
 }

@@ -136,7 +136,14 @@ fn a_shard_over_the_limit_is_refused_naming_a_count_that_fits() {
         let fewest = need.shards_within(limit, &options).unwrap();
         assert!((2..=4).contains(&fewest), "{mode}: {fewest}");
         let limit_text = limit.to_string();
-        let base = ["--device", "cpu", "--mode", mode, "--memory-limit", &limit_text];
+        let base = [
+            "--device",
+            "cpu",
+            "--mode",
+            mode,
+            "--memory-limit",
+            &limit_text,
+        ];
 
         let mut one = base.to_vec();
         one.extend(["--shard", "0/1", "-o", "one.part"]);

@@ -162,33 +162,9 @@ fn half_float_compressed_files_round_trip_validate_and_shrink() {
 fn bake_compress_reports_writes_and_renders() {
     let dir = tempfile::tempdir().unwrap();
     let bunny_path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj");
-    for name in ["a.glb", "b.glb"] {
-        let out = prt_gpu(
-            &[
-                "bake",
-                bunny_path,
-                "--samples",
-                "64",
-                "--compress",
-                "8x4",
-                "--device",
-                "cpu",
-                "-o",
-                name,
-            ],
-            dir.path(),
-        );
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(out.status.success(), "{stderr}");
-        assert!(
-            stderr.contains("compressed: 8 clusters x 4 components") && stderr.contains("smaller"),
-            "{stderr}"
-        );
-    }
-    // Deterministic: the same bake compresses to the same bytes, at either precision.
-    let read = |n: &str| std::fs::read(dir.path().join(n)).unwrap();
-    assert_eq!(read("a.glb"), read("b.glb"));
-    for name in ["h1.glb", "h2.glb"] {
+    // Each precision twice: the same bake compresses to the same bytes.
+    for (name, precision) in [("a", "f32"), ("b", "f32"), ("h1", "f16"), ("h2", "f16")] {
+        let output = format!("{name}.glb");
         let args = [
             "bake",
             bunny_path,
@@ -197,17 +173,27 @@ fn bake_compress_reports_writes_and_renders() {
             "--compress",
             "8x4",
             "--precision",
-            "f16",
+            precision,
             "--device",
             "cpu",
             "-o",
-            name,
+            &output,
         ];
         let out = prt_gpu(&args, dir.path());
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{stderr}");
-        assert!(stderr.contains("bytes as half floats"), "{stderr}");
+        assert!(
+            stderr.contains("compressed: 8 clusters x 4 components") && stderr.contains("smaller"),
+            "{stderr}"
+        );
+        assert_eq!(
+            stderr.contains("bytes as half floats"),
+            precision == "f16",
+            "{stderr}"
+        );
     }
+    let read = |n: &str| std::fs::read(dir.path().join(n)).unwrap();
+    assert_eq!(read("a.glb"), read("b.glb"));
     assert_eq!(read("h1.glb"), read("h2.glb"));
     assert!(read("h1.glb").len() < read("a.glb").len());
     let info = prt_gpu(&["info", "h1.glb"], dir.path());

@@ -1279,9 +1279,7 @@ fn bake_options(args: &BakeArgs) -> Result<BakeOptions> {
 
 /// The baked transfer compressed to `(clusters, components)` and rounded as a file at
 /// `precision` stores it, with its sizes and errors (those of the stored form) said. The
-/// assignment steps run on `gpu` where the bake ran on a hardware one: a software adapter
-/// (lavapipe) runs on the same cores as the CPU path and took 7-12 times as long
-/// (docs/performance.md).
+/// assignment steps run on `gpu` where it pays (`GpuAssigner::where_it_pays`).
 fn compress_transfer(
     baked: &bake::BakedMesh,
     compression: Compression,
@@ -1298,19 +1296,19 @@ fn compress_transfer(
         Compression::Shape(_, components) => components as usize,
         Compression::Target(_) => points.dimension,
     };
-    let gpu_assigner = match gpu.filter(|context| !context.adapter.is_software()) {
-        Some(context) => match compress::gpu::GpuAssigner::new(context, points, most_components) {
-            Ok(assigner) => Some((assigner, context.adapter.label())),
-            Err(Error::Options(why)) => {
+    let gpu_assigner = match gpu {
+        Some(context) => {
+            let (assigner, why_not) =
+                compress::gpu::GpuAssigner::where_it_pays(context, points, most_components)?;
+            if let Some(why) = why_not {
                 eprintln!("note: {why}; clustering on the CPU");
-                None
             }
-            Err(e) => return Err(e),
-        },
+            assigner
+        }
         None => None,
     };
     let (assigner, ran_on): (&dyn compress::Assigner, String) = match &gpu_assigner {
-        Some((assigner, label)) => (assigner, format!("gpu: {label}")),
+        Some(assigner) => (assigner, format!("gpu: {}", assigner.label())),
         None => (&compress::CpuAssigner, "cpu".into()),
     };
     let (cpca, options) = match compression {

@@ -674,7 +674,16 @@ fn check_given(direct: &DirectPass, receivers: &Receivers, options: &BakeOptions
         (None, None) => true,
         _ => false,
     };
-    if direct.scalar.len() != expected || !rows_fit || !adaptive_fits {
+    if !adaptive_fits {
+        return Err(Error::Options(format!(
+            "the given direct pass {} each receiver's samples and error, which an error target \
+             {} ({} receivers)",
+            if direct.adaptive.is_some() { "carries" } else { "lacks" },
+            if options.target_error.is_some() { "needs for all" } else { "would not give" },
+            receivers.len()
+        )));
+    }
+    if direct.scalar.len() != expected || !rows_fit {
         return Err(Error::Options(format!(
             "the given direct pass holds {} values for {} receivers of {} coefficients",
             direct.scalar.len(),

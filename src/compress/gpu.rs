@@ -88,6 +88,30 @@ impl<'c> GpuAssigner<'c> {
         })
     }
 
+    /// The assigner a bake on `context` clusters with: `None` on a software adapter
+    /// (lavapipe), which runs on the same cores as the CPU path and took 7-12 times as long
+    /// (docs/performance.md), and where rows are too long for the kernel (the reason is
+    /// returned beside it, for a note).
+    pub fn where_it_pays(
+        context: &'c GpuContext,
+        points: Points,
+        components: usize,
+    ) -> Result<(Option<Self>, Option<String>)> {
+        if context.adapter.is_software() {
+            return Ok((None, None));
+        }
+        match GpuAssigner::new(context, points, components) {
+            Ok(assigner) => Ok((Some(assigner), None)),
+            Err(Error::Options(why)) => Ok((None, Some(why))),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// The adapter it runs on, for reports.
+    pub fn label(&self) -> String {
+        self.context.adapter.label()
+    }
+
     /// Every vertex of one chunk: its best cluster and residual, pass after pass over the
     /// clusters.
     fn assign_chunk(

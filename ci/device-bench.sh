@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The hardware-GPU benchmark: one prepared script for a machine with a real GPU (Vulkan), meant
 # to finish in under 5 minutes there. Builds in release, lists the adapters, times the direct
-# pass on the CPU and GPU backends side by side (`prt-gpu bench`) and bakes on the GPU the
-# dragon and the largest mesh in the repository, printing rays/s per backend and the adapter.
+# pass on the CPU and GPU backends side by side (`prt-gpu bench`), bakes on the GPU the
+# dragon and the largest mesh in the repository, printing rays/s per backend and the adapter,
+# and compresses the dragon (CPCA) with the clustering on the CPU and on the GPU.
 # Record its output in docs/performance.md ("On a hardware GPU").
 #
 #   ci/device-bench.sh [OUT_DIR]      (default: target/device-bench; the log goes there too)
@@ -62,6 +63,12 @@ for mesh in "$dragon" "$largest"; do
     $bin bench "$mesh" --device gpu --repeats 3 --mode interreflected
     say "GPU bake of $mesh (interreflected, 3 bounces)"
     $bin bake "$mesh" --device gpu --mode interreflected -o "$out/$(basename "$mesh").prt.glb"
+done
+
+for device in cpu gpu; do
+    say "CPCA of $dragon, clustering on the $device (lean, 384x8, f16; the 'compressed:' line)"
+    $bin bake "$dragon" --device $device --storage lean --compress 384x8 --precision f16 \
+        -o "$out/dragon.$device.cpca.glb" 2>&1 | grep -E 'compressed|baked'
 done
 
 say "done in $(( $(date +%s) - started )) s"

@@ -23,6 +23,7 @@ pub mod lightmap;
 pub mod local;
 pub mod morton;
 pub mod packet;
+pub mod precision;
 pub mod ray;
 pub mod receivers;
 pub mod render;

@@ -6,7 +6,7 @@ use std::sync::Mutex;
 
 use clap::{Parser, Subcommand};
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 use prt_gpu::bake::adaptive::TargetError;
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
@@ -31,12 +31,31 @@ use prt_gpu::sweep::{self, SweepOptions};
 use prt_gpu::{chart, fs, glb, scene, view, x3d, Error, Result};
 
 /// `println!` that ends quietly when the reader of stdout has gone (`prt-gpu bake | head -1`),
-/// where the standard one panics: every report line of the CLI goes through it.
+/// where the standard one panics: every report line of the CLI goes through it. The progress
+/// bars step aside while it prints, so a line never lands inside a bar.
 macro_rules! println {
     ($($arg:tt)*) => {{
         use std::io::Write as _;
-        let _ = writeln!(std::io::stdout(), $($arg)*);
+        let line = format!($($arg)*);
+        bars().suspend(|| {
+            let _ = writeln!(std::io::stdout(), "{line}");
+        });
     }};
+}
+
+/// `eprintln!` with the progress bars stepped aside, as [`println!`].
+macro_rules! eprintln {
+    ($($arg:tt)*) => {{
+        let line = format!($($arg)*);
+        bars().suspend(|| std::eprintln!("{line}"));
+    }};
+}
+
+/// Every progress bar of the run, drawn together on stderr (hidden when stderr is not a
+/// terminal): a batch's bar over all its meshes, and the bar of the stage running.
+fn bars() -> &'static MultiProgress {
+    static BARS: std::sync::OnceLock<MultiProgress> = std::sync::OnceLock::new();
+    BARS.get_or_init(MultiProgress::new)
 }
 
 #[derive(Parser)]
@@ -456,10 +475,11 @@ struct BakeArgs {
     /// COLOR_0; interreflected transfer when every albedo is grey), a third of the size.
     #[arg(long, value_enum, default_value_t = Storage::Rgb)]
     storage: Storage,
-    /// Precision of the stored per-vertex transfer: `f32`, or `f16` (IEEE half floats: half the
-    /// bytes, each coefficient within 2^-11 of its value relative; the added relit error is
-    /// reported). glTF has no half-float attributes, so an f16 file names its transfer view in
-    /// extras.prt instead of the _PRT_* attributes.
+    /// Precision of the stored transfer: `f32`, or `f16` (IEEE half floats: half the bytes,
+    /// each value within 2^-11 of itself relative; the added relit error is reported). glTF has
+    /// no half-float attributes, so an f16 file names its transfer view in extras.prt instead of
+    /// the _PRT_* attributes. With --compress, the means, bases and weights are half floats and
+    /// each cluster index takes the fewest bytes that hold it (1 up to 256 clusters).
     #[arg(long, value_enum, default_value_t = Precision::F32)]
     precision: Precision,
     /// Store the transfer compressed by clustered PCA (Sloan et al. 2003): CLUSTERSxCOMPONENTS,
@@ -751,7 +771,10 @@ fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
     let device = Device::new(|| bake_backend(&options, args.device, args.adapter.as_deref()));
     let started = std::time::Instant::now();
     let mut failed = Vec::new();
+    let weights = scene::batch::work_weights(meshes);
+    let overall = batch_bar(weights.iter().sum());
     for (k, (mesh, output)) in meshes.iter().zip(outputs).enumerate() {
+        overall.set_message(format!("batch {}/{}", k + 1, meshes.len()));
         let progress = BarProgress::in_batch(k + 1, meshes.len(), &stem(mesh));
         let mesh = Some(mesh.clone());
         if let Err(error) = bake_one(args, &mesh, Some(output), &device, None, &progress) {
@@ -759,7 +782,9 @@ fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
             eprintln!("error: {error}");
             failed.push(mesh_shown(&mesh));
         }
+        overall.inc(weights[k]);
     }
+    overall.finish_and_clear();
     println!(
         "batch: {} of {} meshes baked in {:.2} s -> {}",
         meshes.len() - failed.len(),
@@ -839,7 +864,12 @@ fn bake_one(
         options.bands = choose_auto_bands(&mut baked, args.bands_threshold);
     }
     let cpca = match args.compress {
-        Some(shape) => Some(compress_transfer(&baked, shape)?),
+        Some(shape) => Some(compress_transfer(
+            &baked,
+            shape,
+            args.precision,
+            baker.as_ref().map(|b| &b.context),
+        )?),
         None => None,
     };
     let writing = std::time::Instant::now();
@@ -855,7 +885,7 @@ fn bake_one(
             None
         }
     };
-    if args.precision == Precision::F16 {
+    if args.precision == Precision::F16 && cpca.is_none() {
         report_f16_error(&baked)?;
     }
     let seconds_write = writing.elapsed().as_secs_f64();
@@ -890,6 +920,7 @@ fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Shard) -> Res
         ))
     });
     fs::check_destination(&output)?;
+    check_shard_memory(args, &options, &scene, shard)?;
     note_samples_rounded(&options);
     check_chunking(args)?;
     let fingerprint = shard::fingerprint(&scene, &fingerprinted_options(args, &options));
@@ -1032,6 +1063,52 @@ fn memory_plan(
     }
 }
 
+/// A shard is not streamed: its share of the receivers and the mesh must fit at once. Over an
+/// explicit `--memory-limit` it is refused, naming the fewest shards that would fit; over the
+/// memory this machine has, it goes ahead with a warning.
+fn check_shard_memory(
+    args: &BakeArgs,
+    options: &BakeOptions,
+    scene: &scene::Scene,
+    shard: bake::Shard,
+) -> Result<()> {
+    use bake::stream::{format_bytes, MemoryNeed};
+    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), options);
+    let Some(limit) = args.memory_limit.or_else(device::available_memory) else {
+        return Ok(());
+    };
+    let shard_need = need.shard(shard.count, options);
+    if shard_need <= limit {
+        return Ok(());
+    }
+    let advice = match need.shards_within(limit, options) {
+        Some(count) => format!("{count} or more shards would each fit"),
+        None => format!(
+            "the mesh and its BVH alone need about {}, so no shard count fits",
+            format_bytes(need.fixed)
+        ),
+    };
+    let message = format!(
+        "shard {}/{} needs about {}; {advice}",
+        shard.index,
+        shard.count,
+        format_bytes(shard_need)
+    );
+    match args.memory_limit {
+        Some(_) => Err(Error::Options(format!(
+            "--memory-limit {}: {message}",
+            format_bytes(limit)
+        ))),
+        None => {
+            eprintln!(
+                "warning: {message} within the {} this machine has available",
+                format_bytes(limit)
+            );
+            Ok(())
+        }
+    }
+}
+
 /// What besides the mesh decides a bake's output, as text for its fingerprint.
 fn fingerprinted_options(args: &BakeArgs, options: &BakeOptions) -> String {
     format!(
@@ -1117,12 +1194,10 @@ fn check_output_forms(args: &BakeArgs, options: &BakeOptions, gltf: bool) -> Res
              glTF scenes baked in place and lightmaps are not compressed",
         );
     }
-    if args.precision == Precision::F16
-        && (gltf || args.compress.is_some() || options.lightmap.is_some())
-    {
+    if args.precision == Precision::F16 && (gltf || options.lightmap.is_some()) {
         return refuse(
-            "--precision f16 stores the per-vertex transfer of OBJ, PLY and the built-in scene; \
-             glTF scenes baked in place, compressed transfer and lightmaps keep their own storage",
+            "--precision f16 stores the per-vertex or compressed transfer of OBJ, PLY and the \
+             built-in scene; glTF scenes baked in place and lightmaps keep their own storage",
         );
     }
     if gltf && options.storage == Storage::Lean {
@@ -1206,9 +1281,40 @@ fn bake_options(args: &BakeArgs) -> Result<BakeOptions> {
     })
 }
 
-/// The baked transfer compressed to `(clusters, components)`, with its sizes and errors said.
-fn compress_transfer(baked: &bake::BakedMesh, compression: Compression) -> Result<Cpca> {
+/// The baked transfer compressed to `(clusters, components)` and rounded as a file at
+/// `precision` stores it, with its sizes and errors (those of the stored form) said. The
+/// assignment steps run on `gpu` where it pays (`GpuAssigner::where_it_pays`).
+fn compress_transfer(
+    baked: &bake::BakedMesh,
+    compression: Compression,
+    precision: Precision,
+    gpu: Option<&prt_gpu::device::GpuContext>,
+) -> Result<Cpca> {
     let started = std::time::Instant::now();
+    let transfer = &baked.transfer;
+    let points = compress::Points {
+        data: &transfer.coeffs,
+        dimension: transfer.channels as usize * transfer.coeffs_per_channel(),
+    };
+    let most_components = match compression {
+        Compression::Shape(_, components) => components as usize,
+        Compression::Target(_) => points.dimension,
+    };
+    let gpu_assigner = match gpu {
+        Some(context) => {
+            let (assigner, why_not) =
+                compress::gpu::GpuAssigner::where_it_pays(context, points, most_components)?;
+            if let Some(why) = why_not {
+                eprintln!("note: {why}; clustering on the CPU");
+            }
+            assigner
+        }
+        None => None,
+    };
+    let (assigner, ran_on): (&dyn compress::Assigner, String) = match &gpu_assigner {
+        Some(assigner) => (assigner, format!("gpu: {}", assigner.label())),
+        None => (&compress::CpuAssigner, "cpu".into()),
+    };
     let (cpca, options) = match compression {
         Compression::Shape(clusters, components) => {
             let options = CpcaOptions {
@@ -1216,21 +1322,29 @@ fn compress_transfer(baked: &bake::BakedMesh, compression: Compression) -> Resul
                 components,
                 ..CpcaOptions::default()
             };
-            (compress::compress(&baked.transfer, &options)?, options)
+            (
+                compress::compress_with(transfer, &options, assigner)?,
+                options,
+            )
         }
         Compression::Target(error) => {
-            compress::choose(&baked.transfer, error, CpcaOptions::default().seed)?
+            compress::choose_with(transfer, error, CpcaOptions::default().seed, assigner)?
         }
     };
+    let cpca = cpca.rounded(precision);
     let (clusters, components) = (options.clusters, options.components);
     let seconds = started.elapsed().as_secs_f64();
     let before = compress::uncompressed_bytes(&baked.transfer);
-    let after = cpca.byte_size();
+    let after = cpca.byte_size(precision);
     let light = light::preview_light(baked.transfer.bands)?;
+    let half = match precision {
+        Precision::F32 => "",
+        Precision::F16 => " as half floats",
+    };
     eprintln!(
-        "compressed: {clusters} clusters x {components} components in {seconds:.2} s, {after} \
-         bytes of {before} ({:.1}x smaller); coefficient error {:.2}%, relit error {:.2}% under \
-         the preview light",
+        "compressed: {clusters} clusters x {components} components in {seconds:.2} s \
+         ({ran_on}), {after} bytes{half} of {before} ({:.1}x smaller); coefficient error \
+         {:.2}%, relit error {:.2}% under the preview light",
         before as f64 / after as f64,
         100.0 * compress::relative_error(&baked.transfer, &cpca),
         100.0 * compress::relit_error(&baked.transfer, &cpca, &light)?
@@ -2298,6 +2412,18 @@ fn stem(path: &Path) -> String {
     scene::batch::mesh_name(path)
 }
 
+/// The bar over a whole batch, above each mesh's stage bars: its length is the meshes' work
+/// (`scene::batch::work_weights`), so its rate and eta follow the bytes baked, not the count.
+fn batch_bar(total: u64) -> ProgressBar {
+    let bar = bars().add(ProgressBar::new(total));
+    bar.set_style(
+        ProgressStyle::with_template("{msg:>10} [{bar:40}] {percent}%, eta {eta}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar
+}
+
 /// A progress bar on stderr; indicatif hides it when stderr is not a terminal.
 #[derive(Default)]
 struct BarProgress {
@@ -2308,7 +2434,8 @@ struct BarProgress {
 
 impl Progress for BarProgress {
     fn stage(&self, name: &str, total: u64) {
-        let bar = ProgressBar::new(total).with_message(format!("{}{name}", self.prefix));
+        let bar =
+            bars().add(ProgressBar::new(total).with_message(format!("{}{name}", self.prefix)));
         bar.set_style(
             ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len}, eta {eta}")
                 .expect("static template")

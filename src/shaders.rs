@@ -27,6 +27,7 @@ const RENDER_WGSL: &str = include_str!("../wgsl/render.wgsl");
 const COMPRESSED_COMMON_WGSL: &str = include_str!("../wgsl/compressed_common.wgsl");
 const COMPRESSED_PROJECT_WGSL: &str = include_str!("../wgsl/compressed_project.wgsl");
 const COMPRESSED_RESPOND_WGSL: &str = include_str!("../wgsl/compressed_respond.wgsl");
+const CPCA_ASSIGN_WGSL: &str = include_str!("../wgsl/cpca_assign.wgsl");
 
 /// Constants every kernel sees. `{:?}` prints the shortest decimal that parses back to the
 /// same f32, so WGSL gets the exact Rust values.
@@ -78,6 +79,11 @@ pub fn gather_kernel() -> String {
     format!("{}{GATHER_WGSL}", prelude())
 }
 
+/// The CPCA assignment kernel (`compress::gpu`).
+pub fn cpca_assign_kernel() -> String {
+    format!("{}{CPCA_ASSIGN_WGSL}", prelude())
+}
+
 /// The preview renderer's vertex and fragment shaders.
 pub fn render_shader() -> String {
     format!("{}{RENDER_WGSL}", prelude())
@@ -90,6 +96,7 @@ mod tests {
     use crate::bake::gpu::{GatherParams, ProjectParams, VisibilityParams};
     use crate::bvh::gpu::GpuNode;
     use crate::bvh::BvhTriangle;
+    use crate::compress::gpu::AssignParams;
     use crate::local::gpu::CompressedParams;
     use crate::render::RenderParams;
     use std::mem::{offset_of, size_of};
@@ -139,6 +146,7 @@ mod tests {
         parse(&render_shader());
         parse(&compressed_project_kernel());
         parse(&compressed_respond_kernel());
+        parse(&cpca_assign_kernel());
     }
 
     #[test]
@@ -222,6 +230,20 @@ mod tests {
                 coeff_count,
                 entry_begin,
                 entry_limit,
+                accumulate,
+                pad0,
+                pad1
+            )
+        );
+        assert_eq!(
+            wgsl_layout(&parse(&cpca_assign_kernel()), "AssignParams"),
+            rust_layout!(
+                AssignParams,
+                vertex_count,
+                dimension,
+                components,
+                cluster_begin,
+                cluster_end,
                 accumulate,
                 pad0,
                 pad1

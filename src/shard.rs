@@ -10,12 +10,14 @@
 //! ([`PartHeader`], padded with spaces to a multiple of 4); then `f32 scalar[receivers ×
 //! coeffs]` (albedo-free direct transfer, `[receiver][k]`), and for interreflection the part's
 //! gather rows: `u32 row_offsets[receivers + 1]` (from 0), `u32 columns[entries]`,
-//! `f32 weights[entries]`.
+//! `f32 weights[entries]`; for an error-targeted bake (`"adaptive": true`) each receiver's
+//! samples and estimated error, `u32 samples[receivers]`, `f64 errors[receivers]`.
 
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::bake::adaptive::ReceiverErrors;
 use crate::bake::bounce::GatherMatrix;
 use crate::bake::{DirectPass, ShardPass};
 use crate::error::{Error, Result};
@@ -44,6 +46,11 @@ if E is not None:
     assert offsets[0] == 0 and offsets[-1] == E and len(body) == at + 4 * (R + 1 + 2 * E)
     out["weights_sum"] = float(weights.astype(np.float64).sum())
     out["max_column"] = int(columns.max())
+if header.get("adaptive"):  # --target-error: samples and estimated error per receiver
+    samples = np.frombuffer(body, "<u4", R, 4 * R * K)
+    errors = np.frombuffer(body, "<f8", R, 4 * R * (K + 1))
+    assert len(body) == 4 * R * (K + 1) + 8 * R
+    out["samples_sum"], out["error_max"] = int(samples.sum()), float(errors.max())
 print(json.dumps(out))
 "#;
 
@@ -63,6 +70,9 @@ pub struct PartHeader {
     /// Gather entries (interreflection), absent otherwise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gather_entries: Option<u64>,
+    /// Whether each receiver's samples and error follow (`--target-error`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub adaptive: bool,
     pub rays_cast: u64,
     /// The backend the shard ran on (`cpu`, or `gpu: adapter`).
     pub backend: String,
@@ -99,6 +109,7 @@ impl Part {
             receivers: receivers as u64,
             coeffs,
             gather_entries: pass.direct.matrix.as_ref().map(|m| m.columns.len() as u64),
+            adaptive: pass.direct.adaptive.is_some(),
             rays_cast: pass.direct.rays_cast,
             backend: pass.ran_on,
             command,
@@ -126,6 +137,16 @@ pub fn write_part(path: &Path, part: &Part) -> Result<()> {
         bytes.extend_from_slice(bytemuck::cast_slice(&matrix.columns));
         bytes.extend_from_slice(bytemuck::cast_slice(&matrix.weights));
     }
+    if let Some(receivers) = &part.direct.adaptive {
+        receivers
+            .samples
+            .iter()
+            .for_each(|s| bytes.extend_from_slice(&s.to_le_bytes()));
+        receivers
+            .errors
+            .iter()
+            .for_each(|e| bytes.extend_from_slice(&e.to_le_bytes()));
+    }
     write_atomically(path, &bytes)
 }
 
@@ -151,11 +172,13 @@ pub fn read_part(path: &Path) -> Result<Part> {
         None => (0, 0),
     };
     let body = &bytes[12 + json_len..];
-    if body.len() != 4 * (values + offsets + 2 * entries) {
+    let words_before_adaptive = values + offsets + 2 * entries;
+    let adaptive_bytes = if header.adaptive { 12 * receivers } else { 0 };
+    if body.len() != 4 * words_before_adaptive + adaptive_bytes {
         return Err(broken(&format!(
             "{} bytes of data where its header says {}",
             body.len(),
-            4 * (values + offsets + 2 * entries)
+            4 * words_before_adaptive + adaptive_bytes
         )));
     }
     let words = |from: usize, count: usize| -> Vec<u32> {
@@ -180,10 +203,21 @@ pub fn read_part(path: &Path) -> Result<Part> {
             return Err(broken("gather rows out of order"));
         }
     }
+    let adaptive = header.adaptive.then(|| {
+        let errors_at = 4 * (words_before_adaptive + receivers);
+        ReceiverErrors {
+            samples: words(words_before_adaptive, receivers),
+            errors: body[errors_at..errors_at + 8 * receivers]
+                .chunks_exact(8)
+                .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+                .collect(),
+        }
+    });
     let direct = DirectPass {
         scalar,
         matrix,
         rays_cast: header.rays_cast,
+        adaptive,
     };
     Ok(Part { header, direct })
 }
@@ -249,6 +283,7 @@ fn join(parts: Vec<(PathBuf, Part)>, first: PartHeader) -> Result<(PartHeader, D
         row_offsets: vec![0],
         ..GatherMatrix::default()
     });
+    let mut adaptive = first.adaptive.then(ReceiverErrors::default);
     let mut next_receiver = 0;
     let mut rays_cast = 0;
     for (path, part) in parts {
@@ -270,6 +305,9 @@ fn join(parts: Vec<(PathBuf, Part)>, first: PartHeader) -> Result<(PartHeader, D
             all.columns.extend(rows.columns);
             all.weights.extend(rows.weights);
         }
+        if let (Some(all), Some(receivers)) = (&mut adaptive, part.direct.adaptive) {
+            all.extend(receivers);
+        }
     }
     if next_receiver != first.receivers_total {
         return Err(Error::Merge(format!(
@@ -281,6 +319,7 @@ fn join(parts: Vec<(PathBuf, Part)>, first: PartHeader) -> Result<(PartHeader, D
         scalar,
         matrix,
         rays_cast,
+        adaptive,
     };
     Ok((first, direct))
 }

@@ -8,7 +8,8 @@ use std::path::Path;
 use common::prt_gpu;
 use prt_gpu::bake::{bake, Backend, BakeOptions, NoProgress};
 use prt_gpu::compress::{compress, CpcaOptions};
-use prt_gpu::glb::{read_glb, read_glb_compressed, write_glb, write_glb_with};
+use prt_gpu::glb::{read_glb, read_glb_compressed, write_glb, write_glb_as, write_glb_with};
+use prt_gpu::precision::Precision;
 use prt_gpu::testing::entries;
 
 fn bunny() -> prt_gpu::scene::Scene {
@@ -78,36 +79,126 @@ fn compressed_files_round_trip_and_validate() {
     dir.close().unwrap();
 }
 
+/// The length of a .glb's BIN chunk.
+fn bin_length(path: &Path) -> i64 {
+    let bytes = std::fs::read(path).unwrap();
+    let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    u32::from_le_bytes(bytes[20 + n..24 + n].try_into().unwrap()) as i64
+}
+
+/// The byte length of buffer view `index` of a .glb (JSON chunk only).
+fn view_length(path: &Path, index: usize) -> u64 {
+    let bytes = std::fs::read(path).unwrap();
+    let n = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let json: serde_json::Value = serde_json::from_slice(&bytes[20..20 + n]).unwrap();
+    json["bufferViews"][index]["byteLength"].as_u64().unwrap()
+}
+
+#[test]
+fn half_float_compressed_files_round_trip_validate_and_shrink() {
+    let options = BakeOptions {
+        samples: 64,
+        storage: prt_gpu::bake::Storage::Lean,
+        ..BakeOptions::default()
+    };
+    let (baked, _) = bake(bunny(), &options, &Backend::Cpu, &NoProgress).unwrap();
+    let v = baked.scene.vertex_count();
+    let dir = tempfile::tempdir().unwrap();
+    // 16 clusters take one byte an index; 300 take two.
+    for (clusters, index_width) in [(16u32, 1u64), (300, 2)] {
+        let cpca = compress(
+            &baked.transfer,
+            &CpcaOptions {
+                clusters,
+                components: 4,
+                ..CpcaOptions::default()
+            },
+        )
+        .unwrap();
+        let (half, full) = (dir.path().join("half.glb"), dir.path().join("full.glb"));
+        write_glb_as(&half, &baked, Some(&cpca), Precision::F16).unwrap();
+        write_glb_with(&full, &baked, Some(&cpca)).unwrap();
+
+        let (read, read_cpca) = read_glb_compressed(&half).unwrap();
+        let stored = cpca.rounded(Precision::F16);
+        assert_eq!(read_cpca.as_ref(), Some(&stored), "{clusters} clusters");
+        assert_eq!(read.transfer, stored.reconstruct());
+        assert_eq!(read.metadata, baked.metadata);
+        let extras = prt_gpu::glb::read_references(&half).unwrap();
+        assert_eq!(extras.precision, Precision::F16);
+        let cpca_extras = extras.cpca.unwrap();
+        assert_eq!(cpca_extras.assignment_bytes, Some(index_width as usize));
+        assert_eq!(
+            view_length(&half, cpca_extras.assignment_buffer_view),
+            index_width * v as u64
+        );
+        assert_eq!(
+            view_length(&half, cpca_extras.weights_buffer_view),
+            2 * 4 * v as u64
+        );
+        // The transfer's bytes, not the mesh's, shrink: by the stated formula, up to the
+        // padding that keeps each view 4-byte aligned.
+        let saved = (cpca.byte_size(Precision::F32) - cpca.byte_size(Precision::F16)) as i64;
+        let padding = bin_length(&half) - (bin_length(&full) - saved);
+        assert!((0..8).contains(&padding), "padding {padding}");
+
+        if let Some(report) = common::validate_gltf(&half) {
+            assert_eq!(report.num_errors, 0, "{}", report.listing());
+        }
+        if let Some(out) = prt_gpu::testing::compressed_reader_output(&half) {
+            assert_eq!(out["transfer"], serde_json::json!([v, 1, 16]));
+            let reconstructed = stored.reconstruct();
+            for (k, &x) in reconstructed.vertex_channel(v - 1, 0).iter().enumerate() {
+                let theirs = out["last_vertex"][0][k].as_f64().unwrap();
+                let close = (theirs - x as f64).abs() <= 1e-5 * (x as f64).abs().max(1e-3);
+                assert!(close, "k = {k}: numpy {theirs}, ours {x}");
+            }
+        }
+    }
+    dir.close().unwrap();
+}
+
 #[test]
 fn bake_compress_reports_writes_and_renders() {
     let dir = tempfile::tempdir().unwrap();
     let bunny_path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj");
-    for name in ["a.glb", "b.glb"] {
-        let out = prt_gpu(
-            &[
-                "bake",
-                bunny_path,
-                "--samples",
-                "64",
-                "--compress",
-                "8x4",
-                "--device",
-                "cpu",
-                "-o",
-                name,
-            ],
-            dir.path(),
-        );
+    // Each precision twice: the same bake compresses to the same bytes.
+    for (name, precision) in [("a", "f32"), ("b", "f32"), ("h1", "f16"), ("h2", "f16")] {
+        let output = format!("{name}.glb");
+        let args = [
+            "bake",
+            bunny_path,
+            "--samples",
+            "64",
+            "--compress",
+            "8x4",
+            "--precision",
+            precision,
+            "--device",
+            "cpu",
+            "-o",
+            &output,
+        ];
+        let out = prt_gpu(&args, dir.path());
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{stderr}");
         assert!(
             stderr.contains("compressed: 8 clusters x 4 components") && stderr.contains("smaller"),
             "{stderr}"
         );
+        assert_eq!(
+            stderr.contains("bytes as half floats"),
+            precision == "f16",
+            "{stderr}"
+        );
     }
-    // Deterministic: the same bake compresses to the same bytes.
     let read = |n: &str| std::fs::read(dir.path().join(n)).unwrap();
     assert_eq!(read("a.glb"), read("b.glb"));
+    assert_eq!(read("h1.glb"), read("h2.glb"));
+    assert!(read("h1.glb").len() < read("a.glb").len());
+    let info = prt_gpu(&["info", "h1.glb"], dir.path());
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(text.contains("precision:    f16"), "{text}");
     let info = prt_gpu(&["info", "a.glb"], dir.path());
     let text = String::from_utf8_lossy(&info.stdout);
     assert!(

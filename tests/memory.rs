@@ -115,3 +115,57 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
         );
     }
 }
+
+/// A shard is not streamed: over an explicit limit it is refused before the bake, naming the
+/// fewest shards that each fit, and that many shards then bake within the same limit.
+#[test]
+fn a_shard_over_the_limit_is_refused_naming_a_count_that_fits() {
+    let dir = tempfile::tempdir().unwrap();
+    for mode in ["shadowed", "interreflected"] {
+        let options = BakeOptions {
+            samples: 64,
+            mode: if mode == "shadowed" {
+                prt_gpu::bake::Mode::Shadowed
+            } else {
+                prt_gpu::bake::Mode::Interreflected
+            },
+            ..BakeOptions::default()
+        };
+        let need = bunny_need(&options);
+        let limit = need.shard(4, &options);
+        let fewest = need.shards_within(limit, &options).unwrap();
+        assert!((2..=4).contains(&fewest), "{mode}: {fewest}");
+        let limit_text = limit.to_string();
+        let base = [
+            "--device",
+            "cpu",
+            "--mode",
+            mode,
+            "--memory-limit",
+            &limit_text,
+        ];
+
+        let mut one = base.to_vec();
+        one.extend(["--shard", "0/1", "-o", "one.part"]);
+        let out = bake(dir.path(), &one);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{mode}: one shard baked");
+        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+        assert!(
+            stderr.contains(&format!("{fewest} or more shards would each fit")),
+            "{mode}: {stderr}"
+        );
+        assert!(prt_gpu::testing::entries(dir.path()).is_empty());
+
+        let shard = format!("0/{fewest}");
+        let mut split = base.to_vec();
+        split.extend(["--shard", &shard, "-o", "split.part"]);
+        let out = bake(dir.path(), &split);
+        assert!(
+            out.status.success(),
+            "{mode}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::fs::remove_file(dir.path().join("split.part")).unwrap();
+    }
+}

@@ -74,7 +74,7 @@ fn merged_shards_equal_the_whole_bake_byte_for_byte() {
 /// Fits, auto bands, lean storage and compression run in the merge, as in the whole bake.
 #[test]
 fn merge_runs_the_rest_of_the_bake_as_the_whole_bake_does() {
-    let cases: [&[&str]; 3] = [
+    let cases: [&[&str]; 4] = [
         &[
             "--fit",
             "least-squares",
@@ -85,6 +85,9 @@ fn merge_runs_the_rest_of_the_bake_as_the_whole_bake_does() {
         ],
         &["--bands", "auto", "--storage", "lean"],
         &["--compress", "8x4", "--seed", "7"],
+        // Each receiver's samples and error travel in the parts, so the merged file's mean
+        // samples and the summary are the whole bake's.
+        &["--target-error", "0.02"],
     ];
     for extra in cases {
         let dir = tempfile::tempdir().unwrap();
@@ -272,8 +275,12 @@ fn parts_read_by_numpy_alone_match_the_library() {
     }
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    for mode in ["shadowed", "interreflected"] {
-        let path = shard(d, BUNNY, &["--mode", mode], 1, 3);
+    for mode in ["shadowed", "interreflected", "adaptive"] {
+        let extra: &[&str] = match mode {
+            "adaptive" => &["--target-error", "0.02"],
+            _ => &["--mode", mode],
+        };
+        let path = shard(d, BUNNY, extra, 1, 3);
         let part = prt_gpu::shard::read_part(&path).unwrap();
         let python = prt_gpu::testing::python_json(prt_gpu::shard::PYTHON_READER, &path);
         let header = serde_json::to_value(&part.header).unwrap();
@@ -293,6 +300,16 @@ fn parts_read_by_numpy_alone_match_the_library() {
             assert_eq!(python["max_column"].as_u64().unwrap(), max_column);
         } else {
             assert!(python.get("weights_sum").is_none(), "{mode}");
+        }
+        match &part.direct.adaptive {
+            Some(receivers) => {
+                let samples: u64 = receivers.samples.iter().map(|&s| s as u64).sum();
+                assert_eq!(python["samples_sum"].as_u64().unwrap(), samples);
+                let worst = receivers.errors.iter().copied().fold(0.0, f64::max);
+                assert_eq!(python["error_max"].as_f64().unwrap(), worst);
+                assert_eq!(receivers.len() as u64, part.header.receivers);
+            }
+            None => assert!(python.get("samples_sum").is_none(), "{mode}"),
         }
     }
 }

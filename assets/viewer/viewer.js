@@ -29,7 +29,7 @@ function numbers(text, count) {
 function initialState(params) {
   const cam = numbers(params.get("cam"), 6);
   const camera = cam
-    ? { eye: cam.slice(0, 3), target: cam.slice(3, 6), fov: cam.length > 6 ? cam[6] : 40 }
+    ? { eye: cam.slice(0, 3), target: cam.slice(3, 6), fov: cam.length > 6 ? cam[6] : DATA.camera.fov }
     : { eye: DATA.camera.eye, target: DATA.camera.target, fov: DATA.camera.fov };
   const rot = numbers(params.get("rot"), 3);
   const file = Number(params.get("file") ?? 0);

@@ -89,6 +89,31 @@ pub struct AdaptiveReport {
     pub per_receiver: Vec<u32>,
 }
 
+/// What an error-targeted direct pass says about each of its receivers: the samples it cast
+/// and the relative standard error it reached (in the receivers' order). A sharded bake
+/// carries it in its parts, so that the merge reports what the whole bake would have.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ReceiverErrors {
+    pub samples: Vec<u32>,
+    pub errors: Vec<f64>,
+}
+
+impl ReceiverErrors {
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
+    /// `other`'s receivers after these.
+    pub fn extend(&mut self, other: ReceiverErrors) {
+        self.samples.extend(other.samples);
+        self.errors.extend(other.errors);
+    }
+}
+
 /// One receiver's result: its transfer, samples cast and estimated relative error.
 struct ReceiverResult {
     transfer: Vec<f64>,
@@ -102,17 +127,18 @@ pub fn batch_seed(seed: u64, batch: u32) -> u64 {
     seed ^ (batch as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)
 }
 
-/// Albedo-free direct transfer of every receiver of `base` (`[receiver][k]`) to the target
-/// error, on the CPU; the rays cast; and the report. `base` supplies the geometry and
-/// receivers; its own sample set is not used.
+/// Albedo-free direct transfer of the receivers `range` of `base` (`[receiver][k]`) to the
+/// target error, on the CPU; the rays cast; and each receiver's samples and error. `base`
+/// supplies the geometry and receivers; its own sample set is not used. A receiver's result
+/// depends only on the receiver and the seed, so any split of the receivers gives the same
+/// values for each.
 pub fn adaptive_direct_transfer(
     base: &BakeInputs,
-    sampling: Sampling,
-    seed: u64,
-    mode: Mode,
+    range: std::ops::Range<usize>,
+    (sampling, seed, mode): (Sampling, u64, Mode),
     target: &TargetError,
     progress: &dyn Progress,
-) -> Result<(Vec<f32>, u64, AdaptiveReport)> {
+) -> Result<(Vec<f32>, u64, ReceiverErrors)> {
     target.validate()?;
     if mode == Mode::Interreflected {
         return Err(Error::Options(
@@ -141,7 +167,7 @@ pub fn adaptive_direct_transfer(
         .collect();
     // Every normal's unoccluded transfer has the same norm.
     let open_norm = norm(&unshadowed_transfer(bands, glam::DVec3::Z));
-    let results: Vec<ReceiverResult> = (0..base.origins.len())
+    let results: Vec<ReceiverResult> = range
         .into_par_iter()
         .with_min_len(16)
         .map(|r| {
@@ -159,7 +185,11 @@ pub fn adaptive_direct_transfer(
         transfer.extend(result.transfer.iter().map(|&t| t as f32));
     }
     let rays = results.iter().map(|r| r.rays).sum();
-    Ok((transfer, rays, report(&results, target)))
+    let receivers = ReceiverErrors {
+        samples: results.iter().map(|r| r.samples).collect(),
+        errors: results.iter().map(|r| r.error).collect(),
+    };
+    Ok((transfer, rays, receivers))
 }
 
 /// Batches for receiver `r` until its standard error is at most `target_norm` (after
@@ -220,27 +250,30 @@ fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
-fn report(results: &[ReceiverResult], target: &TargetError) -> AdaptiveReport {
-    let per_receiver: Vec<u32> = results.iter().map(|r| r.samples).collect();
-    let mut samples = per_receiver.clone();
-    let mut errors: Vec<f64> = results.iter().map(|r| r.error).collect();
-    samples.sort_unstable();
-    errors.sort_by(f64::total_cmp);
-    let at = |len: usize, q: f64| ((len.max(1) - 1) as f64 * q).round() as usize;
-    let mean = samples.iter().map(|&s| s as f64).sum::<f64>() / samples.len().max(1) as f64;
-    AdaptiveReport {
-        samples_min: samples.first().copied().unwrap_or(0),
-        samples_median: samples.get(at(samples.len(), 0.5)).copied().unwrap_or(0),
-        samples_max: samples.last().copied().unwrap_or(0),
-        samples_mean: mean,
-        at_cap: results
-            .iter()
-            .filter(|r| r.samples >= target.max_batches() * BATCH_SAMPLES)
-            .count(),
-        error_median: errors.get(at(errors.len(), 0.5)).copied().unwrap_or(0.0),
-        error_p90: errors.get(at(errors.len(), 0.9)).copied().unwrap_or(0.0),
-        error_max: errors.last().copied().unwrap_or(0.0),
-        per_receiver,
+impl AdaptiveReport {
+    /// The summary of a whole error-targeted bake from its receivers'.
+    pub fn of(receivers: &ReceiverErrors, target: &TargetError) -> AdaptiveReport {
+        let mut samples = receivers.samples.clone();
+        let mut errors = receivers.errors.clone();
+        samples.sort_unstable();
+        errors.sort_by(f64::total_cmp);
+        let at = |len: usize, q: f64| ((len.max(1) - 1) as f64 * q).round() as usize;
+        let mean = samples.iter().map(|&s| s as f64).sum::<f64>() / samples.len().max(1) as f64;
+        AdaptiveReport {
+            samples_min: samples.first().copied().unwrap_or(0),
+            samples_median: samples.get(at(samples.len(), 0.5)).copied().unwrap_or(0),
+            samples_max: samples.last().copied().unwrap_or(0),
+            samples_mean: mean,
+            at_cap: receivers
+                .samples
+                .iter()
+                .filter(|&&s| s >= target.max_batches() * BATCH_SAMPLES)
+                .count(),
+            error_median: errors.get(at(errors.len(), 0.5)).copied().unwrap_or(0.0),
+            error_p90: errors.get(at(errors.len(), 0.9)).copied().unwrap_or(0.0),
+            error_max: errors.last().copied().unwrap_or(0.0),
+            per_receiver: receivers.samples.clone(),
+        }
     }
 }
 

@@ -176,7 +176,7 @@ impl GpuBaker {
 }
 
 /// A compute pipeline for the kernel's `main`, its layout derived from the WGSL.
-pub fn pipeline(ctx: &GpuContext, label: &str, source: String) -> wgpu::ComputePipeline {
+pub(crate) fn pipeline(ctx: &GpuContext, label: &str, source: String) -> wgpu::ComputePipeline {
     let module = ctx
         .device
         .create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -250,7 +250,7 @@ fn plan_chunks(
 }
 
 /// Records one compute pass: `pipeline` over `workgroups` with `group` at binding set 0.
-pub fn encode_pass(
+pub(crate) fn encode_pass(
     encoder: &mut wgpu::CommandEncoder,
     label: &str,
     pipeline: &wgpu::ComputePipeline,

@@ -526,26 +526,24 @@ pub fn bake_shard(
     progress: &dyn Progress,
 ) -> Result<ShardPass> {
     options.validate()?;
-    if options.target_error.is_some() {
-        return Err(Error::Options(
-            "--shard bakes a fixed sample count; --target-error bakes are not sharded".into(),
-        ));
-    }
     let planned = plan(scene, options)?;
     let range = shard.receivers(planned.receivers.len());
-    let view = planned.inputs.view();
-    let part = DirectInputs {
-        origins: &view.origins[range.clone()],
-        normals: &view.normals[range.clone()],
-        ..view
-    };
-    let direct = direct_pass(&part, options.mode, backend, progress)?;
+    let direct = direct_or_adaptive(&planned.inputs, range.clone(), options, backend, progress)?;
     Ok(ShardPass {
         receivers: range,
         receivers_total: planned.receivers.len(),
         direct,
-        ran_on: backend.describe(),
+        ran_on: direct_pass_ran_on(options, backend),
     })
+}
+
+/// The backend a direct pass with `options` runs on: error-targeted passes run on the CPU
+/// whatever the backend.
+fn direct_pass_ran_on(options: &BakeOptions, backend: &Backend) -> String {
+    match options.target_error {
+        Some(_) => Backend::Cpu.describe(),
+        None => backend.describe(),
+    }
 }
 
 /// What every bake does before its direct pass: the prepared scene, its receivers, and what
@@ -594,22 +592,21 @@ pub fn bake_from(
         .transpose()?;
 
     let started = Instant::now();
-    let (direct, adaptive_report, ran_on) = match source {
+    let (direct, ran_on) = match source {
         DirectSource::Compute => {
-            let (direct, adaptive) =
-                direct_or_adaptive(&planned.inputs, options, backend, progress)?;
-            // Error-targeted bakes run on the CPU whatever the backend.
-            let ran_on = match adaptive {
-                Some(_) => Backend::Cpu.describe(),
-                None => backend.describe(),
-            };
-            (direct, adaptive, ran_on)
+            let all = 0..planned.receivers.len();
+            let direct = direct_or_adaptive(&planned.inputs, all, options, backend, progress)?;
+            (direct, direct_pass_ran_on(options, backend))
         }
         DirectSource::Given { direct, ran_on } => {
             check_given(&direct, &planned.receivers, options)?;
-            (direct, None, ran_on)
+            (direct, ran_on)
         }
     };
+    let adaptive_report = options
+        .target_error
+        .zip(direct.adaptive.as_ref())
+        .map(|(target, receivers)| adaptive::AdaptiveReport::of(receivers, &target));
     let seconds_transfer = started.elapsed().as_secs_f64();
 
     let (scene, receivers, points) = (&planned.scene, &planned.receivers, &planned.points);
@@ -672,6 +669,28 @@ fn check_given(direct: &DirectPass, receivers: &Receivers, options: &BakeOptions
         (None, Mode::Interreflected) => false,
         (_, _) => true,
     };
+    let adaptive_fits = match (&direct.adaptive, options.target_error) {
+        (Some(receivers_of), Some(_)) => receivers_of.len() == receivers.len(),
+        (None, None) => true,
+        _ => false,
+    };
+    if !adaptive_fits {
+        return Err(Error::Options(format!(
+            "the given direct pass {} each receiver's samples and error, which an error target \
+             {} ({} receivers)",
+            if direct.adaptive.is_some() {
+                "carries"
+            } else {
+                "lacks"
+            },
+            if options.target_error.is_some() {
+                "needs for all"
+            } else {
+                "would not give"
+            },
+            receivers.len()
+        )));
+    }
     if direct.scalar.len() != expected || !rows_fit {
         return Err(Error::Options(format!(
             "the given direct pass holds {} values for {} receivers of {} coefficients",
@@ -808,35 +827,38 @@ fn prepare_with_albedo(
     Ok((scene, report, map))
 }
 
-/// The direct pass of `owned`'s receivers: a fixed sample count on the backend, or to the
-/// options' error target on the CPU (with its report).
+/// The direct pass of the receivers `range` of `owned`: a fixed sample count on the backend,
+/// or to the options' error target on the CPU (with each receiver's samples and error).
 fn direct_or_adaptive(
     owned: &BakeInputs,
+    range: std::ops::Range<usize>,
     options: &BakeOptions,
     backend: &Backend,
     progress: &dyn Progress,
-) -> Result<(DirectPass, Option<adaptive::AdaptiveReport>)> {
+) -> Result<DirectPass> {
     let Some(target) = &options.target_error else {
-        return Ok((
-            direct_pass(&owned.view(), options.mode, backend, progress)?,
-            None,
-        ));
+        let view = owned.view();
+        let part = DirectInputs {
+            origins: &view.origins[range.clone()],
+            normals: &view.normals[range],
+            ..view
+        };
+        return direct_pass(&part, options.mode, backend, progress);
     };
-    progress.stage("transfer", owned.origins.len() as u64);
-    let (scalar, rays_cast, report) = adaptive::adaptive_direct_transfer(
+    progress.stage("transfer", range.len() as u64);
+    let (scalar, rays_cast, receivers) = adaptive::adaptive_direct_transfer(
         owned,
-        options.sampling,
-        options.seed,
-        options.mode,
+        range,
+        (options.sampling, options.seed, options.mode),
         target,
         progress,
     )?;
-    let direct = DirectPass {
+    Ok(DirectPass {
         scalar,
         matrix: None,
         rays_cast,
-    };
-    Ok((direct, Some(report)))
+        adaptive: Some(receivers),
+    })
 }
 
 /// The receivers of a bake: the vertices, or (least-squares fit) the points spread over the
@@ -955,11 +977,13 @@ pub fn bake_at_in(
 }
 
 /// What the direct pass gives: albedo-free transfer `[receiver][k]`, the gather matrix
-/// (interreflected mode: rows are receivers, columns the scene's vertices) and the rays cast.
+/// (interreflected mode: rows are receivers, columns the scene's vertices), the rays cast,
+/// and for an error-targeted pass each receiver's samples and error.
 pub struct DirectPass {
     pub scalar: Vec<f32>,
     pub matrix: Option<bounce::GatherMatrix>,
     pub rays_cast: u64,
+    pub adaptive: Option<adaptive::ReceiverErrors>,
 }
 
 /// The direct pass over the receivers of `inputs` on either backend.
@@ -994,6 +1018,7 @@ pub fn direct_pass(
         scalar,
         matrix,
         rays_cast,
+        adaptive: None,
     })
 }
 

@@ -79,6 +79,37 @@ impl MemoryNeed {
         self.fixed + chunk as u64 * self.per_receiver_streamed
     }
 
+    /// The need of one of `shards` shards of a bake with `options`: the mesh and its BVH, and
+    /// its share of the receivers at a whole bake's cost each, plus for interreflection their
+    /// gather rows (a column and a weight per sample, in the pass and in the part file).
+    pub fn shard(&self, shards: u32, options: &BakeOptions) -> u64 {
+        let share = self.receivers.div_ceil(shards.max(1) as u64);
+        let gather = match options.mode {
+            Mode::Interreflected => 2 * 8 * options.samples_used() as u64,
+            _ => 0,
+        };
+        self.fixed + share * (self.per_receiver_whole + gather)
+    }
+
+    /// The fewest shards, at most `receivers`, each within `limit` bytes; `None` when the mesh
+    /// and its BVH alone exceed it.
+    pub fn shards_within(&self, limit: u64, options: &BakeOptions) -> Option<u32> {
+        let most = self.receivers.clamp(1, u32::MAX as u64) as u32;
+        if self.shard(most, options) > limit {
+            return None;
+        }
+        // The need falls as the shard count grows: the first count that fits, by bisection.
+        let (mut low, mut high) = (1u32, most);
+        while low < high {
+            let middle = low + (high - low) / 2;
+            match self.shard(middle, options) <= limit {
+                true => high = middle,
+                false => low = middle + 1,
+            }
+        }
+        Some(low)
+    }
+
     /// The largest chunk that keeps a streamed bake within `limit` bytes, or the error that
     /// says how much the smallest chunk needs.
     pub fn chunk_within(&self, limit: u64) -> Result<usize> {

@@ -17,6 +17,7 @@
 use rayon::prelude::*;
 
 use super::eigen::{dot, top_eigenvectors};
+use crate::error::Result;
 use crate::sampling::Pcg32;
 
 /// The transfer vectors, one row of `dimension` floats per vertex.
@@ -29,6 +30,10 @@ pub struct Points<'a> {
 impl Points<'_> {
     pub fn len(&self) -> usize {
         self.data.len() / self.dimension
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
     }
 
     fn row(&self, i: usize) -> impl Iterator<Item = f64> + '_ {
@@ -142,6 +147,21 @@ impl Model {
             .collect();
         let m = self.components;
         self.offsets[cluster * m..(cluster + 1) * m].copy_from_slice(&offsets);
+    }
+}
+
+/// Where the assignment step — nearly all of a compression's time — runs.
+pub trait Assigner {
+    /// Every point's best cluster and residual under `model` (ties: the lower index).
+    fn assign(&self, points: Points, model: &Model) -> Result<(Vec<u32>, Vec<f64>)>;
+}
+
+/// The assignment on the CPU, in f64: the reference.
+pub struct CpuAssigner;
+
+impl Assigner for CpuAssigner {
+    fn assign(&self, points: Points, model: &Model) -> Result<(Vec<u32>, Vec<f64>)> {
+        Ok(assign(points, model))
     }
 }
 
@@ -359,15 +379,15 @@ pub fn fill_empty_clusters(
 pub fn iterate(
     points: Points,
     mut assignment: Vec<u32>,
-    clusters: usize,
-    components: usize,
+    (clusters, components): (usize, usize),
     rounds: u32,
     warm: Option<Model>,
-) -> (Model, Vec<u32>) {
+    assigner: &dyn Assigner,
+) -> Result<(Model, Vec<u32>)> {
     let mut model = warm;
     for _ in 0..rounds.max(1) {
         let mut fitted = fit(points, &assignment, clusters, components, model.as_ref());
-        let (mut next, mut residuals) = assign(points, &fitted);
+        let (mut next, mut residuals) = assigner.assign(points, &fitted)?;
         fill_empty_clusters(points, &mut fitted, &mut next, &mut residuals);
         model = Some(fitted);
         let converged = next == assignment;
@@ -376,5 +396,5 @@ pub fn iterate(
             break;
         }
     }
-    (model.expect("at least one round"), assignment)
+    Ok((model.expect("at least one round"), assignment))
 }

@@ -20,13 +20,15 @@
 
 mod cluster;
 pub mod eigen;
+pub mod gpu;
 
 use rayon::prelude::*;
 
 use crate::bake::Transfer;
 use crate::error::{Error, Result};
 use crate::light::ShLight;
-use cluster::{Model, Points};
+use crate::precision::Precision;
+pub use cluster::{Assigner, CpuAssigner, Model, Points};
 
 /// How hard to compress.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,8 +77,19 @@ pub struct Cpca {
 
 /// Compresses `transfer`: k-means++ seeding from `options.seed`, then CPCA rounds.
 pub fn compress(transfer: &Transfer, options: &CpcaOptions) -> Result<Cpca> {
+    compress_with(transfer, options, &CpuAssigner)
+}
+
+/// [`compress`] with the assignment steps on `assigner` (a GPU's: [`gpu::GpuAssigner`]). The
+/// same assigner, seed and inputs give the same bits; a GPU assigns in f32 where the CPU uses
+/// f64, so near-ties may go the other way and the two results differ slightly.
+pub fn compress_with(
+    transfer: &Transfer,
+    options: &CpcaOptions,
+    assigner: &dyn Assigner,
+) -> Result<Cpca> {
     let points = checked_points(transfer, options)?;
-    let (model, assignment) = compress_points(points, options);
+    let (model, assignment) = compress_points(points, options, assigner)?;
     Ok(finish(
         (transfer.bands, transfer.channels),
         points,
@@ -109,27 +122,30 @@ pub fn compress_rows(rows: &[f32], dimension: usize, options: &CpcaOptions) -> R
         data: rows,
         dimension,
     };
-    let (model, assignment) = compress_points(points, options);
+    let (model, assignment) = compress_points(points, options, &CpuAssigner)?;
     Ok(finish((0, 0), points, &model, assignment))
 }
 
 /// k-means++ seeding from `options.seed`, then CPCA rounds: the model and the assignment.
-fn compress_points(points: Points, options: &CpcaOptions) -> (Model, Vec<u32>) {
+fn compress_points(
+    points: Points,
+    options: &CpcaOptions,
+    assigner: &dyn Assigner,
+) -> Result<(Model, Vec<u32>)> {
     let clusters = options.clusters as usize;
     let seeds = cluster::kmeans_plus_plus(points, clusters, options.seed);
     let seed_means = seeds.iter().flat_map(|&v| point(points, v)).collect();
     let mut seeding = Model::new(points.dimension, 0, seed_means, Vec::new());
-    let (mut assignment, mut residuals) = cluster::assign(points, &seeding);
+    let (mut assignment, mut residuals) = assigner.assign(points, &seeding)?;
     cluster::fill_empty_clusters(points, &mut seeding, &mut assignment, &mut residuals);
-    let (model, assignment) = cluster::iterate(
+    cluster::iterate(
         points,
         assignment,
-        clusters,
-        options.components as usize,
+        (clusters, options.components as usize),
         options.iterations,
         None,
-    );
-    (model, assignment)
+        assigner,
+    )
 }
 
 /// Continues CPCA rounds from an earlier result `start` (its assignment and bases), with
@@ -153,11 +169,11 @@ pub fn refine(transfer: &Transfer, start: &Cpca, options: &CpcaOptions) -> Resul
     let (model, assignment) = cluster::iterate(
         points,
         start.assignment.clone(),
-        options.clusters as usize,
-        options.components as usize,
+        (options.clusters as usize, options.components as usize),
         options.iterations,
         Some(warm),
-    );
+        &CpuAssigner,
+    )?;
     Ok(finish(
         (transfer.bands, transfer.channels),
         points,
@@ -417,29 +433,51 @@ impl Cpca {
         vector_radiance(t, self.channels as usize, light)
     }
 
-    /// Bytes to store this as float32 means, bases and weights plus one cluster index per
-    /// vertex: `4 * clusters * dimension * (1 + components) + 4 * vertices * components +
-    /// index_bytes * vertices`, where an index takes 2 bytes (u16) for up to 65,536 clusters,
-    /// else 4 (u32).
-    pub fn byte_size(&self) -> usize {
+    /// Bytes the baked file stores this in at `precision` ([`stored_bytes`]).
+    pub fn byte_size(&self, precision: Precision) -> usize {
         stored_bytes(
-            self.cluster_count(),
-            self.components,
+            (self.cluster_count(), self.components),
             self.dimension,
             self.vertex_count(),
+            precision,
         )
+    }
+
+    /// This as stored at `precision` and read back: means, bases and weights rounded (the
+    /// assignment is exact at any precision).
+    pub fn rounded(&self, precision: Precision) -> Cpca {
+        Cpca {
+            means: precision.round_all(&self.means),
+            bases: precision.round_all(&self.bases),
+            weights: precision.round_all(&self.weights),
+            ..self.clone()
+        }
     }
 }
 
-/// [`Cpca::byte_size`] for a shape.
+/// Bytes of a compressed transfer of `(clusters, components)` in the baked file: means, bases
+/// and weights at `precision`, `precision.bytes() * (clusters * dimension * (1 + components) +
+/// vertices * components)`, plus `index_bytes(clusters, precision)` per vertex.
 pub fn stored_bytes(
-    clusters: usize,
-    components: usize,
+    (clusters, components): (usize, usize),
     dimension: usize,
     vertices: usize,
+    precision: Precision,
 ) -> usize {
-    let index_bytes = if clusters <= 1 << 16 { 2 } else { 4 };
-    4 * clusters * dimension * (1 + components) + 4 * vertices * components + index_bytes * vertices
+    precision.bytes() * (clusters * dimension * (1 + components) + vertices * components)
+        + index_bytes(clusters, precision) * vertices
+}
+
+/// Bytes of one vertex's cluster index: a float32 file keeps u32 (its layout since the first
+/// compressed files); a half-float file the narrowest that holds every cluster, u8 up to 256
+/// clusters, u16 up to 65,536, else u32.
+pub fn index_bytes(clusters: usize, precision: Precision) -> usize {
+    match precision {
+        Precision::F32 => 4,
+        Precision::F16 if clusters <= 1 << 8 => 1,
+        Precision::F16 if clusters <= 1 << 16 => 2,
+        Precision::F16 => 4,
+    }
 }
 
 /// Bytes of the transfer as float32: 4 per coefficient.
@@ -524,7 +562,7 @@ fn relative_rms(reference: impl Iterator<Item = f64>, other: impl Iterator<Item 
     }
 }
 
-/// The smallest [`Cpca`] (by [`Cpca::byte_size`]) on a grid of cluster and component counts
+/// The smallest [`Cpca`] (by [`Cpca::byte_size`] at float32) on a grid of cluster and component counts
 /// whose [`relative_error`] is at most `target_relative_error`, with the options that made it.
 ///
 /// The grid is clusters 1, 4, 16, 64, 256 by components 1, 2, 4, 8, 16, ... (within the
@@ -536,6 +574,16 @@ pub fn choose(
     transfer: &Transfer,
     target_relative_error: f64,
     seed: u64,
+) -> Result<(Cpca, CpcaOptions)> {
+    choose_with(transfer, target_relative_error, seed, &CpuAssigner)
+}
+
+/// [`choose`] with the assignment steps on `assigner`.
+pub fn choose_with(
+    transfer: &Transfer,
+    target_relative_error: f64,
+    seed: u64,
+    assigner: &dyn Assigner,
 ) -> Result<(Cpca, CpcaOptions)> {
     if !(target_relative_error >= 0.0 && target_relative_error.is_finite()) {
         return Err(Error::Options(format!(
@@ -560,7 +608,7 @@ pub fn choose(
             seed,
             ..CpcaOptions::default()
         };
-        let cpca = compress(transfer, &options)?;
+        let cpca = compress_with(transfer, &options, assigner)?;
         let error = relative_error(transfer, &cpca);
         if error <= target_relative_error {
             return Ok((cpca, options));
@@ -584,7 +632,10 @@ fn grid(dimension: usize, vertices: usize) -> Vec<(u32, u32)> {
     let mut shapes: Vec<(usize, usize)> = clusters
         .flat_map(|k| components.iter().map(move |&m| (k, m)))
         .collect();
-    shapes.sort_by_key(|&(k, m)| (stored_bytes(k, m, dimension, vertices), k, m));
+    shapes.sort_by_key(|&(k, m)| {
+        let bytes = stored_bytes((k, m), dimension, vertices, Precision::F32);
+        (bytes, k, m)
+    });
     if vertices > 0 {
         shapes.push((1, dimension));
     }

@@ -271,11 +271,59 @@ fn sizes_follow_the_stated_formula() {
     let vertices = transfer.vertex_count;
     assert_eq!(cpca.vertex_count(), vertices);
     assert_eq!(
-        cpca.byte_size(),
-        4 * 16 * 48 * 5 + 4 * vertices * 4 + 2 * vertices
+        cpca.byte_size(Precision::F32),
+        4 * 16 * 48 * 5 + 4 * vertices * 4 + 4 * vertices
+    );
+    assert_eq!(
+        cpca.byte_size(Precision::F16),
+        2 * 16 * 48 * 5 + 2 * vertices * 4 + vertices
     );
     assert_eq!(uncompressed_bytes(transfer), 4 * 48 * vertices);
-    assert_eq!(stored_bytes(70_000, 1, 3, 10), 4 * 70_000 * 3 * 2 + 40 + 40);
+    let shape = |clusters| stored_bytes((clusters, 1), 3, 10, Precision::F16);
+    assert_eq!(shape(256), 2 * 256 * 3 * 2 + 20 + 10);
+    assert_eq!(shape(257), 2 * 257 * 3 * 2 + 20 + 20);
+    assert_eq!(shape(70_000), 2 * 70_000 * 3 * 2 + 20 + 40);
+    assert_eq!(
+        stored_bytes((70_000, 1), 3, 10, Precision::F32),
+        4 * 70_000 * 3 * 2 + 40 + 40
+    );
+}
+
+/// A half-float file rounds each mean, basis value and weight to within 2^-11 of itself, so
+/// each reconstructed coefficient `mean + sum_j w_j b_j` moves by at most
+/// `2^-11 |mean| + (2^-10 + 2^-22) sum_j |w_j b_j|` (plus float32 summation, and 2^-25 for
+/// values below half floats' normal range).
+#[test]
+fn rounding_to_half_floats_stays_within_its_bound() {
+    let transfer = baked();
+    let cpca = compress(transfer, &options(16, 8)).unwrap();
+    let half = cpca.rounded(Precision::F16);
+    assert_eq!(half.assignment, cpca.assignment);
+    assert_ne!(half.weights, cpca.weights, "rounding changed nothing");
+    let (exact, rounded) = (cpca.reconstruct(), half.reconstruct());
+    let (n, m) = (cpca.dimension, cpca.components);
+    let mut worst_ratio = 0f64;
+    for v in 0..cpca.vertex_count() {
+        let c = cpca.assignment[v] as usize;
+        for k in 0..n {
+            let mean = cpca.means[c * n + k] as f64;
+            let products: f64 = (0..m)
+                .map(|j| (cpca.weights[v * m + j] * cpca.bases[(c * m + j) * n + k]).abs() as f64)
+                .sum();
+            let bound = 2f64.powi(-11) * mean.abs()
+                + (2f64.powi(-10) + 2f64.powi(-22)) * products
+                + (m + 1) as f64 * 2f64.powi(-25)
+                + 4.0 * f32::EPSILON as f64 * (mean.abs() + products);
+            let moved = (rounded.coeffs[v * n + k] - exact.coeffs[v * n + k]).abs() as f64;
+            assert!(
+                moved <= bound,
+                "vertex {v}, value {k}: moved {moved:e} > {bound:e}"
+            );
+            worst_ratio = worst_ratio.max(moved / bound);
+        }
+    }
+    // The bound is close to what happens, so the test has teeth.
+    assert!(worst_ratio > 0.1, "worst moved/bound {worst_ratio}");
 }
 
 #[test]
@@ -287,11 +335,11 @@ fn choose_finds_a_small_shape_that_meets_the_target() {
         "chose {} clusters x {} components: error {error:.4}, {} of {} bytes",
         chosen.clusters,
         chosen.components,
-        cpca.byte_size(),
+        cpca.byte_size(Precision::F32),
         uncompressed_bytes(transfer)
     );
     assert!(error <= 0.05);
-    assert!(cpca.byte_size() < uncompressed_bytes(transfer) / 2);
+    assert!(cpca.byte_size(Precision::F32) < uncompressed_bytes(transfer) / 2);
     assert_eq!(cpca, compress(transfer, &chosen).unwrap());
     assert!(choose(transfer, f64::NAN, 1).is_err());
 }
@@ -389,9 +437,9 @@ fn dragon_compression_time_size_and_error() {
         println!(
             "dragon {} vertices, {clusters} x {components}: {seconds:.2} s, {} of {} bytes ({:.1}x), coefficient error {:.4}, relit error {:.4}",
             transfer.vertex_count,
-            cpca.byte_size(),
+            cpca.byte_size(Precision::F32),
             uncompressed_bytes(&transfer),
-            uncompressed_bytes(&transfer) as f64 / cpca.byte_size() as f64,
+            uncompressed_bytes(&transfer) as f64 / cpca.byte_size(Precision::F32) as f64,
             relative_error(&transfer, &cpca),
             relit_error(&transfer, &cpca, &light).unwrap(),
         );

@@ -36,6 +36,7 @@ use crate::local::build::OperatorShape;
 use crate::local::depth::{DirectionGrid, MAX_GRID_SIDE};
 use crate::local::operator::CompressedOperator;
 use crate::local::{LocalBake, LocalOptions};
+use crate::precision::Precision;
 use crate::scene::Scene;
 
 /// The layout of `extras.prt.local`'s views; written and checked on reading.
@@ -165,7 +166,7 @@ fn u32_words(values: &[u32]) -> Vec<[u8; 4]> {
 pub fn encode_local_glb(bake: &LocalBake) -> Result<Vec<u8>> {
     let mut bin = Vec::new();
     let mut views = encode_mesh_views(&bake.scene, &mut bin);
-    let depth = compressed::encode(&bake.depth, &mut bin, &mut views);
+    let depth = compressed::encode(&bake.depth, Precision::F32, &mut bin, &mut views);
     let m = &bake.matrix;
     let gather = GatherExtras {
         entries: m.columns.len(),

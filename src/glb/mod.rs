@@ -55,25 +55,12 @@ coefficient k = 4*group + lane, lanes past bands^2 are zero";
 pub const TRANSFER_LAYOUT_F16: &str = "planar [channel][group][vertex][4] float16 little-endian, \
 coefficient k = 4*group + lane, lanes past bands^2 are zero";
 
-/// How the transfer's coefficients are stored.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
-pub enum Precision {
-    /// float32, as `_PRT_*` vertex attributes.
-    #[default]
-    F32,
-    /// IEEE half floats (relative rounding error at most 2^-11), half the bytes; the view is
-    /// named by `extras.prt`, not by vertex attributes.
-    F16,
-}
+pub use crate::precision::Precision;
 
 /// `transfer` as a half-float file stores it: every coefficient rounded to the nearest f16.
 pub fn rounded_to_f16(transfer: &Transfer) -> Transfer {
     Transfer {
-        coeffs: transfer
-            .coeffs
-            .iter()
-            .map(|&x| half::f16::from_f32(x).to_f32())
-            .collect(),
+        coeffs: Precision::F16.round_all(&transfer.coeffs),
         ..transfer.clone()
     }
 }
@@ -125,8 +112,8 @@ pub fn write_glb_with(path: &Path, baked: &BakedMesh, cpca: Option<&Cpca>) -> Re
     write_glb_as(path, baked, cpca, Precision::F32)
 }
 
-/// [`write_glb_with`], the per-vertex transfer stored at `precision` (float16 refuses
-/// compressed transfer and lightmaps, which have their own storage).
+/// [`write_glb_with`], the transfer (per vertex, or compressed) stored at `precision` (float16
+/// refuses lightmaps, which have their own storage).
 pub fn write_glb_as(
     path: &Path,
     baked: &BakedMesh,
@@ -134,10 +121,10 @@ pub fn write_glb_as(
     precision: Precision,
 ) -> Result<()> {
     validate(baked)?;
-    if precision == Precision::F16 && (cpca.is_some() || baked.lightmap.is_some()) {
+    if precision == Precision::F16 && baked.lightmap.is_some() {
         return Err(Error::Options(
-            "--precision f16 stores per-vertex transfer; compressed transfer and lightmaps \
-             have their own storage"
+            "--precision f16 stores per-vertex or compressed transfer; lightmaps have their own \
+             storage"
                 .into(),
         ));
     }
@@ -438,7 +425,12 @@ fn decode_parts(bytes: &[u8], path: &Path) -> Result<(BakedMesh, LightmapParts, 
     let cpca = match &plan.cpca {
         Some(extras) => {
             let shape = (v, plan.metadata.bands, plan.metadata.channels);
-            Some(compressed::decode(&doc, bin, extras, shape).map_err(|m| Error::baked(path, m))?)
+            let precision = match plan.half {
+                true => Precision::F16,
+                false => Precision::F32,
+            };
+            let cpca = compressed::decode(&doc, bin, extras, shape, precision);
+            Some(cpca.map_err(|m| Error::baked(path, m))?)
         }
         None => None,
     };
@@ -922,11 +914,11 @@ fn encode_valid(
     cpca: Option<&Cpca>,
     precision: Precision,
 ) -> Result<Vec<u8>> {
-    let (mut bin, mut views) = match precision {
-        Precision::F32 => encode_bin(baked, cpca.is_none()),
-        Precision::F16 => encode_bin_f16(baked),
+    let (mut bin, mut views) = match (precision, cpca) {
+        (Precision::F16, None) => encode_bin_f16(baked),
+        _ => encode_bin(baked, cpca.is_none()),
     };
-    let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, &mut bin, &mut views));
+    let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, precision, &mut bin, &mut views));
     let shape = Shape::of(baked);
     let json = encode_json(
         shape,
@@ -1366,7 +1358,7 @@ fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Resul
     }
     let half = match prt.transfer_precision.as_deref() {
         None => false,
-        Some(FLOAT16) if prt.cpca.is_none() => true,
+        Some(FLOAT16) => true,
         Some(other) => {
             return Err(bad(format!(
                 "extras.prt.transfer_precision {other:?} is not one this reader knows (float16)"

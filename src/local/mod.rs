@@ -244,7 +244,7 @@ pub fn bake_prepared(
     let depth = compress_depth_maps(&maps, options)?;
     report.depth_error = depth_error(&maps, &depth);
     report.depth_bytes_uncompressed = 4 * maps.depths.len();
-    report.depth_bytes = depth.byte_size();
+    report.depth_bytes = depth.byte_size(crate::precision::Precision::F32);
     report.seconds_depth_compress = started.elapsed().as_secs_f64();
 
     let started = Instant::now();

@@ -103,9 +103,42 @@ pub fn output_paths(meshes: &[PathBuf], out_dir: &Path) -> Result<Vec<PathBuf>> 
     Ok(outputs)
 }
 
+/// Each mesh's share of a batch's work, for the bar over the whole batch: its size on disk, a
+/// gzip file counted at four times its size (PLY shrinks about that much), at least 1 (a file
+/// that cannot be read is reported when its turn comes).
+pub fn work_weights(meshes: &[PathBuf]) -> Vec<u64> {
+    meshes
+        .iter()
+        .map(|mesh| {
+            let bytes = std::fs::metadata(mesh).map_or(0, |m| m.len());
+            let gzip = mesh
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
+            (if gzip { 4 * bytes } else { bytes }).max(1)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn work_follows_the_bytes_to_bake() {
+        let dir = tempfile::tempdir().unwrap();
+        let write = |name: &str, len: usize| {
+            let path = dir.path().join(name);
+            std::fs::write(&path, vec![b'x'; len]).unwrap();
+            path
+        };
+        let meshes = [
+            write("a.obj", 1000),
+            write("b.ply.gz", 100),
+            write("empty.obj", 0),
+            dir.path().join("gone.obj"),
+        ];
+        assert_eq!(work_weights(&meshes), [1000, 400, 1, 1]);
+    }
 
     #[test]
     fn directories_and_patterns_give_their_mesh_files_sorted() {

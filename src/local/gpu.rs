@@ -1,7 +1,8 @@
-//! The compressed direct-to-indirect operator on the GPU: the operator uploaded once, then per
-//! frame the irradiance uploaded, one projection pass per cluster chunk of members
-//! (`wgsl/compressed_project.wgsl`) and one response pass per chunk of kept terms
-//! (`wgsl/compressed_respond.wgsl`), the indirect radiance read back.
+//! The compressed direct-to-indirect operator on the GPU: the operator uploaded once (its
+//! responses in runs of receiver clusters that each fit a storage binding), then per frame the
+//! irradiance uploaded, the projection (`wgsl/compressed_project.wgsl`, passes of at most
+//! [`TERMS_PER_PASS`] members), per run the responses (`wgsl/compressed_respond.wgsl`, passes
+//! of at most [`TERMS_PER_PASS`] terms), the indirect radiance read back.
 //! CPU twin: local::operator::CompressedOperator::indirect.
 
 use bytemuck::{Pod, Zeroable};

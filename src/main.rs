@@ -1862,11 +1862,13 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let local_only = !args.point_light.is_empty()
         || !args.spot_light.is_empty()
         || args.frames.is_some()
-        || args.orbit.is_some();
+        || args.orbit.is_some()
+        || args.device != DeviceChoice::Auto;
     if local_only {
         return Err(Error::Options(
-            "--point-light, --spot-light, --frames and --orbit relight one local-lights bake \
-             (bake --mode local)"
+            "--point-light, --spot-light, --frames, --orbit and --device relight one \
+             local-lights bake (bake --mode local); a distant-light render rasterizes on \
+             --adapter"
                 .into(),
         ));
     }

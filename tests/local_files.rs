@@ -470,3 +470,26 @@ fn cpu_and_gpu_agree() {
         "{error}"
     );
 }
+
+/// What only relights a local-lights bake is refused, in one line, for a distant-light one.
+#[test]
+fn local_only_options_are_refused_for_a_distant_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let bake = ["bake", "--samples", "16", "--device", "cpu", "-o", "d.glb"];
+    succeed(common::prt_gpu(&bake, dir.path()));
+    for extra in [
+        &["--device", "cpu"][..],
+        &["--point-light=0,1,0"],
+        &["--frames", "3"],
+        &["--orbit=0,0,0"],
+    ] {
+        let mut args = vec!["render", "d.glb", "-o", "d.png"];
+        args.extend(extra);
+        let out = common::prt_gpu(&args, dir.path());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{extra:?} rendered");
+        assert_eq!(stderr.trim().lines().count(), 1, "{extra:?}: {stderr}");
+        assert!(stderr.contains("local-lights bake"), "{extra:?}: {stderr}");
+    }
+    assert_eq!(testing::entries(dir.path()), vec!["d.glb".to_string()]);
+}

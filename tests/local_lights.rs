@@ -252,6 +252,15 @@ fn receiver_frames<'a>(
     }
 }
 
+/// Irradiance at every receiver from a point light of intensity 1 at `at`, through `maps`.
+fn unit_light_irradiance(
+    frames: &local::lights::ReceiverFrames,
+    maps: &local::depth::DepthMaps,
+    at: Vec3,
+) -> Vec<f32> {
+    irradiance_from_depth(frames, maps, &maps.grid, &[LocalLight::point(at, 1.0)])
+}
+
 fn area_total(values: &[Vec3], areas: &[f64]) -> f64 {
     values.iter().zip(areas).map(|(v, a)| v.x as f64 * a).sum()
 }
@@ -346,14 +355,7 @@ fn the_compressed_operator_converges_to_the_sparse_one() {
     assert_eq!(examples_at.len(), 48);
     let examples: Vec<f32> = examples_at
         .iter()
-        .flat_map(|&p| {
-            irradiance_from_depth(
-                &frames,
-                &interior.maps,
-                &interior.maps.grid,
-                &[LocalLight::point(p, 1.0)],
-            )
-        })
+        .flat_map(|&p| unit_light_irradiance(&frames, &interior.maps, p))
         .collect();
     let sparse = SparseOperator {
         matrix: &matrix,
@@ -396,12 +398,7 @@ fn the_compressed_operator_converges_to_the_sparse_one() {
         let error: f64 = novel
             .iter()
             .map(|&light| {
-                let e = irradiance_from_depth(
-                    &frames,
-                    &interior.maps,
-                    &interior.maps.grid,
-                    &[LocalLight::point(light, 1.0)],
-                );
+                let e = unit_light_irradiance(&frames, &interior.maps, light);
                 relative_rms(&reference(&e), &operator.indirect(&e))
             })
             .sum::<f64>()
@@ -436,12 +433,7 @@ fn at_the_defaults_the_compressed_operator_is_close_on_held_out_lights() {
     let errors: Vec<f64> = lights
         .iter()
         .map(|&light| {
-            let e = irradiance_from_depth(
-                &frames,
-                &interior.maps,
-                &interior.maps.grid,
-                &[LocalLight::point(light, 1.0)],
-            );
+            let e = unit_light_irradiance(&frames, &interior.maps, light);
             let direct = direct_radiance(&e, &scene.albedo);
             let sparse = sparse_indirect(&bake.matrix, &scene.albedo, options.bounces, &direct);
             relative_rms(&sparse, &bake.operator.indirect(&e))
@@ -471,14 +463,7 @@ fn pruning_drops_the_least_terms_within_the_budget() {
     let lights = test_lights(32, 11);
     let examples: Vec<f32> = lights
         .iter()
-        .flat_map(|&p| {
-            irradiance_from_depth(
-                &frames,
-                &interior.maps,
-                &interior.maps.grid,
-                &[LocalLight::point(p, 1.0)],
-            )
-        })
+        .flat_map(|&p| unit_light_irradiance(&frames, &interior.maps, p))
         .collect();
     let sparse = SparseOperator {
         matrix: &matrix,

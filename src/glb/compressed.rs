@@ -19,7 +19,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{BufferViewJson, Document, ARRAY_BUFFER};
+use super::{append_view, BufferViewJson, Document};
 use crate::compress::{index_bytes, Cpca};
 use crate::precision::Precision;
 
@@ -87,18 +87,9 @@ pub(super) fn encode(
 ) -> CpcaExtras {
     let first = views.len();
     let index_width = index_bytes(cpca.cluster_count(), precision);
+    // A view of one-byte indices may end off a 4-byte boundary; the next starts on one.
     let mut push = |write: &dyn Fn(&mut Vec<u8>)| {
-        // A view of one-byte indices may end off a 4-byte boundary; the next starts on one.
-        bin.resize(bin.len().next_multiple_of(4), 0);
-        let start = bin.len();
-        write(bin);
-        views.push(BufferViewJson {
-            buffer: 0,
-            byte_offset: start as u64,
-            byte_length: (bin.len() - start) as u64,
-            byte_stride: None,
-            target: Some(ARRAY_BUFFER),
-        });
+        append_view(bin, views, write);
     };
     push(&|bytes| precision.encode(&cpca.means, bytes));
     push(&|bytes| precision.encode(&cpca.bases, bytes));

@@ -27,7 +27,7 @@ use serde::{Deserialize, Serialize};
 use super::compressed::{self, floats, u32s, CpcaExtras};
 use super::{
     encode_mesh_views, mesh_accessors, mesh_glb, parse_document, split_chunks, BufferViewJson,
-    Document, ARRAY_BUFFER, FLOAT, UNSIGNED_INT,
+    Document, FLOAT, UNSIGNED_INT,
 };
 use crate::bake::bounce::GatherMatrix;
 use crate::error::{Error, Result};
@@ -142,16 +142,9 @@ pub struct OperatorExtras {
 
 /// Appends one view of 4-byte values to `bin`; returns its index.
 fn push_view(bin: &mut Vec<u8>, views: &mut Vec<BufferViewJson>, words: &[[u8; 4]]) -> usize {
-    let start = bin.len();
-    words.iter().for_each(|w| bin.extend_from_slice(w));
-    views.push(BufferViewJson {
-        buffer: 0,
-        byte_offset: start as u64,
-        byte_length: (bin.len() - start) as u64,
-        byte_stride: None,
-        target: Some(ARRAY_BUFFER),
-    });
-    views.len() - 1
+    super::append_view(bin, views, |bin| {
+        words.iter().for_each(|w| bin.extend_from_slice(w))
+    })
 }
 
 fn f32_words(values: &[f32]) -> Vec<[u8; 4]> {

@@ -1092,6 +1092,21 @@ fn transfer_view(start: usize, len: usize) -> BufferViewJson {
     array_view(start, len, Some(16), ARRAY_BUFFER)
 }
 
+/// Appends to `bin`, from its next 4-byte boundary, what `write` puts there, and a view of it
+/// to `views`; returns the view's index. Every extras-named view of a baked file (compressed
+/// transfer, local lights) is added this way.
+fn append_view(
+    bin: &mut Vec<u8>,
+    views: &mut Vec<BufferViewJson>,
+    write: impl FnOnce(&mut Vec<u8>),
+) -> usize {
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let start = bin.len();
+    write(bin);
+    views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
+    views.len() - 1
+}
+
 fn array_view(start: usize, len: usize, stride: Option<u64>, target: u32) -> BufferViewJson {
     BufferViewJson {
         buffer: 0,

@@ -156,7 +156,7 @@ impl CompressedOperator {
     }
 }
 
-/// A dot product in four independent lanes (so the compiler vectorises it).
+/// A dot product in eight independent lanes (so the compiler vectorises it).
 fn dot(a: &[f32], b: &[f32]) -> f32 {
     let mut lanes = [0.0f32; 8];
     let (a_chunks, b_chunks) = (a.chunks_exact(8), b.chunks_exact(8));

@@ -1,0 +1,847 @@
+//! `prt-gpu bake`: one mesh or a batch, distant-light transfer; checks, the device, the report.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+use super::args::{
+    parse_compression, parse_cpca_shape, parse_rgb, parse_shard, parse_size, Bands, Compression,
+    TransferArgs, AUTO_MAX_BANDS,
+};
+use super::progress::{batch_bar, BarProgress};
+use prt_gpu::bake::adaptive::TargetError;
+use prt_gpu::bake::gpu::{Chunking, GpuBaker};
+use prt_gpu::bake::{self, Backend, BakeOptions, BakeReport, Fit, Storage};
+use prt_gpu::compress::{self, Cpca, CpcaOptions};
+use prt_gpu::device::{self, DeviceChoice, GpuContext};
+use prt_gpu::glb::Precision;
+use prt_gpu::light;
+use prt_gpu::local::LocalOptions;
+use prt_gpu::receivers::PointDensity;
+use prt_gpu::render::{self, ToneMap};
+use prt_gpu::shard::{self, PartHeader};
+use prt_gpu::{fs, glb, scene, Error, Result};
+
+#[derive(clap::Args)]
+pub(crate) struct BakeArgs {
+    /// Mesh to bake: a glTF scene (.gltf, .glb: written back with its transfer added), .obj,
+    /// .ply or .ply.gz. Without it, the built-in scene (a sphere and a box on a ground plane
+    /// beside a wall). Several meshes, directories (their mesh files) or quoted glob patterns
+    /// bake as a batch into --out-dir, one device for all.
+    #[arg(value_name = "MESH")]
+    pub(crate) meshes: Vec<PathBuf>,
+    /// Batch: the directory each <mesh name>.prt.glb is written to (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub(crate) out_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) transfer: TransferArgs,
+    /// Interreflected mode: bounces of light between surfaces added to the direct transfer.
+    #[arg(long, default_value_t = 3)]
+    pub(crate) bounces: u32,
+    /// Interreflected mode: stop early once a bounce adds less than this fraction of the
+    /// energy so far (0 runs every bounce).
+    #[arg(long, default_value_t = 0.0)]
+    pub(crate) bounce_tolerance: f64,
+    /// Seed of the sample directions: the same seed gives the same file.
+    #[arg(long, default_value_t = 1)]
+    pub(crate) seed: u64,
+    /// How vertex values are made: `point` bakes at the vertices (exact there); `least-squares`
+    /// bakes at points spread over every triangle and fits the vertex values whose
+    /// interpolation matches them best over the surface (Kavan et al. 2011), at the cost of
+    /// `--fit-points` times the vertices' rays per sample.
+    #[arg(long, value_enum, default_value_t = Fit::Point)]
+    pub(crate) fit: Fit,
+    /// Least-squares fit: surface points baked per vertex of the mesh, on average (every
+    /// triangle gets at least three).
+    #[arg(long, default_value_t = PointDensity::default().per_vertex)]
+    pub(crate) fit_points: f32,
+    /// Bake to an error target instead of a fixed sample count: each receiver casts batches of
+    /// 32 samples (at least 8) until the standard error of its transfer, relative to unoccluded
+    /// transfer's norm, is below E. Shadowed and unshadowed modes; runs on the CPU backend.
+    #[arg(long, value_name = "E")]
+    pub(crate) target_error: Option<f64>,
+    /// With --target-error: the most samples one receiver casts.
+    #[arg(long, default_value_t = 4096)]
+    pub(crate) max_samples: u32,
+    /// With --bands auto: the largest fraction of the transfer's energy (squared coefficients
+    /// over vertices and channels) the bands left out may hold.
+    #[arg(long, default_value_t = 0.05)]
+    pub(crate) bands_threshold: f64,
+    /// How to store the transfer: `rgb`, or `lean` — one channel where one suffices
+    /// (shadowed and unshadowed transfer albedo-free, the albedo applied at relighting from
+    /// COLOR_0; interreflected transfer when every albedo is grey), a third of the size.
+    #[arg(long, value_enum, default_value_t = Storage::Rgb)]
+    pub(crate) storage: Storage,
+    /// Precision of the stored transfer: `f32`, or `f16` (IEEE half floats: half the bytes,
+    /// each value within 2^-11 of itself relative; the added relit error is reported). glTF has
+    /// no half-float attributes, so an f16 file names its transfer view in extras.prt instead of
+    /// the _PRT_* attributes. With --compress, the means, bases and weights are half floats and
+    /// each cluster index takes the fewest bytes that hold it (1 up to 256 clusters).
+    #[arg(long, value_enum, default_value_t = Precision::F32)]
+    pub(crate) precision: Precision,
+    /// Store the transfer compressed by clustered PCA (Sloan et al. 2003): CLUSTERSxCOMPONENTS,
+    /// e.g. 64x8 — per vertex a cluster and COMPONENTS weights, per cluster a mean and a basis —
+    /// or auto:E, the smallest shape (of a grid of them) whose coefficient error is below E.
+    /// Sizes and the error against the uncompressed transfer are reported.
+    #[arg(long, value_name = "CLUSTERSxCOMPONENTS|auto:E", value_parser = parse_compression)]
+    pub(crate) compress: Option<Compression>,
+    /// Also bake per-texel transfer into a lightmap about SIZE texels on its longer side (a
+    /// generated atlas): written as <output stem>.lightmap.exr beside the .glb, which then
+    /// holds the lightmap coordinates as TEXCOORD_0 (every triangle corner its own vertex).
+    #[arg(long, value_name = "SIZE")]
+    pub(crate) lightmap: Option<u32>,
+    /// Override every material's albedo, as linear R,G,B in [0, 1].
+    #[arg(long, value_parser = parse_rgb)]
+    pub(crate) albedo: Option<Vec3>,
+    /// Output file (.glb). Default: <mesh name>.prt.glb in the current directory.
+    #[arg(short, long)]
+    pub(crate) output: Option<PathBuf>,
+    /// Where to bake: `auto` takes a hardware GPU and otherwise the CPU backend (faster than
+    /// a software rasterizer on the same cores); `gpu` takes any adapter, lavapipe included.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    pub(crate) device: DeviceChoice,
+    /// Use the adapter whose name contains this text (see `prt-gpu devices`).
+    #[arg(long)]
+    pub(crate) adapter: Option<String>,
+    /// Also render a preview of the result under a default sky and sun (.png or .exr).
+    #[arg(long)]
+    pub(crate) preview: Option<PathBuf>,
+    /// Most memory the bake may use, e.g. 512M or 8G (binary units). A shadowed or unshadowed
+    /// bake of OBJ, PLY or the built-in scene that would need more streams its transfer to the
+    /// file in chunks that fit; one that cannot fit says so before it starts. Default: the
+    /// memory this machine has available (when that is too little, a warning).
+    #[arg(long, value_name = "SIZE", value_parser = parse_size)]
+    pub(crate) memory_limit: Option<u64>,
+    /// Bake only shard I of N (counted from 0): a contiguous run of about 1/N of the receivers,
+    /// written as a part file (default <mesh name>.prt.I-of-N.part); `prt-gpu merge` joins
+    /// the N parts into the file this bake without --shard writes, byte for byte.
+    #[arg(long, value_name = "I/N", value_parser = parse_shard)]
+    pub(crate) shard: Option<bake::Shard>,
+    /// GPU: at most this many vertices per chunk (for testing chunking; default from limits).
+    #[arg(long, hide_short_help = true)]
+    pub(crate) chunk_vertices: Option<u32>,
+    /// GPU: at most this many samples per chunk, rounded up to a multiple of 32.
+    #[arg(long, hide_short_help = true)]
+    pub(crate) chunk_samples: Option<u32>,
+    #[command(flatten)]
+    pub(crate) local: LocalArgs,
+}
+
+/// `bake --mode local`: the depth maps and the compressed operator.
+#[derive(clap::Args)]
+pub(crate) struct LocalArgs {
+    /// Local mode: depth-map directions per side of the hemi-octahedral grid (N^2 per receiver).
+    #[arg(long, value_name = "N", default_value_t = LocalOptions::default().grid_side)]
+    pub(crate) depth_grid: u32,
+    /// Local mode: the depth maps compressed by clustered PCA, CLUSTERSxCOMPONENTS.
+    #[arg(long, value_name = "CxM", default_value = "64x24", value_parser = parse_cpca_shape)]
+    pub(crate) depth_compress: (u32, u32),
+    /// Local mode: the operator's receiver clusters and basis vectors of example light per
+    /// cluster, CLUSTERSxCOMPONENTS.
+    #[arg(long, value_name = "CxM", default_value = "64x16", value_parser = parse_cpca_shape)]
+    pub(crate) operator_compress: (u32, u32),
+    /// Local mode: point lights placed across the scene for the operator's PCA bases.
+    #[arg(long, default_value_t = LocalOptions::default().example_lights)]
+    pub(crate) example_lights: u32,
+    /// Local mode: drop a sender cluster's response in a receiver cluster below this fraction
+    /// (RMS) of the receiver cluster's response (0 keeps every non-zero one).
+    #[arg(long, default_value_t = LocalOptions::default().operator.sparsity)]
+    pub(crate) sparsity: f32,
+}
+
+/// One mesh (or the built-in scene) baked to one file.
+pub(crate) fn run_one(args: &BakeArgs, mesh: Option<PathBuf>) -> Result<()> {
+    let options = bake_options(args)?;
+    options.validate()?;
+    check_chunking(args)?;
+    let device = Device::new(|| bake_backend(&options, args.device, args.adapter.as_deref()));
+    let progress = BarProgress::default();
+    bake_one(args, &mesh, args.output.clone(), &device, None, &progress)
+}
+
+/// A bake's device, opened on first use — after the input and options are checked, so that
+/// their errors come first — and then shared by every bake of a batch.
+pub(crate) struct Device<'a> {
+    opened: std::cell::OnceCell<Option<GpuBaker>>,
+    open: Box<dyn Fn() -> Result<Option<GpuBaker>> + 'a>,
+}
+
+impl<'a> Device<'a> {
+    pub(crate) fn new(open: impl Fn() -> Result<Option<GpuBaker>> + 'a) -> Device<'a> {
+        Device {
+            opened: std::cell::OnceCell::new(),
+            open: Box::new(open),
+        }
+    }
+
+    /// The GPU baker, or `None` for the CPU backend.
+    pub(crate) fn get(&self) -> Result<&Option<GpuBaker>> {
+        if let Some(baker) = self.opened.get() {
+            return Ok(baker);
+        }
+        let baker = (self.open)()?;
+        Ok(self.opened.get_or_init(|| baker))
+    }
+}
+
+/// `bake` of several meshes: one device, one line per mesh and a total; a mesh that fails is
+/// reported and the others still bake, the exit failing at the end.
+pub(crate) fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
+    for (given, flag) in [
+        (
+            args.output.is_some(),
+            "-o names one output; a batch writes into --out-dir",
+        ),
+        (
+            args.preview.is_some(),
+            "--preview renders one bake, not a batch",
+        ),
+    ] {
+        if given {
+            return Err(Error::Options(flag.into()));
+        }
+    }
+    if meshes.is_empty() {
+        return Err(Error::Options(
+            "--out-dir: no mesh to bake was given".into(),
+        ));
+    }
+    let out_dir = args.out_dir.clone().unwrap_or_else(|| PathBuf::from("."));
+    let outputs = scene::batch::output_paths(meshes, &out_dir)?;
+    let options = bake_options(args)?;
+    options.validate()?;
+    check_chunking(args)?;
+    std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
+    let device = Device::new(|| bake_backend(&options, args.device, args.adapter.as_deref()));
+    let started = std::time::Instant::now();
+    let mut failed = Vec::new();
+    let weights = scene::batch::work_weights(meshes);
+    let overall = batch_bar(weights.iter().sum());
+    for (k, (mesh, output)) in meshes.iter().zip(outputs).enumerate() {
+        overall.set_message(format!("batch {}/{}", k + 1, meshes.len()));
+        let progress = BarProgress::in_batch(k + 1, meshes.len(), &stem(mesh));
+        let mesh = Some(mesh.clone());
+        if let Err(error) = bake_one(args, &mesh, Some(output), &device, None, &progress) {
+            progress.finish();
+            eprintln!("error: {error}");
+            failed.push(mesh_shown(&mesh));
+        }
+        overall.inc(weights[k]);
+    }
+    overall.finish_and_clear();
+    println!(
+        "batch: {} of {} meshes baked in {:.2} s -> {}",
+        meshes.len() - failed.len(),
+        meshes.len(),
+        started.elapsed().as_secs_f64(),
+        out_dir.display()
+    );
+    match failed.len() {
+        0 => Ok(()),
+        n => Err(Error::Batch(format!(
+            "{n} of {} meshes failed: {}",
+            meshes.len(),
+            failed.join(", ")
+        ))),
+    }
+}
+
+/// One bake of `mesh` to `output`, its direct pass computed on `baker` (the CPU without one)
+/// or, merging, joined from the parts of a sharded bake of the same mesh and options.
+pub(crate) fn bake_one(
+    args: &BakeArgs,
+    mesh: &Option<PathBuf>,
+    output: Option<PathBuf>,
+    device: &Device,
+    merged: Option<(PartHeader, bake::DirectPass)>,
+    progress: &BarProgress,
+) -> Result<()> {
+    let options = bake_options(args)?;
+    let loading = std::time::Instant::now();
+    let (scene, gltf, name) = load_bake_input(mesh)?;
+    check_output_forms(args, &options, gltf.is_some())?;
+    let seconds_load = loading.elapsed().as_secs_f64();
+    let output_path = output.unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
+    // Fail before the long part, not after it.
+    fs::check_destination(&output_path)?;
+    if let Some(preview) = &args.preview {
+        fs::check_destination(preview)?;
+    }
+    note_samples_rounded(&options);
+    let baker = device.get()?;
+    if merged.is_none() {
+        if let Some(chunk) = memory_plan(args, &options, &scene, gltf.is_some())? {
+            let planned = bake::stream::StreamedBake::plan(scene, &options)
+                .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
+            let backend = backend_of(baker, args);
+            let report =
+                glb::stream::bake_streamed(&planned, &backend, chunk, &output_path, progress)?;
+            progress.finish();
+            print_bake_report(&name, &options, &report, &output_path, None);
+            return Ok(());
+        }
+    }
+    let merged_from = merged
+        .as_ref()
+        .map(|(header, _)| (header.shard_count, header.backend.clone()));
+    let source = match merged {
+        None => bake::DirectSource::Compute,
+        Some((header, direct)) => {
+            if shard::fingerprint(&scene, &fingerprinted_options(args, &options))
+                != header.fingerprint
+            {
+                return Err(Error::Merge(format!(
+                    "{} is not the mesh the parts were baked from (it changed since)",
+                    mesh_shown(mesh)
+                )));
+            }
+            let ran_on = header.backend;
+            bake::DirectSource::Given { direct, ran_on }
+        }
+    };
+    let backend = backend_of(baker, args);
+    let (mut baked, report) = bake::bake_from(scene, &options, &backend, source, progress)
+        .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
+    progress.finish();
+    let mut options = options;
+    if args.transfer.bands == Bands::Auto {
+        options.bands = choose_auto_bands(&mut baked, args.bands_threshold);
+    }
+    let cpca = match args.compress {
+        Some(shape) => Some(compress_transfer(
+            &baked,
+            shape,
+            args.precision,
+            baker.as_ref().map(|b| &b.context),
+        )?),
+        None => None,
+    };
+    let writing = std::time::Instant::now();
+    let written = match &gltf {
+        Some(gltf) => Some(glb::scene::write_scene_glb(
+            &output_path,
+            gltf,
+            &baked,
+            &report.vertex_map,
+        )?),
+        None => {
+            glb::write_glb_as(&output_path, &baked, cpca.as_ref(), args.precision)?;
+            None
+        }
+    };
+    if args.precision == Precision::F16 && cpca.is_none() {
+        report_f16_error(&baked)?;
+    }
+    let seconds_write = writing.elapsed().as_secs_f64();
+    if let Some(preview) = &args.preview {
+        match baker {
+            Some(baker) => write_preview(&baker.context, &baked, preview)?,
+            None => write_preview(&open_render_device(None)?, &baked, preview)?,
+        }
+    }
+    if let Some(written) = written {
+        print_in_place_report(&written, seconds_load, seconds_write);
+    }
+    print_bake_report(&name, &options, &report, &output_path, merged_from);
+    Ok(())
+}
+
+/// How the bake of `scene` fits the memory limit: `None` whole, or streamed in chunks of that
+/// many receivers. A bake that cannot fit an explicit limit fails before it starts, saying what
+/// it needs; over the machine's available memory, a warning.
+fn memory_plan(
+    args: &BakeArgs,
+    options: &BakeOptions,
+    scene: &scene::Scene,
+    gltf: bool,
+) -> Result<Option<usize>> {
+    use bake::stream::{format_bytes, MemoryNeed};
+    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), options);
+    let Some(limit) = args.memory_limit.or_else(device::available_memory) else {
+        return Ok(None);
+    };
+    if need.whole() <= limit {
+        return Ok(None);
+    }
+    let streamable = bake::stream::streams(options)
+        && !gltf
+        && args.compress.is_none()
+        && args.precision == Precision::F32
+        && args.transfer.bands != Bands::Auto
+        && args.preview.is_none();
+    let cannot = match streamable {
+        true => None,
+        false => Some(
+            "only shadowed and unshadowed per-vertex bakes of OBJ, PLY and the built-in scene, \
+             without --compress, --precision f16, --bands auto or --preview, stream in chunks",
+        ),
+    };
+    match (cannot, args.memory_limit) {
+        (None, _) => {
+            let chunk = need.chunk_within(limit)?;
+            eprintln!(
+                "note: streaming the transfer in chunks of {chunk} receivers to stay within {} \
+                 (about {} whole, {} streamed)",
+                format_bytes(limit),
+                format_bytes(need.whole()),
+                format_bytes(need.streamed(chunk))
+            );
+            Ok(Some(chunk))
+        }
+        (Some(why), Some(_)) => Err(Error::Options(format!(
+            "--memory-limit {}: this bake needs about {}, and {why}",
+            format_bytes(limit),
+            format_bytes(need.whole())
+        ))),
+        (Some(why), None) => {
+            eprintln!(
+                "warning: this bake needs about {}, more than the {} this machine has available, \
+                 and {why}",
+                format_bytes(need.whole()),
+                format_bytes(limit)
+            );
+            Ok(None)
+        }
+    }
+}
+
+pub(crate) fn mesh_shown(mesh: &Option<PathBuf>) -> String {
+    mesh.as_ref()
+        .map_or_else(|| "built-in scene".to_string(), |p| p.display().to_string())
+}
+
+pub(crate) fn note_samples_rounded(options: &BakeOptions) {
+    if options.samples_used() != options.samples {
+        let side = (options.samples_used() as f64).sqrt() as u32;
+        eprintln!(
+            "note: --samples {} is not a square; {} sampling uses {} ({side} x {side} strata)",
+            options.samples,
+            options.sampling.name(),
+            options.samples_used()
+        );
+    }
+}
+
+pub(crate) fn check_chunking(args: &BakeArgs) -> Result<()> {
+    for (flag, value) in [
+        ("--chunk-vertices", args.chunk_vertices),
+        ("--chunk-samples", args.chunk_samples),
+    ] {
+        if value == Some(0) {
+            return Err(Error::Options(format!("{flag} must be at least 1")));
+        }
+    }
+    Ok(())
+}
+
+/// The backend of `baker` (the CPU's without one), chunked as `args` ask.
+pub(crate) fn backend_of<'a>(baker: &'a Option<GpuBaker>, args: &BakeArgs) -> Backend<'a> {
+    match baker {
+        Some(baker) => Backend::Gpu {
+            baker,
+            chunking: Chunking {
+                max_vertices: args.chunk_vertices,
+                max_samples: args.chunk_samples,
+                max_steps: None,
+            },
+        },
+        None => Backend::Cpu,
+    }
+}
+
+/// Refuses output forms a bake cannot give: compressed, lean or lightmapped glTF scenes baked
+/// in place, compressed lightmaps.
+pub(crate) fn check_output_forms(args: &BakeArgs, options: &BakeOptions, gltf: bool) -> Result<()> {
+    let refuse = |message: &str| Err(Error::Options(message.to_string()));
+    if let Some(Compression::Target(error)) = args.compress {
+        if !(error > 0.0 && error < 1.0) {
+            return Err(Error::Options(format!(
+                "--compress auto:{error}: the error target must lie in (0, 1)"
+            )));
+        }
+    }
+    if args.compress.is_some() && (gltf || options.lightmap.is_some()) {
+        return refuse(
+            "--compress stores the transfer of OBJ, PLY and the built-in scene per vertex; \
+             glTF scenes baked in place and lightmaps are not compressed",
+        );
+    }
+    if args.precision == Precision::F16 && (gltf || options.lightmap.is_some()) {
+        return refuse(
+            "--precision f16 stores the per-vertex or compressed transfer of OBJ, PLY and the \
+             built-in scene; glTF scenes baked in place and lightmaps keep their own storage",
+        );
+    }
+    if gltf && options.storage == Storage::Lean {
+        return refuse(
+            "--storage lean stores OBJ, PLY and the built-in scene; a glTF scene baked in place \
+             keeps RGB transfer",
+        );
+    }
+    if gltf && options.lightmap.is_some() {
+        return refuse(
+            "--lightmap bakes OBJ, PLY and the built-in scene; a glTF scene is baked in place \
+             per vertex (lightmaps for glTF scenes are not supported yet)",
+        );
+    }
+    Ok(())
+}
+
+/// What storing `baked`'s transfer as half floats cost: bytes, and the relit error.
+fn report_f16_error(baked: &bake::BakedMesh) -> Result<()> {
+    let rounded = glb::rounded_to_f16(&baked.transfer);
+    let light = light::preview_light(baked.transfer.bands)?;
+    let exact = render::relight(&baked.transfer, &light)?;
+    let stored = render::relight(&rounded, &light)?;
+    let worst = baked
+        .transfer
+        .coeffs
+        .iter()
+        .zip(&rounded.coeffs)
+        .filter(|(x, _)| x.abs() >= 1e-4)
+        .map(|(x, r)| ((r - x) / x).abs())
+        .fold(0f32, f32::max);
+    eprintln!(
+        "precision f16: transfer {} bytes instead of {}; relit error {:.1e} under the preview \
+         light, worst coefficient {:.1e} relative (of those above 1e-4)",
+        baked.transfer.coeffs.len() * 2,
+        baked.transfer.coeffs.len() * 4,
+        compress::radiance_error(&exact, &stored),
+        worst
+    );
+    Ok(())
+}
+
+/// `--bands auto`: the baked mesh cut to the bands the threshold asks for, said; returns them.
+fn choose_auto_bands(baked: &mut bake::BakedMesh, threshold: f64) -> u32 {
+    let (bands, beyond) = bake::choose_bands(&baked.transfer, threshold);
+    bake::truncate_baked(baked, bands);
+    eprintln!(
+        "bands auto: {bands} ({:.2}% of the transfer's energy lies in bands {bands} to {}, \
+         below --bands-threshold {threshold})",
+        100.0 * beyond,
+        AUTO_MAX_BANDS - 1,
+    );
+    bands
+}
+
+/// What `bake`'s arguments ask of the bake.
+pub(crate) fn bake_options(args: &BakeArgs) -> Result<BakeOptions> {
+    if !(args.bands_threshold > 0.0 && args.bands_threshold < 1.0) {
+        return Err(Error::Options(format!(
+            "--bands-threshold {} must lie in (0, 1)",
+            args.bands_threshold
+        )));
+    }
+    Ok(BakeOptions {
+        seed: args.seed,
+        albedo: args.albedo,
+        bounces: args.bounces,
+        bounce_tolerance: args.bounce_tolerance,
+        fit: args.fit,
+        lightmap: args.lightmap,
+        storage: args.storage,
+        target_error: args.target_error.map(|relative| TargetError {
+            relative,
+            max_samples: args.max_samples,
+        }),
+        point_density: PointDensity {
+            per_vertex: args.fit_points,
+            ..PointDensity::default()
+        },
+        ..args.transfer.options()
+    })
+}
+
+/// The baked transfer compressed to `(clusters, components)` and rounded as a file at
+/// `precision` stores it, with its sizes and errors (those of the stored form) said. The
+/// assignment steps run on `gpu` where it pays (`GpuAssigner::where_it_pays`).
+fn compress_transfer(
+    baked: &bake::BakedMesh,
+    compression: Compression,
+    precision: Precision,
+    gpu: Option<&prt_gpu::device::GpuContext>,
+) -> Result<Cpca> {
+    let started = std::time::Instant::now();
+    let transfer = &baked.transfer;
+    let points = compress::Points {
+        data: &transfer.coeffs,
+        dimension: transfer.channels as usize * transfer.coeffs_per_channel(),
+    };
+    let most_components = match compression {
+        Compression::Shape(_, components) => components as usize,
+        Compression::Target(_) => points.dimension,
+    };
+    let gpu_assigner = match gpu {
+        Some(context) => {
+            let (assigner, why_not) =
+                compress::gpu::GpuAssigner::where_it_pays(context, points, most_components)?;
+            if let Some(why) = why_not {
+                eprintln!("note: {why}; clustering on the CPU");
+            }
+            assigner
+        }
+        None => None,
+    };
+    let (assigner, ran_on): (&dyn compress::Assigner, String) = match &gpu_assigner {
+        Some(assigner) => (assigner, format!("gpu: {}", assigner.label())),
+        None => (&compress::CpuAssigner, "cpu".into()),
+    };
+    let (cpca, options) = match compression {
+        Compression::Shape(clusters, components) => {
+            let options = CpcaOptions {
+                clusters,
+                components,
+                ..CpcaOptions::default()
+            };
+            (
+                compress::compress_with(transfer, &options, assigner)?,
+                options,
+            )
+        }
+        Compression::Target(error) => {
+            compress::choose_with(transfer, error, CpcaOptions::default().seed, assigner)?
+        }
+    };
+    let cpca = cpca.rounded(precision);
+    let (clusters, components) = (options.clusters, options.components);
+    let seconds = started.elapsed().as_secs_f64();
+    let before = compress::uncompressed_bytes(&baked.transfer);
+    let after = cpca.byte_size(precision);
+    let light = light::preview_light(baked.transfer.bands)?;
+    let half = match precision {
+        Precision::F32 => "",
+        Precision::F16 => " as half floats",
+    };
+    eprintln!(
+        "compressed: {clusters} clusters x {components} components in {seconds:.2} s \
+         ({ran_on}), {after} bytes{half} of {before} ({:.1}x smaller); coefficient error \
+         {:.2}%, relit error {:.2}% under the preview light",
+        before as f64 / after as f64,
+        100.0 * compress::relative_error(&baked.transfer, &cpca),
+        100.0 * compress::relit_error(&baked.transfer, &cpca, &light)?
+    );
+    Ok(cpca)
+}
+
+/// The GPU baker a bake with `options` uses, or `None` for the CPU backend (error-targeted
+/// bakes always run there).
+pub(crate) fn bake_backend(
+    options: &BakeOptions,
+    device: DeviceChoice,
+    adapter: Option<&str>,
+) -> Result<Option<GpuBaker>> {
+    if options.target_error.is_some() {
+        if device == DeviceChoice::Gpu {
+            eprintln!("note: error-targeted bakes run on the CPU backend");
+        }
+        return Ok(None);
+    }
+    open_backend(device, adapter)
+}
+
+/// What `bake` bakes: the mesh named on the command line (a glTF scene keeps its document,
+/// to be written back with its transfer), or the built-in scene; and a name for messages.
+pub(crate) fn load_bake_input(
+    mesh: &Option<PathBuf>,
+) -> Result<(scene::Scene, Option<scene::gltf::GltfScene>, String)> {
+    match mesh {
+        Some(path) if scene::is_gltf(path) => {
+            let (gltf, loaded) = scene::gltf::load(path)?;
+            for note in &gltf.notes {
+                eprintln!("note: {note}");
+            }
+            Ok((loaded, Some(gltf), stem(path)))
+        }
+        _ => {
+            let (loaded, name) = load_scene(mesh)?;
+            Ok((loaded, None, name))
+        }
+    }
+}
+
+/// Geometry errors come from preparation, which no longer knows the file: name it.
+pub(crate) fn naming_the_mesh(error: Error, mesh: &str) -> Error {
+    match error {
+        Error::Geometry(_) => Error::mesh(mesh, error.to_string()),
+        other => other,
+    }
+}
+
+/// Renders `baked` under the default sky and sun to `path`.
+fn write_preview(context: &GpuContext, baked: &bake::BakedMesh, path: &Path) -> Result<()> {
+    let (width, height) = (640, 480);
+    let light = light::preview_light(baked.metadata.bands)?;
+    let image = render::preview(context, baked, &light, None, width, height)?;
+    render::write_image(path, &image, width, height, ToneMap::Reinhard, 0.0)?;
+    eprintln!("preview -> {}", path.display());
+    Ok(())
+}
+
+/// The bounces, the gather matrix and the one summary line of a finished bake.
+/// What baking a glTF scene in place did.
+fn print_in_place_report(written: &glb::scene::SceneWrite, seconds_load: f64, seconds_write: f64) {
+    eprintln!(
+        "baked in place: {} primitive(s), read in {seconds_load:.2} s, written in \
+         {seconds_write:.2} s{}",
+        written.primitives_baked,
+        match written.mesh_copies {
+            0 => String::new(),
+            n => format!(
+                "; {n} mesh(es) shown by several nodes copied, one per placement \
+                 (each place sees its own occlusion)"
+            ),
+        }
+    );
+}
+
+/// The parts a bake was merged from: how many, and the backend they ran on.
+type MergedFrom = Option<(u32, String)>;
+
+fn print_bake_report(
+    name: &str,
+    options: &BakeOptions,
+    report: &BakeReport,
+    output: &Path,
+    merged_from: MergedFrom,
+) {
+    for (i, bounce) in report.bounces.iter().enumerate() {
+        eprintln!(
+            "bounce {}: +{:.2}% energy in {:.2} s",
+            i + 1,
+            100.0 * bounce.relative_energy,
+            bounce.seconds
+        );
+    }
+    if report.gather_entries > 0 {
+        // Each entry is a u32 column and an f32 weight.
+        eprintln!(
+            "gather matrix: {} entries ({:.1} MiB)",
+            report.gather_entries,
+            (report.gather_entries * 8) as f64 / (1u64 << 20) as f64
+        );
+    }
+    if let Some(fit) = &report.fit {
+        eprintln!(
+            "least-squares fit: {} surface points, solved in {:.2} s ({} iterations, residual \
+             {:.1e}, {} matrix entries)",
+            report.receivers,
+            report.seconds_fit,
+            fit.iterations,
+            fit.relative_residual,
+            fit.matrix_entries
+        );
+    }
+    if let Some(adaptive) = &report.adaptive {
+        eprintln!(
+            "target error: samples per receiver {} / {} / {} (min / median / max, mean {:.0}), \
+             {} at the cap; estimated error {:.2e} / {:.2e} / {:.2e} (median / 90% / max)",
+            adaptive.samples_min,
+            adaptive.samples_median,
+            adaptive.samples_max,
+            adaptive.samples_mean,
+            adaptive.at_cap,
+            adaptive.error_median,
+            adaptive.error_p90,
+            adaptive.error_max
+        );
+    }
+    if let Some(texels) = &report.texels {
+        eprintln!(
+            "lightmap: {}x{} texels, {} covered ({} inside geometry, refilled), {} rays in \
+             {:.2} s -> {}",
+            texels.width,
+            texels.height,
+            texels.covered,
+            texels.leaking,
+            texels.rays_cast,
+            texels.seconds,
+            output
+                .with_file_name(glb::lightmap_file_name(output))
+                .display()
+        );
+    }
+    let seconds_bounces: f64 = report.bounces.iter().map(|b| b.seconds).sum();
+    let seconds_texels = report.texels.map_or(0.0, |t| t.seconds);
+    let seconds = report.seconds_prepare
+        + report.seconds_transfer
+        + report.seconds_fit
+        + seconds_bounces
+        + seconds_texels;
+    let rays_per_second = report.rays_cast as f64 / report.seconds_transfer.max(1e-9);
+    let rays = match merged_from {
+        None => format!(
+            "{} rays in {:.2} s ({:.2} M rays/s)",
+            report.rays_cast,
+            report.seconds_transfer,
+            rays_per_second / 1e6
+        ),
+        Some((parts, ran_on)) => format!(
+            "{} rays in {parts} shards ({ran_on}), merged",
+            report.rays_cast
+        ),
+    };
+    println!(
+        "baked {name}: {} vertices, {} triangles, {} bands, {} {} samples, {} mode; {rays}, \
+         {:.2} s in all ({}) -> {}",
+        report.prepare.vertices,
+        report.prepare.triangles,
+        options.bands,
+        match &report.adaptive {
+            Some(adaptive) => format!("{:.0} (mean)", adaptive.samples_mean),
+            None => report.samples_used.to_string(),
+        },
+        options.sampling.name(),
+        options.mode.name(),
+        seconds,
+        report.backend,
+        output.display()
+    );
+}
+
+/// The GPU baker for `choice`, or `None` for the CPU backend (saying why when it was not asked
+/// for). `bake`, `chart` and `bench` all open their backend here.
+pub(crate) fn open_backend(
+    choice: DeviceChoice,
+    adapter: Option<&str>,
+) -> Result<Option<GpuBaker>> {
+    let baker = GpuBaker::open(choice, adapter)?;
+    if baker.is_none() && choice == DeviceChoice::Auto {
+        match device::list_adapters().first() {
+            Some(best) => eprintln!(
+                "note: only software GPU adapters ({}); the CPU backend is faster on the same \
+                 cores and bakes instead (--device gpu forces the adapter)",
+                best.name
+            ),
+            None => eprintln!("note: no GPU adapter found; baking on the CPU backend"),
+        }
+    }
+    Ok(baker)
+}
+
+/// The mesh named on the command line, or the built-in scene; and a name for messages.
+pub(crate) fn load_scene(mesh: &Option<PathBuf>) -> Result<(scene::Scene, String)> {
+    match mesh {
+        Some(path) => Ok((scene::load(path)?, stem(path))),
+        None => Ok((scene::builtin::default_scene(), "default-scene".to_string())),
+    }
+}
+
+/// The name a mesh file is reported by.
+pub(crate) fn stem(path: &Path) -> String {
+    scene::batch::mesh_name(path)
+}
+
+/// What besides the mesh decides a bake's output, as text for its fingerprint.
+pub(crate) fn fingerprinted_options(args: &BakeArgs, options: &BakeOptions) -> String {
+    format!(
+        "{options:?} bands {:?} threshold {} compress {:?} precision {:?}",
+        args.transfer.bands, args.bands_threshold, args.compress, args.precision
+    )
+}
+
+/// Any adapter, software ones included: rasterising a preview is cheap anywhere.
+pub(crate) fn open_render_device(adapter: Option<&str>) -> Result<GpuContext> {
+    device::open(DeviceChoice::Gpu, adapter)?
+        .ok_or_else(|| Error::Gpu("no adapter to render with".into()))
+}

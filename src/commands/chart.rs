@@ -1,0 +1,267 @@
+//! `prt-gpu chart` and `prt-gpu bench`: speed against accuracy, rays per second.
+
+use std::path::PathBuf;
+
+use super::args::{Bands, TransferArgs};
+use super::bake::{load_scene, naming_the_mesh, open_backend};
+use super::progress::BarProgress;
+use prt_gpu::bake::adaptive::TargetError;
+use prt_gpu::bake::gpu::Chunking;
+use prt_gpu::bake::{self, Backend, BakeOptions, Fit, Mode};
+use prt_gpu::device::DeviceChoice;
+use prt_gpu::light;
+use prt_gpu::sampling::Sampling;
+use prt_gpu::sweep::{self, SweepOptions};
+use prt_gpu::{chart, fs, scene, Error, Result};
+
+#[derive(clap::Args)]
+pub(crate) struct ChartArgs {
+    /// Mesh to chart (the built-in scene when none is given).
+    mesh: Option<PathBuf>,
+    /// Output chart, .svg or .png; the numbers go to the same name with .csv.
+    #[arg(short, long, default_value = "chart.svg")]
+    output: PathBuf,
+    /// Spherical-harmonic bands.
+    #[arg(long, default_value_t = 4)]
+    bands: u32,
+    /// Light transport to bake.
+    #[arg(long, value_enum, default_value_t = Mode::Shadowed)]
+    mode: Mode,
+    /// Sample counts of the sweep, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [64, 256, 1024])]
+    samples: Vec<u32>,
+    /// Strategies to chart, comma-separated (default: all).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    sampling: Vec<Sampling>,
+    /// Samples of the reference bake every point is compared with.
+    #[arg(long, default_value_t = 16_384)]
+    reference_samples: u32,
+    /// Strategy of the reference bake.
+    #[arg(long, value_enum, default_value_t = Sampling::ControlVariate)]
+    reference_sampling: Sampling,
+    /// Light for the relit-radiance error: light.json or an environment map (default: the
+    /// preview's sky and sun).
+    #[arg(long)]
+    light: Option<PathBuf>,
+    /// The CPU backend always runs; this says which GPU joins it: `auto` a hardware GPU if
+    /// there is one, `gpu` any adapter (lavapipe included), `cpu` none.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    device: DeviceChoice,
+    /// Use the adapter whose name contains this text.
+    #[arg(long)]
+    adapter: Option<String>,
+    /// Seed of the sweep's sample directions (the reference uses another).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Vertex fits to chart, comma-separated (default: point,least-squares); each is baked
+    /// with every strategy and count.
+    #[arg(long, value_enum, value_delimiter = ',')]
+    fit: Vec<Fit>,
+    /// Held-out surface points of the surface error (default: four per vertex, at most 20,000).
+    #[arg(long, default_value_t = 0)]
+    surface_points: usize,
+    /// Lightmap sizes, comma-separated: each strategy and count is also baked per texel at
+    /// each, for the surface panel (the vertex errors of these points are their vertices').
+    #[arg(long, value_delimiter = ',', value_name = "SIZES")]
+    lightmap: Vec<u32>,
+    /// Error targets, comma-separated: each strategy is also baked to each (`bake
+    /// --target-error`, on the CPU backend, at most 16,384 samples a receiver).
+    #[arg(long, value_delimiter = ',', value_name = "ERRORS")]
+    target_error: Vec<f64>,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct BenchArgs {
+    /// Mesh to bake (the built-in scene when none is given).
+    mesh: Option<PathBuf>,
+    #[command(flatten)]
+    transfer: TransferArgs,
+    /// Timed runs per backend, interleaved CPU, GPU, CPU, GPU, ...; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    repeats: u32,
+    /// `gpu` (default) times any adapter, lavapipe included, beside the CPU; `cpu` only the CPU.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Gpu)]
+    device: DeviceChoice,
+    /// Use the adapter whose name contains this text.
+    #[arg(long)]
+    adapter: Option<String>,
+}
+
+pub(crate) fn run_chart(args: ChartArgs) -> Result<()> {
+    chart::check_chart_path(&args.output)?;
+    let csv_path = args.output.with_extension("csv");
+    fs::check_destination(&args.output)?;
+    let options = sweep_options(&args)?;
+    let light = match &args.light {
+        Some(path) => light::load(path, args.bands, None, false)?.light,
+        None => light::preview_light(args.bands)?,
+    };
+    let (scene, name) = load_scene(&args.mesh)?;
+    let baker = open_backend(args.device, args.adapter.as_deref())?;
+    let mut backends = vec![("cpu".to_string(), Backend::Cpu)];
+    if let Some(baker) = &baker {
+        eprintln!("gpu: {}", baker.context.adapter.label());
+        backends.push((
+            "gpu".to_string(),
+            Backend::Gpu {
+                baker,
+                chunking: Chunking::default(),
+            },
+        ));
+    }
+    let started = std::time::Instant::now();
+    let progress = BarProgress::default();
+    let result = sweep::run(&scene, &options, &backends, &light, &progress)?;
+    progress.finish();
+    let panels = sweep::chart_panels(&result);
+    let title = format!(
+        "{name}: {} bands, {} mode, against {} {} samples",
+        options.bands,
+        options.mode.name(),
+        result.reference_samples,
+        options.reference_sampling.name()
+    );
+    chart::draw_chart(&args.output, &title, "bake time (s)", &panels)?;
+    sweep::write_csv(&csv_path, &result)?;
+    for p in &result.points {
+        eprintln!(
+            "{:>16} {:>13} {:>3} {:>6} samples: {:>8.3} s, transfer rms {:.3e}, radiance rms \
+             {:.3e}, surface {:.2}%",
+            p.sampling.name(),
+            match p.target_error {
+                Some(e) => format!("target {e}"),
+                None => sweep::representation(p),
+            },
+            p.backend,
+            p.samples,
+            p.seconds,
+            p.transfer_rms,
+            p.radiance_rms,
+            100.0 * p.surface_rms / result.surface.rms.max(1e-30)
+        );
+    }
+    println!(
+        "charted {name}: {} points, reference {} samples in {:.2} s (and {} surface points, {} \
+         inside geometry left out, in {:.2} s), {:.1} s in all -> {}, {}",
+        result.points.len(),
+        result.reference_samples,
+        result.reference_seconds,
+        result.surface.points.len(),
+        result.surface.hidden,
+        result.surface.seconds,
+        started.elapsed().as_secs_f64(),
+        args.output.display(),
+        csv_path.display()
+    );
+    Ok(())
+}
+
+/// The sweep `chart` asks for, every count checked as a bake would check it.
+fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
+    if args.samples.is_empty() || args.samples.contains(&0) {
+        return Err(Error::Options(
+            "--samples needs counts of at least 1".into(),
+        ));
+    }
+    let options = SweepOptions {
+        bands: args.bands,
+        mode: args.mode,
+        strategies: if args.sampling.is_empty() {
+            Sampling::ALL.to_vec()
+        } else {
+            args.sampling.clone()
+        },
+        counts: args.samples.clone(),
+        reference_samples: args.reference_samples,
+        reference_sampling: args.reference_sampling,
+        seed: args.seed,
+        fits: if args.fit.is_empty() {
+            SweepOptions::default().fits
+        } else {
+            args.fit.clone()
+        },
+        surface_points: args.surface_points,
+        lightmap_sizes: args.lightmap.clone(),
+        target_errors: args.target_error.clone(),
+    };
+    for &count in options.counts.iter().chain([&options.reference_samples]) {
+        BakeOptions {
+            bands: options.bands,
+            samples: count,
+            ..BakeOptions::default()
+        }
+        .validate()?;
+    }
+    for &size in &options.lightmap_sizes {
+        BakeOptions {
+            lightmap: Some(size),
+            ..BakeOptions::default()
+        }
+        .validate()?;
+    }
+    for &relative in &options.target_errors {
+        BakeOptions {
+            mode: options.mode,
+            target_error: Some(TargetError {
+                relative,
+                max_samples: sweep::MAX_TARGET_SAMPLES,
+            }),
+            ..BakeOptions::default()
+        }
+        .validate()?;
+    }
+    Ok(options)
+}
+
+pub(crate) fn run_bench(args: BenchArgs) -> Result<()> {
+    if args.transfer.bands == Bands::Auto {
+        return Err(Error::Options(
+            "--bands auto chooses the bands of a bake; bench needs a number".into(),
+        ));
+    }
+    let options = args.transfer.options();
+    options.validate()?;
+    if args.repeats == 0 {
+        return Err(Error::Options("--repeats must be at least 1".into()));
+    }
+    let (scene, name) = load_scene(&args.mesh)?;
+    let (scene, _) = scene::prepare::prepare(scene).map_err(|e| naming_the_mesh(e, &name))?;
+    let owned = bake::BakeInputs::for_options(&scene, &options);
+    let inputs = owned.view();
+    let baker = open_backend(args.device, args.adapter.as_deref()).unwrap_or_else(|e| {
+        eprintln!("note: no GPU entry: {e}");
+        None
+    });
+    let timing = sweep::time_backends(
+        &inputs,
+        options.mode,
+        baker.as_ref(),
+        args.repeats,
+        |round| eprintln!("round {} of {}", round + 1, args.repeats),
+    )?;
+    let rays = timing.rays;
+    println!(
+        "{name}: {} vertices, {} bands, {} {} samples, {} mode, {rays} rays; median of {} runs",
+        inputs.origins.len(),
+        options.bands,
+        inputs.samples.len(),
+        options.sampling.name(),
+        options.mode.name(),
+        args.repeats
+    );
+    let cpu_seconds = timing.cpu_seconds;
+    println!(
+        "cpu ({} threads): {cpu_seconds:.3} s, {:.2} M rays/s",
+        rayon::current_num_threads(),
+        rays as f64 / cpu_seconds / 1e6
+    );
+    if let (Some(baker), Some(gpu_seconds)) = (&baker, timing.gpu_seconds) {
+        println!(
+            "gpu ({}): {gpu_seconds:.3} s, {:.2} M rays/s",
+            baker.context.adapter.label(),
+            rays as f64 / gpu_seconds / 1e6
+        );
+        println!("gpu / cpu throughput: {:.2}", cpu_seconds / gpu_seconds);
+    }
+    Ok(())
+}

@@ -1,0 +1,106 @@
+//! `prt-gpu info` and `prt-gpu devices`: what a file holds, which adapters there are.
+
+use std::path::Path;
+
+use super::local::print_local_info;
+use prt_gpu::device;
+use prt_gpu::glb::Precision;
+use prt_gpu::{glb, Error, Result};
+
+pub(crate) fn run_devices() -> Result<()> {
+    let adapters = device::list_adapters();
+    if adapters.is_empty() {
+        println!("no GPU adapters (bakes run on the CPU backend)");
+        return Ok(());
+    }
+    for (i, a) in adapters.iter().enumerate() {
+        println!("{i}: {}", a.name);
+        println!(
+            "   backend {:?}, type {:?}{}",
+            a.backend,
+            a.device_type,
+            if a.is_software() { " (software)" } else { "" }
+        );
+        println!("   driver {}", a.driver);
+        println!(
+            "   max storage binding {} MiB, max buffer {} MiB, max workgroups per dimension {}, \
+             max invocations per workgroup {}",
+            a.max_storage_buffer_binding_size >> 20,
+            a.max_buffer_size >> 20,
+            a.max_compute_workgroups_per_dimension,
+            a.max_compute_invocations_per_workgroup
+        );
+    }
+    Ok(())
+}
+
+/// Prints a baked file's description; a reader that stops early (`| head`) ends it quietly.
+pub(crate) fn run_info(path: &Path) -> Result<()> {
+    use std::io::Write;
+    if glb::local::is_local_file(&std::fs::read(path).map_err(|e| Error::io(path, e))?) {
+        return print_local_info(path);
+    }
+    let mut lines: Vec<String> = Vec::new();
+    let (metadata, vertices, triangles) = glb::read_metadata(path)?;
+    lines.push(format!("file:         {}", path.display()));
+    lines.push(format!("vertices:     {vertices}"));
+    lines.push(format!("triangles:    {triangles}"));
+    lines.push(format!("mode:         {}", metadata.mode.name()));
+    lines.push(format!(
+        "bands:        {} ({} coefficients per channel)",
+        metadata.bands,
+        metadata.bands * metadata.bands
+    ));
+    lines.push(format!(
+        "channels:     {}{}",
+        metadata.channels,
+        if metadata.albedo_free {
+            " (albedo-free: radiance = COLOR_0 x transfer . light)"
+        } else {
+            ""
+        }
+    ));
+    lines.push(format!(
+        "samples:      {} ({})",
+        metadata.samples, metadata.sampling
+    ));
+    lines.push(format!("seed:         {}", metadata.seed));
+    lines.push(format!("bounces:      {}", metadata.bounces));
+    match metadata.fit_points {
+        Some(points) => lines.push(format!(
+            "fit:          {} ({points} surface points)",
+            metadata.fit.name()
+        )),
+        None => lines.push(format!("fit:          {}", metadata.fit.name())),
+    }
+    let references = glb::read_references(path)?;
+    if references.precision == Precision::F16 {
+        lines.push("precision:    f16 (IEEE half floats, named by extras.prt)".to_string());
+    }
+    if let Some(lightmap) = references.lightmap {
+        lines.push(format!(
+            "lightmap:     {}x{} texels in {} (TEXCOORD_{})",
+            lightmap.width, lightmap.height, lightmap.uri, lightmap.texcoord
+        ));
+    }
+    if let Some(cpca) = references.cpca {
+        lines.push(format!(
+            "compressed:   CPCA, {} clusters x {} components",
+            cpca.clusters, cpca.components
+        ));
+    }
+    lines.push(format!("backend:      {}", metadata.backend));
+    lines.push(format!(
+        "made by:      {} {}",
+        metadata.tool, metadata.tool_version
+    ));
+    lines.push(format!("sh basis:     {}", metadata.sh_convention));
+    lines.push(format!("radiometry:   {}", metadata.radiometry));
+    let mut out = std::io::stdout().lock();
+    for line in lines {
+        if writeln!(out, "{line}").is_err() {
+            break;
+        }
+    }
+    Ok(())
+}

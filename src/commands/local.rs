@@ -1,0 +1,165 @@
+//! `prt-gpu bake --mode local`: direct-to-indirect transfer for lights inside the scene.
+
+use std::path::{Path, PathBuf};
+
+use super::args::Bands;
+use super::bake::{bake_backend, stem, BakeArgs};
+use super::progress::BarProgress;
+use prt_gpu::bake::gpu::Chunking;
+use prt_gpu::bake::{Backend, BakeOptions, Fit, Storage};
+use prt_gpu::glb::Precision;
+use prt_gpu::local::build::OperatorShape;
+use prt_gpu::local::{self, LocalOptions};
+use prt_gpu::{fs, glb, scene, Error, Result};
+
+pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
+    check_local_flags(&args)?;
+    let options = local_options(&args);
+    options.validate()?;
+    let (scene, name) = match args.meshes.first() {
+        Some(path) => (scene::load(path)?, stem(path)),
+        None => (scene::builtin::interior_scene(), "interior".to_string()),
+    };
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
+    fs::check_destination(&output)?;
+    let mut scene = scene;
+    if let Some(albedo) = args.albedo {
+        scene.albedo.iter_mut().for_each(|a| *a = albedo);
+    }
+    let baker = bake_backend(
+        &BakeOptions::default(),
+        args.device,
+        args.adapter.as_deref(),
+    )?;
+    let backend = match &baker {
+        Some(baker) => Backend::Gpu {
+            baker,
+            chunking: Chunking::default(),
+        },
+        None => Backend::Cpu,
+    };
+    let progress = BarProgress::default();
+    let (baked, report) = local::bake_local(scene, &options, &backend, &progress)?;
+    progress.finish();
+    glb::local::write_local_glb(&output, &baked)?;
+    print_local_report(&name, &report, &output);
+    Ok(())
+}
+
+/// Refuses the transfer bake's options that mean nothing for local lights.
+fn check_local_flags(args: &BakeArgs) -> Result<()> {
+    let refused = [
+        (args.compress.is_some(), "--compress"),
+        (args.lightmap.is_some(), "--lightmap"),
+        (args.fit != Fit::Point, "--fit"),
+        (args.target_error.is_some(), "--target-error"),
+        (args.storage != Storage::Rgb, "--storage"),
+        (args.preview.is_some(), "--preview"),
+        (args.transfer.bands != Bands::Fixed(4), "--bands"),
+        (args.precision != Precision::F32, "--precision"),
+        (args.shard.is_some(), "--shard"),
+        (
+            args.out_dir.is_some() || args.meshes.len() > 1,
+            "a batch (--out-dir)",
+        ),
+    ];
+    match refused.iter().find(|(given, _)| *given) {
+        Some((_, flag)) => Err(Error::Options(format!(
+            "{flag} is for SH transfer; --mode local bakes depth maps and a direct-to-indirect \
+             operator (see --depth-grid, --depth-compress, --operator-compress)"
+        ))),
+        None => Ok(()),
+    }
+}
+
+fn local_options(args: &BakeArgs) -> LocalOptions {
+    let local = &args.local;
+    LocalOptions {
+        samples: args
+            .transfer
+            .samples
+            .unwrap_or(LocalOptions::default().samples),
+        seed: args.seed,
+        bounces: args.bounces,
+        grid_side: local.depth_grid,
+        depth_clusters: local.depth_compress.0,
+        depth_components: local.depth_compress.1,
+        operator: OperatorShape {
+            clusters: local.operator_compress.0,
+            components: local.operator_compress.1,
+            sparsity: local.sparsity,
+            seed: args.seed,
+        },
+        example_lights: local.example_lights,
+    }
+}
+
+fn print_local_report(name: &str, report: &local::LocalReport, output: &Path) {
+    let mb = |bytes: usize| bytes as f64 / 1e6;
+    println!(
+        "local lights: {} receivers, {} triangles; gather matrix {} entries ({:.2} s); depth maps \
+         {:.2} s, compressed {:.1} -> {:.1} MB, depth error {:.2}% ({:.2} s); {} example lights \
+         ({:.2} s); operator {:.1} MB, {:.0}% of terms kept, error {:.2}% against the \
+         sparse bounces ({:.2} s)",
+        report.receivers,
+        report.triangles,
+        report.gather_entries,
+        report.seconds_gather,
+        report.seconds_depth,
+        mb(report.depth_bytes_uncompressed),
+        mb(report.depth_bytes),
+        100.0 * report.depth_error,
+        report.seconds_depth_compress,
+        report.example_lights,
+        report.seconds_examples,
+        mb(report.operator_bytes),
+        100.0 * report.operator_kept,
+        100.0 * report.operator_error,
+        report.seconds_operator
+    );
+    println!(
+        "baked {name} for local lights: {} rays, {:.2} s on {} -> {}",
+        report.rays_cast,
+        report.seconds(),
+        report.backend,
+        output.display()
+    );
+}
+
+/// `info` of a local-lights bake.
+pub(crate) fn print_local_info(path: &Path) -> Result<()> {
+    let baked = glb::local::read_local_glb(path)?;
+    let options = &baked.options;
+    let op = &baked.operator;
+    println!("file:         {}", path.display());
+    println!("vertices:     {}", baked.scene.positions.len());
+    println!("triangles:    {}", baked.scene.triangles.len());
+    println!("mode:         local (point and spot lights inside the scene)");
+    println!(
+        "gather:       {} entries from {} rays per receiver, {} bounces",
+        baked.matrix.columns.len(),
+        options.samples,
+        options.bounces
+    );
+    println!(
+        "depth maps:   {}x{} directions, {} clusters x {} components",
+        baked.grid.side,
+        baked.grid.side,
+        baked.depth.cluster_count(),
+        baked.depth.components
+    );
+    println!(
+        "operator:     {} clusters x {} components from {} example lights, {} of {} terms \
+         (sender cluster, component) kept over all receiver clusters, {:.1} MB",
+        op.clusters(),
+        op.components,
+        options.example_lights,
+        op.terms.len(),
+        op.clusters() * op.clusters() * op.components,
+        op.byte_size() as f64 / 1e6
+    );
+    Ok(())
+}

@@ -1,0 +1,70 @@
+//! Progress bars for long work (drawn on stderr, hidden when it is not a terminal).
+
+use std::sync::Mutex;
+
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+
+use prt_gpu::bake::Progress;
+
+/// Every progress bar of the run, drawn together on stderr (hidden when stderr is not a
+/// terminal): a batch's bar over all its meshes, and the bar of the stage running.
+pub(crate) fn bars() -> &'static MultiProgress {
+    static BARS: std::sync::OnceLock<MultiProgress> = std::sync::OnceLock::new();
+    BARS.get_or_init(MultiProgress::new)
+}
+
+/// The bar over a whole batch, above each mesh's stage bars: its length is the meshes' work
+/// (`scene::batch::work_weights`), so its rate and eta follow the bytes baked, not the count.
+pub(crate) fn batch_bar(total: u64) -> ProgressBar {
+    let bar = bars().add(ProgressBar::new(total));
+    bar.set_style(
+        ProgressStyle::with_template("{msg:>10} [{bar:40}] {percent}%, eta {eta}")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar
+}
+
+/// A progress bar on stderr; indicatif hides it when stderr is not a terminal.
+#[derive(Default)]
+pub(crate) struct BarProgress {
+    bar: Mutex<Option<ProgressBar>>,
+    /// In a batch, which mesh of how many: "[2/5] bunny".
+    prefix: String,
+}
+
+impl Progress for BarProgress {
+    fn stage(&self, name: &str, total: u64) {
+        let bar =
+            bars().add(ProgressBar::new(total).with_message(format!("{}{name}", self.prefix)));
+        bar.set_style(
+            ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len}, eta {eta}")
+                .expect("static template")
+                .progress_chars("=> "),
+        );
+        if let Some(old) = self.bar.lock().unwrap().replace(bar) {
+            old.finish_and_clear();
+        }
+    }
+
+    fn advance(&self, done: u64) {
+        if let Some(bar) = self.bar.lock().unwrap().as_ref() {
+            bar.inc(done);
+        }
+    }
+}
+
+impl BarProgress {
+    pub(crate) fn in_batch(position: usize, count: usize, mesh: &str) -> BarProgress {
+        BarProgress {
+            prefix: format!("[{position}/{count}] {mesh} "),
+            ..BarProgress::default()
+        }
+    }
+
+    pub(crate) fn finish(&self) {
+        if let Some(bar) = self.bar.lock().unwrap().take() {
+            bar.finish_and_clear();
+        }
+    }
+}

@@ -1,0 +1,318 @@
+//! `prt-gpu render`: baked files relit and rasterised, under distant or local lights.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+use super::args::{parse_point, LightShaping};
+use super::bake::open_render_device;
+use super::light::shape;
+use prt_gpu::bake::gpu::GpuBaker;
+use prt_gpu::device::DeviceChoice;
+use prt_gpu::light::{self, Mapping};
+use prt_gpu::local::lights::{self as local_lights, LocalLight};
+use prt_gpu::local::{self, OperatorForm};
+use prt_gpu::render::{self, Camera, ToneMap};
+use prt_gpu::{fs, glb, Error, Result};
+
+#[derive(clap::Args)]
+pub(crate) struct RenderArgs {
+    /// Baked .glb files; several are rendered side by side, left to right.
+    #[arg(required = true)]
+    pub(crate) baked: Vec<PathBuf>,
+    /// The light: light.json, or an environment map projected at each file's bands.
+    #[arg(long)]
+    pub(crate) light: Option<PathBuf>,
+    /// Environment-map parameterization (with --light ENVMAP).
+    #[arg(long, value_enum)]
+    pub(crate) mapping: Option<Mapping>,
+    #[command(flatten)]
+    pub(crate) shaping: LightShaping,
+    /// Camera: eye x,y,z, target x,y,z [, vertical field of view in degrees]. Default: a
+    /// three-quarter view that frames the mesh.
+    #[arg(long, allow_hyphen_values = true)]
+    pub(crate) camera: Option<Camera>,
+    /// Draw the light behind the model as a sky dome (the SH light the model is lit by, so
+    /// as smooth as its band count); without it the background is transparent black.
+    #[arg(long)]
+    pub(crate) sky: bool,
+    /// Exposure in stops (PNG only).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub(crate) exposure: f32,
+    /// Tone mapping for PNG; EXR keeps linear radiance.
+    #[arg(long, value_enum, default_value_t = ToneMap::Reinhard)]
+    pub(crate) tone_map: ToneMap,
+    /// Size of each panel in pixels.
+    #[arg(long, default_value_t = 640)]
+    pub(crate) width: u32,
+    #[arg(long, default_value_t = 480)]
+    pub(crate) height: u32,
+    /// Use the adapter whose name contains this text.
+    #[arg(long)]
+    pub(crate) adapter: Option<String>,
+    /// Local-lights bakes: a point light at X,Y,Z of radiant intensity I (W/sr, default 1;
+    /// irradiance I cos(theta) / r^2). Repeatable.
+    #[arg(long, value_name = "X,Y,Z[,I]", allow_hyphen_values = true)]
+    pub(crate) point_light: Vec<String>,
+    /// Local-lights bakes: a spot light at X,Y,Z opening towards DX,DY,DZ with a hard cone of
+    /// half angle A degrees, intensity I inside it (default 1). Repeatable.
+    #[arg(long, value_name = "X,Y,Z,DX,DY,DZ,A[,I]", allow_hyphen_values = true)]
+    pub(crate) spot_light: Vec<String>,
+    /// Local-lights bakes: render N frames with the lights carried once round a circle about
+    /// the vertical axis through the scene's centre (images OUTPUT_000.png, ...), and report
+    /// the per-frame relighting time of each operator on the CPU and on the GPU (--device).
+    #[arg(long, value_name = "N")]
+    pub(crate) frames: Option<u32>,
+    /// Local-lights bakes: where the relighting runs besides the CPU. `gpu`: both operators on
+    /// any adapter (lavapipe included), an error without one; `cpu`: the CPU only; `auto`: a
+    /// hardware GPU too where there is one.
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    pub(crate) device: DeviceChoice,
+    /// With --frames: the circle's axis passes through X,Y,Z instead of the scene's centre.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true)]
+    pub(crate) orbit: Option<Vec3>,
+    /// Local-lights bakes: the direct-to-indirect operator the images use.
+    #[arg(long, value_enum, default_value_t = OperatorForm::Compressed)]
+    pub(crate) operator: OperatorForm,
+    /// Output: an image, .png (tone-mapped sRGB) or .exr (linear HDR); or .glb: a copy of the
+    /// (one) baked file with each vertex's relit radiance as its COLOR_0.
+    #[arg(short, long, default_value = "preview.png")]
+    pub(crate) output: PathBuf,
+}
+
+pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
+    fs::check_destination(&args.output)?;
+    if let [only] = &args.baked[..] {
+        if glb::local::is_local_file(&std::fs::read(only).map_err(|e| Error::io(only, e))?) {
+            return run_local_render(&args, only);
+        }
+    }
+    let local_only = !args.point_light.is_empty()
+        || !args.spot_light.is_empty()
+        || args.frames.is_some()
+        || args.orbit.is_some()
+        || args.device != DeviceChoice::Auto;
+    if local_only {
+        return Err(Error::Options(
+            "--point-light, --spot-light, --frames, --orbit and --device relight one \
+             local-lights bake (bake --mode local); a distant-light render rasterizes on \
+             --adapter"
+                .into(),
+        ));
+    }
+    if is_glb(&args.output) {
+        return write_relit_distant(&args);
+    }
+    let context = open_render_device(args.adapter.as_deref())?;
+    let mut panels = Vec::new();
+    for path in &args.baked {
+        let (baked, cpca) = glb::read_glb_compressed(path)?;
+        let bands = baked.metadata.bands;
+        let light = match &args.light {
+            Some(light_path) => light::load(light_path, bands, args.mapping, false)?.light,
+            None => light::preview_light(bands)?,
+        };
+        let light = shape(light, &args.shaping);
+        let camera = args
+            .camera
+            .unwrap_or_else(|| Camera::framing_scene(&baked.scene));
+        let mut panel = match &cpca {
+            // As a run-time would: the light dotted into each cluster once, then per vertex.
+            Some(cpca) => render::render(
+                &context,
+                &baked.scene,
+                &render::apply_albedo(&baked, cpca.relight(&light)?),
+                &camera,
+                args.width,
+                args.height,
+            )?,
+            None => render::preview(
+                &context,
+                &baked,
+                &light,
+                Some(&camera),
+                args.width,
+                args.height,
+            )?,
+        };
+        if args.sky {
+            render::draw_sky(&mut panel, args.width, args.height, &camera, &light);
+        }
+        panels.push(panel);
+    }
+    let image = render::side_by_side(&panels, args.width, args.height)?;
+    let width = args.width * panels.len() as u32;
+    render::write_image(
+        &args.output,
+        &image,
+        width,
+        args.height,
+        args.tone_map,
+        args.exposure,
+    )?;
+    println!(
+        "rendered {} panel(s) of {}x{} on {} -> {}",
+        panels.len(),
+        args.width,
+        args.height,
+        context.adapter.label(),
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// `render FILE --light ... -o relit.glb`: the file's relit radiance as COLOR_0 of a copy.
+fn write_relit_distant(args: &RenderArgs) -> Result<()> {
+    let [path] = &args.baked[..] else {
+        return Err(Error::Options(
+            "-o .glb writes the relit radiance of one baked file; give one".into(),
+        ));
+    };
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if glb::is_scene_file(&bytes) {
+        return Err(Error::Options(
+            "-o .glb: a glTF scene baked in place keeps its own vertex colours (not supported yet)"
+                .into(),
+        ));
+    }
+    let (baked, cpca) = glb::read_glb_compressed(path)?;
+    let bands = baked.metadata.bands;
+    let (light, name) = match &args.light {
+        Some(light_path) => (
+            light::load(light_path, bands, args.mapping, false)?.light,
+            light_path.display().to_string(),
+        ),
+        None => (
+            light::preview_light(bands)?,
+            "the preview sky and sun".to_string(),
+        ),
+    };
+    let light = shape(light, &args.shaping);
+    let radiance = match &cpca {
+        Some(cpca) => render::apply_albedo(&baked, cpca.relight(&light)?),
+        None => render::relight_baked(&baked, &light)?,
+    };
+    glb::relit::write_relit_copy(path, &args.output, &radiance, &name)?;
+    println!(
+        "relit {} vertices under {name} -> {} (COLOR_0 = exit radiance)",
+        radiance.len(),
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// `render` of a local-lights bake: one image, a sequence (`--frames`), or a relit copy.
+fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
+    if args.light.is_some() || args.sky {
+        return Err(Error::Options(
+            "--light and --sky are distant light; a local-lights bake takes --point-light and \
+             --spot-light"
+                .into(),
+        ));
+    }
+    let lights = parsed_lights(args)?;
+    let baked = glb::local::read_local_glb(path)?;
+    let relighter = local::Relighter::new(&baked);
+    if is_glb(&args.output) {
+        if args.frames.is_some() {
+            return Err(Error::Options("--frames writes images, not .glb".into()));
+        }
+        let frame = relighter.frame(&lights, args.operator);
+        let name = local_lights::describe(&lights);
+        glb::relit::write_relit_copy(path, &args.output, &frame.total(), &name)?;
+        println!(
+            "relit {} vertices under {name} -> {}",
+            frame.direct.len(),
+            args.output.display()
+        );
+        return Ok(());
+    }
+    let frames = args.frames.unwrap_or(1);
+    if frames == 0 {
+        return Err(Error::Options("--frames must be at least 1".into()));
+    }
+    let camera = args
+        .camera
+        .unwrap_or_else(|| Camera::framing_scene(&baked.scene));
+    let context = open_render_device(args.adapter.as_deref())?;
+    let gpu = match args.device {
+        DeviceChoice::Cpu => None,
+        DeviceChoice::Gpu => GpuBaker::open(DeviceChoice::Gpu, args.adapter.as_deref())?,
+        DeviceChoice::Auto => GpuBaker::open(DeviceChoice::Auto, args.adapter.as_deref())
+            .ok()
+            .flatten(),
+    };
+    let gpu_paths = match &gpu {
+        Some(baker) => Some(local::GpuPaths::new(baker, &baked)?),
+        None => None,
+    };
+    if let Some(Err(why)) = gpu_paths.as_ref().map(|paths| &paths.compressed) {
+        eprintln!("the compressed operator is not timed on the GPU: {why}");
+    }
+    let (lo, hi) = render::bounds(&baked.scene.positions);
+    let centre = args.orbit.unwrap_or((lo + hi) * 0.5);
+    let mut timing = local::FrameTimes::default();
+    for f in 0..frames {
+        let lights = local_lights::on_circle(&lights, centre, f, frames);
+        let frame = local::time_frame(
+            &relighter,
+            &lights,
+            args.operator,
+            gpu_paths.as_ref(),
+            &mut timing,
+        )?;
+        let image = render::render(
+            &context,
+            &baked.scene,
+            &frame.total(),
+            &camera,
+            args.width,
+            args.height,
+        )?;
+        let output = local::frame_path(&args.output, f, frames);
+        render::write_image(
+            &output,
+            &image,
+            args.width,
+            args.height,
+            args.tone_map,
+            args.exposure,
+        )?;
+    }
+    println!(
+        "rendered {frames} frame(s) of {}x{} -> {}",
+        args.width,
+        args.height,
+        local::frame_path(&args.output, 0, frames).display()
+    );
+    println!(
+        "{}",
+        timing.report(
+            baked.scene.positions.len(),
+            gpu.as_ref().map(|g| g.context.adapter.label())
+        )
+    );
+    Ok(())
+}
+
+fn is_glb(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb"))
+}
+
+/// The lights given on the command line (at least one).
+fn parsed_lights(args: &RenderArgs) -> Result<Vec<LocalLight>> {
+    let mut lights = Vec::new();
+    for text in &args.point_light {
+        lights.push(local_lights::parse_point_light(text)?);
+    }
+    for text in &args.spot_light {
+        lights.push(local_lights::parse_spot_light(text)?);
+    }
+    if lights.is_empty() {
+        return Err(Error::Options(
+            "a local-lights bake needs --point-light or --spot-light".into(),
+        ));
+    }
+    Ok(lights)
+}

@@ -1,0 +1,196 @@
+//! `prt-gpu bake --shard I/N` and `prt-gpu merge`: a bake in parts, joined byte for byte.
+
+use std::path::{Path, PathBuf};
+
+use clap::Parser;
+
+use prt_gpu::bake::gpu::GpuBaker;
+use prt_gpu::bake::{self, Backend, BakeOptions, Mode};
+use prt_gpu::device::{self, DeviceChoice};
+use prt_gpu::shard::{self, Part};
+use prt_gpu::{fs, scene, Error, Result};
+
+use super::bake::{
+    backend_of, bake_backend, bake_one, bake_options, check_chunking, check_output_forms,
+    fingerprinted_options, load_bake_input, mesh_shown, naming_the_mesh, note_samples_rounded,
+    BakeArgs, Device,
+};
+use super::progress::BarProgress;
+use crate::{Cli, Command};
+
+#[derive(clap::Args)]
+pub(crate) struct MergeArgs {
+    /// Part files written by `prt-gpu bake … --shard I/N`, in any order, one per shard.
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// Output file (.glb). Default: <mesh name>.prt.glb in the current directory.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Also render a preview of the result under a default sky and sun (.png or .exr).
+    #[arg(long)]
+    preview: Option<PathBuf>,
+}
+
+/// `bake … --shard I/N`: the direct pass of one shard's receivers, written as a part file.
+pub(crate) fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Shard) -> Result<()> {
+    let options = bake_options(args)?;
+    options.validate()?;
+    let (scene, gltf, name) = load_bake_input(mesh)?;
+    check_output_forms(args, &options, gltf.is_some())?;
+    if args.preview.is_some() {
+        return Err(Error::Options(
+            "--preview renders a whole bake: give it to `prt-gpu merge`, not to a shard".into(),
+        ));
+    }
+    let output = args.output.clone().unwrap_or_else(|| {
+        PathBuf::from(format!(
+            "{name}.prt.{}-of-{}.part",
+            shard.index, shard.count
+        ))
+    });
+    fs::check_destination(&output)?;
+    check_shard_memory(args, &options, &scene, shard)?;
+    note_samples_rounded(&options);
+    check_chunking(args)?;
+    let fingerprint = shard::fingerprint(&scene, &fingerprinted_options(args, &options));
+    let baker = bake_backend(&options, args.device, args.adapter.as_deref())?;
+    let backend = backend_of(&baker, args);
+    let progress = BarProgress::default();
+    let started = std::time::Instant::now();
+    let pass = bake::bake_shard(scene, &options, &backend, shard, &progress)
+        .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
+    progress.finish();
+    let (range, total, rays) = (
+        pass.receivers.clone(),
+        pass.receivers_total,
+        pass.direct.rays_cast,
+    );
+    let directory = std::env::current_dir().map_err(|e| Error::io(Path::new("."), e))?;
+    let command = std::env::args().skip(1).collect();
+    let part = Part::new(
+        pass,
+        (shard.index, shard.count),
+        fingerprint,
+        command,
+        directory,
+    );
+    shard::write_part(&output, &part)?;
+    println!(
+        "baked {name} shard {}/{}: receivers {}..{} of {total}, {rays} rays, {:.2} s ({}) -> {}",
+        shard.index,
+        shard.count,
+        range.start,
+        range.end,
+        started.elapsed().as_secs_f64(),
+        backend.describe(),
+        output.display()
+    );
+    Ok(())
+}
+
+/// `merge`: the parts checked and joined, then the rest of the bake their command asks for.
+pub(crate) fn run_merge(args: MergeArgs) -> Result<()> {
+    let parts = args
+        .parts
+        .iter()
+        .map(|path| Ok((path.clone(), shard::read_part(path)?)))
+        .collect::<Result<Vec<_>>>()?;
+    let (header, direct) = shard::assemble(parts)?;
+    let command = std::iter::once("prt-gpu".to_string()).chain(header.command.iter().cloned());
+    let bake_args = match Cli::try_parse_from(command).map(|cli| cli.command) {
+        Ok(Command::Bake(bake_args)) => bake_args,
+        _ => {
+            return Err(Error::Merge(format!(
+                "the parts' command is not a bake: {}",
+                header.command.join(" ")
+            )))
+        }
+    };
+    let bake_args = BakeArgs {
+        preview: args.preview,
+        ..bake_args
+    };
+    let given: Vec<PathBuf> = bake_args
+        .meshes
+        .iter()
+        .map(|m| header.directory.join(m))
+        .collect();
+    let mesh = match scene::batch::mesh_files(&given)?.as_slice() {
+        [] => None,
+        [mesh] => Some(mesh.clone()),
+        _ => {
+            return Err(Error::Merge(format!(
+                "the parts' command bakes several meshes: {}",
+                header.command.join(" ")
+            )))
+        }
+    };
+    let options = bake_options(&bake_args)?;
+    let backend = header.backend.clone();
+    let device = Device::new(|| merge_backend(&options, &backend));
+    let progress = BarProgress::default();
+    let merged = Some((header, direct));
+    bake_one(&bake_args, &mesh, args.output, &device, merged, &progress)
+}
+
+/// A shard is not streamed: its share of the receivers and the mesh must fit at once. Over an
+/// explicit `--memory-limit` it is refused, naming the fewest shards that would fit; over the
+/// memory this machine has, it goes ahead with a warning.
+fn check_shard_memory(
+    args: &BakeArgs,
+    options: &BakeOptions,
+    scene: &scene::Scene,
+    shard: bake::Shard,
+) -> Result<()> {
+    use bake::stream::{format_bytes, MemoryNeed};
+    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), options);
+    let Some(limit) = args.memory_limit.or_else(device::available_memory) else {
+        return Ok(());
+    };
+    let shard_need = need.shard(shard.count, options);
+    if shard_need <= limit {
+        return Ok(());
+    }
+    let advice = match need.shards_within(limit, options) {
+        Some(count) => format!("{count} or more shards would each fit"),
+        None => format!(
+            "the mesh and its BVH alone need about {}, so no shard count fits",
+            format_bytes(need.fixed)
+        ),
+    };
+    let message = format!(
+        "shard {}/{} needs about {}; {advice}",
+        shard.index,
+        shard.count,
+        format_bytes(shard_need)
+    );
+    match args.memory_limit {
+        Some(_) => Err(Error::Options(format!(
+            "--memory-limit {}: {message}",
+            format_bytes(limit)
+        ))),
+        None => {
+            eprintln!(
+                "warning: {message} within the {} this machine has available",
+                format_bytes(limit)
+            );
+            Ok(())
+        }
+    }
+}
+
+/// The device a merge runs the rest of the bake on: the CPU for parts baked there; a GPU for
+/// parts baked on one, where bounces or texels run on it (so that the bytes match).
+fn merge_backend(options: &BakeOptions, parts_backend: &str) -> Result<Option<GpuBaker>> {
+    let needs_device = options.mode == Mode::Interreflected || options.lightmap.is_some();
+    if parts_backend == Backend::Cpu.describe() || !needs_device {
+        return Ok(None);
+    }
+    match GpuBaker::open(DeviceChoice::Gpu, None)? {
+        Some(baker) => Ok(Some(baker)),
+        None => Err(Error::Merge(format!(
+            "the parts were baked on {parts_backend}, and their bounces need a GPU adapter, \
+             which this machine lacks"
+        ))),
+    }
+}

@@ -165,6 +165,47 @@ fn a_non_square_sample_count_is_rounded_and_said() {
     dir.close().unwrap();
 }
 
+#[test]
+fn a_bake_warns_in_one_line_of_what_it_repaired() {
+    let dir = tempfile::tempdir().unwrap();
+    // A fan facing +z; a degenerate triangle, the only one to use vertex 7; and a flap beyond
+    // edge 2-3 stored with both windings (one of them folded back onto the fan).
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv -1 0 0\nv 0 -1 0\nv 1 1 0\nv 5 5 5\n\
+               f 1 2 3\nf 1 3 4\nf 1 4 5\nf 1 5 2\nf 7 7 2\nf 3 2 6\nf 2 3 6\n";
+    std::fs::write(dir.path().join("fan.obj"), obj).unwrap();
+    let out = prt_gpu(
+        &[
+            "bake",
+            "fan.obj",
+            "--samples",
+            "16",
+            "--device",
+            "cpu",
+            "-o",
+            "fan.glb",
+        ],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let warnings: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("warning:"))
+        .collect();
+    assert_eq!(
+        warnings,
+        [
+            "warning: fan: repaired the mesh: 1 degenerate triangles dropped, \
+          1 unreferenced vertices dropped, 1 folded triangles left out of the vertex normals"
+        ],
+        "{stderr}"
+    );
+    // A clean mesh bakes without one.
+    let out = prt_gpu(&["bake", "--samples", "16", "-o", "scene.glb"], dir.path());
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("warning:"));
+    dir.close().unwrap();
+}
+
 /// A bad invocation: the file it needs (name, contents), its arguments, and a piece of the
 /// one-line error it must print.
 struct BadInput {

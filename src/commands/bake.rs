@@ -705,6 +705,9 @@ fn print_bake_report(
     output: &Path,
     merged_from: MergedFrom,
 ) {
+    if let Some(repairs) = report.prepare.repairs() {
+        eprintln!("warning: {name}: {repairs}");
+    }
     for (i, bounce) in report.bounces.iter().enumerate() {
         eprintln!(
             "bounce {}: +{:.2}% energy in {:.2} s",

@@ -26,6 +26,39 @@ pub struct PrepareReport {
     pub normals_computed: bool,
     /// The input had normals, but some were non-finite or zero, so all were recomputed.
     pub invalid_normals_replaced: bool,
+    /// Triangles folded back onto all their neighbours, left out of the computed normals
+    /// ([`angle_weighted_normals`]).
+    pub folded_triangles: usize,
+}
+
+impl PrepareReport {
+    /// What `prepare` repaired, in one line for a warning; `None` when it repaired nothing.
+    /// Welding and computing missing normals are how every OBJ and PLY is read, not repairs.
+    pub fn repairs(&self) -> Option<String> {
+        let counted = [
+            (
+                self.degenerate_triangles_removed,
+                "degenerate triangles dropped",
+            ),
+            (
+                self.unreferenced_vertices_removed,
+                "unreferenced vertices dropped",
+            ),
+            (
+                self.folded_triangles,
+                "folded triangles left out of the vertex normals",
+            ),
+        ];
+        let mut said: Vec<String> = counted
+            .iter()
+            .filter(|(count, _)| *count > 0)
+            .map(|(count, what)| format!("{count} {what}"))
+            .collect();
+        if self.invalid_normals_replaced {
+            said.push("non-finite or zero normals: all normals recomputed".into());
+        }
+        (!said.is_empty()).then(|| format!("repaired the mesh: {}", said.join(", ")))
+    }
 }
 
 /// Validates and repairs `scene` for baking.
@@ -67,7 +100,9 @@ pub fn prepare_mapped(scene: Scene) -> Result<(Scene, PrepareReport, VertexMap)>
         None => {
             report.invalid_normals_replaced = scene.normals.is_some();
             report.normals_computed = true;
-            weld_and_compute_normals(scene)?
+            let (scene, welded, folded) = weld_and_compute_normals(scene)?;
+            report.folded_triangles = folded;
+            (scene, welded)
         }
     };
     report.vertices_welded =
@@ -99,47 +134,154 @@ fn compose(first: &[u32], second: &[u32]) -> VertexMap {
 ///
 /// Angle weighting makes the result independent of how a flat region is triangulated (a cube
 /// corner gets (1,1,1)/√3 whether each face touches it with one triangle or two). Sums are
-/// taken in f64. Where the sum cancels (e.g. two coincident triangles of opposite winding) the
-/// vertex takes the normal of its first adjacent non-degenerate triangle. Vertices with no
-/// adjacent non-degenerate triangle get `Vec3::ZERO`; triangles with out-of-range indices are
-/// ignored.
+/// taken in f64. A *folded* triangle — one whose normal opposes that of every triangle it
+/// shares an edge with, as the slivers a scanner's reconstruction folds back onto the surface
+/// — is left out of its corners' sums: it would tip them into the surface, and a receiver
+/// whose hemisphere faces into the surface sees no sky. Where the sum cancels (e.g. two
+/// coincident triangles of opposite winding) the vertex takes the normal of its first adjacent
+/// non-degenerate triangle. Vertices with no adjacent non-degenerate triangle get `Vec3::ZERO`;
+/// triangles with out-of-range indices are ignored.
 pub fn angle_weighted_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
-    let mut sums = vec![DVec3::ZERO; positions.len()];
-    let mut weights = vec![0.0f64; positions.len()];
-    let mut first_face: Vec<Option<DVec3>> = vec![None; positions.len()];
+    normals_without_folds(positions, triangles).0
+}
 
-    for triangle in triangles {
-        let Some(corners) = corner_positions(positions, triangle) else {
-            continue;
-        };
-        let Some((normal, angles)) = face_normal_and_angles(corners) else {
-            continue;
-        };
-        for (&index, angle) in triangle.iter().zip(angles) {
-            let v = index as usize;
-            sums[v] += normal * angle;
-            weights[v] += angle;
-            first_face[v].get_or_insert(normal);
+/// [`angle_weighted_normals`] and the number of folded triangles left out of them.
+pub fn normals_without_folds(positions: &[Vec3], triangles: &[[u32; 3]]) -> (Vec<Vec3>, usize) {
+    let faces: Vec<Option<Face>> = triangles
+        .iter()
+        .map(|triangle| corner_positions(positions, triangle).and_then(face_normal_and_angles))
+        .collect();
+    let mut sums = vec![NormalSum::default(); positions.len()];
+    for (triangle, face) in triangles.iter().zip(&faces) {
+        if let Some(face) = face {
+            for (&index, &angle) in triangle.iter().zip(&face.angles) {
+                sums[index as usize].add(face.normal, angle);
+            }
         }
     }
+    let folded = folded_faces(triangles, &faces, &sums);
+    // Only the corners of folded faces change: sum them again without those faces, unless a
+    // corner has no other face.
+    let mut refolded: HashMap<u32, NormalSum> = HashMap::new();
+    for &f in &folded {
+        for &index in &triangles[f] {
+            refolded.entry(index).or_default();
+        }
+    }
+    if !refolded.is_empty() {
+        for (f, (triangle, face)) in triangles.iter().zip(&faces).enumerate() {
+            let Some(face) = face else { continue };
+            if folded.binary_search(&f).is_ok() {
+                continue;
+            }
+            for (index, &angle) in triangle.iter().zip(&face.angles) {
+                if let Some(sum) = refolded.get_mut(index) {
+                    sum.add(face.normal, angle);
+                }
+            }
+        }
+        for (index, sum) in refolded {
+            if sum.first.is_some() {
+                sums[index as usize] = sum;
+            }
+        }
+    }
+    (sums.iter().map(NormalSum::resolve).collect(), folded.len())
+}
 
-    sums.iter()
-        .zip(&weights)
-        .zip(&first_face)
-        .map(|((&sum, &weight), first)| resolve_normal(sum, weight, *first))
-        .collect()
+/// A triangle's unit normal and its interior angle at each corner.
+struct Face {
+    normal: DVec3,
+    angles: [f64; 3],
+}
+
+/// The angle-weighted sum of a vertex's face normals.
+#[derive(Clone, Copy, Debug, Default)]
+struct NormalSum {
+    sum: DVec3,
+    weight: f64,
+    first: Option<DVec3>,
+}
+
+impl NormalSum {
+    fn add(&mut self, normal: DVec3, angle: f64) {
+        self.sum += normal * angle;
+        self.weight += angle;
+        self.first.get_or_insert(normal);
+    }
+
+    fn resolve(&self) -> Vec3 {
+        match self.first {
+            None => Vec3::ZERO,
+            Some(_) if self.sum.length() > CANCELLED_SUM * self.weight => {
+                self.sum.normalize().as_vec3()
+            }
+            Some(fallback) => fallback.as_vec3(),
+        }
+    }
 }
 
 /// Cancellation threshold: a sum shorter than this fraction of its total weight carries no
 /// direction beyond rounding noise.
 const CANCELLED_SUM: f64 = 1e-9;
 
-fn resolve_normal(sum: DVec3, weight: f64, first: Option<DVec3>) -> Vec3 {
-    match first {
-        None => Vec3::ZERO,
-        Some(_) if sum.length() > CANCELLED_SUM * weight => sum.normalize().as_vec3(),
-        Some(fallback) => fallback.as_vec3(),
+/// The faces (ascending) whose normal opposes the normal of every face sharing one of its
+/// edges. Only faces that oppose the summed normal at one of their corners can be folded, so
+/// only those are examined, and adjacency is gathered only around them: a clean mesh costs one
+/// pass and no memory.
+fn folded_faces(triangles: &[[u32; 3]], faces: &[Option<Face>], sums: &[NormalSum]) -> Vec<usize> {
+    let opposes_a_corner = |triangle: &[u32; 3], face: &Face| {
+        triangle
+            .iter()
+            .any(|&v| sums[v as usize].sum.dot(face.normal) < 0.0)
+    };
+    let candidates: Vec<usize> = (0..triangles.len())
+        .filter(|&f| {
+            faces[f]
+                .as_ref()
+                .is_some_and(|face| opposes_a_corner(&triangles[f], face))
+        })
+        .collect();
+    if candidates.is_empty() {
+        return Vec::new();
     }
+    let mut around: HashMap<u32, Vec<usize>> = HashMap::new();
+    for &f in &candidates {
+        for &v in &triangles[f] {
+            around.entry(v).or_default();
+        }
+    }
+    for (f, triangle) in triangles.iter().enumerate() {
+        if faces[f].is_none() {
+            continue;
+        }
+        for v in triangle {
+            if let Some(incident) = around.get_mut(v) {
+                incident.push(f);
+            }
+        }
+    }
+    candidates
+        .into_iter()
+        .filter(|&f| {
+            let normal = faces[f].as_ref().map_or(DVec3::ZERO, |face| face.normal);
+            let triangle = triangles[f];
+            let mut neighbours = (0..3)
+                .flat_map(|e| {
+                    let (a, b) = (triangle[e], triangle[(e + 1) % 3]);
+                    around[&a]
+                        .iter()
+                        .filter(move |&&g| g != f && triangles[g].contains(&b))
+                })
+                .peekable();
+            neighbours.peek().is_some()
+                && neighbours.all(|&g| {
+                    faces[g]
+                        .as_ref()
+                        .is_some_and(|face| face.normal.dot(normal) < 0.0)
+                })
+        })
+        .collect()
 }
 
 fn corner_positions(positions: &[Vec3], triangle: &[u32; 3]) -> Option<[DVec3; 3]> {
@@ -152,7 +294,7 @@ fn corner_positions(positions: &[Vec3], triangle: &[u32; 3]) -> Option<[DVec3; 3
 }
 
 /// Unit normal and the interior angle at each corner; `None` for zero area.
-fn face_normal_and_angles([a, b, c]: [DVec3; 3]) -> Option<(DVec3, [f64; 3])> {
+fn face_normal_and_angles([a, b, c]: [DVec3; 3]) -> Option<Face> {
     let cross = (b - a).cross(c - a);
     let double_area = cross.length();
     if !(double_area > 0.0 && double_area.is_finite()) {
@@ -161,10 +303,10 @@ fn face_normal_and_angles([a, b, c]: [DVec3; 3]) -> Option<(DVec3, [f64; 3])> {
     // atan2(|u×v|, u·v) stays accurate for angles near 0 and π, where acos of a dot does not;
     // |u×v| is twice the area whichever corner it is taken at.
     let angle = |apex: DVec3, p: DVec3, q: DVec3| double_area.atan2((p - apex).dot(q - apex));
-    Some((
-        cross / double_area,
-        [angle(a, b, c), angle(b, c, a), angle(c, a, b)],
-    ))
+    Some(Face {
+        normal: cross / double_area,
+        angles: [angle(a, b, c), angle(b, c, a), angle(c, a, b)],
+    })
 }
 
 fn validate(scene: &Scene) -> Result<()> {
@@ -380,6 +522,11 @@ fn weld_with_normals(mut scene: Scene, normals: Vec<Vec3>) -> (Scene, VertexMap)
 /// welded by position alone, so a seam of UVs or colours is not also a shading seam.
 /// `Vec3::ZERO` for vertices in no non-degenerate triangle.
 pub fn smooth_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    smooth_normals_without_folds(positions, triangles).0
+}
+
+/// [`smooth_normals`] and the number of folded triangles left out of them.
+fn smooth_normals_without_folds(positions: &[Vec3], triangles: &[[u32; 3]]) -> (Vec<Vec3>, usize) {
     let same_position = first_with_same_key(positions.iter().map(|&p| key(p)));
     let position_triangles: Vec<[u32; 3]> = triangles
         .iter()
@@ -387,19 +534,20 @@ pub fn smooth_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
         .collect();
     // Non-representative vertices are referenced by no triangle here, so their normal is
     // read from their representative.
-    let by_position = angle_weighted_normals(positions, &position_triangles);
-    same_position
+    let (by_position, folded) = normals_without_folds(positions, &position_triangles);
+    let normals = same_position
         .iter()
         .map(|&rep| by_position[rep as usize])
-        .collect()
+        .collect();
+    (normals, folded)
 }
 
 /// Computes normals over the mesh welded by position alone, then welds by (position, albedo).
 ///
 /// Computing on the position-welded mesh means a colour seam (same position, different
 /// albedo) does not also become a shading seam.
-fn weld_and_compute_normals(mut scene: Scene) -> Result<(Scene, VertexMap)> {
-    let normals = smooth_normals(&scene.positions, &scene.triangles);
+fn weld_and_compute_normals(mut scene: Scene) -> Result<(Scene, VertexMap, usize)> {
+    let (normals, folded) = smooth_normals_without_folds(&scene.positions, &scene.triangles);
     // Every triangle left is exactly non-degenerate, but its f64 cross product could still
     // round to zero for extreme coordinates; that vertex has no usable normal.
     if let Some(v) = normals.iter().position(|&n| n == Vec3::ZERO) {
@@ -416,7 +564,8 @@ fn weld_and_compute_normals(mut scene: Scene) -> Result<(Scene, VertexMap)> {
             .zip(&scene.albedo)
             .map(|(&p, &a)| (key(p), key(a))),
     );
-    Ok(weld(&scene, &representative))
+    let (scene, welded) = weld(&scene, &representative);
+    Ok((scene, welded, folded))
 }
 
 fn sort_vertices_morton(scene: Scene) -> (Scene, VertexMap) {
@@ -487,6 +636,72 @@ mod tests {
         let positions = [Vec3::ZERO, Vec3::X, Vec3::Y];
         let normals = angle_weighted_normals(&positions, &[[0, 1, 2], [0, 2, 1]]);
         assert_eq!(normals, vec![Vec3::Z; 3]);
+    }
+
+    /// A fan of four triangles around the origin in the plane z = 0, facing +z; vertex 0 is
+    /// the centre, 1 to 4 the ring.
+    fn flat_fan() -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y, -Vec3::X, -Vec3::Y];
+        let triangles = vec![[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1]];
+        (positions, triangles)
+    }
+
+    #[test]
+    fn a_sliver_folded_back_over_the_surface_does_not_tip_its_corners_normals() {
+        let (mut positions, mut triangles) = flat_fan();
+        // A sliver on the fan's edge 0-1, folded back over the fan (its normal within 12° of
+        // -z) with a wide angle at the centre: counted, it tips the centre's normal by 8°.
+        positions.push(Vec3::new(-0.866, 0.5, 0.1));
+        triangles.push([0, 5, 1]);
+        let (normals, folded) = normals_without_folds(&positions, &triangles);
+        assert_eq!(folded, 1);
+        for v in [0, 1] {
+            assert!(
+                normals[v].distance(Vec3::Z) < 1e-6,
+                "vertex {v}: {}",
+                normals[v]
+            );
+        }
+        // The sliver's own corner has no other triangle: it keeps the sliver's normal.
+        assert!(normals[5].z < -0.9);
+        // Without the fold rule the centre would tilt, so the test above has teeth.
+        let tipped = (DVec3::Z * std::f64::consts::TAU
+            + DVec3::new(0.0, 0.196, -0.981) * 150f64.to_radians())
+        .normalize();
+        assert!(tipped.angle_between(DVec3::Z) > 5f64.to_radians());
+    }
+
+    #[test]
+    fn a_flap_doubled_with_both_windings_takes_the_surfaces_side_in_either_order() {
+        for flap in [[[1, 2, 5], [2, 1, 5]], [[2, 1, 5], [1, 2, 5]]] {
+            let (mut positions, mut triangles) = flat_fan();
+            // A flap beyond the fan's edge 1-2, lying in its plane, stored twice with opposite
+            // windings (as scanned meshes have them): the sum at its tip cancels, and the
+            // winding that agrees with the fan across the shared edge gives the normal.
+            positions.push(Vec3::new(1.0, 1.0, 0.0));
+            triangles.extend(flap);
+            let (normals, folded) = normals_without_folds(&positions, &triangles);
+            assert_eq!(folded, 1, "{flap:?}");
+            assert_eq!(normals[5], Vec3::Z, "{flap:?}");
+        }
+    }
+
+    #[test]
+    fn a_knife_edge_keeps_the_bisector() {
+        // Two faces meeting at 160° along the x axis, each with a neighbour on its own side:
+        // sharp, but not folded, so the edge's normal stays their bisector.
+        let positions = vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(0.5, 1.0, 0.18),
+            Vec3::new(0.5, -1.0, 0.18),
+            Vec3::new(1.5, 1.0, 0.18),
+            Vec3::new(1.5, -1.0, 0.18),
+        ];
+        let triangles = vec![[0, 1, 2], [1, 4, 2], [1, 0, 3], [1, 3, 5]];
+        let (normals, folded) = normals_without_folds(&positions, &triangles);
+        assert_eq!(folded, 0);
+        assert!(normals[0].distance(Vec3::Z) < 1e-6, "{}", normals[0]);
     }
 
     #[test]

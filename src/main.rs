@@ -107,16 +107,80 @@ fn main() -> ExitCode {
     }
 }
 
-/// clap's multi-line usage error as one line: the error, and the possible values if listed.
+/// clap's multi-line usage error as one line: the error with the lines that belong to it (the
+/// missing arguments, the possible values), or, where a command was left out, the commands
+/// there are.
 fn usage_error_line(message: &str) -> String {
-    let mut lines = message.lines().map(str::trim).filter(|l| !l.is_empty());
-    let mut line = lines
-        .next()
-        .unwrap_or("error: invalid arguments")
-        .to_string();
-    if let Some(values) = lines.find(|l| l.starts_with("[possible values")) {
+    let mut lines = message.lines();
+    let first = lines.next().unwrap_or_default().trim();
+    if !first.starts_with("error:") {
+        // clap shows the help where a subcommand is missing: say which ones there are.
+        return missing_command_line(message);
+    }
+    let mut line = first.to_string();
+    for detail in lines.map(str::trim).take_while(|l| !l.is_empty()) {
         line.push(' ');
-        line.push_str(values);
+        line.push_str(detail);
     }
     line
+}
+
+/// `error: prt-gpu export needs a command: x3d (see --help)`, from the help clap printed.
+fn missing_command_line(help: &str) -> String {
+    let usage = help
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("Usage: "))
+        .unwrap_or("prt-gpu");
+    let command = usage.split(" <COMMAND>").next().unwrap_or(usage).trim();
+    let commands: Vec<&str> = help
+        .lines()
+        .skip_while(|l| l.trim() != "Commands:")
+        .skip(1)
+        .take_while(|l| !l.trim().is_empty())
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|&name| name != "help")
+        .collect();
+    format!(
+        "error: {command} needs a command: {} (see {command} --help)",
+        commands.join(", ")
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn clap_error(args: &[&str]) -> String {
+        match Cli::try_parse_from(args) {
+            Ok(_) => panic!("{args:?} parsed"),
+            Err(error) => usage_error_line(&error.to_string()),
+        }
+    }
+
+    #[test]
+    fn usage_errors_are_one_line_that_names_what_is_missing_or_wrong() {
+        assert_eq!(
+            clap_error(&["prt-gpu"]),
+            "error: prt-gpu needs a command: bake, info, devices, light, render, view, export, \
+             chart, bench, merge (see prt-gpu --help)"
+        );
+        assert_eq!(
+            clap_error(&["prt-gpu", "export"]),
+            "error: prt-gpu export needs a command: x3d (see prt-gpu export --help)"
+        );
+        let missing = clap_error(&["prt-gpu", "render"]);
+        assert!(
+            missing.starts_with("error: the following required arguments were not provided: ")
+                && missing.contains("<BAKED>"),
+            "{missing}"
+        );
+        let wrong = clap_error(&["prt-gpu", "bake", "--mode", "sideways"]);
+        assert!(
+            wrong.contains("'sideways'") && wrong.contains("[possible values: "),
+            "{wrong}"
+        );
+        for line in [missing, wrong] {
+            assert!(!line.contains('\n'), "{line}");
+        }
+    }
 }

@@ -81,6 +81,10 @@ pub struct PartHeader {
     pub command: Vec<String>,
     pub directory: PathBuf,
     pub tool_version: String,
+    /// FNV-1a (64 bits, hex) of the data after the header, set by [`write_part`]: a part whose
+    /// bytes changed on the way (a bad disk, a truncated copy that kept its length) is refused
+    /// rather than merged.
+    pub payload_fnv1a: String,
 }
 
 /// A part file: its header and its direct pass.
@@ -115,6 +119,7 @@ impl Part {
             command,
             directory,
             tool_version: env!("CARGO_PKG_VERSION").to_string(),
+            payload_fnv1a: String::new(),
         };
         Part {
             header,
@@ -125,19 +130,32 @@ impl Part {
 
 /// Writes `part` to `path`, whole or not at all (a shard killed mid-write leaves no part).
 pub fn write_part(path: &Path, part: &Part) -> Result<()> {
-    let mut json = serde_json::to_vec(&part.header).map_err(|e| Error::io(path, e.into()))?;
+    let payload = part_payload(&part.direct);
+    let header = PartHeader {
+        payload_fnv1a: payload_hash(&payload),
+        ..part.header.clone()
+    };
+    let mut json = serde_json::to_vec(&header).map_err(|e| Error::io(path, e.into()))?;
     json.resize(json.len().next_multiple_of(4), b' ');
-    let mut bytes = Vec::with_capacity(12 + json.len() + 4 * part.direct.scalar.len());
+    let mut bytes = Vec::with_capacity(12 + json.len() + payload.len());
     bytes.extend_from_slice(MAGIC);
     bytes.extend_from_slice(&(json.len() as u32).to_le_bytes());
     bytes.extend_from_slice(&json);
-    bytes.extend_from_slice(bytemuck::cast_slice(&part.direct.scalar));
-    if let Some(matrix) = &part.direct.matrix {
+    bytes.extend_from_slice(&payload);
+    write_atomically(path, &bytes)
+}
+
+/// The data of a part after its header: the direct transfer, the gather rows, the adaptive
+/// receivers' samples and errors, as the header's sizes say.
+fn part_payload(direct: &DirectPass) -> Vec<u8> {
+    let mut bytes = Vec::with_capacity(4 * direct.scalar.len());
+    bytes.extend_from_slice(bytemuck::cast_slice(&direct.scalar));
+    if let Some(matrix) = &direct.matrix {
         bytes.extend_from_slice(bytemuck::cast_slice(&matrix.row_offsets));
         bytes.extend_from_slice(bytemuck::cast_slice(&matrix.columns));
         bytes.extend_from_slice(bytemuck::cast_slice(&matrix.weights));
     }
-    if let Some(receivers) = &part.direct.adaptive {
+    if let Some(receivers) = &direct.adaptive {
         receivers
             .samples
             .iter()
@@ -147,7 +165,13 @@ pub fn write_part(path: &Path, part: &Part) -> Result<()> {
             .iter()
             .for_each(|e| bytes.extend_from_slice(&e.to_le_bytes()));
     }
-    write_atomically(path, &bytes)
+    bytes
+}
+
+fn payload_hash(payload: &[u8]) -> String {
+    let mut hash = Fnv1a::default();
+    hash.write(payload);
+    format!("{:016x}", hash.0)
 }
 
 /// Reads a part file written by [`write_part`], checking that its sizes add up.
@@ -180,6 +204,11 @@ pub fn read_part(path: &Path) -> Result<Part> {
             body.len(),
             4 * words_before_adaptive + adaptive_bytes
         )));
+    }
+    if payload_hash(body) != header.payload_fnv1a {
+        return Err(broken(
+            "its data does not match its checksum (damaged or changed since it was written)",
+        ));
     }
     let words = |from: usize, count: usize| -> Vec<u32> {
         body[4 * from..4 * (from + count)]

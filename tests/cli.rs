@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::prt_gpu;
+use common::{assert_clean_failure, prt_gpu, BadInput};
 use prt_gpu::testing::entries;
 use std::path::Path;
 
@@ -206,57 +206,10 @@ fn a_bake_warns_in_one_line_of_what_it_repaired() {
     dir.close().unwrap();
 }
 
-/// A bad invocation: the file it needs (name, contents), its arguments, and a piece of the
-/// one-line error it must print.
-struct BadInput {
-    case: &'static str,
-    file: Option<(&'static str, &'static [u8])>,
-    args: &'static [&'static str],
-    expect: &'static str,
-}
-
 macro_rules! ply_header {
     () => {
         "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
     };
-}
-
-/// Writes the input's file to a fresh directory, runs prt-gpu there, and checks the failure.
-fn assert_clean_failure(input: &BadInput) {
-    let case = input.case;
-    let dir = tempfile::tempdir().unwrap();
-    if let Some((name, contents)) = input.file {
-        std::fs::write(dir.path().join(name), contents).unwrap();
-    }
-    let before = entries(dir.path());
-    let out = prt_gpu(input.args, dir.path());
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{case}: succeeded");
-    assert!(!stderr.contains("panicked"), "{case}: panicked: {stderr}");
-    // Informational notes (e.g. which backend bakes) may precede the error.
-    let lines: Vec<&str> = stderr
-        .lines()
-        .filter(|l| !l.starts_with("note: "))
-        .collect();
-    assert_eq!(
-        lines.len(),
-        1,
-        "{case}: expected one error line, got {stderr:?}"
-    );
-    assert!(
-        lines[0]
-            .to_lowercase()
-            .contains(&input.expect.to_lowercase()),
-        "{case}: {:?} does not mention {:?}",
-        lines[0],
-        input.expect
-    );
-    assert_eq!(
-        entries(dir.path()),
-        before,
-        "{case}: files were left behind"
-    );
-    dir.close().unwrap();
 }
 
 #[test]

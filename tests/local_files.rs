@@ -278,6 +278,15 @@ fn bad_local_input_is_one_line_and_leaves_no_file() {
             "a.glb",
         ],
         &[
+            "render",
+            "room.prt.glb",
+            "--point-light=0,1,0",
+            "--frames",
+            "100000",
+            "-o",
+            "a.png",
+        ],
+        &[
             "bake",
             "--mode",
             "local",

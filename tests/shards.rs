@@ -180,6 +180,13 @@ fn merge_refuses_parts_that_do_not_make_one_bake() {
     let cut = d.join("cut.part");
     std::fs::write(&cut, &bytes[..bytes.len() - 8]).unwrap();
     refused(d, &[&a[0], &cut, &a[2]], "not a part");
+    // A part one bit of whose data flipped on the way: its length still adds up.
+    let mut flipped = bytes.clone();
+    let last = flipped.len() - 1;
+    flipped[last] ^= 0x40;
+    let damaged = d.join("damaged.part");
+    std::fs::write(&damaged, &flipped).unwrap();
+    refused(d, &[&a[0], &damaged, &a[2]], "does not match its checksum");
 
     // The mesh changed after the shards were baked.
     let mesh = d.join("moving.obj");

@@ -71,7 +71,7 @@ pub(crate) struct LightShaping {
     #[arg(long, value_enum, default_value_t = Window::None)]
     pub(crate) window: Window,
     /// Rotate the light: yaw (about +Y), pitch (about +X), roll (about +Z), in degrees.
-    #[arg(long, value_parser = parse_rgb, allow_hyphen_values = true)]
+    #[arg(long, value_parser = parse_angles, allow_hyphen_values = true)]
     pub(crate) rotate: Option<Vec3>,
 }
 
@@ -142,25 +142,97 @@ pub(crate) fn parse_cpca_shape(text: &str) -> std::result::Result<(u32, u32), St
     Ok((number(clusters)?, number(components)?))
 }
 
-pub(crate) fn parse_point(text: &str) -> std::result::Result<Vec3, String> {
-    let v = text
-        .split(',')
-        .map(|part| part.trim().parse::<f32>())
-        .collect::<std::result::Result<Vec<f32>, _>>()
-        .map_err(|e| format!("expected X,Y,Z: {e}"))?;
-    match v[..] {
-        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3::new(x, y, z)),
-        _ => Err("expected three finite numbers X,Y,Z".into()),
+/// One finite number.
+pub(crate) fn parse_finite(text: &str) -> std::result::Result<f32, String> {
+    match text.trim().parse::<f32>() {
+        Ok(value) if value.is_finite() => Ok(value),
+        _ => Err("expected a finite number".into()),
     }
 }
 
+/// Three finite numbers, named `names` (e.g. `X,Y,Z`) in the error.
+fn parse_triple(text: &str, names: &str) -> std::result::Result<Vec3, String> {
+    let values: Option<Vec<f32>> = text
+        .split(',')
+        .map(|part| part.trim().parse::<f32>().ok().filter(|v| v.is_finite()))
+        .collect();
+    match values.as_deref() {
+        Some(&[a, b, c]) => Ok(Vec3::new(a, b, c)),
+        _ => Err(format!("expected three finite numbers {names}")),
+    }
+}
+
+pub(crate) fn parse_point(text: &str) -> std::result::Result<Vec3, String> {
+    parse_triple(text, "X,Y,Z")
+}
+
+/// A direction towards a light: not the zero vector.
+pub(crate) fn parse_direction(text: &str) -> std::result::Result<Vec3, String> {
+    let direction = parse_triple(text, "X,Y,Z (a direction)")?;
+    match direction == Vec3::ZERO {
+        true => Err("a direction cannot be 0,0,0".into()),
+        false => Ok(direction),
+    }
+}
+
+/// `--rotate`'s Euler angles in degrees.
+pub(crate) fn parse_angles(text: &str) -> std::result::Result<Vec3, String> {
+    parse_triple(text, "YAW,PITCH,ROLL (degrees)")
+}
+
+/// R,G,B or one grey value, finite.
 pub(crate) fn parse_rgb(text: &str) -> std::result::Result<Vec3, String> {
-    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-    let values: std::result::Result<Vec<f32>, _> = match parts.len() {
-        1 => parts[0].parse::<f32>().map(|v| vec![v; 3]),
-        3 => parts.iter().map(|p| p.parse::<f32>()).collect(),
-        _ => return Err("expected R,G,B (or one grey value)".into()),
-    };
-    let v = values.map_err(|e| format!("expected numbers: {e}"))?;
-    Ok(Vec3::new(v[0], v[1], v[2]))
+    match text.split(',').count() {
+        1 => match text.trim().parse::<f32>() {
+            Ok(grey) if grey.is_finite() => Ok(Vec3::splat(grey)),
+            _ => Err("expected R,G,B or one grey value, finite".into()),
+        },
+        _ => parse_triple(text, "R,G,B (or one grey value)"),
+    }
+}
+
+/// Radiance, irradiance or intensity: [`parse_rgb`], none of it negative.
+pub(crate) fn parse_radiance(text: &str) -> std::result::Result<Vec3, String> {
+    let rgb = parse_rgb(text)?;
+    match rgb.min_element() < 0.0 {
+        true => Err("light cannot be negative".into()),
+        false => Ok(rgb),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn triples_take_three_finite_numbers_and_say_which() {
+        assert_eq!(parse_point(" 1, -2,3 "), Ok(Vec3::new(1.0, -2.0, 3.0)));
+        for bad in ["1,2", "1,2,3,4", "1,nan,3", "inf,0,0", "a,b,c", ""] {
+            assert_eq!(
+                parse_point(bad),
+                Err("expected three finite numbers X,Y,Z".into()),
+                "{bad:?}"
+            );
+        }
+        assert!(parse_angles("30").unwrap_err().contains("YAW,PITCH,ROLL"));
+        assert_eq!(
+            parse_direction("0,0,0"),
+            Err("a direction cannot be 0,0,0".into())
+        );
+        assert_eq!(parse_direction("0,0,-1"), Ok(-Vec3::Z));
+    }
+
+    #[test]
+    fn colours_are_one_grey_or_three_finite_and_light_is_not_negative() {
+        assert_eq!(parse_rgb("0.5"), Ok(Vec3::splat(0.5)));
+        assert_eq!(parse_rgb("1,0,0"), Ok(Vec3::X));
+        assert!(parse_rgb("nan").is_err());
+        assert!(parse_rgb("1,2").unwrap_err().contains("R,G,B"));
+        assert_eq!(parse_radiance("0"), Ok(Vec3::ZERO));
+        assert_eq!(parse_radiance("-3"), Err("light cannot be negative".into()));
+        assert_eq!(
+            parse_radiance("1,-1,1"),
+            Err("light cannot be negative".into())
+        );
+    }
 }

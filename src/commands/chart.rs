@@ -10,7 +10,7 @@ use prt_gpu::bake::gpu::Chunking;
 use prt_gpu::bake::{self, Backend, BakeOptions, Fit, Mode};
 use prt_gpu::device::DeviceChoice;
 use prt_gpu::light;
-use prt_gpu::sampling::Sampling;
+use prt_gpu::sampling::{Sampling, MAX_SAMPLES};
 use prt_gpu::sweep::{self, SweepOptions};
 use prt_gpu::{chart, fs, scene, Error, Result};
 
@@ -111,7 +111,8 @@ pub(crate) fn run_chart(args: ChartArgs) -> Result<()> {
     }
     let started = std::time::Instant::now();
     let progress = BarProgress::default();
-    let result = sweep::run(&scene, &options, &backends, &light, &progress)?;
+    let result = sweep::run(&scene, &options, &backends, &light, &progress)
+        .map_err(|e| naming_the_mesh(e, &name))?;
     progress.finish();
     let panels = sweep::chart_panels(&result);
     let title = format!(
@@ -157,6 +158,12 @@ pub(crate) fn run_chart(args: ChartArgs) -> Result<()> {
 }
 
 /// The sweep `chart` asks for, every count checked as a bake would check it.
+/// The most held-out surface points a chart measures at (each costs a reference bake).
+const MAX_SURFACE_POINTS: usize = 1_000_000;
+
+/// The most rounds `bench` times.
+const MAX_REPEATS: u32 = 1000;
+
 fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
     if args.samples.is_empty() || args.samples.contains(&0) {
         return Err(Error::Options(
@@ -184,6 +191,18 @@ fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
         lightmap_sizes: args.lightmap.clone(),
         target_errors: args.target_error.clone(),
     };
+    if options.reference_samples == 0 || options.reference_samples > MAX_SAMPLES {
+        return Err(Error::Options(format!(
+            "--reference-samples {} is out of range (1 to {MAX_SAMPLES})",
+            options.reference_samples
+        )));
+    }
+    if options.surface_points > MAX_SURFACE_POINTS {
+        return Err(Error::Options(format!(
+            "--surface-points {} is out of range (0 for the default, at most {MAX_SURFACE_POINTS})",
+            options.surface_points
+        )));
+    }
     for &count in options.counts.iter().chain([&options.reference_samples]) {
         BakeOptions {
             bands: options.bands,
@@ -221,17 +240,25 @@ pub(crate) fn run_bench(args: BenchArgs) -> Result<()> {
     }
     let options = args.transfer.options();
     options.validate()?;
-    if args.repeats == 0 {
-        return Err(Error::Options("--repeats must be at least 1".into()));
+    if args.repeats == 0 || args.repeats > MAX_REPEATS {
+        return Err(Error::Options(format!(
+            "--repeats {} is out of range (1 to {MAX_REPEATS})",
+            args.repeats
+        )));
     }
     let (scene, name) = load_scene(&args.mesh)?;
     let (scene, _) = scene::prepare::prepare(scene).map_err(|e| naming_the_mesh(e, &name))?;
     let owned = bake::BakeInputs::for_options(&scene, &options);
     let inputs = owned.view();
-    let baker = open_backend(args.device, args.adapter.as_deref()).unwrap_or_else(|e| {
-        eprintln!("note: no GPU entry: {e}");
-        None
-    });
+    // Asked for a GPU (--device gpu), a missing one is an error; otherwise the CPU runs alone.
+    let baker = match open_backend(args.device, args.adapter.as_deref()) {
+        Ok(baker) => baker,
+        Err(e) if args.device == DeviceChoice::Gpu => return Err(e),
+        Err(e) => {
+            eprintln!("note: no GPU entry: {e}");
+            None
+        }
+    };
     let timing = sweep::time_backends(
         &inputs,
         options.mode,

@@ -4,14 +4,15 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 
-use super::args::{parse_rgb, LightShaping};
+use super::args::{parse_direction, parse_radiance, LightShaping};
 use prt_gpu::light::{self, analytic, Mapping, ShLight};
 use prt_gpu::sh::MAX_BANDS;
 use prt_gpu::{fs, Error, Result};
 
 #[derive(clap::Args)]
 pub(crate) struct LightArgs {
-    /// Environment map: OpenEXR, Radiance .hdr, PNG or JPEG.
+    /// Environment map: OpenEXR, Radiance .hdr, PNG or JPEG; or a light.json, to rotate or
+    /// window it.
     envmap: Option<PathBuf>,
     /// SH bands of the light.
     #[arg(long, default_value_t = 4)]
@@ -27,28 +28,28 @@ pub(crate) struct LightArgs {
     #[arg(long, value_delimiter = ',', conflicts_with = "envmap")]
     faces: Vec<PathBuf>,
     /// Add a directional light (a delta): direction X,Y,Z towards the light.
-    #[arg(long, value_parser = parse_rgb, allow_hyphen_values = true)]
+    #[arg(long, value_parser = parse_direction, allow_hyphen_values = true)]
     directional: Option<Vec3>,
     /// Irradiance of --directional (R,G,B or one value).
-    #[arg(long, value_parser = parse_rgb, default_value = "1")]
+    #[arg(long, value_parser = parse_radiance, default_value = "1")]
     directional_intensity: Vec3,
     /// Add a sun: direction X,Y,Z (towards the sun).
-    #[arg(long, value_parser = parse_rgb, allow_hyphen_values = true)]
+    #[arg(long, value_parser = parse_direction, allow_hyphen_values = true)]
     sun: Option<Vec3>,
     /// Sun disk half-angle in degrees.
     #[arg(long, default_value_t = 0.27)]
     sun_angle: f64,
     /// Sun irradiance (R,G,B or one value).
-    #[arg(long, value_parser = parse_rgb, default_value = "3")]
+    #[arg(long, value_parser = parse_radiance, default_value = "3")]
     sun_irradiance: Vec3,
     /// Add a sky of this radiance above the horizon (R,G,B).
-    #[arg(long, value_parser = parse_rgb)]
+    #[arg(long, value_parser = parse_radiance)]
     sky: Option<Vec3>,
     /// Ground radiance below the horizon, with --sky.
-    #[arg(long, value_parser = parse_rgb, default_value = "0")]
+    #[arg(long, value_parser = parse_radiance, default_value = "0")]
     ground: Vec3,
     /// Add constant ambient radiance (R,G,B).
-    #[arg(long, value_parser = parse_rgb)]
+    #[arg(long, value_parser = parse_radiance)]
     ambient: Option<Vec3>,
     /// Add the tutorial's two-light test function.
     #[arg(long)]
@@ -67,15 +68,23 @@ pub(crate) fn run_light(args: LightArgs) -> Result<()> {
             "--bands {bands} is out of range (1 to {MAX_BANDS})"
         )));
     }
+    if !(args.sun_angle > 0.0 && args.sun_angle <= 180.0) {
+        return Err(Error::Options(format!(
+            "--sun-angle {} must lie in (0, 180] degrees",
+            args.sun_angle
+        )));
+    }
     fs::check_destination(&args.output)?;
     let mut total = ShLight::constant(bands, [0.0; 3]);
     let mut parts = Vec::new();
     if let Some(path) = &args.envmap {
         let loaded = light::load(path, bands, args.mapping, args.skip_invalid)?;
         note_skipped_pixels(loaded.skipped_pixels);
-        if let Some(mapping) = loaded.mapping {
-            parts.push(format!("{} ({mapping:?})", path.display()));
-        }
+        // A light.json has no mapping: it is taken as it is (then rotated and windowed).
+        parts.push(match loaded.mapping {
+            Some(mapping) => format!("{} ({mapping:?})", path.display()),
+            None => path.display().to_string(),
+        });
         total = total.plus(&loaded.light)?;
     }
     if !args.faces.is_empty() {

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
-use super::args::{parse_point, LightShaping};
+use super::args::{parse_finite, parse_point, LightShaping};
 use super::bake::open_render_device;
 use super::light::shape;
 use prt_gpu::bake::gpu::GpuBaker;
@@ -37,7 +37,7 @@ pub(crate) struct RenderArgs {
     #[arg(long)]
     pub(crate) sky: bool,
     /// Exposure in stops (PNG only).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = 0.0, value_parser = parse_finite, allow_hyphen_values = true)]
     pub(crate) exposure: f32,
     /// Tone mapping for PNG; EXR keeps linear radiance.
     #[arg(long, value_enum, default_value_t = ToneMap::Reinhard)]
@@ -202,6 +202,9 @@ fn write_relit_distant(args: &RenderArgs) -> Result<()> {
 }
 
 /// `render` of a local-lights bake: one image, a sequence (`--frames`), or a relit copy.
+/// The most frames one `render --frames` writes: seven minutes at 24 frames a second.
+const MAX_FRAMES: u32 = 10_000;
+
 fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
     if args.light.is_some() || args.sky {
         return Err(Error::Options(
@@ -228,8 +231,10 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
         return Ok(());
     }
     let frames = args.frames.unwrap_or(1);
-    if frames == 0 {
-        return Err(Error::Options("--frames must be at least 1".into()));
+    if frames == 0 || frames > MAX_FRAMES {
+        return Err(Error::Options(format!(
+            "--frames {frames} is out of range (1 to {MAX_FRAMES})"
+        )));
     }
     let camera = args
         .camera

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use clap::Subcommand;
 use glam::Vec3;
 
-use super::args::LightShaping;
+use super::args::{parse_finite, LightShaping};
 use super::light::shape;
 use prt_gpu::light::{self, EnvImage, Mapping, ShLight};
 use prt_gpu::render::{Camera, ToneMap};
@@ -36,7 +36,7 @@ pub(crate) struct X3dArgs {
     #[arg(long, allow_hyphen_values = true)]
     camera: Option<Camera>,
     /// Exposure in stops, a field of the shader.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = 0.0, value_parser = parse_finite, allow_hyphen_values = true)]
     exposure: f32,
     /// Tone mapping in the shader.
     #[arg(long, value_enum, default_value_t = ToneMap::Reinhard)]

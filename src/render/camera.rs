@@ -66,7 +66,10 @@ impl Camera {
             && self.up.is_finite()
             && self.vertical_fov_deg.is_finite();
         if !finite {
-            return Err(Error::Options(format!("camera {self:?} is not finite")));
+            return Err(Error::Options(format!(
+                "camera: every value must be finite (eye {}, target {}, up {}, fov {})",
+                self.eye, self.target, self.up, self.vertical_fov_deg
+            )));
         }
         if (self.target - self.eye).length_squared() == 0.0 || self.up.length_squared() == 0.0 {
             return Err(Error::Options(

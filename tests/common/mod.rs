@@ -54,3 +54,50 @@ pub fn prt_gpu(args: &[&str], dir: &Path) -> std::process::Output {
         .output()
         .expect("run prt-gpu")
 }
+
+/// A bad invocation: the file it needs (name, contents), its arguments, and a piece of the
+/// one-line error it must print.
+pub struct BadInput {
+    pub case: &'static str,
+    pub file: Option<(&'static str, &'static [u8])>,
+    pub args: &'static [&'static str],
+    pub expect: &'static str,
+}
+
+/// Writes the input's file to a fresh directory, runs prt-gpu there, and checks the failure.
+pub fn assert_clean_failure(input: &BadInput) {
+    let case = input.case;
+    let dir = tempfile::tempdir().unwrap();
+    if let Some((name, contents)) = input.file {
+        std::fs::write(dir.path().join(name), contents).unwrap();
+    }
+    let before = prt_gpu::testing::entries(dir.path());
+    let out = prt_gpu(input.args, dir.path());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{case}: succeeded");
+    assert!(!stderr.contains("panicked"), "{case}: panicked: {stderr}");
+    // Informational notes (e.g. which backend bakes) may precede the error.
+    let lines: Vec<&str> = stderr
+        .lines()
+        .filter(|l| !l.starts_with("note: "))
+        .collect();
+    assert_eq!(
+        lines.len(),
+        1,
+        "{case}: expected one error line, got {stderr:?}"
+    );
+    assert!(
+        lines[0]
+            .to_lowercase()
+            .contains(&input.expect.to_lowercase()),
+        "{case}: {:?} does not mention {:?}",
+        lines[0],
+        input.expect
+    );
+    assert_eq!(
+        prt_gpu::testing::entries(dir.path()),
+        before,
+        "{case}: files were left behind"
+    );
+    dir.close().unwrap();
+}

@@ -71,6 +71,21 @@ pub struct GpuContext {
     handle: wgpu::Adapter,
 }
 
+/// A `WGPU_BACKEND` that names no backend leaves wgpu with none, which would read as "no GPU
+/// here": say what is wrong with the variable instead.
+pub fn check_backend_variable() -> Result<()> {
+    let Some(value) = std::env::var_os("WGPU_BACKEND") else {
+        return Ok(());
+    };
+    let value = value.to_string_lossy();
+    match wgpu::Backends::from_comma_list(&value).is_empty() {
+        true => Err(Error::Gpu(format!(
+            "WGPU_BACKEND={value:?} names no backend (vulkan, metal, dx12 or gl)"
+        ))),
+        false => Ok(()),
+    }
+}
+
 fn instance() -> wgpu::Instance {
     // Honours WGPU_BACKEND and friends, so a user can force e.g. the GL backend.
     wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
@@ -111,6 +126,7 @@ pub fn open(choice: DeviceChoice, name_filter: Option<&str>) -> Result<Option<Gp
     if choice == DeviceChoice::Cpu {
         return Ok(None);
     }
+    check_backend_variable()?;
     let instance = instance();
     let adapters = all_adapters(&instance);
     let candidates: Vec<&wgpu::Adapter> = match name_filter {

@@ -145,3 +145,27 @@ fn light_takes_a_light_file_to_turn_it() {
     assert_eq!(a["coeffs"][0], b["coeffs"][0]);
     assert_ne!(a["coeffs"], b["coeffs"]);
 }
+
+#[test]
+fn a_wgpu_backend_variable_that_names_no_backend_is_said_so() {
+    let dir = tempfile::tempdir().unwrap();
+    for args in [
+        &["devices"][..],
+        &["bake", "--samples", "16", "-o", "x.glb"],
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_prt-gpu"))
+            .args(args)
+            .env("WGPU_BACKEND", "banana")
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}");
+        assert_eq!(
+            stderr.trim(),
+            "error: gpu: WGPU_BACKEND=\"banana\" names no backend (vulkan, metal, dx12 or gl)",
+            "{args:?}"
+        );
+    }
+    assert!(prt_gpu::testing::entries(dir.path()).is_empty());
+}

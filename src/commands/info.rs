@@ -8,6 +8,7 @@ use prt_gpu::glb::Precision;
 use prt_gpu::{glb, Error, Result};
 
 pub(crate) fn run_devices() -> Result<()> {
+    device::check_backend_variable()?;
     let adapters = device::list_adapters();
     if adapters.is_empty() {
         println!("no GPU adapters (bakes run on the CPU backend)");

@@ -169,3 +169,46 @@ fn a_wgpu_backend_variable_that_names_no_backend_is_said_so() {
     }
     assert!(prt_gpu::testing::entries(dir.path()).is_empty());
 }
+
+#[test]
+fn info_refuses_a_file_that_render_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    let baked = prt_gpu(
+        &[
+            "bake",
+            BUNNY,
+            "--samples",
+            "16",
+            "--device",
+            "cpu",
+            "-o",
+            "a.glb",
+        ],
+        dir.path(),
+    );
+    assert!(baked.status.success());
+    assert!(prt_gpu(&["info", "a.glb"], dir.path()).status.success());
+    // Point the first triangle at a vertex that does not exist.
+    let path = dir.path().join("a.glb");
+    let mut bytes = std::fs::read(&path).unwrap();
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let gltf: serde_json::Value = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
+    let accessor = &gltf["accessors"][gltf["meshes"][0]["primitives"][0]["indices"]
+        .as_u64()
+        .unwrap() as usize];
+    let view = &gltf["bufferViews"][accessor["bufferView"].as_u64().unwrap() as usize];
+    let at = 28 + json_len + view["byteOffset"].as_u64().unwrap_or(0) as usize;
+    bytes[at..at + 4].copy_from_slice(&100_000_000u32.to_le_bytes());
+    std::fs::write(&path, &bytes).unwrap();
+    for command in ["info", "render"] {
+        let out = prt_gpu(&[command, "a.glb"], dir.path());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{command} read a damaged file");
+        assert!(
+            stderr
+                .trim()
+                .ends_with("triangle 0 uses vertex 100000000 but there are only 1839 vertices"),
+            "{command}: {stderr}"
+        );
+    }
+}

@@ -41,6 +41,9 @@ pub(crate) fn run_info(path: &Path) -> Result<()> {
     if glb::local::is_local_file(&std::fs::read(path).map_err(|e| Error::io(path, e))?) {
         return print_local_info(path);
     }
+    // Read whole, as render and view read it, so that a file they would refuse is refused
+    // here too rather than described.
+    glb::read_glb_compressed(path)?;
     let mut lines: Vec<String> = Vec::new();
     let (metadata, vertices, triangles) = glb::read_metadata(path)?;
     lines.push(format!("file:         {}", path.display()));

@@ -320,3 +320,25 @@ fn parts_read_by_numpy_alone_match_the_library() {
         }
     }
 }
+
+#[test]
+fn a_shard_with_no_receivers_says_so_and_still_merges() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mesh = d.join("tri.obj");
+    std::fs::write(&mesh, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let mesh = mesh.display().to_string();
+    let parts: Vec<_> = (0..4).map(|i| shard(d, &mesh, &[], i, 4)).collect();
+    let out = prt_gpu(&["bake", &mesh, "--shard", "0/4", "-o", "again.part"], d);
+    assert!(
+        String::from_utf8_lossy(&out.stderr)
+            .contains("note: shard 0/4 holds none of the 3 receivers"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut args = vec!["merge".to_string()];
+    args.extend(parts.iter().map(|p| p.display().to_string()));
+    args.extend(["-o".into(), "merged.glb".into()]);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    assert!(prt_gpu(&args, d).status.success());
+}

@@ -75,6 +75,13 @@ pub(crate) fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Sh
         directory,
     );
     shard::write_part(&output, &part)?;
+    if range.is_empty() {
+        eprintln!(
+            "note: shard {}/{} holds none of the {total} receivers (more shards than \
+             receivers); its part is still one the merge needs",
+            shard.index, shard.count
+        );
+    }
     println!(
         "baked {name} shard {}/{}: receivers {}..{} of {total}, {rays} rays, {:.2} s ({}) -> {}",
         shard.index,

@@ -147,19 +147,20 @@ pub fn angle_weighted_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec
 
 /// [`angle_weighted_normals`] and the number of folded triangles left out of them.
 pub fn normals_without_folds(positions: &[Vec3], triangles: &[[u32; 3]]) -> (Vec<Vec3>, usize) {
-    let faces: Vec<Option<Face>> = triangles
-        .iter()
-        .map(|triangle| corner_positions(positions, triangle).and_then(face_normal_and_angles))
-        .collect();
+    // Faces are recomputed in each pass rather than kept: a few products each, where keeping
+    // them would cost 56 bytes a triangle on meshes of millions.
+    let face = |triangle: &[u32; 3]| {
+        corner_positions(positions, triangle).and_then(face_normal_and_angles)
+    };
     let mut sums = vec![NormalSum::default(); positions.len()];
-    for (triangle, face) in triangles.iter().zip(&faces) {
-        if let Some(face) = face {
+    for triangle in triangles {
+        if let Some(face) = face(triangle) {
             for (&index, &angle) in triangle.iter().zip(&face.angles) {
                 sums[index as usize].add(face.normal, angle);
             }
         }
     }
-    let folded = folded_faces(triangles, &faces, &sums);
+    let folded = folded_faces(triangles, face, &sums);
     // Only the corners of folded faces change: sum them again without those faces, unless a
     // corner has no other face.
     let mut refolded: HashMap<u32, NormalSum> = HashMap::new();
@@ -169,11 +170,11 @@ pub fn normals_without_folds(positions: &[Vec3], triangles: &[[u32; 3]]) -> (Vec
         }
     }
     if !refolded.is_empty() {
-        for (f, (triangle, face)) in triangles.iter().zip(&faces).enumerate() {
-            let Some(face) = face else { continue };
+        for (f, triangle) in triangles.iter().enumerate() {
             if folded.binary_search(&f).is_ok() {
                 continue;
             }
+            let Some(face) = face(triangle) else { continue };
             for (index, &angle) in triangle.iter().zip(&face.angles) {
                 if let Some(sum) = refolded.get_mut(index) {
                     sum.add(face.normal, angle);
@@ -229,18 +230,19 @@ const CANCELLED_SUM: f64 = 1e-9;
 /// edges. Only faces that oppose the summed normal at one of their corners can be folded, so
 /// only those are examined, and adjacency is gathered only around them: a clean mesh costs one
 /// pass and no memory.
-fn folded_faces(triangles: &[[u32; 3]], faces: &[Option<Face>], sums: &[NormalSum]) -> Vec<usize> {
-    let opposes_a_corner = |triangle: &[u32; 3], face: &Face| {
+fn folded_faces(
+    triangles: &[[u32; 3]],
+    face: impl Fn(&[u32; 3]) -> Option<Face>,
+    sums: &[NormalSum],
+) -> Vec<usize> {
+    let normal = |f: usize| face(&triangles[f]).map(|face| face.normal);
+    let opposes_a_corner = |triangle: &[u32; 3], normal: DVec3| {
         triangle
             .iter()
-            .any(|&v| sums[v as usize].sum.dot(face.normal) < 0.0)
+            .any(|&v| sums[v as usize].sum.dot(normal) < 0.0)
     };
     let candidates: Vec<usize> = (0..triangles.len())
-        .filter(|&f| {
-            faces[f]
-                .as_ref()
-                .is_some_and(|face| opposes_a_corner(&triangles[f], face))
-        })
+        .filter(|&f| normal(f).is_some_and(|n| opposes_a_corner(&triangles[f], n)))
         .collect();
     if candidates.is_empty() {
         return Vec::new();
@@ -252,19 +254,18 @@ fn folded_faces(triangles: &[[u32; 3]], faces: &[Option<Face>], sums: &[NormalSu
         }
     }
     for (f, triangle) in triangles.iter().enumerate() {
-        if faces[f].is_none() {
-            continue;
-        }
-        for v in triangle {
-            if let Some(incident) = around.get_mut(v) {
-                incident.push(f);
+        if triangle.iter().any(|v| around.contains_key(v)) && normal(f).is_some() {
+            for v in triangle {
+                if let Some(incident) = around.get_mut(v) {
+                    incident.push(f);
+                }
             }
         }
     }
     candidates
         .into_iter()
         .filter(|&f| {
-            let normal = faces[f].as_ref().map_or(DVec3::ZERO, |face| face.normal);
+            let own = normal(f).unwrap_or(DVec3::ZERO);
             let triangle = triangles[f];
             let mut neighbours = (0..3)
                 .flat_map(|e| {
@@ -275,11 +276,7 @@ fn folded_faces(triangles: &[[u32; 3]], faces: &[Option<Face>], sums: &[NormalSu
                 })
                 .peekable();
             neighbours.peek().is_some()
-                && neighbours.all(|&g| {
-                    faces[g]
-                        .as_ref()
-                        .is_some_and(|face| face.normal.dot(normal) < 0.0)
-                })
+                && neighbours.all(|&g| normal(g).is_some_and(|n| n.dot(own) < 0.0))
         })
         .collect()
 }

@@ -19,6 +19,10 @@ pub enum Error {
     /// Options outside the range the baker supports.
     #[error("invalid option: {0}")]
     Options(String),
+    /// An output that would destroy an input or another output of the same command (`-o` naming
+    /// the mesh being baked); the message names the path and the option to change.
+    #[error("{0}")]
+    Output(String),
     /// No usable adapter, or the GPU failed (validation, device loss, limits).
     /// Parts of a sharded bake that do not make one bake.
     #[error("merge: {0}")]

@@ -26,6 +26,9 @@ use crate::scene::Scene;
 
 const MAGIC: &[u8; 8] = b"prtpart1";
 
+/// The extension a part file's name ends in (without the dot): `bake --shard` writes no other.
+pub const PART_EXTENSION: &str = "part";
+
 /// Reads a part file with Python and numpy alone: `python3 reader.py file.part`. Prints the
 /// header, and the shapes and sums of the direct transfer `(receivers, coeffs)` and (for
 /// interreflection) the gather rows, as JSON.

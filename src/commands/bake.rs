@@ -208,6 +208,14 @@ pub(crate) fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
     }
     let out_dir = args.out_dir.clone().unwrap_or_else(|| PathBuf::from("."));
     let outputs = scene::batch::output_paths(meshes, &out_dir)?;
+    let inputs: Vec<&Path> = meshes.iter().map(PathBuf::as_path).collect();
+    for output in &outputs {
+        let output = fs::Output {
+            option: "--out-dir",
+            path: output,
+        };
+        fs::check_outputs(&[output], &inputs)?;
+    }
     let options = bake_options(args)?;
     options.validate()?;
     check_chunking(args)?;
@@ -257,16 +265,13 @@ pub(crate) fn bake_one(
     progress: &BarProgress,
 ) -> Result<()> {
     let options = bake_options(args)?;
+    let output_path = output.unwrap_or_else(|| default_output(mesh));
+    // Fail before the long part (and before reading the mesh), not after it.
+    check_bake_outputs(args, mesh, &output_path, &[])?;
     let loading = std::time::Instant::now();
     let (scene, gltf, name) = load_bake_input(mesh)?;
     check_output_forms(args, &options, gltf.is_some())?;
     let seconds_load = loading.elapsed().as_secs_f64();
-    let output_path = output.unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
-    // Fail before the long part, not after it.
-    fs::check_destination(&output_path)?;
-    if let Some(preview) = &args.preview {
-        fs::check_destination(preview)?;
-    }
     note_samples_rounded(&options);
     let baker = device.get()?;
     if merged.is_none() {
@@ -316,6 +321,17 @@ pub(crate) fn bake_one(
         )?),
         None => None,
     };
+    // Rendered before the .glb is written, so that a preview that cannot be made leaves no bake.
+    let preview = match &args.preview {
+        Some(path) => Some((
+            path,
+            match baker {
+                Some(baker) => render_preview(&baker.context, &baked)?,
+                None => render_preview(&open_render_device(None)?, &baked)?,
+            },
+        )),
+        None => None,
+    };
     let writing = std::time::Instant::now();
     let written = match &gltf {
         Some(gltf) => Some(glb::scene::write_scene_glb(
@@ -333,10 +349,14 @@ pub(crate) fn bake_one(
         report_f16_error(&baked)?;
     }
     let seconds_write = writing.elapsed().as_secs_f64();
-    if let Some(preview) = &args.preview {
-        match baker {
-            Some(baker) => write_preview(&baker.context, &baked, preview)?,
-            None => write_preview(&open_render_device(None)?, &baked, preview)?,
+    if let Some((path, image)) = preview {
+        if let Err(error) = image.write(path) {
+            // The bake is whole or not at all: without its preview, neither is left.
+            let _ = std::fs::remove_file(&output_path);
+            if baked.lightmap.is_some() {
+                let _ = std::fs::remove_file(lightmap_beside(&output_path));
+            }
+            return Err(error);
         }
     }
     if let Some(written) = written {
@@ -668,13 +688,100 @@ pub(crate) fn naming_the_mesh(error: Error, mesh: &str) -> Error {
     }
 }
 
-/// Renders `baked` under the default sky and sun to `path`.
-fn write_preview(context: &GpuContext, baked: &bake::BakedMesh, path: &Path) -> Result<()> {
+/// A preview rendered, not yet written.
+struct Preview {
+    pixels: Vec<[f32; 4]>,
+    width: u32,
+    height: u32,
+}
+
+impl Preview {
+    fn write(&self, path: &Path) -> Result<()> {
+        render::write_image(
+            path,
+            &self.pixels,
+            self.width,
+            self.height,
+            ToneMap::Reinhard,
+            0.0,
+        )?;
+        eprintln!("preview -> {}", path.display());
+        Ok(())
+    }
+}
+
+/// `baked` rendered under the default sky and sun.
+fn render_preview(context: &GpuContext, baked: &bake::BakedMesh) -> Result<Preview> {
     let (width, height) = (640, 480);
     let light = light::preview_light(baked.metadata.bands)?;
-    let image = render::preview(context, baked, &light, None, width, height)?;
-    render::write_image(path, &image, width, height, ToneMap::Reinhard, 0.0)?;
-    eprintln!("preview -> {}", path.display());
+    let pixels = render::preview(context, baked, &light, None, width, height)?;
+    Ok(Preview {
+        pixels,
+        width,
+        height,
+    })
+}
+
+/// The name a bake of `mesh` reports and names its default output by: the mesh file's, or the
+/// built-in scene's.
+pub(crate) fn bake_name(mesh: &Option<PathBuf>) -> String {
+    mesh.as_ref()
+        .map_or_else(|| "default-scene".to_string(), |path| stem(path))
+}
+
+/// Where a bake of `mesh` goes without `-o`: `<mesh name>.prt.glb` in the current directory.
+fn default_output(mesh: &Option<PathBuf>) -> PathBuf {
+    PathBuf::from(format!("{}.prt.glb", bake_name(mesh)))
+}
+
+/// The lightmap a bake to `glb` writes beside it.
+fn lightmap_beside(glb: &Path) -> PathBuf {
+    glb.with_file_name(glb::lightmap_file_name(glb))
+}
+
+/// The files one bake writes — the .glb at `output`, the lightmap beside it, the preview —
+/// checked before any work: their names end as their formats need, none is the mesh, one of
+/// `inputs` (a merge's parts) or another of them, and their directories exist.
+pub(crate) fn check_bake_outputs(
+    args: &BakeArgs,
+    mesh: &Option<PathBuf>,
+    output: &Path,
+    inputs: &[&Path],
+) -> Result<()> {
+    let glb_output = fs::Output {
+        option: "-o",
+        path: output,
+    };
+    let lightmap = lightmap_beside(output);
+    let mut outputs = vec![glb_output];
+    if args.lightmap.is_some() {
+        if fs::is_special_file(output) {
+            return Err(Error::Options(format!(
+                "--lightmap writes {} beside the .glb; -o {} is not a file to put it beside",
+                glb::lightmap_file_name(output),
+                output.display()
+            )));
+        }
+        outputs.push(fs::Output {
+            option: "-o",
+            path: &lightmap,
+        });
+    }
+    if let Some(preview) = &args.preview {
+        outputs.push(fs::Output {
+            option: "--preview",
+            path: preview,
+        });
+    }
+    let mut all_inputs: Vec<&Path> = mesh.iter().map(PathBuf::as_path).collect();
+    all_inputs.extend_from_slice(inputs);
+    fs::check_outputs(&outputs, &all_inputs)?;
+    fs::check_extension(glb_output, &["glb"], "a bake is written as binary glTF")?;
+    fs::check_destination(output)?;
+    if let Some(preview) = &args.preview {
+        render::check_image_output("--preview", preview)?;
+        fs::check_destination(preview)?;
+    }
     Ok(())
 }
 

@@ -1,6 +1,6 @@
 //! `prt-gpu chart` and `prt-gpu bench`: speed against accuracy, rays per second.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use super::args::{Bands, TransferArgs};
 use super::bake::{load_scene, naming_the_mesh, open_backend};
@@ -88,8 +88,25 @@ pub(crate) struct BenchArgs {
 }
 
 pub(crate) fn run_chart(args: ChartArgs) -> Result<()> {
-    chart::check_chart_path(&args.output)?;
     let csv_path = args.output.with_extension("csv");
+    let outputs = [
+        fs::Output {
+            option: "-o",
+            path: &args.output,
+        },
+        fs::Output {
+            option: "-o",
+            path: &csv_path,
+        },
+    ];
+    let inputs: Vec<&Path> = args
+        .mesh
+        .iter()
+        .chain(&args.light)
+        .map(PathBuf::as_path)
+        .collect();
+    fs::check_outputs(&outputs, &inputs)?;
+    chart::check_chart_path(&args.output)?;
     fs::check_destination(&args.output)?;
     let options = sweep_options(&args)?;
     let light = match &args.light {
@@ -123,7 +140,11 @@ pub(crate) fn run_chart(args: ChartArgs) -> Result<()> {
         options.reference_sampling.name()
     );
     chart::draw_chart(&args.output, &title, "bake time (s)", &panels)?;
-    sweep::write_csv(&csv_path, &result)?;
+    if let Err(error) = sweep::write_csv(&csv_path, &result) {
+        // The chart and its numbers are one output: without the numbers, no chart either.
+        let _ = std::fs::remove_file(&args.output);
+        return Err(error);
+    }
     for p in &result.points {
         eprintln!(
             "{:>16} {:>13} {:>3} {:>6} samples: {:>8.3} s, transfer rms {:.3e}, radiance rms \

@@ -1,6 +1,6 @@
 //! `prt-gpu light`: lighting projected onto SH.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
@@ -74,6 +74,18 @@ pub(crate) fn run_light(args: LightArgs) -> Result<()> {
             args.sun_angle
         )));
     }
+    let output = fs::Output {
+        option: "-o",
+        path: &args.output,
+    };
+    let inputs: Vec<&Path> = args
+        .envmap
+        .iter()
+        .chain(&args.faces)
+        .map(PathBuf::as_path)
+        .collect();
+    fs::check_outputs(&[output], &inputs)?;
+    fs::check_extension(output, &["json"], "a light is written as JSON")?;
     fs::check_destination(&args.output)?;
     let mut total = ShLight::constant(bands, [0.0; 3]);
     let mut parts = Vec::new();

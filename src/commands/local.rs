@@ -16,15 +16,26 @@ pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
     check_local_flags(&args)?;
     let options = local_options(&args);
     options.validate()?;
-    let (scene, name) = match args.meshes.first() {
-        Some(path) => (scene::load(path)?, stem(path)),
-        None => (scene::builtin::interior_scene(), "interior".to_string()),
+    let name = match args.meshes.first() {
+        Some(path) => stem(path),
+        None => "interior".to_string(),
     };
     let output = args
         .output
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
+    let glb_output = fs::Output {
+        option: "-o",
+        path: &output,
+    };
+    let inputs: Vec<&Path> = args.meshes.iter().map(PathBuf::as_path).collect();
+    fs::check_outputs(&[glb_output], &inputs)?;
+    fs::check_extension(glb_output, &["glb"], "a bake is written as binary glTF")?;
     fs::check_destination(&output)?;
+    let scene = match args.meshes.first() {
+        Some(path) => scene::load(path)?,
+        None => scene::builtin::interior_scene(),
+    };
     let mut scene = scene;
     if let Some(albedo) = args.albedo {
         scene.albedo.iter_mut().for_each(|a| *a = albedo);

@@ -81,7 +81,7 @@ pub(crate) struct RenderArgs {
 }
 
 pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
-    fs::check_destination(&args.output)?;
+    check_render_outputs(&args)?;
     if let [only] = &args.baked[..] {
         if glb::local::is_local_file(&std::fs::read(only).map_err(|e| Error::io(only, e))?) {
             return run_local_render(&args, only);
@@ -236,6 +236,14 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
             "--frames {frames} is out of range (1 to {MAX_FRAMES})"
         )));
     }
+    for f in 0..frames {
+        let frame = local::frame_path(&args.output, f, frames);
+        let output = fs::Output {
+            option: "-o",
+            path: &frame,
+        };
+        fs::check_outputs(&[output], &[path])?;
+    }
     let camera = args
         .camera
         .unwrap_or_else(|| Camera::framing_scene(&baked.scene));
@@ -257,7 +265,7 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
     let (lo, hi) = render::bounds(&baked.scene.positions);
     let centre = args.orbit.unwrap_or((lo + hi) * 0.5);
     let mut timing = local::FrameTimes::default();
-    for f in 0..frames {
+    let mut one_frame = |f: u32, output: &Path| -> Result<()> {
         let lights = local_lights::on_circle(&lights, centre, f, frames);
         let frame = local::time_frame(
             &relighter,
@@ -274,15 +282,26 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
             args.width,
             args.height,
         )?;
-        let output = local::frame_path(&args.output, f, frames);
         render::write_image(
-            &output,
+            output,
             &image,
             args.width,
             args.height,
             args.tone_map,
             args.exposure,
-        )?;
+        )
+    };
+    let mut written = Vec::new();
+    for f in 0..frames {
+        let output = local::frame_path(&args.output, f, frames);
+        if let Err(error) = one_frame(f, &output) {
+            // A sequence is whole or not at all: the frames before the failed one go too.
+            for path in &written {
+                let _ = std::fs::remove_file(path);
+            }
+            return Err(error);
+        }
+        written.push(output);
     }
     println!(
         "rendered {frames} frame(s) of {}x{} -> {}",
@@ -297,6 +316,45 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
             gpu.as_ref().map(|g| g.context.adapter.label())
         )
     );
+    Ok(())
+}
+
+/// What `render` writes — the image or the relit copy — checked before any work: named .png,
+/// .exr or .glb (the name chooses the format), not a baked file, the light or a lightmap a
+/// baked file reads, in a directory that exists. (The frames of a sequence are checked once
+/// the file is known to be a local-lights bake.)
+fn check_render_outputs(args: &RenderArgs) -> Result<()> {
+    let lightmaps: Vec<PathBuf> = args
+        .baked
+        .iter()
+        .filter_map(|path| {
+            let uri = glb::read_references(path).ok()?.lightmap?.uri;
+            Some(path.with_file_name(uri))
+        })
+        .collect();
+    let inputs: Vec<&Path> = args
+        .baked
+        .iter()
+        .chain(&args.light)
+        .chain(&lightmaps)
+        .map(PathBuf::as_path)
+        .collect();
+    let output = fs::Output {
+        option: "-o",
+        path: &args.output,
+    };
+    fs::check_outputs(&[output], &inputs)?;
+    let mut formats = render::IMAGE_EXTENSIONS.to_vec();
+    formats.push("glb");
+    fs::check_named_format(
+        fs::Output {
+            option: "-o",
+            path: &args.output,
+        },
+        &formats,
+        "render writes an image (PNG or OpenEXR) or a relit copy of a baked file (binary glTF)",
+    )?;
+    fs::check_destination(&args.output)?;
     Ok(())
 }
 

@@ -8,12 +8,12 @@ use prt_gpu::bake::gpu::GpuBaker;
 use prt_gpu::bake::{self, Backend, BakeOptions, Mode};
 use prt_gpu::device::{self, DeviceChoice};
 use prt_gpu::shard::{self, Part};
-use prt_gpu::{fs, scene, Error, Result};
+use prt_gpu::{fs, render, scene, Error, Result};
 
 use super::bake::{
-    backend_of, bake_backend, bake_one, bake_options, check_chunking, check_output_forms,
-    fingerprinted_options, load_bake_input, mesh_shown, naming_the_mesh, note_samples_rounded,
-    BakeArgs, Device,
+    backend_of, bake_backend, bake_name, bake_one, bake_options, check_chunking,
+    check_output_forms, fingerprinted_options, load_bake_input, mesh_shown, naming_the_mesh,
+    note_samples_rounded, BakeArgs, Device,
 };
 use super::progress::BarProgress;
 use crate::{Cli, Command};
@@ -35,8 +35,6 @@ pub(crate) struct MergeArgs {
 pub(crate) fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Shard) -> Result<()> {
     let options = bake_options(args)?;
     options.validate()?;
-    let (scene, gltf, name) = load_bake_input(mesh)?;
-    check_output_forms(args, &options, gltf.is_some())?;
     if args.preview.is_some() {
         return Err(Error::Options(
             "--preview renders a whole bake: give it to `prt-gpu merge`, not to a shard".into(),
@@ -44,11 +42,15 @@ pub(crate) fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Sh
     }
     let output = args.output.clone().unwrap_or_else(|| {
         PathBuf::from(format!(
-            "{name}.prt.{}-of-{}.part",
-            shard.index, shard.count
+            "{}.prt.{}-of-{}.part",
+            bake_name(mesh),
+            shard.index,
+            shard.count
         ))
     });
-    fs::check_destination(&output)?;
+    check_part_output(mesh, &output)?;
+    let (scene, gltf, name) = load_bake_input(mesh)?;
+    check_output_forms(args, &options, gltf.is_some())?;
     check_shard_memory(args, &options, &scene, shard)?;
     note_samples_rounded(&options);
     check_chunking(args)?;
@@ -95,8 +97,27 @@ pub(crate) fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Sh
     Ok(())
 }
 
+/// A shard's part file, checked before any work: not the mesh, named `.part`, in a directory
+/// that exists.
+fn check_part_output(mesh: &Option<PathBuf>, output: &Path) -> Result<()> {
+    let part = fs::Output {
+        option: "-o",
+        path: output,
+    };
+    let inputs: Vec<&Path> = mesh.iter().map(PathBuf::as_path).collect();
+    fs::check_outputs(&[part], &inputs)?;
+    fs::check_extension(
+        part,
+        &[shard::PART_EXTENSION],
+        "a shard is written as a part file for `prt-gpu merge`",
+    )?;
+    fs::check_destination(output)?;
+    Ok(())
+}
+
 /// `merge`: the parts checked and joined, then the rest of the bake their command asks for.
 pub(crate) fn run_merge(args: MergeArgs) -> Result<()> {
+    check_merge_outputs(&args)?;
     let parts = args
         .parts
         .iter()
@@ -138,6 +159,40 @@ pub(crate) fn run_merge(args: MergeArgs) -> Result<()> {
     let progress = BarProgress::default();
     let merged = Some((header, direct));
     bake_one(&bake_args, &mesh, args.output, &device, merged, &progress)
+}
+
+/// What `merge` was told to write, checked before any part is read: neither is a part, nor the
+/// other; `-o` names a .glb and `--preview` an image, in directories that exist. (The mesh the
+/// parts name is checked against them once the parts are read, as every bake checks it.)
+fn check_merge_outputs(args: &MergeArgs) -> Result<()> {
+    let mut outputs = Vec::new();
+    if let Some(output) = &args.output {
+        outputs.push(fs::Output {
+            option: "-o",
+            path: output,
+        });
+    }
+    if let Some(preview) = &args.preview {
+        outputs.push(fs::Output {
+            option: "--preview",
+            path: preview,
+        });
+    }
+    let parts: Vec<&Path> = args.parts.iter().map(PathBuf::as_path).collect();
+    fs::check_outputs(&outputs, &parts)?;
+    if let Some(output) = &args.output {
+        let glb = fs::Output {
+            option: "-o",
+            path: output,
+        };
+        fs::check_extension(glb, &["glb"], "a merge is written as binary glTF")?;
+        fs::check_destination(output)?;
+    }
+    if let Some(preview) = &args.preview {
+        render::check_image_output("--preview", preview)?;
+        fs::check_destination(preview)?;
+    }
+    Ok(())
 }
 
 /// A shard is not streamed: its share of the receivers and the mesh must fit at once. Over an

@@ -67,7 +67,13 @@ pub(crate) struct ViewArgs {
 }
 
 pub(crate) fn run_view(args: ViewArgs) -> Result<()> {
-    fs::check_destination(&args.output)?;
+    check_page_output(
+        &args.output,
+        &args.baked,
+        args.light.as_deref(),
+        &["html", "htm"],
+        "the viewer is written as one HTML page",
+    )?;
     let mut bakes = Vec::new();
     for path in &args.baked {
         bakes.push((path.display().to_string(), glb::read_glb(path)?));
@@ -123,7 +129,13 @@ fn view_light(args: &ViewArgs, bands: u32) -> Result<(ShLight, Option<(EnvImage,
 }
 
 pub(crate) fn run_export_x3d(args: X3dArgs) -> Result<()> {
-    fs::check_destination(&args.output)?;
+    check_page_output(
+        &args.output,
+        std::slice::from_ref(&args.baked),
+        args.light.as_deref(),
+        &["x3d"],
+        "the scene is written as X3D (XML encoding)",
+    )?;
     let baked = glb::read_glb(&args.baked)?;
     let bands = baked.metadata.bands;
     let light = match &args.light {
@@ -147,6 +159,26 @@ pub(crate) fn run_export_x3d(args: X3dArgs) -> Result<()> {
         x3d::transfer_attributes(&baked),
         args.output.display()
     );
+    Ok(())
+}
+
+/// `-o` of `view` and `export`, checked before any work: not one of the baked files or the
+/// light, ending in one of `extensions`, in a directory that exists.
+fn check_page_output(
+    output: &Path,
+    baked: &[PathBuf],
+    light: Option<&Path>,
+    extensions: &[&str],
+    what: &str,
+) -> Result<()> {
+    let page = fs::Output {
+        option: "-o",
+        path: output,
+    };
+    let inputs: Vec<&Path> = baked.iter().map(PathBuf::as_path).chain(light).collect();
+    fs::check_outputs(&[page], &inputs)?;
+    fs::check_extension(page, extensions, what)?;
+    fs::check_destination(output)?;
     Ok(())
 }
 

@@ -102,6 +102,19 @@ pub fn write_image(
     write_atomically(path, &bytes)
 }
 
+/// The extensions of the image files [`write_image`] writes, which choose the format.
+pub const IMAGE_EXTENSIONS: [&str; 2] = ["png", "exr"];
+
+/// Refuses, before any work, an image output (`option` names it) that [`write_image`] could
+/// not write: one whose name ends in neither `.png` nor `.exr`.
+pub fn check_image_output(option: &str, path: &Path) -> Result<()> {
+    crate::fs::check_named_format(
+        crate::fs::Output { option, path },
+        &IMAGE_EXTENSIONS,
+        "images are PNG (tone-mapped) or OpenEXR (linear)",
+    )
+}
+
 #[derive(Clone, Copy)]
 enum ImageFormat {
     Png,

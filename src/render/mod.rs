@@ -21,7 +21,9 @@ mod sky;
 #[cfg(test)]
 mod test_support;
 
-pub use self::image::{side_by_side, to_rgba8, tone_map, write_image, ToneMap};
+pub use self::image::{
+    check_image_output, side_by_side, to_rgba8, tone_map, write_image, ToneMap, IMAGE_EXTENSIONS,
+};
 pub use camera::{bounds, Camera, DEFAULT_FOV_DEG};
 pub use raster::{preview, render, RenderParams};
 pub use relight::{apply_albedo, relight, relight_baked};

@@ -240,77 +240,73 @@ fn private_null(dir: &Path) -> Option<std::path::PathBuf> {
     works.then_some(null)
 }
 
-/// `-o /dev/null` discards the output and leaves /dev/null a device. A bake that renamed its
-/// temporary over the target would, run as root, replace /dev/null with a regular file: so,
-/// where this test can make a null device of its own (root), every command is first run
-/// against that one, and only when all leave it a device is /dev/null itself written (and put
-/// back with mknod should it still have been replaced). Elsewhere /dev/null cannot be replaced
-/// by this user and is written directly.
+/// `-o /dev/null` discards the output and leaves /dev/null a device: a target that is not a
+/// regular file is written into, never renamed over (which, run as root, would replace
+/// /dev/null with a regular file). The real /dev/null is never put at risk here: every command
+/// writes to a null device of the test's own where it can make one (root, `mknod`), and to a
+/// FIFO of its own otherwise, drained as it is written; either must still be what it was.
 #[cfg(unix)]
 #[test]
-fn dev_null_takes_the_output_and_stays_a_device() {
-    let dev_null = Path::new("/dev/null");
-    if !is_char_device(dev_null) {
-        eprintln!("skipped: /dev/null is not a character device here");
-        return;
-    }
+fn a_device_or_fifo_takes_the_output_and_stays_what_it_was() {
+    use std::os::unix::fs::FileTypeExt;
     let dir = inputs();
     let d = dir.path();
-    let devices = tempfile::tempdir().unwrap();
-    let private = private_null(devices.path());
+    let targets = tempfile::tempdir().unwrap();
+    let (target, is_fifo) = match private_null(targets.path()) {
+        Some(null) => (null, false),
+        None => (private_fifo(targets.path()), true),
+    };
     let before = entries(d);
     let limit = streaming_limit();
-    let cases = |null: &str| -> Vec<Vec<String>> {
-        let owned = |args: Vec<&str>| args.into_iter().map(String::from).collect();
-        vec![
-            owned(bake_args("tet.obj", &["-o", null])),
-            // Streamed to the file a chunk at a time.
-            owned(bake_args(BUNNY, &["--memory-limit", &limit, "-o", null])),
-            owned(bake_args("tet.obj", &["--shard", "1/2", "-o", null])),
-            owned(bake_args("tet.obj", &["--mode", "local", "-o", null])),
-            owned(vec!["light", "--sky", "1,1,1", "-o", null]),
-            owned(vec!["view", "tet.glb", "-o", null]),
-            owned(vec!["export", "x3d", "tet.glb", "-o", null]),
-            owned(vec!["merge", "p0.part", "p1.part", "-o", null]),
-        ]
-    };
-    let run = |null: &Path, args: &[String]| {
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let null = target.display().to_string();
+    let cases: Vec<Vec<&str>> = vec![
+        bake_args("tet.obj", &["-o", &null]),
+        // Streamed to the file a chunk at a time.
+        bake_args(BUNNY, &["--memory-limit", &limit, "-o", &null]),
+        bake_args("tet.obj", &["--shard", "1/2", "-o", &null]),
+        bake_args("tet.obj", &["--mode", "local", "-o", &null]),
+        vec!["light", "--sky", "1,1,1", "-o", &null],
+        vec!["view", "tet.glb", "-o", &null],
+        vec!["export", "x3d", "tet.glb", "-o", &null],
+        vec!["merge", "p0.part", "p1.part", "-o", &null],
+    ];
+    for args in cases {
+        let drain = is_fifo.then(|| {
+            let fifo = target.clone();
+            std::thread::spawn(move || std::fs::read(fifo).map(|bytes| bytes.len()))
+        });
         let out = prt_gpu(&args, d);
-        let still_a_device = is_char_device(null);
-        if !still_a_device && null == dev_null && std::fs::remove_file(null).is_ok() {
-            let _ = std::process::Command::new("mknod")
-                .args(["-m", "666", "/dev/null", "c", "1", "3"])
-                .status();
-        }
         succeed(&out, &args.join(" "));
+        if let Some(drain) = drain {
+            let received = drain.join().unwrap().unwrap();
+            assert!(received > 0, "{}: nothing reached the FIFO", args.join(" "));
+        }
+        let kind = std::fs::metadata(&target).unwrap().file_type();
         assert!(
-            still_a_device,
+            kind.is_char_device() || kind.is_fifo(),
             "{} replaced {}",
             args.join(" "),
-            null.display()
+            target.display()
         );
-    };
-    match &private {
-        Some(null) => {
-            for args in cases(&null.display().to_string()) {
-                run(null, &args);
-            }
-            run(dev_null, &cases("/dev/null")[0]);
-        }
-        None => {
-            for args in cases("/dev/null") {
-                run(dev_null, &args);
-            }
-        }
     }
     assert_eq!(entries(d), before, "a temporary file was left");
-    let left: Vec<String> = entries(devices.path());
-    let expected: Vec<String> = private.iter().map(|_| "null".to_string()).collect();
     assert_eq!(
-        left, expected,
-        "a temporary file was left beside the device"
+        entries(targets.path()),
+        [target.file_name().unwrap().to_string_lossy().into_owned()],
+        "a temporary file was left beside the target"
     );
+}
+
+/// A FIFO of the test's own in `dir` (`mkfifo`, which needs no privilege).
+#[cfg(unix)]
+fn private_fifo(dir: &Path) -> std::path::PathBuf {
+    let fifo = dir.join("fifo");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success());
+    assert!(made, "mkfifo {} failed", fifo.display());
+    fifo
 }
 
 #[test]

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use super::args::Bands;
-use super::bake::{bake_backend, stem, BakeArgs};
+use super::bake::{bake_backend, load_mesh, stem, BakeArgs};
 use super::progress::BarProgress;
 use prt_gpu::bake::gpu::Chunking;
 use prt_gpu::bake::{Backend, BakeOptions, Fit, Storage};
@@ -17,7 +17,7 @@ pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
     let options = local_options(&args);
     options.validate()?;
     let (scene, name) = match args.meshes.first() {
-        Some(path) => (scene::load(path)?, stem(path)),
+        Some(path) => (load_mesh(path)?, stem(path)),
         None => (scene::builtin::interior_scene(), "interior".to_string()),
     };
     let output = args

@@ -206,6 +206,62 @@ fn a_bake_warns_in_one_line_of_what_it_repaired() {
     dir.close().unwrap();
 }
 
+/// What a reader repaired (an MTL's Kd out of range) or assumed (a map named for another
+/// format) is one `warning:` line; a byte-order mark and trailing comments say nothing.
+#[test]
+fn readers_warn_in_one_line_of_what_they_repaired() {
+    let dir = tempfile::tempdir().unwrap();
+    let tetrahedron = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    std::fs::write(
+        dir.path().join("m.mtl"),
+        "newmtl red # too red\nKd 2 nan -1\n",
+    )
+    .unwrap();
+    let obj = format!("\u{feff}mtllib m.mtl\nusemtl red # the material\n{tetrahedron}");
+    std::fs::write(dir.path().join("tet.obj"), obj).unwrap();
+    let bake = [
+        "bake",
+        "tet.obj",
+        "--samples",
+        "16",
+        "--device",
+        "cpu",
+        "-o",
+        "tet.glb",
+    ];
+    let out = prt_gpu(&bake, dir.path());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let warnings: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("warning:"))
+        .collect();
+    assert_eq!(
+        warnings,
+        [
+            "warning: tet: material \"red\": Kd (2, NaN, -1) is outside [0, 1] or not finite; \
+          baked as (1, 0, 0)"
+        ],
+        "{stderr}"
+    );
+    std::fs::write(dir.path().join("m.mtl"), "newmtl red\nKd 0.5 0.5 0.5\n").unwrap();
+    let out = prt_gpu(&bake, dir.path());
+    assert!(out.status.success() && !String::from_utf8_lossy(&out.stderr).contains("warning:"));
+
+    image::RgbImage::from_pixel(8, 4, image::Rgb([255, 255, 255]))
+        .save_with_format(dir.path().join("sky.exr"), image::ImageFormat::Png)
+        .unwrap();
+    let out = prt_gpu(&["light", "sky.exr", "-o", "l.json"], dir.path());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert_eq!(
+        stderr.trim_end(),
+        "warning: sky.exr: named .exr, but its content is PNG; read as PNG"
+    );
+    assert!(dir.path().join("l.json").exists());
+    dir.close().unwrap();
+}
+
 macro_rules! ply_header {
     () => {
         "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"

@@ -142,7 +142,7 @@ fn points_lines_and_compressed_or_broken_files_fail_in_one_line() {
             "broken/IndexOutOfRange/AllIndicesOutOfRange.gltf",
             "but has only 24 vertices",
         ),
-        ("broken/MissingBin/BoxTextured.gltf", "cannot read a buffer"),
+        ("broken/MissingBin/BoxTextured.gltf", "cannot read buffer 0"),
         ("broken/BoxWithInfinites.glb", "invalid glTF"),
         ("broken/wrongTypes/badArray.gltf", "invalid type"),
         ("broken/wrongTypes/badExtension.gltf", "invalid type"),
@@ -911,4 +911,158 @@ fn primitives_without_normals_get_the_computed_ones_beside_those_with() {
     for (n, own) in computed.iter().zip(sphere.normals.as_deref().unwrap()) {
         assert!(n.dot(*own) > 0.9, "{n} vs {own}");
     }
+}
+
+/// A textured plane written as `scene.gltf` in `dir`: its buffer and image as data: URIs, UVs
+/// as given (the plane's 9 vertices).
+fn textured_plane_gltf(dir: &Path, uvs: Option<Vec<[f32; 2]>>) -> PathBuf {
+    let plane = builtin::grid_plane(Vec3::ZERO, Vec3::X * 0.5, Vec3::Z * 0.5, 2, Vec3::ONE);
+    let plane = scene::prepare::prepare(plane).unwrap().0;
+    let uvs = uvs.unwrap_or_else(|| plane.positions.iter().map(|p| [p.x, p.z]).collect());
+    let mut builder = GltfBuilder::default();
+    let mut primitive = builder.primitive(&plane, Some(&uvs));
+    primitive["material"] = json!(0);
+    let image = format!(
+        "data:image/png;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(png(4, 4, |x, _| 60 * x as u8))
+    );
+    let doc = json!({
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "mesh": 0 }],
+        "meshes": [{ "primitives": [primitive] }],
+        "materials": [{ "pbrMetallicRoughness": { "baseColorTexture": { "index": 0 } } }],
+        "textures": [{ "source": 0 }],
+        "images": [{ "uri": image }],
+    });
+    builder.finish(doc, dir, "scene.gltf")
+}
+
+/// `path`'s JSON with `change` made to it, written back.
+fn edit_json(path: &Path, change: impl FnOnce(&mut Value)) {
+    let mut doc: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    change(&mut doc);
+    std::fs::write(path, serde_json::to_vec(&doc).unwrap()).unwrap();
+}
+
+/// The error loading `path` gives, checked to be one line naming the file.
+fn load_error(path: &Path) -> String {
+    let error = match gltf_scene::load(path) {
+        Ok(_) => panic!("{} loaded", path.display()),
+        Err(e) => e.to_string(),
+    };
+    assert!(!error.contains('\n'), "{error}");
+    assert!(error.starts_with(&path.display().to_string()), "{error}");
+    error
+}
+
+#[test]
+fn a_gltf_with_a_byte_order_mark_reads_like_one_without() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = textured_plane_gltf(dir.path(), None);
+    let (_, plain) = gltf_scene::load(&path).unwrap();
+    let bom = dir.path().join("bom.gltf");
+    std::fs::write(
+        &bom,
+        [b"\xEF\xBB\xBF".as_slice(), &std::fs::read(&path).unwrap()].concat(),
+    )
+    .unwrap();
+    assert_eq!(gltf_scene::load(&bom).unwrap().1, plain);
+}
+
+/// External buffers and images are read beside the file, `../` included, a buffer no further
+/// than its byteLength; absolute paths and other schemes are refused, naming the URI; so is a
+/// file too short for its buffer.
+#[test]
+fn external_resources_are_relative_regular_files_read_within_their_length() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = textured_plane_gltf(dir.path(), None);
+    let (_, expected) = gltf_scene::load(&path).unwrap();
+    let doc: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let base64 = |uri: &Value| {
+        let uri = uri.as_str().unwrap();
+        base64::engine::general_purpose::STANDARD
+            .decode(&uri[uri.find(",").unwrap() + 1..])
+            .unwrap()
+    };
+    let mut bin = base64(&doc["buffers"][0]["uri"]);
+    // Bytes past the byteLength are never read.
+    bin.extend_from_slice(&[0xAB; 13]);
+    let resources = dir.path().join("resources");
+    std::fs::create_dir(&resources).unwrap();
+    std::fs::write(resources.join("plane data.bin"), &bin).unwrap();
+    std::fs::write(resources.join("t.png"), base64(&doc["images"][0]["uri"])).unwrap();
+    let scenes = dir.path().join("scenes");
+    std::fs::create_dir(&scenes).unwrap();
+    let external = scenes.join("external.gltf");
+    std::fs::copy(&path, &external).unwrap();
+    edit_json(&external, |doc| {
+        doc["buffers"][0]["uri"] = json!("../resources/plane%20data.bin");
+        doc["images"][0]["uri"] = json!("../resources/t.png");
+    });
+    let (gltf, loaded) = gltf_scene::load(&external).unwrap();
+    assert_eq!(loaded, expected);
+    assert_eq!(gltf.buffers[0].len(), bin.len() - 13);
+
+    let absolute = resources.join("t.png").display().to_string();
+    for (field, uri, expect) in [
+        ("buffers", absolute.as_str(), "is an absolute path"),
+        ("images", absolute.as_str(), "is an absolute path"),
+        (
+            "buffers",
+            "file:///etc/passwd",
+            "neither a data: URI nor a relative path",
+        ),
+        (
+            "images",
+            "http://example.com/t.png",
+            "neither a data: URI nor a relative path",
+        ),
+        ("buffers", "../resources", "is a directory"),
+        ("images", "../resources/absent.png", "absent.png"),
+    ] {
+        let bad = scenes.join("bad.gltf");
+        std::fs::copy(&external, &bad).unwrap();
+        edit_json(&bad, |doc| doc[field][0]["uri"] = json!(uri));
+        let error = load_error(&bad);
+        assert!(error.contains(expect), "{uri}: {error}");
+        if expect.starts_with("is an") || expect.starts_with("neither") {
+            assert!(error.contains(&format!("{uri:?}")), "{error}");
+        }
+    }
+    let short = scenes.join("short.gltf");
+    std::fs::copy(&external, &short).unwrap();
+    edit_json(&short, |doc| {
+        doc["buffers"][0]["byteLength"] = json!(bin.len() + 1);
+    });
+    assert!(load_error(&short).contains("fewer than the buffer's byteLength"));
+}
+
+/// A buffer or image that names a device (here /dev/zero, through a link beside the file) is
+/// refused at once, not read until memory runs out.
+#[cfg(unix)]
+#[test]
+fn a_resource_that_is_a_device_is_refused_unread() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = textured_plane_gltf(dir.path(), None);
+    std::os::unix::fs::symlink("/dev/zero", dir.path().join("zero.bin")).unwrap();
+    for field in ["buffers", "images"] {
+        let bad = dir.path().join(format!("{field}.gltf"));
+        std::fs::copy(&path, &bad).unwrap();
+        edit_json(&bad, |doc| doc[field][0]["uri"] = json!("zero.bin"));
+        let error = load_error(&bad);
+        assert!(error.contains("zero.bin is not a regular file"), "{error}");
+    }
+}
+
+#[test]
+fn a_nan_texture_coordinate_is_refused_naming_the_attribute() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut uvs = vec![[0.25, 0.5]; 9];
+    uvs[4] = [f32::NAN, 0.5];
+    let path = textured_plane_gltf(dir.path(), Some(uvs));
+    let error = load_error(&path);
+    assert!(
+        error.contains("mesh 0 primitive 0 TEXCOORD_0 is NaN or infinite at vertex 4"),
+        "{error}"
+    );
 }

@@ -932,9 +932,18 @@ pub(crate) fn open_backend(
 /// The mesh named on the command line, or the built-in scene; and a name for messages.
 pub(crate) fn load_scene(mesh: &Option<PathBuf>) -> Result<(scene::Scene, String)> {
     match mesh {
-        Some(path) => Ok((scene::load(path)?, stem(path))),
+        Some(path) => Ok((load_mesh(path)?, stem(path))),
         None => Ok((scene::builtin::default_scene(), "default-scene".to_string())),
     }
+}
+
+/// A mesh file, saying what its reader repaired (one `warning:` line each).
+pub(crate) fn load_mesh(path: &Path) -> Result<scene::Scene> {
+    let (scene, warnings) = scene::load_with_warnings(path)?;
+    for warning in warnings {
+        eprintln!("warning: {}: {warning}", stem(path));
+    }
+    Ok(scene)
 }
 
 /// The name a mesh file is reported by.

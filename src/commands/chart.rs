@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use super::args::{Bands, TransferArgs};
 use super::bake::{load_scene, naming_the_mesh, open_backend};
+use super::light::load_light;
 use super::progress::BarProgress;
 use prt_gpu::bake::adaptive::TargetError;
 use prt_gpu::bake::gpu::Chunking;
@@ -110,7 +111,7 @@ pub(crate) fn run_chart(args: ChartArgs) -> Result<()> {
     fs::check_destination(&args.output)?;
     let options = sweep_options(&args)?;
     let light = match &args.light {
-        Some(path) => light::load(path, args.bands, None, false)?.light,
+        Some(path) => load_light(path, args.bands, None, false)?.light,
         None => light::preview_light(args.bands)?,
     };
     let (scene, name) = load_scene(&args.mesh)?;

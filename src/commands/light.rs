@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 
 use super::args::{parse_direction, parse_radiance, LightShaping};
-use prt_gpu::light::{self, analytic, Mapping, ShLight};
+use prt_gpu::light::{self, analytic, LoadedLight, Mapping, ShLight};
 use prt_gpu::sh::MAX_BANDS;
 use prt_gpu::{fs, Error, Result};
 
@@ -90,7 +90,7 @@ pub(crate) fn run_light(args: LightArgs) -> Result<()> {
     let mut total = ShLight::constant(bands, [0.0; 3]);
     let mut parts = Vec::new();
     if let Some(path) = &args.envmap {
-        let loaded = light::load(path, bands, args.mapping, args.skip_invalid)?;
+        let loaded = load_light(path, bands, args.mapping, args.skip_invalid)?;
         note_skipped_pixels(loaded.skipped_pixels);
         // A light.json has no mapping: it is taken as it is (then rotated and windowed).
         parts.push(match loaded.mapping {
@@ -101,6 +101,7 @@ pub(crate) fn run_light(args: LightArgs) -> Result<()> {
     }
     if !args.faces.is_empty() {
         let loaded = light::load_faces(&args.faces, bands, args.skip_invalid)?;
+        say_warnings(&loaded.warnings);
         note_skipped_pixels(loaded.skipped_pixels);
         total = total.plus(&loaded.light)?;
         parts.push("six cube faces".into());
@@ -158,6 +159,25 @@ pub(crate) fn run_light(args: LightArgs) -> Result<()> {
         args.output.display()
     );
     Ok(())
+}
+
+/// A light from a file (`light::load`), its warnings said.
+pub(crate) fn load_light(
+    path: &Path,
+    bands: u32,
+    mapping: Option<Mapping>,
+    skip_invalid: bool,
+) -> Result<LoadedLight> {
+    let loaded = light::load(path, bands, mapping, skip_invalid)?;
+    say_warnings(&loaded.warnings);
+    Ok(loaded)
+}
+
+/// One `warning:` line each.
+pub(crate) fn say_warnings(warnings: &[String]) {
+    for warning in warnings {
+        eprintln!("warning: {warning}");
+    }
 }
 
 fn note_skipped_pixels(skipped: usize) {

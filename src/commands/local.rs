@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use super::args::Bands;
-use super::bake::{bake_backend, stem, BakeArgs};
+use super::bake::{bake_backend, load_mesh, stem, BakeArgs};
 use super::progress::BarProgress;
 use prt_gpu::bake::gpu::Chunking;
 use prt_gpu::bake::{Backend, BakeOptions, Fit, Storage};
@@ -33,7 +33,7 @@ pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
     fs::check_extension(glb_output, &["glb"], "a bake is written as binary glTF")?;
     fs::check_destination(&output)?;
     let scene = match args.meshes.first() {
-        Some(path) => scene::load(path)?,
+        Some(path) => load_mesh(path)?,
         None => scene::builtin::interior_scene(),
     };
     let mut scene = scene;

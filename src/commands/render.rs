@@ -6,7 +6,7 @@ use glam::Vec3;
 
 use super::args::{parse_finite, parse_point, LightShaping};
 use super::bake::open_render_device;
-use super::light::shape;
+use super::light::{load_light, shape};
 use prt_gpu::bake::gpu::GpuBaker;
 use prt_gpu::device::DeviceChoice;
 use prt_gpu::light::{self, Mapping};
@@ -105,10 +105,14 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
     }
     let context = open_render_device(args.adapter.as_deref())?;
     let mut panels = Vec::new();
-    for path in &args.baked {
+    for (panel_index, path) in args.baked.iter().enumerate() {
         let (baked, cpca) = glb::read_glb_compressed(path)?;
         let bands = baked.metadata.bands;
         let light = match &args.light {
+            // Read again for each panel's bands; what it says, said once.
+            Some(light_path) if panel_index == 0 => {
+                load_light(light_path, bands, args.mapping, false)?.light
+            }
             Some(light_path) => light::load(light_path, bands, args.mapping, false)?.light,
             None => light::preview_light(bands)?,
         };
@@ -179,7 +183,7 @@ fn write_relit_distant(args: &RenderArgs) -> Result<()> {
     let bands = baked.metadata.bands;
     let (light, name) = match &args.light {
         Some(light_path) => (
-            light::load(light_path, bands, args.mapping, false)?.light,
+            load_light(light_path, bands, args.mapping, false)?.light,
             light_path.display().to_string(),
         ),
         None => (

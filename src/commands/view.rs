@@ -6,7 +6,7 @@ use clap::Subcommand;
 use glam::Vec3;
 
 use super::args::{parse_finite, LightShaping};
-use super::light::shape;
+use super::light::{load_light, say_warnings, shape};
 use prt_gpu::light::{self, EnvImage, Mapping, ShLight};
 use prt_gpu::render::{Camera, ToneMap};
 use prt_gpu::{fs, glb, view, x3d, Result};
@@ -121,6 +121,7 @@ fn view_light(args: &ViewArgs, bands: u32) -> Result<(ShLight, Option<(EnvImage,
     let (light, map) = match &args.light {
         Some(light_path) => {
             let (loaded, image) = light::load_with_image(light_path, bands, args.mapping, false)?;
+            say_warnings(&loaded.warnings);
             (loaded.light, image.zip(loaded.mapping))
         }
         None => (light::preview_light(bands)?, None),
@@ -139,7 +140,7 @@ pub(crate) fn run_export_x3d(args: X3dArgs) -> Result<()> {
     let baked = glb::read_glb(&args.baked)?;
     let bands = baked.metadata.bands;
     let light = match &args.light {
-        Some(light_path) => light::load(light_path, bands, args.mapping, false)?.light,
+        Some(light_path) => load_light(light_path, bands, args.mapping, false)?.light,
         None => light::preview_light(bands)?,
     };
     let light = shape(light, &args.shaping);

@@ -1,6 +1,7 @@
 //! Environment maps as linear RGB f32 images: OpenEXR through `exr`, Radiance .hdr and
 //! sRGB PNG/JPEG through `image` (Radiance files signed `#?RGBE` or by any other program too).
-//! The format is told by the file's magic bytes, not its name.
+//! The format is told by the file's magic bytes, not its name; a name that says another
+//! format gets a warning ([`load_with_warnings`]).
 
 use crate::color::srgb_to_linear;
 use crate::error::{one_line, Error, Result};
@@ -65,8 +66,43 @@ impl EnvImage {
 
 /// Reads an environment map file.
 pub fn load(path: &Path) -> Result<EnvImage> {
+    load_with_warnings(path).map(|(image, _)| image)
+}
+
+/// [`load`], also giving a line to show the user when the file's extension names another
+/// format than its content (a PNG named `.exr`): it is read as what it holds, as a renamed
+/// file usually is meant to be, and the line says so.
+pub fn load_with_warnings(path: &Path) -> Result<(EnvImage, Vec<String>)> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    decode(&bytes, path)
+    let image = decode(&bytes, path)?;
+    Ok((image, misnamed(&bytes, path).into_iter().collect()))
+}
+
+/// What to say when `path`'s extension names a format other than the one `bytes` hold;
+/// `None` when they agree or the extension names no image format.
+pub fn misnamed(bytes: &[u8], path: &Path) -> Option<String> {
+    let extension = path.extension()?.to_str()?.to_ascii_lowercase();
+    let named = match extension.as_str() {
+        "exr" => "OpenEXR",
+        "hdr" | "pic" | "rgbe" => "Radiance HDR",
+        "png" => "PNG",
+        "jpg" | "jpeg" => "JPEG",
+        _ => return None,
+    };
+    let held = if bytes.starts_with(&EXR_MAGIC) {
+        "OpenEXR"
+    } else if bytes.starts_with(b"#?") {
+        "Radiance HDR"
+    } else {
+        match image::guess_format(bytes).ok()? {
+            image::ImageFormat::Png => "PNG",
+            image::ImageFormat::Jpeg => "JPEG",
+            image::ImageFormat::Hdr => "Radiance HDR",
+            _ => return None,
+        }
+    };
+    (named != held)
+        .then(|| format!("named .{extension}, but its content is {held}; read as {held}"))
 }
 
 const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
@@ -104,16 +140,90 @@ fn radiance_renamed(bytes: &[u8]) -> Option<Vec<u8>> {
 }
 
 /// Pixels of the first valid layer, largest resolution level; R, G, B must be present and any
-/// alpha is ignored. Half, float and uint samples all arrive as f32.
+/// alpha is ignored. Half, float and uint samples all arrive as f32. A file without R, G, B
+/// whose first layer with a Y channel has no chroma (RY, BY) is read as grey, R = G = B = Y.
 fn decode_exr(bytes: &[u8], path: &Path) -> Result<EnvImage> {
+    let fail =
+        |e: exr::error::Error| Error::light(path, format!("OpenEXR: {}", one_line(&e.to_string())));
+    let rgb_error = match decode_exr_channels(bytes, ["R", "G", "B"]) {
+        Ok((width, height, pixels)) => return EnvImage::new(width, height, pixels, path),
+        Err(e) => e,
+    };
+    // Only when no layer has R, G and B: the luminance layer, or what the layers do have.
+    let Ok(meta) = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false) else {
+        return Err(fail(rgb_error));
+    };
+    let has = |header: &exr::meta::header::Header, name: &str| {
+        header.channels.list.iter().any(|c| c.name == *name)
+    };
+    let layers = || meta.headers.iter().filter(|h| !h.deep);
+    if layers().any(|h| ["R", "G", "B"].iter().all(|n| has(h, n))) {
+        return Err(fail(rgb_error));
+    }
+    match layers().find(|h| has(h, "Y")) {
+        Some(h) if !has(h, "RY") && !has(h, "BY") => {
+            let (width, height, pixels) =
+                decode_exr_channels(bytes, ["Y", "Y", "Y"]).map_err(fail)?;
+            EnvImage::new(width, height, pixels, path)
+        }
+        Some(_) => Err(Error::light(
+            path,
+            "OpenEXR: a luminance-chroma image (Y, RY, BY), which prt-gpu does not read; \
+             convert it to RGB",
+        )),
+        None => {
+            let names: Vec<String> = layers()
+                .flat_map(|h| h.channels.list.iter().map(|c| c.name.to_string()))
+                .collect();
+            Err(Error::light(
+                path,
+                format!(
+                    "OpenEXR: an environment map needs R, G and B channels (or a Y channel \
+                     for grey), and this file has {}",
+                    if names.is_empty() {
+                        "none".to_string()
+                    } else {
+                        names.join(", ")
+                    }
+                ),
+            ))
+        }
+    }
+}
+
+/// The named channels of the first layer that has them all, as (width, height, pixels); a
+/// channel named twice is read once and repeated (`Y` as grey).
+fn decode_exr_channels(
+    bytes: &[u8],
+    [r, g, b]: [&str; 3],
+) -> std::result::Result<(usize, usize, Vec<[f32; 3]>), exr::error::Error> {
     use exr::prelude::*;
+    if r == g && g == b {
+        let image = read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .specific_channels()
+            .required(r)
+            .collect_pixels(
+                |size: Vec2<usize>, _| (size.width(), vec![[0.0f32; 3]; size.area()]),
+                |(width, pixels): &mut (usize, Vec<[f32; 3]>), at: Vec2<usize>, (y,): (f32,)| {
+                    pixels[at.y() * *width + at.x()] = [y; 3];
+                },
+            )
+            .first_valid_layer()
+            .all_attributes()
+            .from_buffered(Cursor::new(bytes))?;
+        let size = image.layer_data.size;
+        let (_, pixels) = image.layer_data.channel_data.pixels;
+        return Ok((size.width(), size.height(), pixels));
+    }
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
         .specific_channels()
-        .required("R")
-        .required("G")
-        .required("B")
+        .required(r)
+        .required(g)
+        .required(b)
         .collect_pixels(
             |size: Vec2<usize>, _| (size.width(), vec![[0.0f32; 3]; size.area()]),
             |(width, pixels): &mut (usize, Vec<[f32; 3]>),
@@ -124,13 +234,10 @@ fn decode_exr(bytes: &[u8], path: &Path) -> Result<EnvImage> {
         )
         .first_valid_layer()
         .all_attributes()
-        .from_buffered(Cursor::new(bytes))
-        .map_err(|e| {
-            crate::error::Error::light(path, format!("OpenEXR: {}", one_line(&e.to_string())))
-        })?;
+        .from_buffered(Cursor::new(bytes))?;
     let size = image.layer_data.size;
     let (_, pixels) = image.layer_data.channel_data.pixels;
-    EnvImage::new(size.width(), size.height(), pixels, path)
+    Ok((size.width(), size.height(), pixels))
 }
 
 fn decode_with_image(bytes: &[u8], path: &Path) -> Result<EnvImage> {
@@ -223,6 +330,90 @@ mod tests {
         let e = EnvImage::new(0, 4, vec![], "zero.exr").unwrap_err();
         assert_eq!(assert_one_line(&e), "zero.exr: the image is empty (0x4)");
         assert!(EnvImage::from_fn(0, 0, |_, _| [0.0; 3]).is_err());
+    }
+
+    /// A channel's name and its value at pixel (x, y).
+    type Channel = (&'static str, fn(usize, usize) -> f32);
+
+    /// A 4x2 OpenEXR file of float channels.
+    fn exr_with_channels(channels: &[Channel]) -> Vec<u8> {
+        use exr::prelude::*;
+        let list = channels
+            .iter()
+            .map(|&(name, value)| {
+                let samples = (0..8).map(|i| value(i % 4, i / 4)).collect();
+                AnyChannel::new(name, FlatSamples::F32(samples))
+            })
+            .collect();
+        let mut bytes = Cursor::new(Vec::new());
+        Image::from_channels((4, 2), AnyChannels::sort(list))
+            .write()
+            .to_buffered(&mut bytes)
+            .unwrap();
+        bytes.into_inner()
+    }
+
+    #[test]
+    fn a_luminance_exr_is_read_as_grey() {
+        let bytes = exr_with_channels(&[("Y", |x, y| (x + 10 * y) as f32)]);
+        let image = decode(&bytes, Path::new("y.exr")).unwrap();
+        assert_eq!((image.width, image.height), (4, 2));
+        assert_eq!(image.pixel(3, 1), [13.0; 3]);
+        assert_eq!(image.pixel(1, 0), [1.0; 3]);
+        // With R, G and B beside it, those are read.
+        let rgb: [Channel; 4] = [
+            ("Y", |_, _| 9.0),
+            ("R", |_, _| 1.0),
+            ("G", |_, _| 2.0),
+            ("B", |_, _| 3.0),
+        ];
+        let image = decode(&exr_with_channels(&rgb), Path::new("rgby.exr")).unwrap();
+        assert_eq!(image.pixel(0, 0), [1.0, 2.0, 3.0]);
+    }
+
+    #[test]
+    fn an_exr_without_colour_channels_says_what_it_has() {
+        let bytes = exr_with_channels(&[("A", |_, _| 1.0), ("Z", |_, _| 2.0)]);
+        let e = decode(&bytes, Path::new("az.exr")).unwrap_err();
+        assert_eq!(
+            assert_one_line(&e),
+            "az.exr: OpenEXR: an environment map needs R, G and B channels (or a Y channel \
+             for grey), and this file has A, Z"
+        );
+        let chroma: [Channel; 3] = [("Y", |_, _| 1.0), ("RY", |_, _| 0.1), ("BY", |_, _| 0.1)];
+        let e = decode(&exr_with_channels(&chroma), Path::new("yc.exr")).unwrap_err();
+        assert!(assert_one_line(&e).contains("luminance-chroma"), "{e}");
+    }
+
+    #[test]
+    fn a_map_named_for_another_format_is_read_with_a_warning() {
+        let mut png = Vec::new();
+        image::RgbImage::from_pixel(4, 2, image::Rgb([188, 0, 128]))
+            .write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        let exr = exr_with_channels(&[("Y", |_, _| 1.0)]);
+        let tmp = tempfile::tempdir().unwrap();
+        for (name, bytes, said) in [
+            (
+                "map.exr",
+                &png,
+                Some("named .exr, but its content is PNG; read as PNG"),
+            ),
+            ("map.PNG", &png, None),
+            (
+                "map.hdr",
+                &exr,
+                Some("named .hdr, but its content is OpenEXR; read as OpenEXR"),
+            ),
+            ("map.exr", &exr, None),
+            ("map.bin", &png, None),
+        ] {
+            let path = tmp.path().join(name);
+            std::fs::write(&path, bytes).unwrap();
+            let (image, warnings) = load_with_warnings(&path).unwrap();
+            assert_eq!(image, decode(bytes, &path).unwrap());
+            assert_eq!(warnings, said.into_iter().collect::<Vec<_>>(), "{name}");
+        }
     }
 
     #[test]

@@ -96,6 +96,9 @@ pub struct LoadedLight {
     pub mapping: Option<Mapping>,
     /// NaN or infinite pixels skipped (with `skip_invalid`).
     pub skipped_pixels: usize,
+    /// What the user should hear about the files read, one line each, naming its file (an
+    /// environment map whose extension names another format than it holds).
+    pub warnings: Vec<String>,
 }
 
 /// A light from a file: light.json as written by `prt-gpu light`, or an environment map
@@ -126,10 +129,11 @@ pub fn load_with_image(
             light,
             mapping: None,
             skipped_pixels: 0,
+            warnings: Vec::new(),
         };
         return Ok((loaded, None));
     }
-    let image = envmap::load(path)?;
+    let (image, warnings) = envmap::load_with_warnings(path)?;
     let mapping =
         Mapping::resolve(mapping, image.width, image.height).map_err(|m| Error::light(path, m))?;
     let projection = project_with(&image, mapping, bands, &ProjectOptions { skip_invalid })?;
@@ -137,6 +141,7 @@ pub fn load_with_image(
         light: projection.light,
         mapping: Some(mapping),
         skipped_pixels: projection.skipped,
+        warnings: naming(path, warnings),
     };
     Ok((loaded, Some(image)))
 }
@@ -154,10 +159,13 @@ pub fn load_faces(
             paths.len()
         )));
     }
-    let images = paths
-        .iter()
-        .map(|p| envmap::load(p))
-        .collect::<Result<Vec<_>>>()?;
+    let mut images = Vec::new();
+    let mut warnings = Vec::new();
+    for path in paths {
+        let (image, said) = envmap::load_with_warnings(path)?;
+        images.push(image);
+        warnings.extend(naming(path, said));
+    }
     let faces = [
         &images[0], &images[1], &images[2], &images[3], &images[4], &images[5],
     ];
@@ -166,7 +174,15 @@ pub fn load_faces(
         light: projection.light,
         mapping: Some(Mapping::CrossHorizontal),
         skipped_pixels: projection.skipped,
+        warnings,
     })
+}
+
+fn naming(path: &Path, lines: Vec<String>) -> Vec<String> {
+    lines
+        .into_iter()
+        .map(|line| format!("{}: {line}", path.display()))
+        .collect()
 }
 
 /// The light `bake --preview` uses: a blue-white sky over a dim ground and a warm sun from

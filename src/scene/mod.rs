@@ -50,9 +50,25 @@ pub fn is_gltf(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
 }
 
+/// The UTF-8 byte-order mark some editors write at the start of a text file.
+const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// `bytes` without a leading UTF-8 byte-order mark: it says only that the text is UTF-8, so
+/// every text reader (OBJ, MTL, PLY header, glTF JSON) skips it silently.
+pub(crate) fn skip_bom(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix(UTF8_BOM).unwrap_or(bytes)
+}
+
 /// Loads a mesh file, choosing the reader by extension (`.gltf`, `.glb`, `.obj`, `.ply`,
 /// `.ply.gz`). A glTF scene comes flattened to world space; `gltf::load` keeps the document.
 pub fn load(path: &Path) -> Result<Scene> {
+    load_with_warnings(path).map(|(scene, _)| scene)
+}
+
+/// [`load`], also giving what the reader repaired in the file's values, one line each, for the
+/// caller to show (an OBJ material's diffuse colour outside [0, 1], say). What `prepare`
+/// repairs in the geometry it reports itself; a glTF scene's notes come with `gltf::load`.
+pub fn load_with_warnings(path: &Path) -> Result<(Scene, Vec<String>)> {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
@@ -64,11 +80,11 @@ pub fn load(path: &Path) -> Result<Scene> {
         ));
     }
     if name.ends_with(".obj") {
-        obj::load(path)
+        obj::load_with_warnings(path)
     } else if name.ends_with(".ply") || name.ends_with(".ply.gz") {
-        ply::load(path)
+        ply::load(path).map(|scene| (scene, Vec::new()))
     } else if is_gltf(path) {
-        gltf::load(path).map(|(_, scene)| scene)
+        gltf::load(path).map(|(_, scene)| (scene, Vec::new()))
     } else {
         Err(Error::mesh(
             path,

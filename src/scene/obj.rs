@@ -3,10 +3,14 @@
 //! Albedo comes from the diffuse colour (Kd) of each object's material. A missing or
 //! unreadable MTL file, or an object without a material, gives [`DEFAULT_ALBEDO`]: an OBJ is
 //! routinely copied without its MTL, and refusing to bake it would help no one.
+//!
+//! The text is tidied before tobj reads it, as other OBJ readers do: a UTF-8 byte-order mark
+//! is skipped, a `#` comment after a statement is dropped, and a line ending in `\` continues
+//! on the next. Its statements are then checked here, so that an error names its line.
 
-use std::fs::File;
-use std::io::BufReader;
+use std::collections::BTreeSet;
 use std::path::Path;
+use std::str::FromStr;
 
 use glam::Vec3;
 
@@ -19,7 +23,18 @@ use crate::error::{Error, Result};
 /// Normals are kept only if every object has one per vertex; otherwise `prepare` computes
 /// them for the whole mesh, so that no object is shaded differently from its neighbours.
 pub fn load(path: &Path) -> Result<Scene> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    load_with_warnings(path).map(|(scene, _)| scene)
+}
+
+/// [`load`], also giving a line for each material whose Kd had to be brought into [0, 1].
+pub fn load_with_warnings(path: &Path) -> Result<(Scene, Vec<String>)> {
+    let fail = |message: String| Error::mesh(path, format!("cannot read OBJ: {message}"));
+    let text = {
+        // The file's bytes go before tobj reads: a large OBJ is held twice at most.
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        tidy(utf8_text(&bytes).map_err(fail)?)
+    };
+    check_statements(&text).map_err(fail)?;
     let directory = path.parent().unwrap_or(Path::new("")).to_path_buf();
     let options = tobj::LoadOptions {
         triangulate: true,
@@ -29,18 +44,195 @@ pub fn load(path: &Path) -> Result<Scene> {
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, materials) = tobj::load_obj_buf(&mut BufReader::new(file), &options, |mtl_path| {
-        tobj::load_mtl(directory.join(mtl_path))
+    let (models, materials) = tobj::load_obj_buf(&mut text.text.as_bytes(), &options, |mtl_path| {
+        load_mtl(&directory.join(mtl_path))
     })
-    .map_err(|e| Error::mesh(path, format!("cannot read OBJ: {e}")))?;
-    let scene = merge_models(&models, &materials.unwrap_or_default());
+    .map_err(|e| fail(e.to_string()))?;
+    let materials = materials.unwrap_or_default();
+    let (scene, warnings) = merge_models(&models, &materials);
     if scene.triangles.is_empty() {
         return Err(Error::mesh(path, "no faces"));
     }
-    Ok(scene)
+    Ok((scene, warnings))
 }
 
-fn merge_models(models: &[tobj::Model], materials: &[tobj::Material]) -> Scene {
+/// An MTL file, tidied like the OBJ; errors as `tobj::load_mtl` gives them (an unreadable
+/// file is no material library, not a failed OBJ).
+fn load_mtl(path: &Path) -> tobj::MTLLoadResult {
+    let bytes = std::fs::read(path).map_err(|_| tobj::LoadError::OpenFileFailed)?;
+    let text = utf8_text(&bytes).map_err(|_| tobj::LoadError::ReadError)?;
+    tobj::load_mtl_buf(&mut tidy(text).text.as_bytes())
+}
+
+/// The file as UTF-8 text, without a byte-order mark.
+fn utf8_text(bytes: &[u8]) -> std::result::Result<&str, String> {
+    if bytes.starts_with(b"\xFF\xFE") || bytes.starts_with(b"\xFE\xFF") {
+        return Err("the file is UTF-16 text; save it as UTF-8".into());
+    }
+    let bytes = super::skip_bom(bytes);
+    std::str::from_utf8(bytes).map_err(|e| {
+        let line = 1 + bytes[..e.valid_up_to()]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count();
+        format!("line {line}: not UTF-8 text")
+    })
+}
+
+/// OBJ text as tobj reads it: one statement a line, without comments.
+struct Tidied {
+    text: String,
+    /// The line of the file each line of `text` starts on (1-based).
+    lines: Vec<usize>,
+}
+
+/// `text` with comments dropped (from a `#` that starts the line or follows white space, to
+/// the end of the line) and lines ending in `\` joined to the next, as the OBJ format has it.
+/// A `\` inside a comment continues nothing.
+fn tidy(text: &str) -> Tidied {
+    let mut tidied = Tidied {
+        text: String::with_capacity(text.len()),
+        lines: Vec::new(),
+    };
+    let mut continued = false;
+    for (index, line) in text.split('\n').enumerate() {
+        let line = line.strip_suffix('\r').unwrap_or(line);
+        let mut kept = without_comment(line).trim_end();
+        if !continued {
+            tidied.lines.push(index + 1);
+        }
+        continued = kept.ends_with('\\');
+        if continued {
+            kept = &kept[..kept.len() - 1];
+        }
+        tidied.text.push_str(kept);
+        tidied.text.push(if continued { ' ' } else { '\n' });
+    }
+    tidied
+}
+
+fn without_comment(line: &str) -> &str {
+    let mut previous_is_space = true;
+    for (at, c) in line.char_indices() {
+        if c == '#' && previous_is_space {
+            return &line[..at];
+        }
+        previous_is_space = c.is_whitespace();
+    }
+    line
+}
+
+/// Checks the statements tobj would refuse (numbers that do not parse, face corners that are
+/// not indices or point past the data), so that the error names the line; tobj's own checks
+/// stay behind these. A face may use vertices given after it, as tobj allows.
+fn check_statements(tidied: &Tidied) -> std::result::Result<(), String> {
+    const DATA: [&str; 3] = ["v", "vt", "vn"];
+    let mut totals = [0usize; 3];
+    for line in tidied.text.lines() {
+        let keyword = line.split_whitespace().next();
+        if let Some(kind) = DATA.iter().position(|&k| Some(k) == keyword) {
+            totals[kind] += 1;
+        }
+    }
+    let mut so_far = [0usize; 3];
+    for (line, &number) in tidied.text.lines().zip(&tidied.lines) {
+        let at = |message: String| format!("line {number}: {message}");
+        let mut words = line.split_whitespace();
+        let keyword = words.next();
+        let numbers = |n: usize, what: &str| -> std::result::Result<(), String> {
+            let read = line.split_whitespace().skip(1).take(n);
+            if read.filter(|v| f32::from_str(v).is_ok()).count() < n {
+                return Err(at(format!("{what} needs {n} numbers: '{}'", line.trim())));
+            }
+            Ok(())
+        };
+        match keyword {
+            Some("v") => {
+                numbers(3, "a vertex")?;
+                so_far[0] += 1;
+            }
+            Some("vt") => {
+                numbers(2, "a texture coordinate")?;
+                so_far[1] += 1;
+            }
+            Some("vn") => {
+                numbers(3, "a normal")?;
+                so_far[2] += 1;
+            }
+            Some(kind @ ("f" | "l")) => {
+                // Points and lines are parsed but never placed, so tobj checks no range there.
+                let is_face = kind == "f" && words.clone().count() >= 3;
+                for corner in words {
+                    let indices = corner_indices(corner).ok_or_else(|| {
+                        at(format!(
+                            "'{corner}' is not a vertex reference (v, v/vt, v//vn or v/vt/vn)"
+                        ))
+                    })?;
+                    if is_face {
+                        check_corner(indices, so_far, totals).map_err(at)?;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// The (position, texture coordinate, normal) indices of a face corner as written: zero
+/// where absent (never the position).
+fn corner_indices(corner: &str) -> Option<[i64; 3]> {
+    let mut indices = [0i64; 3];
+    if corner.starts_with('/') {
+        return None;
+    }
+    let mut parts = corner.split('/');
+    for (slot, part) in indices.iter_mut().zip(parts.by_ref()) {
+        if !part.is_empty() {
+            // tobj reads indices as isize.
+            *slot = isize::from_str(part).ok()? as i64;
+        }
+    }
+    // tobj reads past a fourth, empty part (`1/2/3/`), and refuses anything in it.
+    parts.all(str::is_empty).then_some(indices)
+}
+
+/// One corner's indices against the data: a negative index counts back from the data given
+/// so far, a positive one may reach any in the file.
+fn check_corner(
+    indices: [i64; 3],
+    so_far: [usize; 3],
+    totals: [usize; 3],
+) -> std::result::Result<(), String> {
+    const NAMES: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+    for kind in 0..3 {
+        let (index, total) = (indices[kind], totals[kind]);
+        let name = NAMES[kind];
+        // tobj ignores texture and normal indices when the file has none, and reads a 0
+        // there as no index; a 0 vertex index it refuses.
+        if kind > 0 && (total == 0 || index == 0) {
+            continue;
+        }
+        if index == 0 {
+            return Err("vertex index 0 (OBJ indices start at 1)".into());
+        }
+        if index < 0 && index.unsigned_abs() > so_far[kind] as u64 {
+            return Err(format!(
+                "{name} index {index} reaches before the first {name} ({} given so far)",
+                so_far[kind]
+            ));
+        }
+        if index > 0 && index as u64 > total as u64 {
+            return Err(format!(
+                "{name} index {index} is out of range (the file has {total})"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The models as one scene, and a warning for each material whose Kd was out of range.
+fn merge_models(models: &[tobj::Model], materials: &[tobj::Material]) -> (Scene, Vec<String>) {
     let every_model_has_normals = models
         .iter()
         .all(|m| m.mesh.normals.len() == m.mesh.positions.len());
@@ -48,14 +240,26 @@ fn merge_models(models: &[tobj::Model], materials: &[tobj::Material]) -> Scene {
         normals: every_model_has_normals.then(Vec::new),
         ..Scene::default()
     };
+    let mut repaired = BTreeSet::new();
     for model in models {
         let mesh = &model.mesh;
         // Saturating keeps an impossible overflow visible as out-of-range indices.
         let offset = u32::try_from(scene.positions.len()).unwrap_or(u32::MAX);
         scene.positions.extend(vec3s(&mesh.positions));
-        scene
-            .albedo
-            .resize(scene.positions.len(), model_albedo(mesh, materials));
+        let material = mesh
+            .material_id
+            .and_then(|id| materials.get(id).map(|m| (id, m)));
+        let albedo = match material.and_then(|(id, m)| m.diffuse.map(|kd| (id, kd))) {
+            Some((id, kd)) => {
+                let albedo = albedo_from_kd(kd);
+                if albedo.to_array() != kd {
+                    repaired.insert(id);
+                }
+                albedo
+            }
+            None => DEFAULT_ALBEDO,
+        };
+        scene.albedo.resize(scene.positions.len(), albedo);
         if let Some(normals) = scene.normals.as_mut() {
             normals.extend(vec3s(&mesh.normals));
         }
@@ -65,17 +269,30 @@ fn merge_models(models: &[tobj::Model], materials: &[tobj::Material]) -> Scene {
                 .map(|t| [t[0], t[1], t[2]].map(|i| i.saturating_add(offset))),
         );
     }
-    scene
+    let warnings = repaired
+        .into_iter()
+        .map(|id| {
+            let material = &materials[id];
+            let kd = material.diffuse.unwrap_or_default();
+            format!(
+                "material {:?}: Kd {} is outside [0, 1] or not finite; baked as {}",
+                material.name,
+                triple(kd),
+                triple(albedo_from_kd(kd).to_array())
+            )
+        })
+        .collect();
+    (scene, warnings)
 }
 
-/// Kd of the model's material, clamped to [0, 1] because albedo above 1 would create
-/// energy in the bounce passes. A NaN is left for `prepare` to reject.
-fn model_albedo(mesh: &tobj::Mesh, materials: &[tobj::Material]) -> Vec3 {
-    mesh.material_id
-        .and_then(|id| materials.get(id))
-        .and_then(|material| material.diffuse)
-        .map(|kd| Vec3::from_array(kd).clamp(Vec3::ZERO, Vec3::ONE))
-        .unwrap_or(DEFAULT_ALBEDO)
+/// Kd as albedo: clamped to [0, 1], because albedo above 1 would create energy in the bounce
+/// passes, and a NaN taken as 0 (no light reflected), because nothing better can be guessed.
+fn albedo_from_kd(kd: [f32; 3]) -> Vec3 {
+    Vec3::from_array(kd.map(|c| if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) }))
+}
+
+fn triple(values: [f32; 3]) -> String {
+    format!("({}, {}, {})", values[0], values[1], values[2])
 }
 
 fn vec3s(flat: &[f32]) -> impl Iterator<Item = Vec3> + '_ {
@@ -164,6 +381,130 @@ mod tests {
         let error = load(&path).unwrap_err();
         assert!(matches!(error, Error::Mesh { .. }));
         assert!(error.to_string().ends_with(": no faces"), "{error}");
+    }
+
+    #[test]
+    fn out_of_range_kd_is_clamped_with_a_warning_per_material_used() {
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), "colours.mtl", MTL);
+        let (scene, warnings) =
+            load_with_warnings(&write(dir.path(), "scene.obj", THREE_OBJECTS)).unwrap();
+        assert_eq!(scene.albedo[7..], [Vec3::new(1.0, 0.5, 0.0); 3]);
+        assert_eq!(
+            warnings,
+            [
+                "material \"bright\": Kd (2, 0.5, -1) is outside [0, 1] or not finite; baked as \
+              (1, 0.5, 0)"
+            ]
+        );
+        // A NaN is taken as 0; a material no face uses says nothing.
+        write(
+            dir.path(),
+            "colours.mtl",
+            "newmtl red\nKd 2 nan -1\nnewmtl unused\nKd 9 9 9\n",
+        );
+        let text = "mtllib colours.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let (scene, warnings) = load_with_warnings(&write(dir.path(), "nan.obj", text)).unwrap();
+        assert_eq!(scene.albedo, [Vec3::X; 3]);
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(warnings[0].contains("Kd (2, NaN, -1)"), "{warnings:?}");
+        assert!(warnings[0].ends_with("baked as (1, 0, 0)"), "{warnings:?}");
+    }
+
+    /// A byte-order mark, comments after statements, CRLF line ends and `\` continuations
+    /// (in the OBJ and its MTL) read as the plain file does.
+    #[test]
+    fn bom_trailing_comments_and_continuations_are_read() {
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), "colours.mtl", MTL);
+        let plain = load(&write(dir.path(), "plain.obj", THREE_OBJECTS)).unwrap();
+        let tidy_me = "\u{feff}mtllib colours.mtl # the materials\r\n\
+            v 0 0 0 # origin\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\n\
+            # a whole-line comment \\\n\
+            o plain\nf 1 5 6#not a comment, part of nothing\n\
+            o red_quad # a quad\nusemtl red\t# red\nf 1 2 \\\n  3 \\  \r\n4 # continued\n\
+            o bright\nusemtl bright\nf 5 6 7\n";
+        let tidied = load(&write(dir.path(), "tidy.obj", tidy_me));
+        // `6#not` is no comment (no white space before the #), so it is a bad index.
+        let error = tidied.unwrap_err().to_string();
+        // Line 11: the comment ending in `\` on line 9 continues nothing.
+        assert!(error.contains("line 11: '6#not'"), "{error}");
+        let tidy_me = tidy_me.replace("6#not", "6 #not");
+        assert_eq!(
+            load(&write(dir.path(), "tidy.obj", &tidy_me)).unwrap(),
+            plain
+        );
+        let mtl = format!("\u{feff}{}", MTL.replace("0.05\n", "0.05 # dark red\n"));
+        write(dir.path(), "colours.mtl", &mtl);
+        assert_eq!(
+            load(&write(dir.path(), "tidy.obj", &tidy_me)).unwrap(),
+            plain
+        );
+    }
+
+    #[test]
+    fn errors_name_the_line_of_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let head = "# three vertices\nv 0 0 0\nv 1 0 0\nv 0 1 0\n";
+        for (body, expected) in [
+            (
+                "f 1 2 4\n",
+                "line 5: vertex index 4 is out of range (the file has 3)",
+            ),
+            (
+                "f 1 \\\n2 \\\n\nf 1 2 0\n",
+                "line 8: vertex index 0 (OBJ indices start at 1)",
+            ),
+            (
+                "f -1 -2 -4\n",
+                "line 5: vertex index -4 reaches before the first vertex",
+            ),
+            ("f 1 2 x\n", "line 5: 'x' is not a vertex reference"),
+            (
+                "f 1/1/1/1 2 3\n",
+                "line 5: '1/1/1/1' is not a vertex reference",
+            ),
+            ("f 1 2 /3\n", "line 5: '/3' is not a vertex reference"),
+            (
+                "vt 0.5\nf 1 2 3\n",
+                "line 5: a texture coordinate needs 2 numbers: 'vt 0.5'",
+            ),
+            ("vn 0 0 z\n", "line 5: a normal needs 3 numbers"),
+            (
+                "vt 0 0\nf 1/2 2/1 3/1\n",
+                "line 6: texture coordinate index 2 is out of range",
+            ),
+            (
+                "vn 0 0 1\nf 1//1 2//1 3//-2\n",
+                "line 6: normal index -2 reaches before",
+            ),
+        ] {
+            let path = write(dir.path(), "bad.obj", &format!("{head}{body}"));
+            let error = load(&path).unwrap_err().to_string();
+            assert!(
+                error.ends_with(&format!("bad.obj: cannot read OBJ: {expected}"))
+                    || error.contains(&format!("cannot read OBJ: {expected}")),
+                "{body:?}: {error}"
+            );
+        }
+        // What tobj reads, these checks let through: texture and normal indices in a file
+        // that has none, a face using a vertex given after it, points and lines.
+        let fine = "f 1/7/9 2/7/9 4\nv 0 0 1\nl 1 9\np 12\n";
+        assert_eq!(
+            load(&write(dir.path(), "ok.obj", &format!("{head}{fine}")))
+                .unwrap()
+                .triangle_count(),
+            1
+        );
+        let utf16 = [b"\xFF\xFEv".as_slice(), b"\0 \x000\0"].concat();
+        std::fs::write(dir.path().join("utf16.obj"), utf16).unwrap();
+        let error = load(&dir.path().join("utf16.obj")).unwrap_err().to_string();
+        assert!(error.ends_with("UTF-16 text; save it as UTF-8"), "{error}");
+        std::fs::write(dir.path().join("latin1.obj"), b"v 0 0 0\ng caf\xE9\n").unwrap();
+        let error = load(&dir.path().join("latin1.obj"))
+            .unwrap_err()
+            .to_string();
+        assert!(error.ends_with("line 2: not UTF-8 text"), "{error}");
     }
 
     #[test]

@@ -176,7 +176,7 @@ struct Header {
 
 /// Splits the data into the parsed header and the body that follows `end_header`.
 fn parse_header(bytes: &[u8]) -> Parsed<(Header, &[u8])> {
-    let (first, mut rest) = split_line(bytes).ok_or("not a PLY file")?;
+    let (first, mut rest) = split_line(super::skip_bom(bytes)).ok_or("not a PLY file")?;
     if first.trim_ascii() != b"ply" {
         return Err("not a PLY file (it does not start with 'ply')".into());
     }
@@ -862,6 +862,15 @@ mod tests {
             "{}",
             scene.albedo[0]
         );
+    }
+
+    #[test]
+    fn a_byte_order_mark_before_the_header_is_skipped() {
+        for format in FORMATS {
+            let plain = encode(HEADER, &rows(), format);
+            let marked = [b"\xEF\xBB\xBF".as_slice(), &plain].concat();
+            assert_eq!(parse_bytes(&marked).unwrap(), parse_bytes(&plain).unwrap());
+        }
     }
 
     #[test]

@@ -109,6 +109,15 @@ fn texture_averages(
             ))
         }
     };
+    // A NaN or infinite UV would sample nothing and leave the albedo, and so the transfer,
+    // silently wrong: refused like a non-finite position.
+    if let Some(vertex) = uvs.iter().position(|uv| !uv.iter().all(|c| c.is_finite())) {
+        return Err(format!(
+            "{what} TEXCOORD_{set} is NaN or infinite at vertex {vertex} ({}, {}), so its base \
+             colour texture cannot be sampled there",
+            uvs[vertex][0], uvs[vertex][1]
+        ));
+    }
     let texture = match textures.0.entry(info.index.value()) {
         std::collections::hash_map::Entry::Occupied(known) => known.into_mut(),
         std::collections::hash_map::Entry::Vacant(slot) => {

@@ -11,6 +11,7 @@
 
 pub mod accessor;
 mod albedo;
+mod resource;
 
 use std::path::Path;
 
@@ -83,17 +84,8 @@ pub fn load(path: &Path) -> Result<(GltfScene, Scene)> {
     let fail = |message: String| Error::mesh(path, message);
     let gltf = read_document(&bytes).map_err(fail)?;
     let base = path.parent().unwrap_or(Path::new("."));
-    let buffers: Vec<Vec<u8>> = gltf::import_buffers(&gltf.document, Some(base), gltf.blob)
-        .map_err(|e| {
-            fail(format!(
-                "cannot read a buffer: {}",
-                one_line(&e.to_string())
-            ))
-        })?
-        .into_iter()
-        .map(|data| data.0)
-        .collect();
     let root = gltf.document.into_json();
+    let buffers = resource::buffers(&root, base, gltf.blob).map_err(fail)?;
     let images = encoded_images(&root, &buffers, base).map_err(fail)?;
     let mut gltf_scene = GltfScene {
         root,
@@ -109,7 +101,7 @@ pub fn load(path: &Path) -> Result<(GltfScene, Scene)> {
 /// The document, validated: references in range, no extension required that the bake
 /// cannot honour (compressed geometry names itself), no recursive node tree.
 fn read_document(bytes: &[u8]) -> std::result::Result<gltf::Gltf, String> {
-    let gltf = gltf::Gltf::from_slice_without_validation(bytes)
+    let gltf = gltf::Gltf::from_slice_without_validation(super::skip_bom(bytes))
         .map_err(|e| format!("not a readable glTF file: {}", one_line(&e.to_string())))?;
     let root = gltf.document.as_json();
     for required in &root.extensions_required {
@@ -211,7 +203,8 @@ fn encoded_images(
             let declared = image.mime_type.as_ref().map(|m| m.0.clone());
             let bytes = match (&image.buffer_view, &image.uri) {
                 (Some(view), _) => accessor::view_bytes(root, buffers, view.value())?.to_vec(),
-                (None, Some(uri)) => read_uri(uri, base)?,
+                (None, Some(uri)) => resource::read(uri, base, None)
+                    .map_err(|e| format!("cannot read image {index}: {e}"))?,
                 (None, None) => return Err(format!("image {index} has no data")),
             };
             let mime_type = declared
@@ -220,45 +213,6 @@ fn encoded_images(
             Ok(EncodedImage { bytes, mime_type })
         })
         .collect()
-}
-
-/// The bytes a URI names: a base64 `data:` URI, or a (percent-encoded) path beside the file.
-fn read_uri(uri: &str, base: &Path) -> std::result::Result<Vec<u8>, String> {
-    use base64::Engine;
-    if let Some(data) = uri.strip_prefix("data:") {
-        let (_, payload) = data
-            .split_once(";base64,")
-            .ok_or_else(|| "a data: URI that is not base64".to_string())?;
-        return base64::engine::general_purpose::STANDARD
-            .decode(payload)
-            .map_err(|e| format!("a data: URI that does not decode: {e}"));
-    }
-    let relative = percent_decode(uri);
-    let path = base.join(&relative);
-    std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))
-}
-
-fn percent_decode(text: &str) -> String {
-    let bytes = text.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        let hex = bytes
-            .get(i + 1..i + 3)
-            .and_then(|h| std::str::from_utf8(h).ok())
-            .and_then(|h| u8::from_str_radix(h, 16).ok());
-        match (bytes[i], hex) {
-            (b'%', Some(byte)) => {
-                out.push(byte);
-                i += 3;
-            }
-            (byte, _) => {
-                out.push(byte);
-                i += 1;
-            }
-        }
-    }
-    String::from_utf8_lossy(&out).into_owned()
 }
 
 fn sniff_mime_type(bytes: &[u8]) -> Option<&'static str> {
@@ -605,13 +559,6 @@ mod tests {
         );
         assert_eq!(fan_to_list(&[0, 1, 2, 3]), [[0, 1, 2], [0, 2, 3]]);
         assert!(strip_to_list(&[0, 1]).is_empty() && fan_to_list(&[]).is_empty());
-    }
-
-    #[test]
-    fn uris_are_percent_decoded() {
-        assert_eq!(percent_decode("my%20box%2Fa.bin"), "my box/a.bin");
-        assert_eq!(percent_decode("100%"), "100%");
-        assert_eq!(percent_decode("%zz"), "%zz");
     }
 
     fn nodes(children: &[&[u32]]) -> Root {

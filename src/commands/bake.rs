@@ -159,6 +159,46 @@ pub(crate) fn run_one(args: &BakeArgs, mesh: Option<PathBuf>) -> Result<()> {
     bake_one(args, &mesh, args.output.clone(), &device, None, &progress)
 }
 
+/// Where the direct pass comes from: computed here, or the merged parts' (whose fingerprint
+/// must be this mesh's and options').
+fn direct_source(
+    args: &BakeArgs,
+    options: &BakeOptions,
+    scene: &scene::Scene,
+    mesh: &Option<PathBuf>,
+    merged: Option<(PartHeader, bake::DirectPass)>,
+) -> Result<bake::DirectSource> {
+    let Some((header, direct)) = merged else {
+        return Ok(bake::DirectSource::Compute);
+    };
+    if shard::fingerprint(scene, &fingerprinted_options(args, options)) != header.fingerprint {
+        return Err(Error::Merge(format!(
+            "{} is not the mesh the parts were baked from (it changed since)",
+            mesh_shown(mesh)
+        )));
+    }
+    let ran_on = header.backend;
+    Ok(bake::DirectSource::Given { direct, ran_on })
+}
+
+/// Writes the preview; if it cannot be written, removes the bake just written (and its
+/// lightmap), since a bake is whole or not at all.
+fn write_preview_or_undo(
+    path: &Path,
+    image: &Preview,
+    output: &Path,
+    lightmap: bool,
+) -> Result<()> {
+    let written = image.write(path);
+    if written.is_err() {
+        let _ = std::fs::remove_file(output);
+        if lightmap {
+            let _ = std::fs::remove_file(lightmap_beside(output));
+        }
+    }
+    written
+}
+
 /// A bake's device, opened on first use — after the input and options are checked, so that
 /// their errors come first — and then shared by every bake of a batch.
 pub(crate) struct Device<'a> {
@@ -289,21 +329,7 @@ pub(crate) fn bake_one(
     let merged_from = merged
         .as_ref()
         .map(|(header, _)| (header.shard_count, header.backend.clone()));
-    let source = match merged {
-        None => bake::DirectSource::Compute,
-        Some((header, direct)) => {
-            if shard::fingerprint(&scene, &fingerprinted_options(args, &options))
-                != header.fingerprint
-            {
-                return Err(Error::Merge(format!(
-                    "{} is not the mesh the parts were baked from (it changed since)",
-                    mesh_shown(mesh)
-                )));
-            }
-            let ran_on = header.backend;
-            bake::DirectSource::Given { direct, ran_on }
-        }
-    };
+    let source = direct_source(args, &options, &scene, mesh, merged)?;
     let backend = backend_of(baker, args);
     let (mut baked, report) = bake::bake_from(scene, &options, &backend, source, progress)
         .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
@@ -350,14 +376,7 @@ pub(crate) fn bake_one(
     }
     let seconds_write = writing.elapsed().as_secs_f64();
     if let Some((path, image)) = preview {
-        if let Err(error) = image.write(path) {
-            // The bake is whole or not at all: without its preview, neither is left.
-            let _ = std::fs::remove_file(&output_path);
-            if baked.lightmap.is_some() {
-                let _ = std::fs::remove_file(lightmap_beside(&output_path));
-            }
-            return Err(error);
-        }
+        write_preview_or_undo(path, &image, &output_path, baked.lightmap.is_some())?;
     }
     if let Some(written) = written {
         print_in_place_report(&written, seconds_load, seconds_write);
@@ -805,16 +824,9 @@ fn print_in_place_report(written: &glb::scene::SceneWrite, seconds_load: f64, se
 /// The parts a bake was merged from: how many, and the backend they ran on.
 type MergedFrom = Option<(u32, String)>;
 
-fn print_bake_report(
-    name: &str,
-    options: &BakeOptions,
-    report: &BakeReport,
-    output: &Path,
-    merged_from: MergedFrom,
-) {
-    if let Some(repairs) = report.prepare.repairs() {
-        eprintln!("warning: {name}: {repairs}");
-    }
+/// One line for each stage that ran besides the direct pass: bounces, gather matrix, fit,
+/// error target, lightmap (written beside `output`).
+fn print_stage_lines(report: &BakeReport, output: &Path) {
     for (i, bounce) in report.bounces.iter().enumerate() {
         eprintln!(
             "bounce {}: +{:.2}% energy in {:.2} s",
@@ -871,6 +883,19 @@ fn print_bake_report(
                 .display()
         );
     }
+}
+
+fn print_bake_report(
+    name: &str,
+    options: &BakeOptions,
+    report: &BakeReport,
+    output: &Path,
+    merged_from: MergedFrom,
+) {
+    if let Some(repairs) = report.prepare.repairs() {
+        eprintln!("warning: {name}: {repairs}");
+    }
+    print_stage_lines(report, output);
     let seconds_bounces: f64 = report.bounces.iter().map(|b| b.seconds).sum();
     let seconds_texels = report.texels.map_or(0.0, |t| t.seconds);
     let seconds = report.seconds_prepare

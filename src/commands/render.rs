@@ -221,33 +221,9 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
     let baked = glb::local::read_local_glb(path)?;
     let relighter = local::Relighter::new(&baked);
     if is_glb(&args.output) {
-        if args.frames.is_some() {
-            return Err(Error::Options("--frames writes images, not .glb".into()));
-        }
-        let frame = relighter.frame(&lights, args.operator);
-        let name = local_lights::describe(&lights);
-        glb::relit::write_relit_copy(path, &args.output, &frame.total(), &name)?;
-        println!(
-            "relit {} vertices under {name} -> {}",
-            frame.direct.len(),
-            args.output.display()
-        );
-        return Ok(());
+        return write_relit_local(args, path, &relighter, &lights);
     }
-    let frames = args.frames.unwrap_or(1);
-    if frames == 0 || frames > MAX_FRAMES {
-        return Err(Error::Options(format!(
-            "--frames {frames} is out of range (1 to {MAX_FRAMES})"
-        )));
-    }
-    for f in 0..frames {
-        let frame = local::frame_path(&args.output, f, frames);
-        let output = fs::Output {
-            option: "-o",
-            path: &frame,
-        };
-        fs::check_outputs(&[output], &[path])?;
-    }
+    let frames = frame_count(args, path)?;
     let camera = args
         .camera
         .unwrap_or_else(|| Camera::framing_scene(&baked.scene));
@@ -321,6 +297,47 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
         )
     );
     Ok(())
+}
+
+/// A local-lights bake relit under `lights`, written as a copy with the radiance as COLOR_0.
+fn write_relit_local(
+    args: &RenderArgs,
+    path: &Path,
+    relighter: &local::Relighter,
+    lights: &[LocalLight],
+) -> Result<()> {
+    if args.frames.is_some() {
+        return Err(Error::Options("--frames writes images, not .glb".into()));
+    }
+    let frame = relighter.frame(lights, args.operator);
+    let name = local_lights::describe(lights);
+    glb::relit::write_relit_copy(path, &args.output, &frame.total(), &name)?;
+    println!(
+        "relit {} vertices under {name} -> {}",
+        frame.direct.len(),
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// `--frames` (1 when absent), within bounds, every frame's name checked against the bake
+/// `path` it reads.
+fn frame_count(args: &RenderArgs, path: &Path) -> Result<u32> {
+    let frames = args.frames.unwrap_or(1);
+    if frames == 0 || frames > MAX_FRAMES {
+        return Err(Error::Options(format!(
+            "--frames {frames} is out of range (1 to {MAX_FRAMES})"
+        )));
+    }
+    for f in 0..frames {
+        let frame = local::frame_path(&args.output, f, frames);
+        let output = fs::Output {
+            option: "-o",
+            path: &frame,
+        };
+        fs::check_outputs(&[output], &[path])?;
+    }
+    Ok(frames)
 }
 
 /// What `render` writes — the image or the relit copy — checked before any work: named .png,

@@ -829,6 +829,13 @@ mod tests {
         for (p, n) in prepared.positions.iter().zip(prepared.normals.unwrap()) {
             assert!(n.distance((*p - Vec3::splat(0.5)).normalize()) < 1e-6);
         }
+        assert_eq!(
+            report.repairs().as_deref(),
+            Some("repaired the mesh: non-finite or zero normals: all normals recomputed")
+        );
+        // Computing the normals a file lacks is no repair.
+        let (_, report) = prepare(unit_cube()).unwrap();
+        assert!(report.normals_computed && report.repairs().is_none());
     }
 
     #[test]

@@ -263,6 +263,20 @@ pub fn check_outputs(outputs: &[Output], inputs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
+/// One output checked before any work, as [`check_outputs`] (not one of `inputs`),
+/// [`check_extension`] (named for what the command writes) and [`check_destination`] (in a
+/// directory that exists) check it.
+pub fn check_output(
+    output: Output,
+    inputs: &[&Path],
+    extensions: &[&str],
+    what: &str,
+) -> Result<()> {
+    check_outputs(&[output], inputs)?;
+    check_extension(output, extensions, what)?;
+    check_destination(output.path).map(|_| ())
+}
+
 /// Whether `a` and `b` name the same file: the same device and inode where both exist (on
 /// unix; elsewhere the same canonical path), else the same path once the directories are
 /// resolved (`./a.obj` and `a.obj`, links to directories).

@@ -798,13 +798,17 @@ pub(crate) fn check_bake_outputs(
     fs::check_extension(glb_output, &["glb"], "a bake is written as binary glTF")?;
     fs::check_destination(output)?;
     if let Some(preview) = &args.preview {
-        render::check_image_output("--preview", preview)?;
-        fs::check_destination(preview)?;
+        check_preview(preview)?;
     }
     Ok(())
 }
 
-/// The bounces, the gather matrix and the one summary line of a finished bake.
+/// `--preview` names an image (.png or .exr) in a directory that exists.
+pub(crate) fn check_preview(preview: &Path) -> Result<()> {
+    render::check_image_output("--preview", preview)?;
+    fs::check_destination(preview).map(|_| ())
+}
+
 /// What baking a glTF scene in place did.
 fn print_in_place_report(written: &glb::scene::SceneWrite, seconds_load: f64, seconds_write: f64) {
     eprintln!(
@@ -885,6 +889,7 @@ fn print_stage_lines(report: &BakeReport, output: &Path) {
     }
 }
 
+/// A finished bake's report: what prepare repaired, a line per stage, the one summary line.
 fn print_bake_report(
     name: &str,
     options: &BakeOptions,

@@ -84,9 +84,7 @@ pub(crate) fn run_light(args: LightArgs) -> Result<()> {
         .chain(&args.faces)
         .map(PathBuf::as_path)
         .collect();
-    fs::check_outputs(&[output], &inputs)?;
-    fs::check_extension(output, &["json"], "a light is written as JSON")?;
-    fs::check_destination(&args.output)?;
+    fs::check_output(output, &inputs, &["json"], "a light is written as JSON")?;
     let mut total = ShLight::constant(bands, [0.0; 3]);
     let mut parts = Vec::new();
     if let Some(path) = &args.envmap {

@@ -3,14 +3,14 @@
 use std::path::{Path, PathBuf};
 
 use super::args::Bands;
-use super::bake::{bake_backend, load_mesh, stem, BakeArgs};
+use super::bake::{bake_backend, check_bake_outputs, load_mesh, stem, BakeArgs};
 use super::progress::BarProgress;
 use prt_gpu::bake::gpu::Chunking;
 use prt_gpu::bake::{Backend, BakeOptions, Fit, Storage};
 use prt_gpu::glb::Precision;
 use prt_gpu::local::build::OperatorShape;
 use prt_gpu::local::{self, LocalOptions};
-use prt_gpu::{fs, glb, scene, Error, Result};
+use prt_gpu::{glb, scene, Error, Result};
 
 pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
     check_local_flags(&args)?;
@@ -24,14 +24,8 @@ pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
         .output
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
-    let glb_output = fs::Output {
-        option: "-o",
-        path: &output,
-    };
-    let inputs: Vec<&Path> = args.meshes.iter().map(PathBuf::as_path).collect();
-    fs::check_outputs(&[glb_output], &inputs)?;
-    fs::check_extension(glb_output, &["glb"], "a bake is written as binary glTF")?;
-    fs::check_destination(&output)?;
+    // --lightmap and --preview are refused above, so this checks the .glb alone.
+    check_bake_outputs(&args, &args.meshes.first().cloned(), &output, &[])?;
     let scene = match args.meshes.first() {
         Some(path) => load_mesh(path)?,
         None => scene::builtin::interior_scene(),

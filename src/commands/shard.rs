@@ -8,12 +8,12 @@ use prt_gpu::bake::gpu::GpuBaker;
 use prt_gpu::bake::{self, Backend, BakeOptions, Mode};
 use prt_gpu::device::{self, DeviceChoice};
 use prt_gpu::shard::{self, Part};
-use prt_gpu::{fs, render, scene, Error, Result};
+use prt_gpu::{fs, scene, Error, Result};
 
 use super::bake::{
     backend_of, bake_backend, bake_name, bake_one, bake_options, check_chunking,
-    check_output_forms, fingerprinted_options, load_bake_input, mesh_shown, naming_the_mesh,
-    note_samples_rounded, BakeArgs, Device,
+    check_output_forms, check_preview, fingerprinted_options, load_bake_input, mesh_shown,
+    naming_the_mesh, note_samples_rounded, BakeArgs, Device,
 };
 use super::progress::BarProgress;
 use crate::{Cli, Command};
@@ -105,14 +105,12 @@ fn check_part_output(mesh: &Option<PathBuf>, output: &Path) -> Result<()> {
         path: output,
     };
     let inputs: Vec<&Path> = mesh.iter().map(PathBuf::as_path).collect();
-    fs::check_outputs(&[part], &inputs)?;
-    fs::check_extension(
+    fs::check_output(
         part,
+        &inputs,
         &[shard::PART_EXTENSION],
         "a shard is written as a part file for `prt-gpu merge`",
-    )?;
-    fs::check_destination(output)?;
-    Ok(())
+    )
 }
 
 /// `merge`: the parts checked and joined, then the rest of the bake their command asks for.
@@ -189,8 +187,7 @@ fn check_merge_outputs(args: &MergeArgs) -> Result<()> {
         fs::check_destination(output)?;
     }
     if let Some(preview) = &args.preview {
-        render::check_image_output("--preview", preview)?;
-        fs::check_destination(preview)?;
+        check_preview(preview)?;
     }
     Ok(())
 }

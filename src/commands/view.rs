@@ -177,10 +177,7 @@ fn check_page_output(
         path: output,
     };
     let inputs: Vec<&Path> = baked.iter().map(PathBuf::as_path).chain(light).collect();
-    fs::check_outputs(&[page], &inputs)?;
-    fs::check_extension(page, extensions, what)?;
-    fs::check_destination(output)?;
-    Ok(())
+    fs::check_output(page, &inputs, extensions, what)
 }
 
 /// The file name the page lists a bake by.

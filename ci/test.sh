@@ -5,7 +5,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 need_packages=()
-for package in mesa-vulkan-drivers libvulkan1; do
+# libllvm19: Dr.Jit's LLVM backend, so the Mitsuba oracle (tests/oracle_*.rs) runs vectorised.
+for package in mesa-vulkan-drivers libvulkan1 libllvm19; do
     dpkg -s "$package" >/dev/null 2>&1 || need_packages+=("$package")
 done
 # Headless Chromium shows the web viewer and, with X_ITE, the X3D export (tests/viewer.rs).
@@ -47,6 +48,18 @@ if ! python3 -c "import yaml" >/dev/null 2>&1; then
     python3 -m pip install --quiet --disable-pip-version-check pyyaml \
         || python3 -m pip install --quiet --disable-pip-version-check --break-system-packages pyyaml \
         || echo "ci/test.sh: PyYAML not installed" >&2
+fi
+
+# The independent oracle of the accuracy tests (tests/oracle_*.rs, src/testing/oracle.rs):
+# Mitsuba 3's path tracer, pinned with its Dr.Jit.
+if ! python3 -c "import mitsuba, drjit; assert mitsuba.__version__ == '3.9.1'" >/dev/null 2>&1; then
+    python3 -m pip install --quiet --disable-pip-version-check mitsuba==3.9.1 drjit==1.5.0 \
+        || python3 -m pip install --quiet --disable-pip-version-check --break-system-packages \
+            mitsuba==3.9.1 drjit==1.5.0 \
+        || echo "ci/test.sh: Mitsuba (Python) not installed" >&2
+fi
+if [ -z "${DRJIT_LIBLLVM_PATH:-}" ] && [ -e /usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 ]; then
+    export DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1
 fi
 
 # A one-node Slurm cluster for tests/slurm.rs (root only: it starts munged, slurmctld, slurmd).

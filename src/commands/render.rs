@@ -11,7 +11,7 @@ use prt_gpu::bake::gpu::GpuBaker;
 use prt_gpu::device::DeviceChoice;
 use prt_gpu::light::{self, Mapping};
 use prt_gpu::local::lights::{self as local_lights, LocalLight};
-use prt_gpu::local::{self, OperatorForm};
+use prt_gpu::local::{self, OperatorForm, Shadows};
 use prt_gpu::render::{self, Camera, ToneMap};
 use prt_gpu::{fs, glb, Error, Result};
 
@@ -74,6 +74,11 @@ pub(crate) struct RenderArgs {
     /// Local-lights bakes: the direct-to-indirect operator the images use.
     #[arg(long, value_enum, default_value_t = OperatorForm::Compressed)]
     pub(crate) operator: OperatorForm,
+    /// Local-lights bakes: how the direct light finds its shadows. `rays`: a shadow ray per
+    /// vertex and light (exact); `depth-maps`: the bake's compressed depth maps (no ray
+    /// tracing, shadow edges blurred over a map cell). Default: rays.
+    #[arg(long, value_enum, value_name = "rays|depth-maps")]
+    pub(crate) shadows: Option<Shadows>,
     /// Output: an image, .png (tone-mapped sRGB) or .exr (linear HDR); or .glb: a copy of the
     /// (one) baked file with each vertex's relit radiance as its COLOR_0.
     #[arg(short, long, default_value = "preview.png")]
@@ -91,10 +96,11 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
         || !args.spot_light.is_empty()
         || args.frames.is_some()
         || args.orbit.is_some()
+        || args.shadows.is_some()
         || args.device != DeviceChoice::Auto;
     if local_only {
         return Err(Error::Options(
-            "--point-light, --spot-light, --frames, --orbit and --device relight one \
+            "--point-light, --spot-light, --frames, --orbit, --shadows and --device relight one \
              local-lights bake (bake --mode local); a distant-light render rasterizes on \
              --adapter"
                 .into(),
@@ -196,11 +202,12 @@ fn write_relit_distant(args: &RenderArgs) -> Result<()> {
         Some(cpca) => render::apply_albedo(&baked, cpca.relight(&light)?),
         None => render::relight_baked(&baked, &light)?,
     };
-    glb::relit::write_relit_copy(path, &args.output, &radiance, &name)?;
+    let scale = glb::relit::write_relit_copy(path, &args.output, &radiance, &name)?;
     println!(
-        "relit {} vertices under {name} -> {} (COLOR_0 = exit radiance)",
+        "relit {} vertices under {name} -> {} ({})",
         radiance.len(),
-        args.output.display()
+        args.output.display(),
+        relit_attributes(scale)
     );
     Ok(())
 }
@@ -219,7 +226,7 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
     }
     let lights = parsed_lights(args)?;
     let baked = glb::local::read_local_glb(path)?;
-    let relighter = local::Relighter::new(&baked);
+    let relighter = local::Relighter::with_shadows(&baked, args.shadows.unwrap_or_default());
     if is_glb(&args.output) {
         return write_relit_local(args, path, &relighter, &lights);
     }
@@ -293,6 +300,7 @@ fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
         "{}",
         timing.report(
             baked.scene.positions.len(),
+            relighter.shadows(),
             gpu.as_ref().map(|g| g.context.adapter.label())
         )
     );
@@ -311,13 +319,30 @@ fn write_relit_local(
     }
     let frame = relighter.frame(lights, args.operator);
     let name = local_lights::describe(lights);
-    glb::relit::write_relit_copy(path, &args.output, &frame.total(), &name)?;
+    let scale = glb::relit::write_relit_copy(path, &args.output, &frame.total(), &name)?;
+    let shadows = match relighter.shadows() {
+        Shadows::Rays => "shadow rays",
+        Shadows::DepthMaps => "depth maps",
+    };
     println!(
-        "relit {} vertices under {name} -> {}",
+        "relit {} vertices under {name}, {} operator, shadows by {shadows} -> {} ({})",
         frame.direct.len(),
-        args.output.display()
+        match args.operator {
+            OperatorForm::Compressed => "compressed",
+            OperatorForm::Sparse => "sparse",
+        },
+        args.output.display(),
+        relit_attributes(scale)
     );
     Ok(())
+}
+
+/// What a relit copy's colours hold, for the line that reports it.
+fn relit_attributes(scale: f32) -> String {
+    format!(
+        "{} = exit radiance; COLOR_0 = exit radiance / {scale} (extras.prt.relit.scale)",
+        glb::relit::RADIANCE_ATTRIBUTE
+    )
 }
 
 /// `--frames` (1 when absent), within bounds, every frame's name checked against the bake

@@ -5,9 +5,12 @@
 //! can be compared with another renderer number for number.
 //!
 //! glTF keeps float colours in [0, 1] (the Khronos validator reports anything else as an
-//! error), so the radiance is divided by `extras.prt.relit.scale`, the largest component
-//! where that exceeds 1 (else 1): radiance = `COLOR_0 * scale`. Negative values (a
-//! compressed operator's ringing in the dark) are stored as 0.
+//! error), so `COLOR_0` holds the radiance divided by `extras.prt.relit.scale`, the largest
+//! component where that exceeds 1 (else 1), negative values (a compressed operator's ringing
+//! in the dark) as 0. The radiance itself, unscaled and as computed, is the float `VEC3`
+//! attribute `_RADIANCE` (an application-specific attribute, which viewers ignore): read that
+//! to compare with another renderer. (A scale easy to miss once made a relit interior look
+//! 31% and 61% too dark against a path tracer.)
 
 use std::path::Path;
 
@@ -19,14 +22,21 @@ use crate::fs::{check_destination, write_atomically};
 pub const RELIT_COLOR: &str =
     "relit exit radiance / scale, linear RGB, negative values as 0 (was the albedo)";
 
-/// The baked file `bytes` with `COLOR_0` replaced by `radiance` (one per vertex) and
-/// `extras.prt.relit = {color_0, light}`.
+/// The attribute that holds the relit radiance unscaled.
+pub const RADIANCE_ATTRIBUTE: &str = "_RADIANCE";
+
+/// `extras.prt.relit.radiance`: what [`RADIANCE_ATTRIBUTE`] holds.
+pub const RELIT_RADIANCE: &str = "relit exit radiance, linear RGB, unscaled (W/(m^2 sr))";
+
+/// The baked file `bytes` with `COLOR_0` replaced by `radiance / scale` (one per vertex),
+/// `radiance` itself added as [`RADIANCE_ATTRIBUTE`], and `extras.prt.relit = {color_0,
+/// scale, radiance, light}`; and the scale.
 pub fn with_relit_colors(
     bytes: &[u8],
     path: &Path,
     radiance: &[[f32; 3]],
     light: &str,
-) -> Result<Vec<u8>> {
+) -> Result<(Vec<u8>, f32)> {
     let damaged = |message: String| Error::baked(path, message);
     let (json, bin) = split_chunks(bytes, path)?;
     let mut bin = bin.to_vec();
@@ -52,11 +62,58 @@ pub fn with_relit_colors(
         .ok_or_else(|| damaged("no extras.prt: not a baked file".into()))?;
     prt.insert(
         "relit".into(),
-        serde_json::json!({ "color_0": RELIT_COLOR, "scale": scale, "light": light }),
+        serde_json::json!({
+            "color_0": RELIT_COLOR,
+            "scale": scale,
+            "radiance": RELIT_RADIANCE,
+            "light": light,
+        }),
     );
+    append_radiance(&mut doc, &mut bin, radiance).map_err(damaged)?;
     let json = serde_json::to_vec(&doc)
         .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))?;
-    glb_container(json, bin)
+    Ok((glb_container(json, bin)?, scale))
+}
+
+/// Appends `radiance` to the BIN chunk as a new buffer view and float `VEC3` accessor, the
+/// first primitive's [`RADIANCE_ATTRIBUTE`].
+fn append_radiance(
+    doc: &mut serde_json::Value,
+    bin: &mut Vec<u8>,
+    radiance: &[[f32; 3]],
+) -> std::result::Result<(), String> {
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let offset = bin.len();
+    bin.extend(radiance.iter().flatten().flat_map(|x| x.to_le_bytes()));
+    let mut push = |array: &str, item: serde_json::Value| -> std::result::Result<usize, String> {
+        let list = doc
+            .get_mut(array)
+            .and_then(|a| a.as_array_mut())
+            .ok_or(format!("the file has no {array}"))?;
+        list.push(item);
+        Ok(list.len() - 1)
+    };
+    let view = push(
+        "bufferViews",
+        serde_json::json!({"buffer": 0, "byteOffset": offset, "byteLength": 12 * radiance.len()}),
+    )?;
+    let accessor = push(
+        "accessors",
+        serde_json::json!({
+            "bufferView": view, "componentType": FLOAT, "count": radiance.len(), "type": "VEC3"
+        }),
+    )?;
+    let attributes = doc
+        .pointer_mut("/meshes/0/primitives/0/attributes")
+        .and_then(|a| a.as_object_mut())
+        .ok_or("the file has no primitive attributes")?;
+    attributes.insert(RADIANCE_ATTRIBUTE.into(), accessor.into());
+    let buffer = doc
+        .pointer_mut("/buffers/0")
+        .and_then(|b| b.as_object_mut())
+        .ok_or("the file has no buffer")?;
+    buffer.insert("byteLength".into(), bin.len().into());
+    Ok(())
 }
 
 /// The BIN byte range of the first primitive's `COLOR_0`, which must be tightly packed float
@@ -97,16 +154,19 @@ fn color_range(
     Ok(start..start + 12 * vertices)
 }
 
-/// Writes [`with_relit_colors`] of the file at `source` to `output`, atomically.
+/// Writes [`with_relit_colors`] of the file at `source` to `output`, atomically; gives the
+/// scale `COLOR_0` was divided by.
 pub fn write_relit_copy(
     source: &Path,
     output: &Path,
     radiance: &[[f32; 3]],
     light: &str,
-) -> Result<()> {
+) -> Result<f32> {
     check_destination(output)?;
     let bytes = std::fs::read(source).map_err(|e| Error::io(source, e))?;
-    write_atomically(output, &with_relit_colors(&bytes, source, radiance, light)?)
+    let (relit, scale) = with_relit_colors(&bytes, source, radiance, light)?;
+    write_atomically(output, &relit)?;
+    Ok(scale)
 }
 
 #[cfg(test)]
@@ -155,7 +215,30 @@ mod tests {
         let (bytes, v) = baked_bytes();
         let mut radiance = vec![[0.25f32, 0.5, 0.75]; v];
         radiance[1] = [4.0, -1.0, 2.0];
-        let relit = with_relit_colors(&bytes, Path::new("a.glb"), &radiance, "test").unwrap();
+        let (relit, scale) =
+            with_relit_colors(&bytes, Path::new("a.glb"), &radiance, "test").unwrap();
+        assert_eq!(scale, 4.0);
+        // The radiance itself, unscaled and negative values kept, as _RADIANCE.
+        let (json, bin) = split_chunks(&relit, Path::new("a.glb")).unwrap();
+        let doc: serde_json::Value = serde_json::from_slice(json).unwrap();
+        let accessor = &doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]
+            [RADIANCE_ATTRIBUTE]
+            .as_u64()
+            .unwrap() as usize];
+        let view = &doc["bufferViews"][accessor["bufferView"].as_u64().unwrap() as usize];
+        let start = view["byteOffset"].as_u64().unwrap() as usize;
+        let stored: Vec<f32> = bin[start..start + 12 * v]
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+            .collect();
+        assert_eq!(
+            stored,
+            radiance.iter().flatten().copied().collect::<Vec<_>>()
+        );
+        assert_eq!(
+            doc["buffers"][0]["byteLength"].as_u64(),
+            Some(bin.len() as u64)
+        );
         let back = super::super::decode_glb(&relit, Path::new("a.glb")).unwrap();
         let original = super::super::decode_glb(&bytes, Path::new("a.glb")).unwrap();
         assert_eq!(back.transfer, original.transfer);

@@ -36,7 +36,9 @@ use crate::scene::Scene;
 use crate::sh::ShTable;
 use build::{build_compressed, OperatorShape, SparseOperator};
 use depth::{depth_maps_cpu, DepthLookup, DepthMaps, DirectionGrid};
-use lights::{direct_radiance, irradiance_from_depth, LocalLight, ReceiverFrames};
+use lights::{
+    direct_radiance, irradiance_by_shadow_rays, irradiance_from_depth, LocalLight, ReceiverFrames,
+};
 use operator::{sparse_indirect, CompressedOperator};
 
 /// What a local-lights bake is asked for.
@@ -45,7 +47,8 @@ pub struct LocalOptions {
     /// Cosine-distributed gather rays per receiver (the gather matrix's samples).
     pub samples: u32,
     pub seed: u64,
-    /// Bounces of the direct-to-indirect operator (indirect light after 1 to B bounces).
+    /// Bounces of the direct-to-indirect operator (indirect light after 1 to B bounces; 0:
+    /// direct light alone).
     pub bounces: u32,
     /// Depth-map directions per side: `side^2` per receiver.
     pub grid_side: u32,
@@ -84,9 +87,9 @@ impl LocalOptions {
         if !(1..=crate::sampling::MAX_SAMPLES).contains(&self.samples) {
             return refuse(format!("--samples {} is out of range", self.samples));
         }
-        if self.bounces == 0 || self.bounces > bake::MAX_BOUNCES {
+        if self.bounces > bake::MAX_BOUNCES {
             return refuse(format!(
-                "--bounces {} is out of range for local lights (1 to {})",
+                "--bounces {} is out of range for local lights (0 to {})",
                 self.bounces,
                 bake::MAX_BOUNCES
             ));
@@ -520,11 +523,25 @@ pub enum OperatorForm {
     Sparse,
 }
 
+/// How a frame's direct light finds its shadows.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Shadows {
+    /// One shadow ray per receiver and light through the scene's BVH: exact (within float
+    /// rounding of the path tracer's shadows), a few milliseconds a frame on the CPU.
+    #[default]
+    Rays,
+    /// The compressed depth maps, as the paper's run time (no ray tracing): shadow edges are
+    /// blurred over a cell of the maps' grid, so the direct term is off near every one.
+    DepthMaps,
+}
+
 /// The run time: what a frame needs besides the lights, worked out once.
 pub struct Relighter<'a> {
     pub bake: &'a LocalBake,
     pub origins: Vec<Vec3>,
     pub frames: Vec<[Vec3; 3]>,
+    /// The scene's BVH, for shadow rays (`None` when the depth maps give the shadows).
+    bvh: Option<Bvh>,
 }
 
 /// One frame's radiance, RGB per receiver.
@@ -547,7 +564,12 @@ impl Frame {
 }
 
 impl<'a> Relighter<'a> {
+    /// The run time with exact shadows ([`Shadows::Rays`]).
     pub fn new(bake: &'a LocalBake) -> Self {
+        Self::with_shadows(bake, Shadows::Rays)
+    }
+
+    pub fn with_shadows(bake: &'a LocalBake, shadows: Shadows) -> Self {
         let normals = bake.scene.normals.as_deref().unwrap_or_default();
         let extent = scene_extent(&bake.scene.positions);
         let origins = bake
@@ -558,10 +580,20 @@ impl<'a> Relighter<'a> {
             .map(|(&p, &n)| offset_ray_origin(p, n, extent))
             .collect();
         let frames = normals.iter().map(|&n| tangent_frame(n)).collect();
+        let bvh = (shadows == Shadows::Rays)
+            .then(|| Bvh::build(&bake.scene.positions, &bake.scene.triangles));
         Relighter {
             bake,
             origins,
             frames,
+            bvh,
+        }
+    }
+
+    pub fn shadows(&self) -> Shadows {
+        match self.bvh {
+            Some(_) => Shadows::Rays,
+            None => Shadows::DepthMaps,
         }
     }
 
@@ -574,14 +606,17 @@ impl<'a> Relighter<'a> {
         }
     }
 
-    /// Irradiance per receiver, visibility from the compressed depth maps.
+    /// Irradiance per receiver, visibility by shadow rays or from the compressed depth maps.
     pub fn irradiance(&self, lights: &[LocalLight]) -> Vec<f32> {
-        irradiance_from_depth(
-            &self.receiver_frames(),
-            &self.bake.depth,
-            &self.bake.grid,
-            lights,
-        )
+        match &self.bvh {
+            Some(bvh) => irradiance_by_shadow_rays(&self.receiver_frames(), bvh, lights),
+            None => irradiance_from_depth(
+                &self.receiver_frames(),
+                &self.bake.depth,
+                &self.bake.grid,
+                lights,
+            ),
+        }
     }
 
     /// Direct and indirect radiance for `lights` with the chosen operator.
@@ -662,7 +697,7 @@ impl<'b> GpuPaths<'b> {
 /// Per-frame relighting times, seconds, one entry per frame.
 #[derive(Clone, Debug, Default)]
 pub struct FrameTimes {
-    /// Irradiance from the compressed depth maps (shared by every operator).
+    /// Irradiance, by shadow rays or from the depth maps (shared by every operator).
     pub irradiance: Vec<f64>,
     /// Irradiance, direct radiance and the compressed operator.
     pub compressed: Vec<f64>,
@@ -683,13 +718,19 @@ fn mean_and_max_ms(times: &[f64]) -> (f64, f64) {
 
 impl FrameTimes {
     /// One line: mean and worst milliseconds per frame of each path.
-    pub fn report(&self, receivers: usize, gpu: Option<String>) -> String {
+    pub fn report(&self, receivers: usize, shadows: Shadows, gpu: Option<String>) -> String {
         let part = |name: &str, times: &[f64]| {
             let (mean, max) = mean_and_max_ms(times);
             format!("{name} {mean:.2} ms (max {max:.2})")
         };
         let mut parts = vec![
-            part("irradiance from the depth maps", &self.irradiance),
+            part(
+                match shadows {
+                    Shadows::Rays => "irradiance by shadow rays",
+                    Shadows::DepthMaps => "irradiance from the depth maps",
+                },
+                &self.irradiance,
+            ),
             part("+ compressed operator", &self.compressed),
             part("+ sparse operator", &self.sparse),
         ];

@@ -6,6 +6,8 @@
 use std::path::Path;
 use std::process::Command;
 
+pub mod oracle;
+
 /// The names in `dir`, sorted: what a test left behind (no partial or temporary files).
 pub fn entries(dir: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(dir)
@@ -217,8 +219,8 @@ pub fn report_element(dom: &str) -> Option<&str> {
     Some(&dom[text_start..text_end])
 }
 
-/// A directory of its own for one Chromium run, removed afterwards (the library cannot use
-/// the tests' `tempfile`).
+/// A directory of its own for one run of an outside tool (Chromium, the oracle), removed
+/// afterwards (the library cannot use the tests' `tempfile`).
 struct Scratch(std::path::PathBuf);
 
 impl Scratch {
@@ -226,7 +228,7 @@ impl Scratch {
         use std::sync::atomic::{AtomicUsize, Ordering};
         static NEXT: AtomicUsize = AtomicUsize::new(0);
         let dir = std::env::temp_dir().join(format!(
-            "prt-gpu-chromium-{}-{}",
+            "prt-gpu-scratch-{}-{}",
             std::process::id(),
             NEXT.fetch_add(1, Ordering::Relaxed)
         ));

@@ -1,0 +1,550 @@
+//! The distant-light bake against an independent path tracer: Mitsuba 3 (`testing::oracle`).
+//!
+//! The light is a band-limited sky of 3 bands, `L(w) = sum_k c_k y_k(w)` in the baker's SH
+//! convention, which the oracle renders as a lat-long environment map. A bake of 4 bands holds
+//! every band the sky has, so relit transfer `sum_k c_k t_k` is exact in the bands and whatever
+//! differs from the path tracer is the baker's (or noise): shadowed transfer against direct
+//! light only, interreflected transfer against two bounces, and least-squares vertices
+//! interpolated at random surface points against the path tracer at those points.
+//!
+//! Tolerances come from the statistics, not from trial: the oracle's standard error (its own
+//! share of the RMS, as `oracle::relative_rms` gives it), the baker's sampling error (from two
+//! bakes with different seeds: the RMS of their difference over sqrt 2 is one bake's noise),
+//! combined in quadrature and multiplied by [`SIGMAS`]; and, for interpolated vertex values
+//! only, the representation's own error, measured and explained where it is used.
+//!
+//! Where Mitsuba is missing, `oracle::path_trace` says so and each test returns (under CI it
+//! panics instead).
+
+use glam::{DVec3, Vec3};
+use prt_gpu::bake::{bake, bake_at, Backend, BakeOptions, Fit, Mode, NoProgress, Transfer};
+use prt_gpu::receivers::{self, Receivers};
+use prt_gpu::scene::{builtin, prepare::prepare, Scene};
+use prt_gpu::testing::oracle::{self, OracleLight, OracleRadiance, SurfacePoint};
+
+/// The multiplier of the combined standard error that a comparison may reach. The RMS of
+/// independent noise over hundreds of points (N values, three channels each) is itself nearly
+/// exact (its relative spread is about `sqrt(1 / 2N)`, 2% for 384 points), so an exact baker
+/// reads close to 1 sigma; 3 leaves room for that spread many times over, and lets a bias through only up to `sqrt(3^2 - 1)` = 2.8 sigma,
+/// which is why the sample counts below keep sigma small.
+const SIGMAS: f64 = 3.0;
+
+/// Every how many-th measurable vertex is measured, and the oracle's paths per point: the
+/// oracle's noise falls as one over the root of the paths, and its time grows with points
+/// times paths, so fewer points with more paths each give a tighter tolerance in the same time.
+const VERTEX_STRIDE: usize = 16;
+const PATHS: u32 = 8192;
+const PATHS_BOUNCED: u32 = 8192;
+/// Surface points drawn for the least-squares test (a few are left out, see
+/// [`held_out_points`]).
+const HELD_OUT: usize = 400;
+
+/// The sky: 9 RGB coefficients, index `l(l+1) + m`. With `y_1,-1 = -0.4886 y`, a negative
+/// `c_1` makes it brighter from above (+Y, up); every other coefficient is non-zero and differs
+/// between the channels, so that each of the 9 transfer coefficients of each channel counts.
+/// Positive everywhere (checked in [`sky`]): about 1.7 at the zenith, 0.2 at the nadir, its
+/// least 0.13, 0.026 and 0.11 (red, green, blue).
+const SKY: [[f32; 3]; 9] = [
+    [3.0, 2.7, 2.4],
+    [-1.6, -1.5, -1.2],
+    [0.3, -0.2, 0.1],
+    [-0.25, 0.15, 0.3],
+    [0.2, -0.1, 0.15],
+    [-0.3, -0.2, 0.25],
+    [0.25, 0.3, -0.2],
+    [0.1, -0.25, 0.2],
+    [-0.35, -0.3, -0.25],
+];
+
+/// The sky's coefficients, and the oracle's light, after checking that the sky is positive
+/// (over 10,000 Fibonacci directions, with the baker's basis): a proper density for the path
+/// tracer's importance sampling of the map.
+fn sky() -> (Vec<Vec3>, OracleLight) {
+    let coefficients: Vec<Vec3> = SKY.iter().map(|&c| Vec3::from(c)).collect();
+    let n = 10_000;
+    let least = (0..n)
+        .map(|i| {
+            let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
+            let phi = i as f64 * std::f64::consts::PI * (3.0 - 5f64.sqrt());
+            let r = (1.0 - z * z).sqrt();
+            let y = prt_gpu::sh::basis(3, DVec3::new(r * phi.cos(), r * phi.sin(), z));
+            coefficients
+                .iter()
+                .zip(&y)
+                .map(|(c, &y)| c.as_dvec3() * y)
+                .sum::<DVec3>()
+                .min_element()
+        })
+        .fold(f64::INFINITY, f64::min);
+    assert!(least > 0.0, "the sky dips to {least}");
+    let light = OracleLight::Sky {
+        bands: 3,
+        coefficients: coefficients.clone(),
+    };
+    (coefficients, light)
+}
+
+/// Exit radiance of receiver `r` under the sky: per channel `sum_k c_k t_k`. The transfer is
+/// RGB with the albedo in it (`bake::tint_by_albedo`; the default `Storage::Rgb`), and has more
+/// bands than the sky, whose coefficients past its own bands are zero.
+fn relight(transfer: &Transfer, r: usize, sky: &[Vec3]) -> Vec3 {
+    assert_eq!(transfer.channels, 3, "RGB transfer, albedo included");
+    assert!(transfer.coeffs_per_channel() >= sky.len());
+    let channel = |c: usize| -> f32 {
+        let t = transfer.vertex_channel(r, c);
+        sky.iter().zip(t).map(|(l, t)| l[c] * t).sum()
+    };
+    Vec3::new(channel(0), channel(1), channel(2))
+}
+
+/// The built-in scene, prepared (welded, Morton-ordered, normals computed): the geometry both
+/// the baker and the oracle see.
+fn scene() -> Scene {
+    prepare(builtin::default_scene()).unwrap().0
+}
+
+/// A CPU bake of the built-in scene, checked to be of the prepared `scene` the oracle is given,
+/// vertex for vertex (the bake prepares its input itself; preparing twice would reorder it).
+fn bake_with(scene: &Scene, options: &BakeOptions) -> Transfer {
+    let input = builtin::default_scene();
+    let (baked, _) = bake(input, options, &Backend::Cpu, &NoProgress).unwrap();
+    assert!(
+        baked.scene == *scene,
+        "the bake's prepared scene is not the oracle's"
+    );
+    baked.transfer
+}
+
+/// Every `stride`-th of the vertices `oracle::measurable_vertices` keeps (no crease within 10
+/// degrees, no contact with another triangle): a rule of geometry alone.
+fn measured_vertices(scene: &Scene, stride: usize) -> Vec<usize> {
+    let keep = oracle::measurable_vertices(scene, 10.0);
+    let kept: Vec<usize> = (0..scene.vertex_count()).filter(|&v| keep[v]).collect();
+    println!(
+        "measurable vertices: {} of {} ({} left out), every {stride}th measured: {}",
+        kept.len(),
+        keep.len(),
+        keep.len() - kept.len(),
+        kept.len().div_ceil(stride)
+    );
+    kept.into_iter().step_by(stride).collect()
+}
+
+/// What a comparison measured, each relative to the RMS of the oracle's radiance.
+struct Figures {
+    /// RMS of ours minus the oracle's.
+    error: f64,
+    /// The oracle's standard error (RMS over the points).
+    oracle_noise: f64,
+    /// One bake's sampling error, from two seeds.
+    bake_noise: f64,
+}
+
+impl Figures {
+    /// `ours` (seed 1) and `again` (another seed) against the oracle at the same points.
+    fn of(ours: &[Vec3], again: &[Vec3], oracle: &OracleRadiance) -> Figures {
+        let keep = vec![true; ours.len()];
+        let (error, oracle_noise) = oracle::relative_rms(ours, oracle, &keep);
+        let norm: f64 = oracle
+            .radiance
+            .iter()
+            .map(|r| r.length_squared() as f64)
+            .sum();
+        let spread: f64 = ours
+            .iter()
+            .zip(again)
+            .map(|(a, b)| (*a - *b).length_squared() as f64)
+            .sum();
+        Figures {
+            error,
+            oracle_noise,
+            bake_noise: (spread / 2.0 / norm).sqrt(),
+        }
+    }
+
+    /// The combined standard error of ours minus the oracle's.
+    fn sigma(&self) -> f64 {
+        self.oracle_noise.hypot(self.bake_noise)
+    }
+
+    /// What the error would read with the noise taken out (zero where the noise explains it all).
+    fn excess(&self) -> f64 {
+        (self.error.powi(2) - self.sigma().powi(2)).max(0.0).sqrt()
+    }
+
+    fn print(&self, what: &str, tolerance: f64) {
+        println!(
+            "{what}: error {:.4}, oracle noise {:.4}, bake noise {:.4}, combined sigma {:.4}, \
+             excess over the noise {:.4}, tolerance {tolerance:.4}",
+            self.error,
+            self.oracle_noise,
+            self.bake_noise,
+            self.sigma(),
+            self.excess()
+        );
+        // One row of docs/accuracy.md (ci/accuracy.sh collects them).
+        println!(
+            "accuracy-row | distant light, built-in scene: {what} | {:.2}% | {:.2}% | bake noise \
+             {:.2}%; bound {:.2}% (3 sigma) |",
+            100.0 * self.error,
+            100.0 * self.oracle_noise,
+            100.0 * self.bake_noise,
+            100.0 * tolerance
+        );
+    }
+}
+
+/// The oracle's radiance at `points`, or `None` (printed) where Mitsuba is missing.
+fn path_trace(
+    scene: &Scene,
+    points: &[SurfacePoint],
+    light: &OracleLight,
+    bounces: u32,
+    paths: u32,
+) -> Option<OracleRadiance> {
+    let Some(traced) = oracle::path_trace(scene, points, light, bounces, paths) else {
+        println!("skipping: the Mitsuba oracle is not available");
+        return None;
+    };
+    println!(
+        "oracle: {} points, {paths} paths each, {bounces} bounces, {:.1} s ({})",
+        points.len(),
+        traced.seconds,
+        traced.variant
+    );
+    Some(traced)
+}
+
+/// The relit vertices of `measured` from a CPU bake with `options`, seed 1 and seed 2.
+fn relit_vertices(
+    scene: &Scene,
+    measured: &[usize],
+    sky: &[Vec3],
+    options: &BakeOptions,
+) -> (Vec<Vec3>, Vec<Vec3>) {
+    let relit = |seed| {
+        let transfer = bake_with(
+            scene,
+            &BakeOptions {
+                seed,
+                ..options.clone()
+            },
+        );
+        measured
+            .iter()
+            .map(|&v| relight(&transfer, v, sky))
+            .collect::<Vec<Vec3>>()
+    };
+    (relit(1), relit(2))
+}
+
+/// The measured vertices as the oracle's points: each on the first face that uses it.
+fn oracle_points(scene: &Scene, measured: &[usize]) -> Vec<SurfacePoint> {
+    let all = oracle::vertex_points(scene);
+    assert_eq!(all.len(), scene.vertex_count());
+    measured.iter().map(|&v| all[v]).collect()
+}
+
+/// Shadowed transfer, 4 bands, direct light only: exact in the bands, so the relit vertices
+/// differ from the path tracer by noise alone.
+#[test]
+fn shadowed_vertices_match_the_path_tracer() {
+    let scene = scene();
+    let (sky, light) = sky();
+    let measured = measured_vertices(&scene, VERTEX_STRIDE);
+    let points = oracle_points(&scene, &measured);
+    let Some(traced) = path_trace(&scene, &points, &light, 0, PATHS) else {
+        return;
+    };
+    let options = BakeOptions {
+        bands: 4,
+        mode: Mode::Shadowed,
+        ..BakeOptions::default()
+    };
+    let (ours, again) = relit_vertices(&scene, &measured, &sky, &options);
+    let figures = Figures::of(&ours, &again, &traced);
+    let tolerance = SIGMAS * figures.sigma();
+    figures.print("shadowed vertices, 4 bands", tolerance);
+    assert!(
+        figures.error <= tolerance,
+        "shadowed transfer is off the path tracer by {:.4} > {tolerance:.4}",
+        figures.error
+    );
+}
+
+/// Interreflected transfer, 4 bands and 2 bounces, against the path tracer's paths of up to
+/// two bounces. The bounces gather the vertices' transfer interpolated where each ray lands,
+/// which is not exact where the light changes within a triangle; but the bounced light is
+/// smooth and a small share of the whole, and measured, the error's excess over the noise is
+/// 0.2% (printed) against a tolerance of 1.6%, so no floor is added.
+#[test]
+fn interreflected_vertices_match_the_path_tracer_with_two_bounces() {
+    let scene = scene();
+    let (sky, light) = sky();
+    let measured = measured_vertices(&scene, VERTEX_STRIDE);
+    let points = oracle_points(&scene, &measured);
+    let Some(traced) = path_trace(&scene, &points, &light, 2, PATHS_BOUNCED) else {
+        return;
+    };
+    let options = |bounces| BakeOptions {
+        bands: 4,
+        mode: Mode::Interreflected,
+        bounces,
+        ..BakeOptions::default()
+    };
+    let (ours, again) = relit_vertices(&scene, &measured, &sky, &options(2));
+    let figures = Figures::of(&ours, &again, &traced);
+    let tolerance = SIGMAS * figures.sigma();
+    figures.print("interreflected vertices, 4 bands, 2 bounces", tolerance);
+    // The comparison must be able to see the second bounce: without it the bake reads above
+    // the tolerance.
+    let (one_bounce, _) = relit_vertices(&scene, &measured, &sky, &options(1));
+    let keep = vec![true; one_bounce.len()];
+    let (error_one_bounce, _) = oracle::relative_rms(&one_bounce, &traced, &keep);
+    println!("the same bake with 1 bounce: error {error_one_bounce:.4}");
+    assert!(
+        figures.error <= tolerance,
+        "interreflected transfer is off the path tracer by {:.4} > {tolerance:.4}",
+        figures.error
+    );
+    assert!(
+        error_one_bounce > tolerance,
+        "the comparison cannot tell 1 bounce from 2: {error_one_bounce:.4} <= {tolerance:.4}"
+    );
+}
+
+/// Held-out points drawn uniformly by area, and the rule for those left out: a point that a
+/// triangle other than its own passes within `1e-5` of the scene's extent (the contact rule
+/// `oracle::measurable_vertices` applies to vertices, applied at the point): the ground under
+/// the box and the box's bottom, which lie in one plane and which no viewer sees, and points in
+/// contact with another part, where the radiance is a step. Geometry alone decides, nothing of
+/// the baker's. Creases need no rule here: a point inside a face has one radiance, and the
+/// oracle's ray lands on that face.
+fn held_out_points(scene: &Scene, count: usize, seed: u64) -> Vec<receivers::SurfacePoint> {
+    let drawn = receivers::uniform_points(scene, count, seed);
+    let (lo, hi) = scene.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let epsilon = 1e-5 * (hi - lo).max_element();
+    let corners = |t: usize| scene.triangles[t].map(|i| scene.positions[i as usize]);
+    let boxes: Vec<(Vec3, Vec3)> = (0..scene.triangle_count())
+        .map(|t| {
+            let [a, b, c] = corners(t);
+            (a.min(b).min(c) - epsilon, a.max(b).max(c) + epsilon)
+        })
+        .collect();
+    let kept: Vec<receivers::SurfacePoint> = drawn
+        .iter()
+        .filter(|point| {
+            let p = position(scene, point);
+            !boxes.iter().enumerate().any(|(t, (lo, hi))| {
+                t != point.triangle as usize
+                    && p.cmpge(*lo).all()
+                    && p.cmple(*hi).all()
+                    && distance_to_triangle(p, corners(t)) <= epsilon
+            })
+        })
+        .copied()
+        .collect();
+    println!(
+        "held-out points: {} drawn, {} in contact with another triangle left out",
+        drawn.len(),
+        drawn.len() - kept.len()
+    );
+    kept
+}
+
+/// Where a point lies.
+fn position(scene: &Scene, point: &receivers::SurfacePoint) -> Vec3 {
+    interpolate(scene, point, &scene.positions)
+}
+
+/// A vertex attribute interpolated at a point with its barycentrics, as a renderer does.
+fn interpolate(scene: &Scene, point: &receivers::SurfacePoint, values: &[Vec3]) -> Vec3 {
+    scene.triangles[point.triangle as usize]
+        .iter()
+        .zip(point.barycentrics)
+        .map(|(&v, b)| values[v as usize] * b)
+        .sum()
+}
+
+/// The distance from `p` to the triangle `[a, b, c]`, by the regions of its plane (Ericson,
+/// Real-Time Collision Detection, 5.1.5).
+fn distance_to_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> f32 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return p.distance(a);
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return p.distance(b);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return p.distance(a + ab * (d1 / (d1 - d3)));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return p.distance(c);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return p.distance(a + ac * (d2 / (d2 - d6)));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        return p.distance(b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    p.distance(a + ab * (vb * denom) + ac * (vc * denom))
+}
+
+/// RMS of `a - b` relative to the RMS of `scale`, with `noise` (relative, in quadrature) taken
+/// out: what is left of a difference once the sampling noise in it is accounted for.
+fn beyond_noise(a: &[Vec3], b: &[Vec3], scale: &[Vec3], noise: f64) -> f64 {
+    let square = |x: &mut dyn Iterator<Item = Vec3>| x.map(|d| d.length_squared() as f64).sum();
+    let difference: f64 = square(&mut a.iter().zip(b).map(|(x, y)| *x - *y));
+    let norm: f64 = square(&mut scale.iter().copied());
+    (difference / norm - noise * noise).max(0.0).sqrt()
+}
+
+/// Least-squares vertices (`--fit least-squares`, with the README's `--samples 128`: the rays
+/// of a default point bake), interpolated at held-out points as a renderer interpolates them,
+/// against the path tracer at those points; shadowed, 4 bands.
+///
+/// Interpolated vertex values are not exact between the vertices: a linear field per triangle
+/// cannot follow a shadow edge or a crease inside it. That representation error is measured:
+/// the baker's own transfer at the points themselves (the same receivers the fit bakes, placed
+/// at the held-out points, 1024 samples) is checked against the path tracer by noise alone, and
+/// the RMS difference between it and the interpolated fit, the noise of both taken out, is the
+/// floor. It is not added to the tolerance because it is below one combined sigma (asserted):
+/// errors add in quadrature, so the fit's expected error stays under sqrt 2 sigma, well inside
+/// [`SIGMAS`]. A fit (or an interpolation) that went wrong between the vertices fails there.
+/// And the floor must lie below that of point-sampled vertices baked with the same rays:
+/// what the fit is for.
+#[test]
+fn least_squares_vertices_match_the_path_tracer_between_the_vertices() {
+    let scene = scene();
+    let (sky, light) = sky();
+    let held = held_out_points(&scene, HELD_OUT, 5);
+    let normals = scene.normals.as_deref().unwrap();
+    let points: Vec<SurfacePoint> = held
+        .iter()
+        .map(|p| SurfacePoint {
+            position: position(&scene, p),
+            normal: interpolate(&scene, p, normals).normalize(),
+            face: p.triangle,
+        })
+        .collect();
+    let Some(traced) = path_trace(&scene, &points, &light, 0, PATHS) else {
+        return;
+    };
+    let base = BakeOptions {
+        bands: 4,
+        mode: Mode::Shadowed,
+        ..BakeOptions::default()
+    };
+    let density = base.point_density.per_vertex;
+    let fit = BakeOptions {
+        fit: Fit::LeastSquares,
+        samples: (base.samples as f32 / density) as u32,
+        ..base.clone()
+    };
+    // Vertex transfer relit at the vertices, then interpolated (relighting is linear).
+    let interpolated = |options: &BakeOptions, seed| -> Vec<Vec3> {
+        let transfer = bake_with(
+            &scene,
+            &BakeOptions {
+                seed,
+                ..options.clone()
+            },
+        );
+        let relit: Vec<Vec3> = (0..scene.vertex_count())
+            .map(|v| relight(&transfer, v, &sky))
+            .collect();
+        held.iter()
+            .map(|p| interpolate(&scene, p, &relit))
+            .collect()
+    };
+    let at_points = |seed| -> Vec<Vec3> {
+        let receivers = Receivers::at_points(&scene, &held);
+        let options = BakeOptions {
+            seed,
+            ..base.clone()
+        };
+        let (transfer, _) = bake_at(
+            &scene,
+            &receivers,
+            &options,
+            &Backend::Cpu,
+            None,
+            &NoProgress,
+        )
+        .unwrap();
+        (0..held.len())
+            .map(|r| relight(&transfer, r, &sky))
+            .collect()
+    };
+
+    // The baker at the points: noise alone.
+    let (direct, direct_again) = (at_points(1), at_points(2));
+    let direct_figures = Figures::of(&direct, &direct_again, &traced);
+    let direct_tolerance = SIGMAS * direct_figures.sigma();
+    direct_figures.print("shadowed surface points, 4 bands", direct_tolerance);
+
+    // The fit, interpolated.
+    let (fitted, fitted_again) = (interpolated(&fit, 1), interpolated(&fit, 2));
+    let figures = Figures::of(&fitted, &fitted_again, &traced);
+    let fit_floor = beyond_noise(
+        &fitted,
+        &direct,
+        &traced.radiance,
+        figures.bake_noise.hypot(direct_figures.bake_noise),
+    );
+    let tolerance = SIGMAS * figures.sigma();
+    figures.print("least-squares vertices at the points", tolerance);
+    println!(
+        "least-squares vertices against the baker at the points: representation floor \
+         {fit_floor:.4}, at most one sigma {:.4}",
+        figures.sigma()
+    );
+
+    // Point-sampled vertices with the same rays, interpolated: their floor.
+    let (point, point_again) = (interpolated(&base, 1), interpolated(&base, 2));
+    let point_figures = Figures::of(&point, &point_again, &traced);
+    let point_floor = beyond_noise(
+        &point,
+        &direct,
+        &traced.radiance,
+        point_figures.bake_noise.hypot(direct_figures.bake_noise),
+    );
+    println!(
+        "point-sampled vertices at the points: error {:.4}, representation floor {point_floor:.4}",
+        point_figures.error
+    );
+
+    assert!(
+        direct_figures.error <= direct_tolerance,
+        "transfer at surface points is off the path tracer by {:.4} > {direct_tolerance:.4}",
+        direct_figures.error
+    );
+    assert!(
+        figures.error <= tolerance,
+        "least-squares vertices are off the path tracer by {:.4} > {tolerance:.4}",
+        figures.error
+    );
+    assert!(
+        fit_floor <= figures.sigma(),
+        "the fit's representation floor {fit_floor:.4} is above one sigma {:.4}",
+        figures.sigma()
+    );
+    assert!(
+        fit_floor < point_floor,
+        "the fit's representation floor {fit_floor:.4} is not below point sampling's \
+         {point_floor:.4}"
+    );
+}

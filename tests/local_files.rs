@@ -502,3 +502,65 @@ fn local_only_options_are_refused_for_a_distant_bake() {
     }
     assert_eq!(testing::entries(dir.path()), vec!["d.glb".to_string()]);
 }
+
+/// `--bounces 0` is direct light alone: both operators give no indirect light, and the direct
+/// term is the shadow rays' (the default) or the depth maps' as asked, each within [0, open].
+#[test]
+fn zero_bounces_is_direct_light_alone_shadowed_either_way() {
+    let options = LocalOptions {
+        bounces: 0,
+        ..small_options()
+    };
+    let bake = local::bake_local(small_room(), &options, &Backend::Cpu, &NoProgress)
+        .unwrap()
+        .0;
+    let lights = [LocalLight::point(Vec3::new(0.3, 1.1, -0.4), 2.0)];
+    let rays = Relighter::new(&bake);
+    let maps = Relighter::with_shadows(&bake, local::Shadows::DepthMaps);
+    assert_eq!(rays.shadows(), local::Shadows::Rays);
+    let normals = bake.scene.normals.as_deref().unwrap();
+    for (relighter, form) in [
+        (&rays, OperatorForm::Sparse),
+        (&rays, OperatorForm::Compressed),
+        (&maps, OperatorForm::Compressed),
+    ] {
+        let frame = relighter.frame(&lights, form);
+        assert!(frame.indirect.iter().all(|v| *v == Vec3::ZERO));
+        for (p, &e) in frame.irradiance.iter().enumerate() {
+            let open = lights[0].unshadowed_irradiance(bake.scene.positions[p], normals[p]);
+            assert!((0.0..=open * 1.000_01).contains(&e), "{p}: {e} of {open}");
+        }
+    }
+    // The block shadows part of the floor: shadow rays give exact zeros there, and agree with
+    // the depth maps on most receivers.
+    let exact = rays.irradiance(&lights);
+    let from_maps = maps.irradiance(&lights);
+    let shadowed = (0..exact.len())
+        .filter(|&p| {
+            exact[p] == 0.0
+                && lights[0].unshadowed_irradiance(bake.scene.positions[p], normals[p]) > 0.0
+        })
+        .count();
+    assert!(shadowed > 0);
+    let agree = exact
+        .iter()
+        .zip(&from_maps)
+        .filter(|(a, b)| (**a - **b).abs() <= 0.25 * a.max(**b))
+        .count();
+    assert!(
+        agree as f64 > 0.9 * exact.len() as f64,
+        "{agree} of {}",
+        exact.len()
+    );
+}
+
+/// `--shadows` belongs to local-lights bakes: a distant-light render refuses it in one line.
+#[test]
+fn shadows_is_refused_for_a_distant_render() {
+    common::assert_clean_failure(&common::BadInput {
+        case: "--shadows with a distant bake",
+        file: Some(("a.prt.glb", b"not read")),
+        args: &["render", "a.prt.glb", "--shadows", "rays", "-o", "x.png"],
+        expect: "--shadows",
+    });
+}

@@ -342,7 +342,7 @@ fn held_out_points(scene: &Scene, count: usize, seed: u64) -> Vec<receivers::Sur
                 t != point.triangle as usize
                     && p.cmpge(*lo).all()
                     && p.cmple(*hi).all()
-                    && distance_to_triangle(p, corners(t)) <= epsilon
+                    && oracle::distance_to_triangle(p, corners(t)) <= epsilon
             })
         })
         .copied()
@@ -367,40 +367,6 @@ fn interpolate(scene: &Scene, point: &receivers::SurfacePoint, values: &[Vec3]) 
         .zip(point.barycentrics)
         .map(|(&v, b)| values[v as usize] * b)
         .sum()
-}
-
-/// The distance from `p` to the triangle `[a, b, c]`, by the regions of its plane (Ericson,
-/// Real-Time Collision Detection, 5.1.5).
-fn distance_to_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> f32 {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return p.distance(a);
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return p.distance(b);
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return p.distance(a + ab * (d1 / (d1 - d3)));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return p.distance(c);
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return p.distance(a + ac * (d2 / (d2 - d6)));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
-        return p.distance(b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    p.distance(a + ab * (vb * denom) + ac * (vc * denom))
 }
 
 /// RMS of `a - b` relative to the RMS of `scale`, with `noise` (relative, in quadrature) taken

@@ -332,7 +332,7 @@ fn vertices_touching_other_triangles(scene: &Scene) -> Vec<bool> {
 
 /// The distance from `p` to the triangle `[a, b, c]` (its closest point by the regions of
 /// the triangle's plane: a corner, an edge, or the inside).
-fn distance_to_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> f32 {
+pub fn distance_to_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> f32 {
     let (ab, ac, ap) = (b - a, c - a, p - a);
     let (d1, d2) = (ab.dot(ap), ac.dot(ap));
     if d1 <= 0.0 && d2 <= 0.0 {

@@ -19,7 +19,7 @@ use crate::ray::{offset_ray_origin, Ray, RAY_T_MAX};
 use crate::receivers::atlas::{generate_atlas, texels_per_unit_for_size, Atlas, GUTTER};
 use crate::receivers::face_normal;
 use crate::receivers::texels::{dilate, rasterize};
-use crate::receivers::Receivers;
+use crate::receivers::{Receivers, SurfacePoint};
 use crate::sampling::{cosine_hemisphere, VertexDirections};
 use crate::scene::Scene;
 
@@ -28,6 +28,13 @@ pub const LEAK_RAYS: u32 = 16;
 
 /// A texel leaks when more than this fraction of its leak-test rays hit back faces.
 pub const LEAK_FRACTION: f32 = 0.5;
+
+/// A texel's leak-test ray that hits any face nearer than this many texels counts as a leak
+/// too: a sheet lying just above the texel's point covers it, whichever face the ray reports.
+/// (The dragon scan holds double-sided fins, two triangles on the same three vertices with
+/// opposite windings, folded flat onto a neighbour a few micrometres above it: a ray meets
+/// both at one distance and the back-face count is a coin toss.)
+pub const COVER_TEXELS: f32 = 0.25;
 
 /// Dilation rings: well past the gutter (so that a bilinear footprint reaching past a chart's
 /// edge reads filled texels), and enough to refill leaks from their valid neighbours; a leak
@@ -85,7 +92,9 @@ pub fn bake_atlas(
     let texels = rasterize(atlas);
     let receivers = Receivers::at_points(scene, &texels.points);
     let bvh = Bvh::build(&scene.positions, &scene.triangles);
-    let leaking = leaking_receivers_in(scene, &bvh, &receivers);
+    let cover = COVER_TEXELS * texel_length(scene, atlas);
+    let mut leaking = leaking_or_covered_in(scene, &bvh, &receivers, cover);
+    keep_charts_with_no_valid_texel(atlas, &texels.points, &mut leaking);
     let at = (&receivers, bvh);
     let (at_texels, rays_cast) =
         bake_at_in(scene, at, options, backend, Some(vertex_transfer), progress)?;
@@ -153,8 +162,51 @@ pub fn leaking_receivers(scene: &Scene, receivers: &Receivers) -> Vec<bool> {
     )
 }
 
+/// The length in the scene of one texel at the atlas' density (the largest over the charts:
+/// tiny triangles' charts are enlarged, which makes their texels shorter).
+fn texel_length(scene: &Scene, atlas: &Atlas) -> f32 {
+    scene
+        .triangles
+        .iter()
+        .zip(&atlas.corners)
+        .map(|(t, c)| {
+            let flat = c[0].distance(c[1]);
+            let real = scene.positions[t[0] as usize].distance(scene.positions[t[1] as usize]);
+            if flat > 0.0 {
+                real / flat
+            } else {
+                0.0
+            }
+        })
+        .fold(0.0, f32::max)
+}
+
+/// Unflags every texel of a chart none of whose texels is valid: dilation would otherwise fill
+/// the whole chart from a neighbouring chart (its rings cross the gutter within two passes),
+/// where keeping its own bake is what a leak too wide to fill should do.
+fn keep_charts_with_no_valid_texel(atlas: &Atlas, points: &[SurfacePoint], leaking: &mut [bool]) {
+    let charts = atlas.chart_of.iter().max().map_or(0, |&c| c as usize + 1);
+    let mut any_valid = vec![false; charts];
+    for (p, &leak) in points.iter().zip(leaking.iter()) {
+        any_valid[atlas.chart_of[p.triangle as usize] as usize] |= !leak;
+    }
+    for (p, leak) in points.iter().zip(leaking.iter_mut()) {
+        *leak &= any_valid[atlas.chart_of[p.triangle as usize] as usize];
+    }
+}
+
 /// [`leaking_receivers`] with the scene's tree already built.
 pub fn leaking_receivers_in(scene: &Scene, bvh: &Bvh, receivers: &Receivers) -> Vec<bool> {
+    leaking_or_covered_in(scene, bvh, receivers, 0.0)
+}
+
+/// [`leaking_receivers_in`], a ray that hits any face nearer than `cover` counting as well.
+pub fn leaking_or_covered_in(
+    scene: &Scene,
+    bvh: &Bvh,
+    receivers: &Receivers,
+    cover: f32,
+) -> Vec<bool> {
     let extent = bvh.extent();
     let directions = cosine_hemisphere(LEAK_RAYS, 0x1eaf);
     let limit = (LEAK_FRACTION * LEAK_RAYS as f32) as usize;
@@ -170,9 +222,10 @@ pub fn leaking_receivers_in(scene: &Scene, bvh: &Bvh, receivers: &Receivers) -> 
                 .filter(|&&d| {
                     let direction = to_world.world(d);
                     bvh.closest_hit(&Ray::new(origin, direction), RAY_T_MAX)
-                        .is_some_and(|(t, _)| {
+                        .is_some_and(|(t, hit)| {
                             let corners = scene.triangles[t as usize];
-                            face_normal(&scene.positions, corners).dot(direction) > 0.0
+                            hit.t < cover
+                                || face_normal(&scene.positions, corners).dot(direction) > 0.0
                         })
                 })
                 .count();
@@ -299,5 +352,34 @@ mod tests {
             albedo: vec![Vec3::ONE; 2],
         };
         assert_eq!(leaking_receivers(&scene, &receivers), vec![true, false]);
+    }
+
+    #[test]
+    fn texels_under_a_double_sided_fin_are_covered_and_those_beside_it_are_not() {
+        // A scan's fin: two triangles on the same three corners with opposite windings, lying
+        // flat 2e-5 above a floor. A ray from under it meets both faces at one distance, so
+        // the back-face count alone is a coin toss; any hit nearer than `cover` decides.
+        let floor = builtin::grid_plane(Vec3::ZERO, Vec3::X * 2.0, Vec3::NEG_Z * 2.0, 4, Vec3::ONE);
+        let lift = 2e-5;
+        let corners = [
+            Vec3::new(-0.5, lift, -0.5),
+            Vec3::new(0.5, lift, -0.5),
+            Vec3::new(0.0, lift, 0.5),
+        ];
+        let fin = Scene {
+            positions: corners.to_vec(),
+            normals: None,
+            albedo: vec![Vec3::ONE; 3],
+            triangles: vec![[0, 1, 2], [0, 2, 1]],
+        };
+        let scene = builtin::merge(&[floor, fin]);
+        let bvh = Bvh::build(&scene.positions, &scene.triangles);
+        let receivers = Receivers {
+            positions: vec![Vec3::new(0.0, 0.0, -0.1), Vec3::new(1.5, 0.0, 1.5)],
+            normals: vec![Vec3::Y; 2],
+            albedo: vec![Vec3::ONE; 2],
+        };
+        let covered = leaking_or_covered_in(&scene, &bvh, &receivers, 1e-3);
+        assert_eq!(covered, vec![true, false]);
     }
 }

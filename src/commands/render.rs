@@ -320,10 +320,7 @@ fn write_relit_local(
     let frame = relighter.frame(lights, args.operator);
     let name = local_lights::describe(lights);
     let scale = glb::relit::write_relit_copy(path, &args.output, &frame.total(), &name)?;
-    let shadows = match relighter.shadows() {
-        Shadows::Rays => "shadow rays",
-        Shadows::DepthMaps => "depth maps",
-    };
+    let shadows = relighter.shadows().describe();
     println!(
         "relit {} vertices under {name}, {} operator, shadows by {shadows} -> {} ({})",
         frame.direct.len(),

@@ -535,6 +535,16 @@ pub enum Shadows {
     DepthMaps,
 }
 
+impl Shadows {
+    /// What gives the shadows, for reports.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Shadows::Rays => "shadow rays",
+            Shadows::DepthMaps => "the depth maps",
+        }
+    }
+}
+
 /// The run time: what a frame needs besides the lights, worked out once.
 pub struct Relighter<'a> {
     pub bake: &'a LocalBake,
@@ -725,10 +735,7 @@ impl FrameTimes {
         };
         let mut parts = vec![
             part(
-                match shadows {
-                    Shadows::Rays => "irradiance by shadow rays",
-                    Shadows::DepthMaps => "irradiance from the depth maps",
-                },
+                &format!("irradiance by {}", shadows.describe()),
                 &self.irradiance,
             ),
             part("+ compressed operator", &self.compressed),

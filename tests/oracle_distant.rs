@@ -16,10 +16,14 @@
 //! Where Mitsuba is missing, `oracle::path_trace` says so and each test returns (under CI it
 //! panics instead).
 
+use std::sync::OnceLock;
+
 use glam::{DVec3, Vec3};
+use prt_gpu::bake::texels::{bake_atlas, plan_atlas};
 use prt_gpu::bake::{bake, bake_at, Backend, BakeOptions, Fit, Mode, NoProgress, Transfer};
 use prt_gpu::receivers::{self, Receivers};
 use prt_gpu::scene::{builtin, prepare::prepare, Scene};
+use prt_gpu::surface::texel_transfer_at;
 use prt_gpu::testing::oracle::{self, OracleLight, OracleRadiance, SurfacePoint};
 
 /// The multiplier of the combined standard error that a comparison may reach. The RMS of
@@ -173,6 +177,11 @@ impl Figures {
     }
 
     fn print(&self, what: &str, tolerance: f64) {
+        self.print_with_floor(what, tolerance, None);
+    }
+
+    /// [`Figures::print`] for a tolerance of 3 sigma widened by a representation's `floor`.
+    fn print_with_floor(&self, what: &str, tolerance: f64, floor: Option<f64>) {
         println!(
             "{what}: error {:.4}, oracle noise {:.4}, bake noise {:.4}, combined sigma {:.4}, \
              excess over the noise {:.4}, tolerance {tolerance:.4}",
@@ -185,11 +194,15 @@ impl Figures {
         // One row of docs/accuracy.md (ci/accuracy.sh collects them).
         println!(
             "accuracy-row | distant light, built-in scene: {what} | {:.2}% | {:.2}% | bake noise \
-             {:.2}%; bound {:.2}% (3 sigma) |",
+             {:.2}%; bound {:.2}% (3 sigma{}) |",
             100.0 * self.error,
             100.0 * self.oracle_noise,
             100.0 * self.bake_noise,
-            100.0 * tolerance
+            100.0 * tolerance,
+            floor.map_or(String::new(), |f| format!(
+                " and the floor {:.2}%, in quadrature",
+                100.0 * f
+            ))
         );
     }
 }
@@ -378,6 +391,75 @@ fn beyond_noise(a: &[Vec3], b: &[Vec3], scale: &[Vec3], noise: f64) -> f64 {
     (difference / norm - noise * noise).max(0.0).sqrt()
 }
 
+/// Held-out surface points of the built-in scene, the path tracer there, and the baker's own
+/// transfer at the points themselves (the same receivers a fit or a lightmap bakes, placed at
+/// the points, default samples, seeds 1 and 2) against it: shared by the tests of what is
+/// interpolated between them (least-squares vertices, lightmap texels).
+struct Surface {
+    scene: Scene,
+    held: Vec<receivers::SurfacePoint>,
+    traced: OracleRadiance,
+    direct: Vec<Vec3>,
+    direct_figures: Figures,
+}
+
+/// [`Surface`], made once; `None` where Mitsuba is missing.
+fn surface() -> Option<&'static Surface> {
+    static SURFACE: OnceLock<Option<Surface>> = OnceLock::new();
+    SURFACE
+        .get_or_init(|| {
+            let scene = scene();
+            let (sky, light) = sky();
+            let held = held_out_points(&scene, HELD_OUT, 5);
+            let normals = scene.normals.as_deref().unwrap();
+            let points: Vec<SurfacePoint> = held
+                .iter()
+                .map(|p| SurfacePoint {
+                    position: position(&scene, p),
+                    normal: interpolate(&scene, p, normals).normalize(),
+                    face: p.triangle,
+                })
+                .collect();
+            let traced = path_trace(&scene, &points, &light, 0, PATHS)?;
+            let at_points = |seed| -> Vec<Vec3> {
+                let receivers = Receivers::at_points(&scene, &held);
+                let options = BakeOptions {
+                    seed,
+                    bands: 4,
+                    mode: Mode::Shadowed,
+                    ..BakeOptions::default()
+                };
+                let (transfer, _) = bake_at(
+                    &scene,
+                    &receivers,
+                    &options,
+                    &Backend::Cpu,
+                    None,
+                    &NoProgress,
+                )
+                .unwrap();
+                (0..held.len())
+                    .map(|r| relight(&transfer, r, &sky))
+                    .collect()
+            };
+            // The baker at the points: noise alone.
+            let (direct, direct_again) = (at_points(1), at_points(2));
+            let direct_figures = Figures::of(&direct, &direct_again, &traced);
+            direct_figures.print(
+                "shadowed surface points, 4 bands",
+                SIGMAS * direct_figures.sigma(),
+            );
+            Some(Surface {
+                scene,
+                held,
+                traced,
+                direct,
+                direct_figures,
+            })
+        })
+        .as_ref()
+}
+
 /// Least-squares vertices (`--fit least-squares`, with the README's `--samples 128`: the rays
 /// of a default point bake), interpolated at held-out points as a renderer interpolates them,
 /// against the path tracer at those points; shadowed, 4 bands.
@@ -394,21 +476,11 @@ fn beyond_noise(a: &[Vec3], b: &[Vec3], scale: &[Vec3], noise: f64) -> f64 {
 /// what the fit is for.
 #[test]
 fn least_squares_vertices_match_the_path_tracer_between_the_vertices() {
-    let scene = scene();
-    let (sky, light) = sky();
-    let held = held_out_points(&scene, HELD_OUT, 5);
-    let normals = scene.normals.as_deref().unwrap();
-    let points: Vec<SurfacePoint> = held
-        .iter()
-        .map(|p| SurfacePoint {
-            position: position(&scene, p),
-            normal: interpolate(&scene, p, normals).normalize(),
-            face: p.triangle,
-        })
-        .collect();
-    let Some(traced) = path_trace(&scene, &points, &light, 0, PATHS) else {
+    let Some(surface) = surface() else {
         return;
     };
+    let (scene, held, traced) = (&surface.scene, &surface.held, &surface.traced);
+    let (sky, _) = sky();
     let base = BakeOptions {
         bands: 4,
         mode: Mode::Shadowed,
@@ -423,7 +495,7 @@ fn least_squares_vertices_match_the_path_tracer_between_the_vertices() {
     // Vertex transfer relit at the vertices, then interpolated (relighting is linear).
     let interpolated = |options: &BakeOptions, seed| -> Vec<Vec3> {
         let transfer = bake_with(
-            &scene,
+            scene,
             &BakeOptions {
                 seed,
                 ..options.clone()
@@ -432,42 +504,17 @@ fn least_squares_vertices_match_the_path_tracer_between_the_vertices() {
         let relit: Vec<Vec3> = (0..scene.vertex_count())
             .map(|v| relight(&transfer, v, &sky))
             .collect();
-        held.iter()
-            .map(|p| interpolate(&scene, p, &relit))
-            .collect()
+        held.iter().map(|p| interpolate(scene, p, &relit)).collect()
     };
-    let at_points = |seed| -> Vec<Vec3> {
-        let receivers = Receivers::at_points(&scene, &held);
-        let options = BakeOptions {
-            seed,
-            ..base.clone()
-        };
-        let (transfer, _) = bake_at(
-            &scene,
-            &receivers,
-            &options,
-            &Backend::Cpu,
-            None,
-            &NoProgress,
-        )
-        .unwrap();
-        (0..held.len())
-            .map(|r| relight(&transfer, r, &sky))
-            .collect()
-    };
-
-    // The baker at the points: noise alone.
-    let (direct, direct_again) = (at_points(1), at_points(2));
-    let direct_figures = Figures::of(&direct, &direct_again, &traced);
+    let (direct, direct_figures) = (&surface.direct, &surface.direct_figures);
     let direct_tolerance = SIGMAS * direct_figures.sigma();
-    direct_figures.print("shadowed surface points, 4 bands", direct_tolerance);
 
     // The fit, interpolated.
     let (fitted, fitted_again) = (interpolated(&fit, 1), interpolated(&fit, 2));
-    let figures = Figures::of(&fitted, &fitted_again, &traced);
+    let figures = Figures::of(&fitted, &fitted_again, traced);
     let fit_floor = beyond_noise(
         &fitted,
-        &direct,
+        direct,
         &traced.radiance,
         figures.bake_noise.hypot(direct_figures.bake_noise),
     );
@@ -481,10 +528,10 @@ fn least_squares_vertices_match_the_path_tracer_between_the_vertices() {
 
     // Point-sampled vertices with the same rays, interpolated: their floor.
     let (point, point_again) = (interpolated(&base, 1), interpolated(&base, 2));
-    let point_figures = Figures::of(&point, &point_again, &traced);
+    let point_figures = Figures::of(&point, &point_again, traced);
     let point_floor = beyond_noise(
         &point,
-        &direct,
+        direct,
         &traced.radiance,
         point_figures.bake_noise.hypot(direct_figures.bake_noise),
     );
@@ -514,3 +561,102 @@ fn least_squares_vertices_match_the_path_tracer_between_the_vertices() {
          {point_floor:.4}"
     );
 }
+
+/// Lightmap texels (`--lightmap`, shadowed, 4 bands, the default samples per texel), looked up
+/// bilinearly at the held-out points as a renderer samples a lightmap
+/// (`surface::texel_transfer_at`), against the path tracer there.
+///
+/// A texel is the transfer at one point a texel wide, so bilinear texels are not exact between
+/// the texel centres, as interpolated vertices are not between the vertices: the floor (texels
+/// against the baker at the points themselves, the noise of both taken out) is measured, and
+/// the tolerance is [`SIGMAS`] sigma widened by it in quadrature. The floor is the lightmap's
+/// own, so it is held to what it must do: shrink as the texels do (a lookup that read the
+/// wrong texels, or charts that leaked, would not). Beside it the floor of point-sampled
+/// vertices is printed: the atlas of one chart per triangle reaches it only at 768 texels a
+/// side (1.85% against 1.84% when written), its texels near every triangle's edge read from
+/// the gutter.
+#[test]
+fn lightmap_texels_match_the_path_tracer_at_surface_points() {
+    let Some(surface) = surface() else {
+        return;
+    };
+    let (scene, held, traced) = (&surface.scene, &surface.held, &surface.traced);
+    let (sky, _) = sky();
+    let options = BakeOptions {
+        bands: 4,
+        mode: Mode::Shadowed,
+        ..BakeOptions::default()
+    };
+    let vertex = |seed| {
+        bake_with(
+            scene,
+            &BakeOptions {
+                seed,
+                ..options.clone()
+            },
+        )
+    };
+    let vertices = [vertex(1), vertex(2)];
+    let mut floors = Vec::new();
+    for size in LIGHTMAP_SIZES {
+        let atlas = plan_atlas(scene, size).unwrap();
+        let looked_up = |seed: u64| -> Vec<Vec3> {
+            let options = BakeOptions {
+                seed,
+                ..options.clone()
+            };
+            let (lightmap, _) = bake_atlas(
+                scene,
+                &vertices[seed as usize - 1],
+                &options,
+                &atlas,
+                &Backend::Cpu,
+                &NoProgress,
+            )
+            .unwrap();
+            let transfer = texel_transfer_at(&lightmap, held);
+            (0..held.len())
+                .map(|r| relight(&transfer, r, &sky))
+                .collect()
+        };
+        let (texels, texels_again) = (looked_up(1), looked_up(2));
+        let figures = Figures::of(&texels, &texels_again, traced);
+        let floor = beyond_noise(
+            &texels,
+            &surface.direct,
+            &traced.radiance,
+            figures.bake_noise.hypot(surface.direct_figures.bake_noise),
+        );
+        let tolerance = (SIGMAS * figures.sigma()).hypot(floor);
+        figures.print_with_floor(
+            &format!("lightmap {size} texels, bilinear at the points"),
+            tolerance,
+            Some(floor),
+        );
+        println!("lightmap {size}: representation floor {floor:.4}");
+        assert!(
+            figures.error <= tolerance,
+            "lightmap {size} is off the path tracer by {:.4} > {tolerance:.4}",
+            figures.error
+        );
+        floors.push(floor);
+    }
+    let relit: Vec<Vec3> = (0..scene.vertex_count())
+        .map(|v| relight(&vertices[0], v, &sky))
+        .collect();
+    let at_points: Vec<Vec3> = held.iter().map(|p| interpolate(scene, p, &relit)).collect();
+    let vertex_floor = beyond_noise(&at_points, &surface.direct, &traced.radiance, 0.0);
+    println!("lightmap floors {floors:?}; point-sampled vertices' floor {vertex_floor:.4}");
+    println!(
+        "accuracy-row | distant light, built-in scene: point-sampled vertices interpolated at \
+         the points, representation floor | {:.2}% | | beside the lightmaps' floors {:.2}% (384), \
+         {:.2}% (768) |",
+        100.0 * vertex_floor,
+        100.0 * floors[0],
+        100.0 * floors[1]
+    );
+    assert!(floors[1] < 0.75 * floors[0], "{floors:?}");
+}
+
+/// Lightmap sizes for the texel test: a coarse and a fine one.
+const LIGHTMAP_SIZES: [u32; 2] = [384, 768];

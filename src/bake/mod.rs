@@ -1106,7 +1106,7 @@ impl BakeInputs {
         (bands, samples, seed, sampling): (u32, u32, u64, Sampling),
     ) -> Self {
         let vertex_normals = scene.normals.clone().expect("a prepared scene has normals");
-        let origins = ray_origins(&receivers.positions, &receivers.normals, &bvh);
+        let origins = ray_origins(&receivers.ray_starts, &receivers.normals, bvh.extent());
         let samples = sampling.directions(samples, seed);
         let table = ShTable::new(bands, &samples.directions);
         BakeInputs {
@@ -1137,10 +1137,10 @@ impl BakeInputs {
     }
 }
 
-/// Every receiver moved off its surface along its normal, where its rays start.
-pub fn ray_origins(positions: &[Vec3], normals: &[Vec3], bvh: &Bvh) -> Vec<Vec3> {
-    let extent = bvh.extent();
-    positions
+/// Every receiver's ray start moved off its surface along its normal, where its rays start
+/// (`extent`: the scene's, which sets the offset's floor).
+pub fn ray_origins(starts: &[Vec3], normals: &[Vec3], extent: f32) -> Vec<Vec3> {
+    starts
         .iter()
         .zip(normals)
         .map(|(&p, &n)| offset_ray_origin(p, n, extent))

@@ -348,6 +348,7 @@ mod tests {
         let points = [Vec3::ZERO, Vec3::new(1.5, 0.0, 1.5)];
         let receivers = Receivers {
             positions: points.to_vec(),
+            ray_starts: points.to_vec(),
             normals: vec![Vec3::Y; 2],
             albedo: vec![Vec3::ONE; 2],
         };
@@ -376,6 +377,7 @@ mod tests {
         let bvh = Bvh::build(&scene.positions, &scene.triangles);
         let receivers = Receivers {
             positions: vec![Vec3::new(0.0, 0.0, -0.1), Vec3::new(1.5, 0.0, 1.5)],
+            ray_starts: vec![Vec3::new(0.0, 0.0, -0.1), Vec3::new(1.5, 0.0, 1.5)],
             normals: vec![Vec3::Y; 2],
             albedo: vec![Vec3::ONE; 2],
         };

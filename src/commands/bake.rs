@@ -134,7 +134,7 @@ pub(crate) struct LocalArgs {
     #[arg(long, value_name = "N", default_value_t = LocalOptions::default().grid_side)]
     pub(crate) depth_grid: u32,
     /// Local mode: the depth maps compressed by clustered PCA, CLUSTERSxCOMPONENTS.
-    #[arg(long, value_name = "CxM", default_value = "64x24", value_parser = parse_cpca_shape)]
+    #[arg(long, value_name = "CxM", default_value = "128x24", value_parser = parse_cpca_shape)]
     pub(crate) depth_compress: (u32, u32),
     /// Local mode: the operator's receiver clusters and basis vectors of example light per
     /// cluster, CLUSTERSxCOMPONENTS.

@@ -29,7 +29,8 @@ use crate::bake::{self, Backend, BakeInputs, BakeOptions, Mode, Progress};
 use crate::bvh::Bvh;
 use crate::compress::{compress_rows, Cpca, CpcaOptions};
 use crate::error::{Error, Result};
-use crate::ray::{offset_ray_origin, Ray, RAY_T_MAX};
+use crate::ray::{Ray, RAY_T_MAX};
+use crate::receivers::vertex_ray_starts;
 use crate::sampling::{tangent_frame, DirectionFrame, Pcg32, SampleSet, Sampling};
 use crate::scene::prepare::prepare;
 use crate::scene::Scene;
@@ -68,7 +69,7 @@ impl Default for LocalOptions {
             seed: 1,
             bounces: 3,
             grid_side: 16,
-            depth_clusters: 64,
+            depth_clusters: 128,
             depth_components: 24,
             operator: OperatorShape {
                 clusters: 64,
@@ -582,13 +583,7 @@ impl<'a> Relighter<'a> {
     pub fn with_shadows(bake: &'a LocalBake, shadows: Shadows) -> Self {
         let normals = bake.scene.normals.as_deref().unwrap_or_default();
         let extent = scene_extent(&bake.scene.positions);
-        let origins = bake
-            .scene
-            .positions
-            .iter()
-            .zip(normals)
-            .map(|(&p, &n)| offset_ray_origin(p, n, extent))
-            .collect();
+        let origins = bake::ray_origins(&vertex_ray_starts(&bake.scene), normals, extent);
         let frames = normals.iter().map(|&n| tangent_frame(n)).collect();
         let bvh = (shadows == Shadows::Rays)
             .then(|| Bvh::build(&bake.scene.positions, &bake.scene.triangles));

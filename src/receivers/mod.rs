@@ -12,7 +12,7 @@ pub mod atlas;
 pub mod fit;
 pub mod texels;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use crate::sampling::{pcg_hash, Pcg32};
 use crate::scene::Scene;
@@ -30,6 +30,9 @@ pub struct SurfacePoint {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Receivers {
     pub positions: Vec<Vec3>,
+    /// Where each receiver's rays start before the offset along its normal: its position, or
+    /// for a vertex its position slid a little into its own faces ([`vertex_ray_starts`]).
+    pub ray_starts: Vec<Vec3>,
     /// Unit shading normals.
     pub normals: Vec<Vec3>,
     pub albedo: Vec<Vec3>,
@@ -49,6 +52,7 @@ impl Receivers {
         let normals = scene.normals.clone().expect("a prepared scene has normals");
         Receivers {
             positions: scene.positions.clone(),
+            ray_starts: vertex_ray_starts(scene),
             normals,
             albedo: scene.albedo.clone(),
         }
@@ -62,6 +66,7 @@ impl Receivers {
             .expect("a prepared scene has normals");
         let mut receivers = Receivers {
             positions: Vec::with_capacity(points.len()),
+            ray_starts: Vec::new(),
             normals: Vec::with_capacity(points.len()),
             albedo: Vec::with_capacity(points.len()),
         };
@@ -80,8 +85,53 @@ impl Receivers {
                 .push(shading_normal(blend(normals), &scene.positions, corners));
             receivers.albedo.push(blend(&scene.albedo));
         }
+        receivers.ray_starts = receivers.positions.clone();
         receivers
     }
+}
+
+/// How far a vertex's rays start towards its faces: this fraction of the way to their mean
+/// centroid.
+pub const VERTEX_SLIDE: f64 = 1e-3;
+
+/// Every vertex of a prepared scene slid [`VERTEX_SLIDE`] of the way towards the mean centroid
+/// of the triangles that use it, within its tangent plane: a vertex's radiance is the limit of
+/// its own faces', and where it sits on a line other geometry meets (a wall's foot on the
+/// floor, a table leg's top under the table), a ray from the line itself would start exactly on
+/// the other surface and see it or not by rounding. A vertex inside a flat or gently curved
+/// patch barely moves (its faces' centroids surround it).
+pub fn vertex_ray_starts(scene: &Scene) -> Vec<Vec3> {
+    let normals = scene
+        .normals
+        .as_deref()
+        .expect("a prepared scene has normals");
+    let mut centroids = vec![(DVec3::ZERO, 0u32); scene.positions.len()];
+    for triangle in &scene.triangles {
+        let centroid: DVec3 = triangle
+            .iter()
+            .map(|&i| scene.positions[i as usize].as_dvec3())
+            .sum::<DVec3>()
+            / 3.0;
+        for &i in triangle {
+            let (sum, count) = &mut centroids[i as usize];
+            *sum += centroid;
+            *count += 1;
+        }
+    }
+    scene
+        .positions
+        .iter()
+        .zip(normals)
+        .zip(centroids)
+        .map(|((&p, &n), (sum, count))| {
+            if count == 0 {
+                return p;
+            }
+            let (p, n) = (p.as_dvec3(), n.as_dvec3());
+            let towards = sum / count as f64 - p;
+            (p + (towards - n * n.dot(towards)) * VERTEX_SLIDE).as_vec3()
+        })
+        .collect()
 }
 
 /// The interpolated normal, normalised; the face normal where the corners' normals cancel.

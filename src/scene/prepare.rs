@@ -145,6 +145,61 @@ pub fn angle_weighted_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec
     normals_without_folds(positions, triangles).0
 }
 
+/// The scene with hard edges, as auto-smooth by angle makes them: each corner of a face takes
+/// the angle-weighted normal of the faces around its position whose normals lie within
+/// `crease_degrees` of its own face's, and a vertex becomes one copy per normal its corners
+/// take. A room's 90-degree edge stays hard below a threshold of 90 degrees while the facets
+/// of a tessellated ball, a few degrees apart, stay smooth; faces that meet back to back (a
+/// table top on its leg, a floor under a wall) no longer share a normal. A corner of a
+/// zero-area face takes the smooth normal of all faces around it.
+pub fn split_creases(scene: &Scene, crease_degrees: f64) -> Scene {
+    let positions = &scene.positions;
+    let same_position = first_with_same_key(positions.iter().map(|&p| key(p)));
+    let faces: Vec<Option<Face>> = scene
+        .triangles
+        .iter()
+        .map(|t| corner_positions(positions, t).and_then(face_normal_and_angles))
+        .collect();
+    let mut around: Vec<Vec<(u32, usize)>> = vec![Vec::new(); positions.len()];
+    for (t, triangle) in scene.triangles.iter().enumerate() {
+        if faces[t].is_some() {
+            for (corner, &v) in triangle.iter().enumerate() {
+                around[same_position[v as usize] as usize].push((t as u32, corner));
+            }
+        }
+    }
+    let cos = crease_degrees.to_radians().cos();
+    let corner_normal = |t: usize, v: u32| -> Vec3 {
+        let own = faces[t].as_ref().map(|f| f.normal);
+        let sum: DVec3 = around[same_position[v as usize] as usize]
+            .iter()
+            .filter_map(|&(g, corner)| {
+                let face = faces[g as usize].as_ref()?;
+                let within = own.is_none_or(|n| face.normal.dot(n) >= cos);
+                within.then(|| face.normal * face.angles[corner])
+            })
+            .sum();
+        sum.try_normalize().unwrap_or(DVec3::Z).as_vec3()
+    };
+    let mut split = Scene::default();
+    let mut normals = Vec::new();
+    let mut copies: HashMap<(u32, [u32; 3]), u32> = HashMap::new();
+    for (t, triangle) in scene.triangles.iter().enumerate() {
+        let corners = triangle.map(|v| {
+            let normal = corner_normal(t, v);
+            *copies.entry((v, key(normal))).or_insert_with(|| {
+                split.positions.push(positions[v as usize]);
+                split.albedo.push(scene.albedo[v as usize]);
+                normals.push(normal);
+                split.positions.len() as u32 - 1
+            })
+        });
+        split.triangles.push(corners);
+    }
+    split.normals = Some(normals);
+    split
+}
+
 /// [`angle_weighted_normals`] and the number of folded triangles left out of them.
 pub fn normals_without_folds(positions: &[Vec3], triangles: &[[u32; 3]]) -> (Vec<Vec3>, usize) {
     // Faces are recomputed in each pass rather than kept: a few products each, where keeping
@@ -575,6 +630,37 @@ mod tests {
     use super::*;
     use crate::scene::DEFAULT_ALBEDO;
     use std::path::Path;
+
+    /// A box's corners split into one vertex per face, each with that face's normal (a room's
+    /// corner is not one vertex bent 45 degrees off both walls), while a tessellated ball, whose
+    /// facets meet at a few degrees, keeps one smooth vertex per position.
+    #[test]
+    fn creases_split_a_box_and_leave_a_ball_smooth() {
+        use crate::scene::builtin;
+        let cube = builtin::closed_box(Vec3::ZERO, Vec3::ONE, 1);
+        let split = split_creases(&cube, 30.0);
+        assert_eq!(cube.positions.len(), 8);
+        assert_eq!(split.positions.len(), 24, "each corner on three faces");
+        let normals = split.normals.as_deref().unwrap();
+        for (t, triangle) in split.triangles.iter().enumerate() {
+            let [a, b, c] = triangle.map(|i| split.positions[i as usize]);
+            let face = (b - a).cross(c - a).normalize();
+            for &v in triangle {
+                assert!(normals[v as usize].dot(face) > 0.9999, "triangle {t}");
+            }
+        }
+        let ball = builtin::icosphere(Vec3::ZERO, 1.0, 3);
+        let smooth = split_creases(&ball, 30.0);
+        let positions = |scene: &Scene| {
+            let mut keys: Vec<[u32; 3]> = scene.positions.iter().map(|&p| key(p)).collect();
+            keys.sort_unstable();
+            keys.dedup();
+            keys.len()
+        };
+        assert_eq!(smooth.positions.len(), positions(&ball));
+        // At 180 degrees nothing is a crease: every corner of the box takes the smooth normal.
+        assert_eq!(split_creases(&cube, 180.0).positions.len(), 8);
+    }
 
     fn scene(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Scene {
         Scene {

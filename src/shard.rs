@@ -177,6 +177,42 @@ fn payload_hash(payload: &[u8]) -> String {
     format!("{:016x}", hash.0)
 }
 
+/// The counts a part's header declares, in words, and the bytes of data they add up to.
+struct PartSizes {
+    receivers: usize,
+    values: usize,
+    offsets: usize,
+    entries: usize,
+    bytes: u64,
+}
+
+/// [`PartSizes`] of a header; `None` where they overflow.
+fn part_sizes(header: &PartHeader) -> Option<PartSizes> {
+    let receivers = header.receivers;
+    let values = receivers.checked_mul(u64::from(header.coeffs))?;
+    let (offsets, entries) = match header.gather_entries {
+        Some(entries) => (receivers.checked_add(1)?, entries),
+        None => (0, 0),
+    };
+    let words = values
+        .checked_add(offsets)?
+        .checked_add(entries.checked_mul(2)?)?;
+    let adaptive = if header.adaptive {
+        receivers.checked_mul(12)?
+    } else {
+        0
+    };
+    let bytes = words.checked_mul(4)?.checked_add(adaptive)?;
+    let size = |n: u64| usize::try_from(n).ok();
+    Some(PartSizes {
+        receivers: size(receivers)?,
+        values: size(values)?,
+        offsets: size(offsets)?,
+        entries: size(entries)?,
+        bytes,
+    })
+}
+
 /// Reads a part file written by [`write_part`], checking that its sizes add up.
 pub fn read_part(path: &Path) -> Result<Part> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
@@ -192,22 +228,25 @@ pub fn read_part(path: &Path) -> Result<Part> {
         .ok_or_else(|| broken("truncated header"))?;
     let header: PartHeader =
         serde_json::from_slice(json).map_err(|e| broken(&format!("header: {e}")))?;
-    let receivers = header.receivers as usize;
-    let values = receivers * header.coeffs as usize;
-    let (offsets, entries) = match header.gather_entries {
-        Some(entries) => (receivers + 1, entries as usize),
-        None => (0, 0),
-    };
     let body = &bytes[12 + json_len..];
-    let words_before_adaptive = values + offsets + 2 * entries;
-    let adaptive_bytes = if header.adaptive { 12 * receivers } else { 0 };
-    if body.len() != 4 * words_before_adaptive + adaptive_bytes {
+    // Sizes from the header, checked against the data before anything is read or reserved.
+    let sizes = part_sizes(&header).filter(|s| s.bytes == body.len() as u64);
+    let Some(PartSizes {
+        receivers,
+        values,
+        offsets,
+        entries,
+        ..
+    }) = sizes
+    else {
         return Err(broken(&format!(
             "{} bytes of data where its header says {}",
             body.len(),
-            4 * words_before_adaptive + adaptive_bytes
+            part_sizes(&header)
+                .map_or("more than can be addressed".into(), |s| s.bytes.to_string())
         )));
-    }
+    };
+    let words_before_adaptive = values + offsets + 2 * entries;
     if payload_hash(body) != header.payload_fnv1a {
         return Err(broken(
             "its data does not match its checksum (damaged or changed since it was written)",
@@ -233,6 +272,17 @@ pub fn read_part(path: &Path) -> Result<Part> {
             || m.row_offsets.last() != Some(&(entries as u32))
         {
             return Err(broken("gather rows out of order"));
+        }
+        // Columns index every receiver of the bake, not only the part's.
+        if let Some(&column) = m
+            .columns
+            .iter()
+            .find(|&&c| u64::from(c) >= header.receivers_total)
+        {
+            return Err(broken(&format!(
+                "gather column {column} is past the bake's {} receivers",
+                header.receivers_total
+            )));
         }
     }
     let adaptive = header.adaptive.then(|| {

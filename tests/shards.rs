@@ -342,3 +342,24 @@ fn a_shard_with_no_receivers_says_so_and_still_merges() {
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     assert!(prt_gpu(&args, d).status.success());
 }
+
+/// A part whose gather rows name a receiver past the bake's, with a checksum that matches
+/// (written so, not damaged on the way): refused in one line, not a panic in the bounce (a
+/// mutated part once made `merge` index past the transfer).
+#[test]
+fn merge_refuses_a_gather_column_past_the_receivers() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let a = [0, 1].map(|i| shard(d, BUNNY, &["--mode", "interreflected"], i, 2));
+    let mut part = prt_gpu::shard::read_part(&a[1]).unwrap();
+    let total = part.header.receivers_total as u32;
+    let matrix = part
+        .direct
+        .matrix
+        .as_mut()
+        .expect("interreflected parts hold gather rows");
+    *matrix.columns.last_mut().unwrap() = total + 5;
+    let bad = d.join("bad-column.part");
+    prt_gpu::shard::write_part(&bad, &part).unwrap();
+    refused(d, &[&a[0], &bad], "gather column");
+}

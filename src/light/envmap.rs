@@ -142,9 +142,31 @@ fn radiance_renamed(bytes: &[u8]) -> Option<Vec<u8>> {
 /// Pixels of the first valid layer, largest resolution level; R, G, B must be present and any
 /// alpha is ignored. Half, float and uint samples all arrive as f32. A file without R, G, B
 /// whose first layer with a Y channel has no chroma (RY, BY) is read as grey, R = G = B = Y.
+/// The most pixels an OpenEXR environment map may declare: 16384 x 16384, 3 GiB as RGB floats.
+/// A header is a few bytes, so its data window alone justifies no allocation.
+pub const MAX_EXR_PIXELS: usize = 1 << 28;
+
 fn decode_exr(bytes: &[u8], path: &Path) -> Result<EnvImage> {
     let fail =
         |e: exr::error::Error| Error::light(path, format!("OpenEXR: {}", one_line(&e.to_string())));
+    // The header's data window is checked before the decoder allocates it.
+    if let Ok(meta) = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false) {
+        for header in &meta.headers {
+            let size = header.layer_size;
+            if size.width().saturating_mul(size.height()) > MAX_EXR_PIXELS {
+                return Err(Error::light(
+                    path,
+                    format!(
+                        "OpenEXR: its data window is {} x {} pixels, more than the {} an \
+                         environment map may have",
+                        size.width(),
+                        size.height(),
+                        MAX_EXR_PIXELS
+                    ),
+                ));
+            }
+        }
+    }
     let rgb_error = match decode_exr_channels(bytes, ["R", "G", "B"]) {
         Ok((width, height, pixels)) => return EnvImage::new(width, height, pixels, path),
         Err(e) => e,
@@ -369,6 +391,29 @@ mod tests {
         ];
         let image = decode(&exr_with_channels(&rgb), Path::new("rgby.exr")).unwrap();
         assert_eq!(image.pixel(0, 0), [1.0, 2.0, 3.0]);
+    }
+
+    /// A header that declares a data window of 2^32 pixels is refused from the header (the
+    /// decoder once allocated it whole before reading a pixel, and the process aborted).
+    #[test]
+    fn an_exr_declaring_a_huge_data_window_is_refused_before_decoding() {
+        let mut bytes = exr_with_channels(&[("Y", |_, _| 1.0)]);
+        let name = b"dataWindow\0box2i\0";
+        let at = bytes
+            .windows(name.len())
+            .position(|w| w == name)
+            .expect("a data window attribute")
+            + name.len()
+            + 4;
+        // xMin, yMin, xMax, yMax: 65536 x 65536 pixels.
+        for (i, value) in [0i32, 0, 65535, 65535].iter().enumerate() {
+            bytes[at + 4 * i..at + 4 * i + 4].copy_from_slice(&value.to_le_bytes());
+        }
+        let e = decode(&bytes, Path::new("huge.exr")).unwrap_err();
+        assert!(
+            assert_one_line(&e).contains("data window is 65536 x 65536"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -48,8 +48,17 @@ pub fn load_with_warnings(path: &Path) -> Result<(Scene, Vec<String>)> {
         load_mtl(&directory.join(mtl_path))
     })
     .map_err(|e| fail(e.to_string()))?;
-    let materials = materials.unwrap_or_default();
-    let (scene, warnings) = merge_models(&models, &materials);
+    let (materials, unread) = match materials {
+        Ok(materials) => (materials, None),
+        Err(e) => (
+            Vec::new(),
+            Some(format!(
+                "its material library was not read ({e}); every face takes the default albedo"
+            )),
+        ),
+    };
+    let (scene, mut warnings) = merge_models(&models, &materials);
+    warnings.extend(unread);
     if scene.triangles.is_empty() {
         return Err(Error::mesh(path, "no faces"));
     }
@@ -61,7 +70,31 @@ pub fn load_with_warnings(path: &Path) -> Result<(Scene, Vec<String>)> {
 fn load_mtl(path: &Path) -> tobj::MTLLoadResult {
     let bytes = std::fs::read(path).map_err(|_| tobj::LoadError::OpenFileFailed)?;
     let text = utf8_text(&bytes).map_err(|_| tobj::LoadError::ReadError)?;
-    tobj::load_mtl_buf(&mut tidy(text).text.as_bytes())
+    let colours = whole_colours(&tidy(text).text).ok_or(tobj::LoadError::MaterialParseError)?;
+    tobj::load_mtl_buf(&mut colours.as_bytes())
+}
+
+/// MTL text with every colour statement (`Ka`, `Kd`, `Ks`, `Ke`) of one or two numbers given
+/// all three: green and blue default to red, as the format has it (tobj panics on fewer than
+/// three). `None` for a colour statement with no value, which tobj would panic on too.
+fn whole_colours(text: &str) -> Option<String> {
+    let mut out = String::with_capacity(text.len());
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        let keyword = words.next();
+        let values: Vec<&str> = words.collect();
+        match keyword {
+            Some("Ka" | "Kd" | "Ks" | "Ke") if values.len() < 3 => {
+                let red = values.first()?;
+                let given = values.iter().copied();
+                let padded: Vec<&str> = given.chain(std::iter::repeat(*red)).take(3).collect();
+                out.push_str(&format!("{} {}", keyword?, padded.join(" ")));
+            }
+            _ => out.push_str(line),
+        }
+        out.push('\n');
+    }
+    Some(out)
 }
 
 /// The file as UTF-8 text, without a byte-order mark.
@@ -409,6 +442,25 @@ mod tests {
         assert_eq!(warnings.len(), 1, "{warnings:?}");
         assert!(warnings[0].contains("Kd (2, NaN, -1)"), "{warnings:?}");
         assert!(warnings[0].ends_with("baked as (1, 0, 0)"), "{warnings:?}");
+    }
+
+    /// `Kd 0.5` is valid MTL (green and blue default to red) and was a panic inside tobj; a
+    /// colour with no value at all leaves the library unread, with a warning.
+    #[test]
+    fn a_colour_of_one_number_is_grey_and_one_of_none_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let obj = "mtllib m.mtl\nusemtl grey\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        write(dir.path(), "m.mtl", "newmtl grey\nKd 0.5\nKs 0.25 0.5\n");
+        let scene = load(&write(dir.path(), "grey.obj", obj)).unwrap();
+        assert_eq!(scene.albedo, [Vec3::splat(0.5); 3]);
+        write(dir.path(), "m.mtl", "newmtl grey\nKd\n");
+        let (scene, warnings) = load_with_warnings(&write(dir.path(), "none.obj", obj)).unwrap();
+        assert_eq!(scene.albedo, [DEFAULT_ALBEDO; 3]);
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(
+            warnings[0].contains("material library was not read"),
+            "{warnings:?}"
+        );
     }
 
     /// A byte-order mark, comments after statements, CRLF line ends and `\` continuations

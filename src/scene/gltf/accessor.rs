@@ -68,7 +68,18 @@ pub fn dense(root: &Root, buffers: &[Vec<u8>], index: usize) -> Result<Dense, St
             strided(root, buffers, view.value(), offset, count, element)
                 .map_err(|e| format!("accessor {index}: {e}"))?
         }
-        None => vec![0; total],
+        None => {
+            // Zeros (for sparse values to land on) justified by nothing read: no more than the
+            // file's buffers hold, so a count near 2^32 is an error and not an abort.
+            let held: usize = buffers.iter().map(Vec::len).sum();
+            if total > held.max(UNBACKED_FLOOR) {
+                return Err(format!(
+                    "accessor {index}: {count} elements with no buffer view would take {total} \
+                     bytes, more than the file's buffers hold ({held})"
+                ));
+            }
+            vec![0; total]
+        }
     };
     if let Some(sparse) = &accessor.sparse {
         substitute(root, buffers, sparse, &mut bytes, element)
@@ -82,6 +93,10 @@ pub fn dense(root: &Root, buffers: &[Vec<u8>], index: usize) -> Result<Dense, St
         bytes,
     })
 }
+
+/// The most bytes of zeros an accessor without a buffer view may take when the file's buffers
+/// hold less.
+const UNBACKED_FLOOR: usize = 1 << 20;
 
 /// `count` elements of `element` bytes starting `offset` bytes into view `view`, at the
 /// view's stride (or packed), copied out densely.
@@ -99,6 +114,21 @@ fn strided(
         return Err(format!(
             "stride {stride} is less than an element ({element} bytes)"
         ));
+    }
+    // The last element must lie inside the view before anything is reserved: a count read
+    // from the file is not a size to allocate.
+    if let Some(last) = count.checked_sub(1) {
+        let end = last
+            .checked_mul(stride)
+            .and_then(|s| s.checked_add(offset))
+            .and_then(|s| s.checked_add(element));
+        if end.is_none_or(|end| end > data.len()) {
+            return Err(format!(
+                "{count} elements of {element} bytes run past the end of buffer view {view} \
+                 ({} bytes)",
+                data.len()
+            ));
+        }
     }
     let mut bytes = Vec::with_capacity(count * element);
     for i in 0..count {
@@ -308,5 +338,22 @@ mod tests {
             .contains("does not exist"));
         assert!(dense(&root, &bytes, 9).is_err());
         assert!(dense(&root, &bytes, 0).unwrap().vectors::<3>("uv").is_err());
+    }
+
+    /// A count near 2^32 is refused before anything is reserved (it once aborted the process
+    /// with a 48 GB allocation): with a buffer view too short for it, and with none at all.
+    #[test]
+    fn a_huge_count_is_an_error_not_an_allocation() {
+        let bytes = vec![vec![0u8; 64]];
+        let views = serde_json::json!([{ "buffer": 0, "byteLength": 64 }]);
+        let accessors = serde_json::json!([
+            { "bufferView": 0, "componentType": 5126, "count": 4294967295u32, "type": "VEC3" },
+            { "componentType": 5126, "count": 4294967295u32, "type": "VEC3" },
+        ]);
+        let root = root(accessors, views);
+        let short = dense(&root, &bytes, 0).unwrap_err();
+        assert!(short.contains("past the end of buffer view 0"), "{short}");
+        let unbacked = dense(&root, &bytes, 1).unwrap_err();
+        assert!(unbacked.contains("no buffer view"), "{unbacked}");
     }
 }

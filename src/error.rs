@@ -89,3 +89,51 @@ pub type Result<T> = std::result::Result<T, Error>;
 pub fn one_line(message: &str) -> String {
     message.split_whitespace().collect::<Vec<_>>().join(" ")
 }
+
+/// An image decoder's error in plain words on one line: the `png` crate writes chunk types as
+/// Rust debug dumps (`ChunkType { type: IHDR, critical: true, … }`), which become the chunk's
+/// name.
+pub fn image_error(error: &image::ImageError) -> String {
+    let message = match error {
+        image::ImageError::Limits(_) => {
+            return "the image is larger than this program reads".into()
+        }
+        other => other.to_string(),
+    };
+    let mut plain = String::with_capacity(message.len());
+    let mut rest = message.as_str();
+    while let Some(at) = rest.find("ChunkType {") {
+        plain.push_str(&rest[..at]);
+        let dump = &rest[at..];
+        let end = dump.find('}').map_or(dump.len(), |e| e + 1);
+        let name = dump
+            .split("type: ")
+            .nth(1)
+            .and_then(|t| t.split([',', ' ', '}']).next())
+            .unwrap_or("a");
+        plain.push_str(&format!("{name} chunk"));
+        rest = &dump[end..];
+    }
+    plain.push_str(rest);
+    one_line(&plain)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A PNG whose header chunk is damaged: the error names the chunk, with no debug dump.
+    #[test]
+    fn image_errors_are_plain_words_on_one_line() {
+        let mut png = Vec::new();
+        image::RgbImage::new(2, 2)
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        // The IHDR chunk's width, after the signature (8), length (4) and type (4).
+        png[16] ^= 0x7f;
+        let error = image::load_from_memory_with_format(&png, image::ImageFormat::Png).unwrap_err();
+        let said = image_error(&error);
+        assert!(!said.contains('{') && !said.contains('\n'), "{said}");
+        assert!(said.contains("IHDR"), "{error} -> {said}");
+    }
+}

@@ -4,7 +4,7 @@
 //! format gets a warning ([`load_with_warnings`]).
 
 use crate::color::srgb_to_linear;
-use crate::error::{one_line, Error, Result};
+use crate::error::{image_error, one_line, Error, Result};
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
@@ -75,7 +75,23 @@ pub fn load(path: &Path) -> Result<EnvImage> {
 pub fn load_with_warnings(path: &Path) -> Result<(EnvImage, Vec<String>)> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let image = decode(&bytes, path)?;
-    Ok((image, misnamed(&bytes, path).into_iter().collect()))
+    let warnings = misnamed(&bytes, path)
+        .into_iter()
+        .chain(unusual_radiance_program(&bytes))
+        .collect();
+    Ok((image, warnings))
+}
+
+/// What to say when a Radiance file's signature names a program other than `RADIANCE` or
+/// `RGBE` (the format allows any, and the file is read; a damaged or foreign file may start
+/// with `#?` too).
+fn unusual_radiance_program(bytes: &[u8]) -> Option<String> {
+    radiance_renamed(bytes)?;
+    let line = bytes.split(|&b| b == b'\n').next()?;
+    let name = String::from_utf8_lossy(&line[2..]);
+    (name != "RGBE").then(|| {
+        format!("its Radiance signature names the program {name:?}, not RADIANCE or RGBE; read as Radiance")
+    })
 }
 
 /// What to say when `path`'s extension names a format other than the one `bytes` hold;
@@ -139,13 +155,13 @@ fn radiance_renamed(bytes: &[u8]) -> Option<Vec<u8>> {
     Some([RADIANCE_SIGNATURE, &rest[name_len..]].concat())
 }
 
-/// Pixels of the first valid layer, largest resolution level; R, G, B must be present and any
-/// alpha is ignored. Half, float and uint samples all arrive as f32. A file without R, G, B
-/// whose first layer with a Y channel has no chroma (RY, BY) is read as grey, R = G = B = Y.
 /// The most pixels an OpenEXR environment map may declare: 16384 x 16384, 3 GiB as RGB floats.
 /// A header is a few bytes, so its data window alone justifies no allocation.
 pub const MAX_EXR_PIXELS: usize = 1 << 28;
 
+/// Pixels of the first valid layer, largest resolution level; R, G, B must be present and any
+/// alpha is ignored. Half, float and uint samples all arrive as f32. A file without R, G, B
+/// whose first layer with a Y channel has no chroma (RY, BY) is read as grey, R = G = B = Y.
 fn decode_exr(bytes: &[u8], path: &Path) -> Result<EnvImage> {
     let fail =
         |e: exr::error::Error| Error::light(path, format!("OpenEXR: {}", one_line(&e.to_string())));
@@ -270,7 +286,7 @@ fn decode_with_image(bytes: &[u8], path: &Path) -> Result<EnvImage> {
         )
     })?;
     let decoded = image::load_from_memory_with_format(bytes, format)
-        .map_err(|e| Error::light(path, one_line(&e.to_string())))?;
+        .map_err(|e| Error::light(path, image_error(&e)))?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
     let rgb = decoded.into_rgb32f();
     // Radiance files hold linear radiance; 8- and 16-bit formats hold sRGB-encoded values.
@@ -537,6 +553,24 @@ mod tests {
         assert!(assert_one_line(&e).starts_with("h.hdr: "));
         // No end of line after the name.
         assert!(decode(b"#?RGBE", Path::new("i.hdr")).is_err());
+    }
+
+    /// Any program name after `#?` is valid Radiance, so `#?GARBAGE` is read, with a warning;
+    /// `#?RGBE` (Mitsuba's) and `#?RADIANCE` say nothing.
+    #[test]
+    fn a_radiance_file_signed_by_an_unknown_program_is_read_with_a_warning() {
+        let tmp = tempfile::tempdir().unwrap();
+        let good = hand_written_hdr("RGBE");
+        let body = &good[b"#?RGBE".len()..];
+        for (name, said) in [("RGBE", false), ("RADIANCE", false), ("GARBAGE", true)] {
+            let path = tmp.path().join(format!("{name}.hdr"));
+            std::fs::write(&path, [format!("#?{name}").as_bytes(), body].concat()).unwrap();
+            let (_, warnings) = load_with_warnings(&path).unwrap();
+            assert_eq!(warnings.len(), said as usize, "{name}: {warnings:?}");
+            if said {
+                assert!(warnings[0].contains("\"GARBAGE\""), "{warnings:?}");
+            }
+        }
     }
 
     #[test]

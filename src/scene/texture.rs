@@ -15,7 +15,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::color::srgb_to_linear;
-use crate::error::{one_line, Error, Result};
+use crate::error::{image_error, Error, Result};
 
 /// What a sampler does with a texel index outside the image (the glTF sampler's `wrapS` and
 /// `wrapT`; the index rules of OpenGL 4.6 §8.14.2, table 8.20).
@@ -119,7 +119,7 @@ impl Texture {
             _ => return Err(Error::mesh(what, "not a PNG or JPEG image")),
         };
         let decoded = image::load_from_memory_with_format(bytes, format)
-            .map_err(|e| Error::mesh(what, format!("{name}: {}", one_line(&e.to_string()))))?;
+            .map_err(|e| Error::mesh(what, format!("{name}: {}", image_error(&e))))?;
         let (width, height) = (decoded.width(), decoded.height());
         Texture::new(width, height, linear_texels(decoded), what)
     }

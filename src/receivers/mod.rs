@@ -252,6 +252,29 @@ mod tests {
     use crate::scene::builtin;
     use crate::scene::prepare::prepare;
 
+    /// A vertex on a wall's bottom edge starts its rays up the wall, off the line where the
+    /// wall meets a floor; a vertex inside the wall, its faces all round it, does not move off
+    /// its point by more than rounding; no start leaves the vertex's tangent plane.
+    #[test]
+    fn vertex_rays_start_inside_their_own_faces() {
+        let wall = builtin::grid_plane(Vec3::new(0.0, 1.0, 0.0), Vec3::X, Vec3::Y, 4, Vec3::ONE);
+        let starts = vertex_ray_starts(&wall);
+        for (v, (&p, &start)) in wall.positions.iter().zip(&starts).enumerate() {
+            let moved = start - p;
+            assert!(
+                moved.z.abs() < 1e-9,
+                "vertex {v} left the wall's plane: {moved}"
+            );
+            if p.y == 0.0 && p.x.abs() < 1.0 {
+                // The bottom edge: its faces lie above it.
+                assert!(moved.y > 1e-5 && moved.y < 1e-3, "vertex {v}: {moved}");
+            }
+            if p.y > 0.0 && p.y < 2.0 && p.x.abs() < 1.0 {
+                assert!(moved.length() < 1e-6, "inside vertex {v} moved {moved}");
+            }
+        }
+    }
+
     fn plane() -> Scene {
         let flat = builtin::grid_plane(Vec3::ZERO, Vec3::X, Vec3::Z, 4, Vec3::ONE);
         prepare(flat).unwrap().0

@@ -8,6 +8,7 @@
 //! is skipped, a `#` comment after a statement is dropped, and a line ending in `\` continues
 //! on the next. Its statements are then checked here, so that an error names its line.
 
+use std::borrow::Cow;
 use std::collections::BTreeSet;
 use std::path::Path;
 use std::str::FromStr;
@@ -29,10 +30,11 @@ pub fn load(path: &Path) -> Result<Scene> {
 /// [`load`], also giving a line for each material whose Kd had to be brought into [0, 1].
 pub fn load_with_warnings(path: &Path) -> Result<(Scene, Vec<String>)> {
     let fail = |message: String| Error::mesh(path, format!("cannot read OBJ: {message}"));
-    let text = {
+    let (text, encoding) = {
         // The file's bytes go before tobj reads: a large OBJ is held twice at most.
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        tidy(utf8_text(&bytes).map_err(fail)?)
+        let (text, encoding) = file_text(&bytes).map_err(fail)?;
+        (tidy(&text), encoding)
     };
     check_statements(&text).map_err(fail)?;
     let directory = path.parent().unwrap_or(Path::new("")).to_path_buf();
@@ -58,7 +60,7 @@ pub fn load_with_warnings(path: &Path) -> Result<(Scene, Vec<String>)> {
         ),
     };
     let (scene, mut warnings) = merge_models(&models, &materials);
-    warnings.extend(unread);
+    warnings.extend(encoding.into_iter().chain(unread));
     if scene.triangles.is_empty() {
         return Err(Error::mesh(path, "no faces"));
     }
@@ -69,8 +71,8 @@ pub fn load_with_warnings(path: &Path) -> Result<(Scene, Vec<String>)> {
 /// file is no material library, not a failed OBJ).
 fn load_mtl(path: &Path) -> tobj::MTLLoadResult {
     let bytes = std::fs::read(path).map_err(|_| tobj::LoadError::OpenFileFailed)?;
-    let text = utf8_text(&bytes).map_err(|_| tobj::LoadError::ReadError)?;
-    let colours = whole_colours(&tidy(text).text).ok_or(tobj::LoadError::MaterialParseError)?;
+    let (text, _) = file_text(&bytes).map_err(|_| tobj::LoadError::ReadError)?;
+    let colours = whole_colours(&tidy(&text).text).ok_or(tobj::LoadError::MaterialParseError)?;
     tobj::load_mtl_buf(&mut colours.as_bytes())
 }
 
@@ -97,19 +99,26 @@ fn whole_colours(text: &str) -> Option<String> {
     Some(out)
 }
 
-/// The file as UTF-8 text, without a byte-order mark.
-fn utf8_text(bytes: &[u8]) -> std::result::Result<&str, String> {
+/// The file as text, without a byte-order mark, and what to say of how it was read: UTF-8,
+/// or where it is not, Latin-1 (ISO 8859-1, every byte one character), as assimp and Blender
+/// read it, so that material names in Latin-1 keep matching between the OBJ and its MTL.
+fn file_text(bytes: &[u8]) -> std::result::Result<(Cow<'_, str>, Option<String>), String> {
     if bytes.starts_with(b"\xFF\xFE") || bytes.starts_with(b"\xFE\xFF") {
         return Err("the file is UTF-16 text; save it as UTF-8".into());
     }
     let bytes = super::skip_bom(bytes);
-    std::str::from_utf8(bytes).map_err(|e| {
-        let line = 1 + bytes[..e.valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count();
-        format!("line {line}: not UTF-8 text")
-    })
+    match std::str::from_utf8(bytes) {
+        Ok(text) => Ok((Cow::Borrowed(text), None)),
+        Err(e) => {
+            let line = 1 + bytes[..e.valid_up_to()]
+                .iter()
+                .filter(|&&b| b == b'\n')
+                .count();
+            let latin1: String = bytes.iter().map(|&b| char::from(b)).collect();
+            let said = format!("line {line} is not UTF-8 text; the file was read as Latin-1");
+            Ok((Cow::Owned(latin1), Some(said)))
+        }
+    }
 }
 
 /// OBJ text as tobj reads it: one statement a line, without comments.
@@ -552,11 +561,26 @@ mod tests {
         std::fs::write(dir.path().join("utf16.obj"), utf16).unwrap();
         let error = load(&dir.path().join("utf16.obj")).unwrap_err().to_string();
         assert!(error.ends_with("UTF-16 text; save it as UTF-8"), "{error}");
-        std::fs::write(dir.path().join("latin1.obj"), b"v 0 0 0\ng caf\xE9\n").unwrap();
-        let error = load(&dir.path().join("latin1.obj"))
-            .unwrap_err()
-            .to_string();
-        assert!(error.ends_with("line 2: not UTF-8 text"), "{error}");
+    }
+
+    /// An OBJ and its MTL in Latin-1 (assimp's `regr01.obj` names its materials so) are read,
+    /// the names matching as the bytes do, with a warning that names the first line.
+    #[test]
+    fn latin1_files_are_read_with_a_warning() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("m.mtl"),
+            b"newmtl caf\xE9\nKd 0.2 0.4 0.6\n",
+        )
+        .unwrap();
+        let obj = b"mtllib m.mtl\nusemtl caf\xE9\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        std::fs::write(dir.path().join("latin1.obj"), obj).unwrap();
+        let (scene, warnings) = load_with_warnings(&dir.path().join("latin1.obj")).unwrap();
+        assert_eq!(scene.albedo, [Vec3::new(0.2, 0.4, 0.6); 3]);
+        assert_eq!(
+            warnings,
+            ["line 2 is not UTF-8 text; the file was read as Latin-1"]
+        );
     }
 
     #[test]

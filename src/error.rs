@@ -56,21 +56,21 @@ impl Error {
     pub fn mesh(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         Error::Mesh {
             path: path.into(),
-            message: message.into(),
+            message: printable(&message.into()),
         }
     }
 
     pub fn light(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         Error::Light {
             path: path.into(),
-            message: message.into(),
+            message: printable(&message.into()),
         }
     }
 
     pub fn baked(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         Error::Baked {
             path: path.into(),
-            message: message.into(),
+            message: printable(&message.into()),
         }
     }
 
@@ -88,6 +88,35 @@ pub type Result<T> = std::result::Result<T, Error>;
 /// errors of other libraries (wgpu, exr) span lines, ours never do.
 pub fn one_line(message: &str) -> String {
     message.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// The most characters of a reader's message shown: one that quotes a file's bytes (a header
+/// line, a token) shows the start and the end of it.
+const MESSAGE_CHARS: usize = 240;
+
+/// `message` as a terminal shows it: control characters (a NUL, an escape, a line break a
+/// file put in a quoted token) escaped, and at most [`MESSAGE_CHARS`] characters, the middle
+/// of a longer one left out.
+pub fn printable(message: &str) -> String {
+    let escaped: String = message
+        .chars()
+        .flat_map(|c| {
+            let escape = c
+                .is_control()
+                .then(|| c.escape_default().collect::<String>());
+            escape
+                .unwrap_or_else(|| c.to_string())
+                .chars()
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let count = escaped.chars().count();
+    if count <= MESSAGE_CHARS {
+        return escaped;
+    }
+    let head: String = escaped.chars().take(MESSAGE_CHARS * 2 / 3).collect();
+    let tail: String = escaped.chars().skip(count - MESSAGE_CHARS / 3).collect();
+    format!("{head}…{tail}")
 }
 
 /// An image decoder's error in plain words on one line: the `png` crate writes chunk types as
@@ -111,8 +140,11 @@ pub fn image_error(error: &image::ImageError) -> String {
             .nth(1)
             .and_then(|t| t.split([',', ' ', '}']).next())
             .unwrap_or("a");
-        plain.push_str(&format!("{name} chunk"));
         rest = &dump[end..];
+        plain.push_str(name);
+        if !rest.starts_with(" chunk") {
+            plain.push_str(" chunk");
+        }
     }
     plain.push_str(rest);
     one_line(&plain)
@@ -123,6 +155,27 @@ mod tests {
     use super::*;
 
     /// A PNG whose header chunk is damaged: the error names the chunk, with no debug dump.
+    /// A PLY header line of a thousand bytes with NULs in it, as a fuzzer wrote: its start
+    /// and end, its NULs escaped.
+    #[test]
+    fn quoted_file_bytes_are_printable_and_short() {
+        let line = format!(
+            "unsupported PLY version '0.0{}\0r' (only 1.0 is supported)",
+            "S".repeat(1000)
+        );
+        let shown = Error::mesh("m.ply", line).to_string();
+        assert!(
+            shown.starts_with("m.ply: unsupported PLY version '0.0SSS"),
+            "{shown}"
+        );
+        assert!(
+            shown.ends_with("SS\\u{0}r' (only 1.0 is supported)"),
+            "{shown}"
+        );
+        assert!(shown.chars().count() < 260, "{}", shown.len());
+        assert!(!shown.chars().any(char::is_control));
+    }
+
     #[test]
     fn image_errors_are_plain_words_on_one_line() {
         let mut png = Vec::new();
@@ -135,5 +188,6 @@ mod tests {
         let said = image_error(&error);
         assert!(!said.contains('{') && !said.contains('\n'), "{said}");
         assert!(said.contains("IHDR"), "{error} -> {said}");
+        assert!(!said.contains("chunk chunk"), "{said}");
     }
 }

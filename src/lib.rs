@@ -8,6 +8,10 @@
 //! Imports go the same way (no cycles); docs/architecture.md says what each module owns and
 //! may import.
 
+// A value read from a file is checked, never unwrapped: an unwrap outside the tests is an
+// error under clippy (tests/hostile_files.rs checks the same without it).
+#![cfg_attr(not(test), deny(clippy::unwrap_used))]
+
 pub mod bake;
 pub mod bvh;
 pub mod chart;
@@ -18,6 +22,7 @@ pub mod error;
 pub mod fs;
 pub mod glb;
 pub mod gltf_validator;
+pub mod images;
 pub mod light;
 pub mod lightmap;
 pub mod local;

@@ -1,5 +1,7 @@
 //! The `prt-gpu` command line: parse, call the library, report. No baking logic lives here.
 
+#![cfg_attr(not(test), deny(clippy::unwrap_used))]
+
 use std::path::PathBuf;
 use std::process::ExitCode;
 

@@ -171,6 +171,27 @@ fn part_payload(direct: &DirectPass) -> Vec<u8> {
     bytes
 }
 
+/// A part's bytes with the checksum in its header made to match its data again, for the
+/// hostile-file tests (a changed part is otherwise refused on its checksum before anything
+/// else is read); `None` where the header does not parse.
+pub fn resealed(bytes: &[u8]) -> Option<Vec<u8>> {
+    let json_len = u32::from_le_bytes(bytes.get(8..12)?.try_into().ok()?) as usize;
+    let json = bytes.get(12..12usize.checked_add(json_len)?)?;
+    let header: PartHeader = serde_json::from_slice(json).ok()?;
+    let body = &bytes[12 + json_len..];
+    let header = PartHeader {
+        payload_fnv1a: payload_hash(body),
+        ..header
+    };
+    let mut json = serde_json::to_vec(&header).ok()?;
+    json.resize(json.len().next_multiple_of(4), b' ');
+    let mut out = bytes[..8].to_vec();
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&json);
+    out.extend_from_slice(body);
+    Some(out)
+}
+
 fn payload_hash(payload: &[u8]) -> String {
     let mut hash = Fnv1a::default();
     hash.write(payload);
@@ -295,6 +316,20 @@ pub fn read_part(path: &Path) -> Result<Part> {
                 .collect(),
         }
     });
+    // A checksum says the bytes are as written, not that a writer wrote numbers: the merge
+    // would carry a NaN into every receiver that gathers from this one.
+    let weights = matrix.iter().flat_map(|m| &m.weights);
+    let error = adaptive
+        .iter()
+        .flat_map(|a| &a.errors)
+        .position(|e| !e.is_finite())
+        .map(|i| format!("receiver error {i}"));
+    if let Some(what) = first_non_finite(&scalar, "direct transfer value")
+        .or_else(|| first_non_finite(weights, "gather weight"))
+        .or(error)
+    {
+        return Err(broken(&format!("{what} is not a finite number")));
+    }
     let direct = DirectPass {
         scalar,
         matrix,
@@ -302,6 +337,54 @@ pub fn read_part(path: &Path) -> Result<Part> {
         adaptive,
     };
     Ok(Part { header, direct })
+}
+
+/// What to tell the user when parts of one bake (their fingerprints agree) were baked by
+/// commands that differ in more than the shard and the part's own output, or in different
+/// directories: the merge finishes the bake as the first part's command says, and the others'
+/// differences (a `--memory-limit`, a mesh path spelled otherwise) are not applied.
+pub fn command_differences(parts: &[(PathBuf, Part)]) -> Option<String> {
+    let (first_path, first) = parts.first()?;
+    let first_command = bake_command(&first.header.command);
+    parts[1..].iter().find_map(|(path, part)| {
+        let command = bake_command(&part.header.command);
+        let differs = command != first_command || part.header.directory != first.header.directory;
+        differs.then(|| {
+            format!(
+                "{} was baked by `{}` in {} and {} by `{}` in {}; the merge finishes the bake as \
+                 the first says",
+                first_path.display(),
+                first_command.join(" "),
+                first.header.directory.display(),
+                path.display(),
+                command.join(" "),
+                part.header.directory.display(),
+            )
+        })
+    })
+}
+
+/// A part's command without what differs between the parts of one bake by design: the
+/// shard (`--shard I/N`) and the part's file (`-o`, `--output`).
+fn bake_command(command: &[String]) -> Vec<&str> {
+    let mut kept = Vec::new();
+    let mut words = command.iter().map(String::as_str);
+    while let Some(word) = words.next() {
+        match word {
+            "--shard" | "-o" | "--output" => {
+                words.next();
+            }
+            _ if word.starts_with("--shard=") || word.starts_with("--output=") => {}
+            _ => kept.push(word),
+        }
+    }
+    kept
+}
+
+/// "`what` `i`" for the first value that is NaN or infinite.
+fn first_non_finite<'a>(values: impl IntoIterator<Item = &'a f32>, what: &str) -> Option<String> {
+    let i = values.into_iter().position(|v| !v.is_finite())?;
+    Some(format!("{what} {i}"))
 }
 
 /// The direct pass of the whole bake from its parts, in any order, and the header of the

@@ -1066,3 +1066,78 @@ fn a_nan_texture_coordinate_is_refused_naming_the_attribute() {
         "{error}"
     );
 }
+
+/// A primitive whose NORMAL holds a NaN and an infinity, with a morph target holding a NaN
+/// (both seen in hostile files, and copied into the output as they were): the bake recomputes
+/// the normals, and the file it writes carries them repaired — the primitive's computed
+/// normals where the input's were not finite, the rest as given, the target's NaN as zero —
+/// with a line for each, and passes the validator.
+#[test]
+fn non_finite_normals_and_morph_targets_are_written_repaired() {
+    let dir = tempfile::tempdir().unwrap();
+    let sphere = builtin::icosphere(Vec3::ZERO, 0.5, 1);
+    let mut sphere = scene::prepare::prepare(sphere).unwrap().0;
+    let given = sphere.normals.clone().unwrap();
+    let normals = sphere.normals.as_mut().unwrap();
+    normals[3].x = f32::NAN;
+    normals[5].z = f32::INFINITY;
+    let mut builder = GltfBuilder::default();
+    let mut primitive = builder.primitive(&sphere, None);
+    let mut moves = vec![0.0f32; 3 * sphere.positions.len()];
+    moves[1] = f32::NAN;
+    moves[4] = 0.25;
+    primitive["targets"] = json!([{ "POSITION": builder.floats(&moves, "VEC3", true) }]);
+    let doc = json!({
+        "scene": 0, "scenes": [{ "nodes": [0] }], "nodes": [{ "mesh": 0 }],
+        "meshes": [{ "primitives": [primitive], "weights": [0.0] }],
+    });
+    let path = builder.finish(doc, dir.path(), "nan.gltf");
+    let (gltf, baked, report) = bake_gltf(&path, &quick(), &Backend::Cpu);
+    let (bytes, written) = encode_scene_glb(&gltf, &baked, &report.vertex_map).unwrap();
+    assert_eq!(written.repaired.len(), 2, "{:?}", written.repaired);
+    assert!(
+        written.repaired[0].contains("2 NaN or infinite value(s), written as normals computed"),
+        "{:?}",
+        written.repaired
+    );
+    assert!(
+        written.repaired[1].contains("written as zeros"),
+        "{:?}",
+        written.repaired
+    );
+    let out = dir.path().join("out.glb");
+    std::fs::write(&out, &bytes).unwrap();
+    assert_valid(&out);
+    let (read, _) = gltf_scene::load(&out).unwrap();
+    let floats = |accessor: usize| {
+        prt_gpu::scene::gltf::accessor::dense(&read.root, &read.buffers, accessor)
+            .unwrap()
+            .floats()
+    };
+    let json = glb_json(&bytes);
+    let normal_accessor = json["meshes"][0]["primitives"][0]["attributes"]["NORMAL"]
+        .as_u64()
+        .unwrap() as usize;
+    let target_accessor = json["meshes"][0]["primitives"][0]["targets"][0]["POSITION"]
+        .as_u64()
+        .unwrap() as usize;
+    let written_normals = floats(normal_accessor);
+    for (v, n) in written_normals.chunks_exact(3).enumerate() {
+        let n = Vec3::from_slice(n);
+        assert!(
+            n.is_finite() && (n.length() - 1.0).abs() < 1e-4,
+            "vertex {v}: {n}"
+        );
+        if v != 3 && v != 5 {
+            assert_eq!(n, given[v], "vertex {v} was finite and is kept");
+        } else {
+            assert!(
+                n.dot(given[v]) > 0.9,
+                "vertex {v}: {n} against {}",
+                given[v]
+            );
+        }
+    }
+    let written_moves = floats(target_accessor);
+    assert_eq!((written_moves[1], written_moves[4]), (0.0, 0.25));
+}

@@ -363,3 +363,34 @@ fn merge_refuses_a_gather_column_past_the_receivers() {
     prt_gpu::shard::write_part(&bad, &part).unwrap();
     refused(d, &[&a[0], &bad], "gather column");
 }
+
+/// Parts of one bake baked by commands that differ beyond the shard and the part's file (here
+/// a memory limit, which shapes no output and is not in the fingerprint): merged, with a warning that
+/// names both commands and says whose the merge follows.
+#[test]
+fn merge_warns_when_the_parts_commands_differ() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let first = shard(d, BUNNY, &[], 0, 2);
+    let second = shard(d, BUNNY, &["--memory-limit", "8G"], 1, 2);
+    let (first, second) = (first.display().to_string(), second.display().to_string());
+    let out = prt_gpu(&["merge", &first, &second, "-o", "merged.glb"], d);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let warning = stderr
+        .lines()
+        .find(|l| l.starts_with("warning:"))
+        .unwrap_or_else(|| panic!("no warning: {stderr}"));
+    assert!(warning.contains("--memory-limit 8G"), "{warning}");
+    assert!(
+        warning.ends_with("the merge finishes the bake as the first says"),
+        "{warning}"
+    );
+    let same = [0, 1].map(|i| {
+        shard(d, BUNNY, &["--seed", "3"], i, 2)
+            .display()
+            .to_string()
+    });
+    let out = prt_gpu(&["merge", &same[0], &same[1], "-o", "again.glb"], d);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("warning:"));
+}

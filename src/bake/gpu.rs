@@ -242,7 +242,7 @@ fn plan_chunks(
     ]
     .into_iter()
     .min()
-    .unwrap()
+    .expect("a list of seven limits has a least")
     .min(chunking.max_vertices.unwrap_or(u32::MAX) as u64)
     .min(vertices as u64)
     .max(1) as u32;

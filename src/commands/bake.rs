@@ -811,6 +811,9 @@ pub(crate) fn check_preview(preview: &Path) -> Result<()> {
 
 /// What baking a glTF scene in place did.
 fn print_in_place_report(written: &glb::scene::SceneWrite, seconds_load: f64, seconds_write: f64) {
+    for repair in &written.repaired {
+        eprintln!("warning: {repair}");
+    }
     eprintln!(
         "baked in place: {} primitive(s), read in {seconds_load:.2} s, written in \
          {seconds_write:.2} s{}",

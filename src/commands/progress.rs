@@ -42,13 +42,18 @@ impl Progress for BarProgress {
                 .expect("static template")
                 .progress_chars("=> "),
         );
-        if let Some(old) = self.bar.lock().unwrap().replace(bar) {
+        if let Some(old) = self
+            .bar
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .replace(bar)
+        {
             old.finish_and_clear();
         }
     }
 
     fn advance(&self, done: u64) {
-        if let Some(bar) = self.bar.lock().unwrap().as_ref() {
+        if let Some(bar) = self.bar.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
             bar.inc(done);
         }
     }
@@ -63,7 +68,7 @@ impl BarProgress {
     }
 
     pub(crate) fn finish(&self) {
-        if let Some(bar) = self.bar.lock().unwrap().take() {
+        if let Some(bar) = self.bar.lock().unwrap_or_else(|e| e.into_inner()).take() {
             bar.finish_and_clear();
         }
     }

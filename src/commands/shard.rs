@@ -121,7 +121,11 @@ pub(crate) fn run_merge(args: MergeArgs) -> Result<()> {
         .iter()
         .map(|path| Ok((path.clone(), shard::read_part(path)?)))
         .collect::<Result<Vec<_>>>()?;
+    let differences = shard::command_differences(&parts);
     let (header, direct) = shard::assemble(parts)?;
+    if let Some(differences) = differences {
+        eprintln!("warning: {differences}");
+    }
     let command = std::iter::once("prt-gpu".to_string()).chain(header.command.iter().cloned());
     let bake_args = match Cli::try_parse_from(command).map(|cli| cli.command) {
         Ok(Command::Bake(bake_args)) => bake_args,

@@ -188,7 +188,7 @@ pub fn kmeans_plus_plus(points: Points, clusters: usize, seed: u64) -> Vec<usize
     let mut centres = vec![first];
     let mut nearest = vec![f64::INFINITY; count];
     while centres.len() < clusters {
-        let centre = points.row_f64(*centres.last().unwrap());
+        let centre = points.row_f64(*centres.last().expect("the first centre is chosen above"));
         nearest
             .par_chunks_mut(CHUNK)
             .enumerate()

@@ -1471,7 +1471,13 @@ fn prt_extras(mesh: &MeshJson<serde_json::Value>) -> std::result::Result<PrtExtr
             prt.transfer_layout
         ));
     }
-    let meta = &prt.metadata;
+    check_shape(&prt.metadata)?;
+    Ok(prt)
+}
+
+/// The bands and channels a baked file's `extras.prt` declares, checked before any size is
+/// computed from them.
+pub(crate) fn check_shape(meta: &BakeMetadata) -> std::result::Result<(), String> {
     if meta.bands == 0 || meta.bands > crate::sh::MAX_BANDS {
         return Err(format!(
             "extras.prt.bands is {}, expected 1 to {}",
@@ -1485,7 +1491,7 @@ fn prt_extras(mesh: &MeshJson<serde_json::Value>) -> std::result::Result<PrtExtr
             meta.channels
         ));
     }
-    Ok(prt)
+    Ok(())
 }
 
 /// `span` if it has the `vertices` elements every vertex attribute must have.

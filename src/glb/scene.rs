@@ -42,6 +42,8 @@ pub struct SceneWrite {
     pub primitives_baked: usize,
     /// Meshes copied because several nodes show them.
     pub mesh_copies: usize,
+    /// Accessors whose NaN or infinite values were written repaired, one line each.
+    pub repaired: Vec<String>,
 }
 
 /// Writes `gltf` with the transfer of `baked` (whose vertex `vertex_map[i]` is vertex `i` of
@@ -67,9 +69,12 @@ pub fn encode_scene_glb(
     let bad = |message: String| Error::Geometry(format!("cannot write the scene: {message}"));
     let mut root = gltf.root.clone();
     let mut bin = Bin::default();
-    embed_accessors(&mut root, &gltf.buffers, &mut bin).map_err(bad)?;
+    let repaired = embed_accessors(&mut root, &gltf.buffers, &mut bin).map_err(bad)?;
     embed_images(&mut root, gltf, &mut bin);
-    let report = add_transfer(&mut root, gltf, baked, vertex_map, &mut bin).map_err(bad)?;
+    let report = SceneWrite {
+        repaired,
+        ..add_transfer(&mut root, gltf, baked, vertex_map, &mut bin).map_err(bad)?
+    };
     root.buffers = vec![gltf_json::Buffer {
         byte_length: USize64(bin.bytes.len() as u64),
         name: None,
@@ -143,6 +148,8 @@ struct Use {
     /// POSITION or NORMAL of a primitive: written as float.
     geometry: bool,
     indices: bool,
+    /// The NORMAL of this primitive (mesh, primitive): repaired from its geometry.
+    normal_of: Option<(usize, usize)>,
 }
 
 fn accessor_uses(root: &Root) -> Vec<Use> {
@@ -152,15 +159,25 @@ fn accessor_uses(root: &Root) -> Vec<Use> {
             f(u)
         }
     };
-    for primitive in root.meshes.iter().flat_map(|m| &m.primitives) {
+    let primitives = root.meshes.iter().enumerate().flat_map(|(m, mesh)| {
+        mesh.primitives
+            .iter()
+            .enumerate()
+            .map(move |(p, primitive)| ((m, p), primitive))
+    });
+    for (place, primitive) in primitives {
         for (semantic, accessor) in &primitive.attributes {
             let geometry = matches!(
                 semantic,
                 Checked::Valid(Semantic::Positions | Semantic::Normals)
             );
+            let normal = matches!(semantic, Checked::Valid(Semantic::Normals));
             mark(accessor.value(), &|u| {
                 u.vertex_attribute = true;
                 u.geometry |= geometry;
+                if normal {
+                    u.normal_of.get_or_insert(place);
+                }
             });
         }
         for target in primitive.targets.iter().flatten() {
@@ -178,17 +195,18 @@ fn accessor_uses(root: &Root) -> Vec<Use> {
     uses
 }
 
-/// Rewrites every accessor into a view of its own in `bin`.
+/// Rewrites every accessor into a view of its own in `bin`; says which had NaN or infinite
+/// values, written repaired.
 fn embed_accessors(
     root: &mut Root,
     buffers: &[Vec<u8>],
     bin: &mut Bin,
-) -> std::result::Result<(), String> {
+) -> std::result::Result<Vec<String>, String> {
     let uses = accessor_uses(root);
+    let mut repaired = Vec::new();
     for (index, usage) in uses.iter().enumerate() {
         let data = dense(root, buffers, index)?;
-        let accessor = &mut root.accessors[index];
-        let (data, recompute_bounds) = if usage.geometry && !usage.indices {
+        let (mut data, mut recompute_bounds) = if usage.geometry && !usage.indices {
             (
                 as_float(&data),
                 data.component != ComponentType::F32 || data.normalized,
@@ -198,6 +216,11 @@ fn embed_accessors(
         } else {
             (data, false)
         };
+        if let Some(said) = repair_non_finite(root, buffers, index, usage, &mut data) {
+            repaired.push(said);
+            recompute_bounds |= root.accessors[index].min.is_some();
+        }
+        let accessor = &mut root.accessors[index];
         let element = data.components * component_size(data.component);
         let (bytes, stride) = if usage.vertex_attribute && !element.is_multiple_of(4) {
             (
@@ -229,7 +252,93 @@ fn embed_accessors(
             accessor.max = None;
         }
     }
-    Ok(())
+    Ok(repaired)
+}
+
+/// Replaces the NaN and infinite floats of accessor `index`: a primitive's normals by the
+/// smooth normals of its triangles (what `prepare` baked with), anything else by zero (a morph
+/// target's zero moves nothing). Says what it did; `None` where every value was finite.
+fn repair_non_finite(
+    root: &Root,
+    buffers: &[Vec<u8>],
+    index: usize,
+    usage: &Use,
+    data: &mut Dense,
+) -> Option<String> {
+    if data.component != ComponentType::F32 {
+        return None;
+    }
+    let mut values = data.floats();
+    let bad = values.iter().filter(|v| !v.is_finite()).count();
+    if bad == 0 {
+        return None;
+    }
+    let computed = usage
+        .normal_of
+        .filter(|_| data.components == 3)
+        .and_then(|(mesh, primitive)| primitive_normals(root, buffers, mesh, primitive))
+        .filter(|normals| normals.len() == data.count);
+    let how = match &computed {
+        Some(normals) => {
+            for (element, normal) in values.chunks_exact_mut(3).zip(normals) {
+                if !element.iter().all(|v| v.is_finite()) {
+                    element.copy_from_slice(&normal.to_array());
+                }
+            }
+            "normals computed from its triangles"
+        }
+        None => {
+            values
+                .iter_mut()
+                .filter(|v| !v.is_finite())
+                .for_each(|v| *v = 0.0);
+            "zeros"
+        }
+    };
+    data.bytes = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let name = root.accessors[index].name.as_deref().unwrap_or("");
+    Some(format!(
+        "accessor {index} {name:?} had {bad} NaN or infinite value(s), written as {how}"
+    ))
+}
+
+/// The smooth normals of a primitive's own triangles, in its own space; `None` where its
+/// geometry does not give them.
+fn primitive_normals(
+    root: &Root,
+    buffers: &[Vec<u8>],
+    mesh: usize,
+    primitive: usize,
+) -> Option<Vec<glam::Vec3>> {
+    let primitive = root.meshes.get(mesh)?.primitives.get(primitive)?;
+    let positions = primitive
+        .attributes
+        .get(&Checked::Valid(Semantic::Positions))?;
+    let positions: Vec<glam::Vec3> = dense(root, buffers, positions.value())
+        .ok()?
+        .vectors::<3>("POSITION")
+        .ok()?
+        .into_iter()
+        .map(glam::Vec3::from_array)
+        .collect();
+    if !positions.iter().all(|p| p.is_finite()) {
+        return None;
+    }
+    let triangles = gltf::triangle_list(root, buffers, primitive, "primitive").ok()??;
+    let normals = crate::scene::prepare::smooth_normals(&positions, &triangles);
+    // A vertex in no triangle has no normal to compute: any unit vector is as good as another.
+    Some(
+        normals
+            .into_iter()
+            .map(|n| {
+                if n.is_finite() && n != glam::Vec3::ZERO {
+                    n
+                } else {
+                    glam::Vec3::Z
+                }
+            })
+            .collect(),
+    )
 }
 
 fn as_float(data: &Dense) -> Dense {
@@ -429,12 +538,19 @@ pub fn read_scene_glb(path: &Path) -> Result<BakedMesh> {
             &scene.triangles,
         ));
     }
-    Ok(BakedMesh {
+    let baked = BakedMesh {
         scene,
         transfer,
         metadata,
         lightmap: None,
-    })
+    };
+    // What the single-mesh reader refuses value by value (a NaN position, an infinite
+    // coefficient) is refused here for the scene as a whole.
+    super::validate(&baked).map_err(|e| match e {
+        Error::Geometry(message) => Error::baked(path, message),
+        other => other,
+    })?;
+    Ok(baked)
 }
 
 /// The metadata of the first baked mesh.
@@ -448,7 +564,10 @@ fn scene_metadata(root: &Root) -> std::result::Result<BakeMetadata, String> {
             value.get("prt").cloned()
         })
         .ok_or("no mesh has extras.prt")?;
-    serde_json::from_value(extras).map_err(|e| format!("invalid extras.prt: {e}"))
+    let metadata =
+        serde_json::from_value(extras).map_err(|e| format!("invalid extras.prt: {e}"))?;
+    super::check_shape(&metadata)?;
+    Ok(metadata)
 }
 
 /// The `_PRT_*` attributes of every placement, in the order of `scene`'s vertices.

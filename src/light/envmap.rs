@@ -4,7 +4,7 @@
 //! format gets a warning ([`load_with_warnings`]).
 
 use crate::color::srgb_to_linear;
-use crate::error::{image_error, one_line, Error, Result};
+use crate::error::{one_line, Error, Result};
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
@@ -285,8 +285,7 @@ fn decode_with_image(bytes: &[u8], path: &Path) -> Result<EnvImage> {
             "not an environment map this program reads (OpenEXR, Radiance .hdr, PNG, JPEG)",
         )
     })?;
-    let decoded = image::load_from_memory_with_format(bytes, format)
-        .map_err(|e| Error::light(path, image_error(&e)))?;
+    let decoded = crate::images::decode(bytes, format).map_err(|e| Error::light(path, e))?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
     let rgb = decoded.into_rgb32f();
     // Radiance files hold linear radiance; 8- and 16-bit formats hold sRGB-encoded values.

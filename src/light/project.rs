@@ -46,7 +46,21 @@ pub fn project_with(
     } else {
         by_pixel_nodes(image, mapping, bands)
     };
-    let coeffs = total.iter().map(|t| t.map(|v| v as f32)).collect();
+    let coeffs: Vec<[f32; 3]> = total.iter().map(|t| t.map(|v| v as f32)).collect();
+    if coeffs.iter().flatten().any(|c| !c.is_finite()) {
+        let brightest = image
+            .pixels
+            .iter()
+            .flatten()
+            .fold(0.0f32, |m, v| m.max(v.abs()));
+        return Err(Error::light(
+            &image.source,
+            format!(
+                "its radiance is too large to project: the coefficients overflow 32-bit floats \
+                 (its brightest value is {brightest:e})"
+            ),
+        ));
+    }
     Ok(Projection {
         light: ShLight { bands, coeffs },
         skipped,
@@ -285,6 +299,18 @@ mod tests {
             }
         })
         .unwrap()
+    }
+
+    /// Pixels near the largest float are finite, but their integral is not: refused in one
+    /// line rather than written as a light of infinities (a flipped exponent bit in an EXR).
+    #[test]
+    fn radiance_whose_integral_overflows_is_refused() {
+        let image = constant(Mapping::Latlong, 16, [3.0e38, 1.0, 1.0]);
+        let error = project(&image, Mapping::Latlong, 3)
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("too large to project"), "{error}");
+        assert!(error.contains("3e38"), "{error}");
     }
 
     #[test]

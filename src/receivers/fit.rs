@@ -95,7 +95,7 @@ impl SparseMatrix {
                 let range = self.row_offsets[r]..self.row_offsets[r + 1];
                 let at = self.columns[range.clone()]
                     .binary_search(&(r as u32))
-                    .unwrap();
+                    .expect("every row of the normal matrix holds its diagonal");
                 self.values[range.start + at]
             })
             .collect()

@@ -82,7 +82,7 @@ pub fn load_with_warnings(path: &Path) -> Result<(Scene, Vec<String>)> {
     if name.ends_with(".obj") {
         obj::load_with_warnings(path)
     } else if name.ends_with(".ply") || name.ends_with(".ply.gz") {
-        ply::load(path).map(|scene| (scene, Vec::new()))
+        ply::load_with_warnings(path)
     } else if is_gltf(path) {
         gltf::load(path).map(|(_, scene)| (scene, Vec::new()))
     } else {

@@ -147,11 +147,24 @@ fn tidy(text: &str) -> Tidied {
         if continued {
             kept = &kept[..kept.len() - 1];
         }
-        tidied.text.push_str(kept);
+        match kept.trim() {
+            // Blender writes a material without a name as `newmtl ` and `usemtl `; tobj
+            // refuses the one and ignores the other, so both are given one name.
+            keyword @ ("newmtl" | "usemtl") if !continued => {
+                tidied
+                    .text
+                    .push_str(&format!("{keyword} {UNNAMED_MATERIAL}"));
+            }
+            _ => tidied.text.push_str(kept),
+        }
         tidied.text.push(if continued { ' ' } else { '\n' });
     }
     tidied
 }
+
+/// What an empty material name is read as: no name a file can spell (DEL is not white space
+/// to tobj, and no exporter writes it).
+const UNNAMED_MATERIAL: &str = "\u{7f}unnamed";
 
 fn without_comment(line: &str) -> &str {
     let mut previous_is_space = true;
@@ -561,6 +574,22 @@ mod tests {
         std::fs::write(dir.path().join("utf16.obj"), utf16).unwrap();
         let error = load(&dir.path().join("utf16.obj")).unwrap_err().to_string();
         assert!(error.ends_with("UTF-16 text; save it as UTF-8"), "{error}");
+    }
+
+    /// A material whose name is empty (Blender's `newmtl ` and `usemtl `, assimp's
+    /// empty_mat.obj) is a material like any other: the faces after `usemtl ` take its Kd.
+    #[test]
+    fn an_empty_material_name_is_a_name() {
+        let dir = tempfile::tempdir().unwrap();
+        write(
+            dir.path(),
+            "m.mtl",
+            "# Blender MTL\nnewmtl \nNs 0\nKd 0.8 0.6 0.4\nd 1\n",
+        );
+        let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl \ns off\nf 1 2 3\n";
+        let (scene, warnings) = load_with_warnings(&write(dir.path(), "e.obj", obj)).unwrap();
+        assert!(warnings.is_empty(), "{warnings:?}");
+        assert_eq!(scene.albedo, vec![glam::Vec3::new(0.8, 0.6, 0.4); 3]);
     }
 
     /// An OBJ and its MTL in Latin-1 (assimp's `regr01.obj` names its materials so) are read,

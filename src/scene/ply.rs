@@ -20,17 +20,36 @@ type Parsed<T> = std::result::Result<T, String>;
 
 /// Reads a PLY or gzipped PLY file.
 pub fn load(path: &Path) -> Result<Scene> {
+    load_with_warnings(path).map(|(scene, _)| scene)
+}
+
+/// [`load`], also giving a line for what the file holds that its header does not declare
+/// (data after the last element), which is not read.
+pub fn load_with_warnings(path: &Path) -> Result<(Scene, Vec<String>)> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    parse(&bytes, path)
+    parse_with_warnings(&bytes, path)
 }
 
 /// Parses PLY data held in memory (gzip detected by its magic bytes); `path` only names the
 /// source in error messages.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Scene> {
-    read_ply(bytes).map_err(|message| Error::mesh(path, message))
+    parse_with_warnings(bytes, path).map(|(scene, _)| scene)
 }
 
-fn read_ply(bytes: &[u8]) -> Parsed<Scene> {
+/// [`parse`] and its warnings, as [`load_with_warnings`] gives them.
+pub fn parse_with_warnings(bytes: &[u8], path: &Path) -> Result<(Scene, Vec<String>)> {
+    let (scene, trailing) = read_ply(bytes).map_err(|message| Error::mesh(path, message))?;
+    let warnings = (trailing > 0)
+        .then(|| {
+            format!("{trailing} byte(s) after the last element its header declares were not read")
+        })
+        .into_iter()
+        .collect();
+    Ok((scene, warnings))
+}
+
+/// The scene, and how many bytes of data follow every element the header declares.
+fn read_ply(bytes: &[u8]) -> Parsed<(Scene, usize)> {
     let bytes = gunzip_if_compressed(bytes)?;
     let (header, body) = parse_header(&bytes)?;
     let layout = Layout::new(&header)?;
@@ -379,6 +398,8 @@ trait Source {
     fn skip_fixed(&mut self, bytes: usize, values: usize) -> Parsed<()>;
     /// Bytes not yet read.
     fn remaining(&self) -> usize;
+    /// Bytes not yet read that hold data (in ascii, white space is not data).
+    fn unread(&self) -> usize;
 }
 
 const TRUNCATED: &str = "truncated data";
@@ -431,6 +452,10 @@ impl Source for Ascii<'_> {
 
     fn remaining(&self) -> usize {
         self.data.len() - self.pos
+    }
+
+    fn unread(&self) -> usize {
+        self.data[self.pos..].trim_ascii().len()
     }
 }
 
@@ -496,6 +521,10 @@ impl Source for Binary<'_> {
     fn remaining(&self) -> usize {
         self.data.len() - self.pos
     }
+
+    fn unread(&self) -> usize {
+        self.remaining()
+    }
 }
 
 #[derive(Default)]
@@ -505,15 +534,15 @@ struct Vertices {
     colours: Vec<[f64; 3]>,
 }
 
-fn read_body(header: &Header, layout: &Layout, source: &mut impl Source) -> Parsed<Scene> {
+fn read_body(header: &Header, layout: &Layout, source: &mut impl Source) -> Parsed<(Scene, usize)> {
     let mut vertices = None;
     let mut triangles = None;
+    let mut read = 0;
     for element in &header.elements {
-        // Elements after the two we need cannot change the mesh; not reading them also
-        // tolerates damage confined to trailing data nobody uses.
         if vertices.is_some() && triangles.is_some() {
             break;
         }
+        read += 1;
         let budget = source.remaining() / element.min_item_bytes(header.encoding);
         let capacity = element.count.min(budget);
         match element.name.as_str() {
@@ -528,7 +557,13 @@ fn read_body(header: &Header, layout: &Layout, source: &mut impl Source) -> Pars
     }
     // Layout::new has checked that both elements exist, so both have been read.
     let (vertices, triangles) = vertices.zip(triangles).ok_or(TRUNCATED)?;
-    Ok(build_scene(vertices, triangles, layout))
+    // Elements after the two we need cannot change the mesh: damage confined to them is no
+    // reason to refuse it, and data past them is only worth a warning.
+    let rest_skipped = header.elements[read..]
+        .iter()
+        .all(|element| skip_element(element, source).is_ok());
+    let trailing = if rest_skipped { source.unread() } else { 0 };
+    Ok((build_scene(vertices, triangles, layout), trailing))
 }
 
 fn build_scene(vertices: Vertices, triangles: Vec<[u32; 3]>, layout: &Layout) -> Scene {
@@ -953,6 +988,24 @@ mod tests {
              end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n{faces}\n"
         )
         .into_bytes()
+    }
+
+    /// Data after the last declared element is not read, and a warning says so; white space
+    /// after an ascii body, and an element after the faces, are no such data.
+    #[test]
+    fn data_past_the_declared_elements_is_a_warning() {
+        let warnings = |bytes: &[u8]| parse_with_warnings(bytes, Path::new("t.ply")).unwrap().1;
+        assert!(warnings(&small("3 0 1 2\n\n  ")).is_empty());
+        let said = warnings(&small("3 0 1 2\n3 1 2 3"));
+        assert_eq!(
+            said,
+            ["7 byte(s) after the last element its header declares were not read"]
+        );
+        let with_edges = String::from_utf8(small("3 0 1 2\n0 1")).unwrap().replace(
+            "end_header",
+            "element edge 1\nproperty int vertex1\nproperty int vertex2\nend_header",
+        );
+        assert!(warnings(with_edges.as_bytes()).is_empty());
     }
 
     #[test]

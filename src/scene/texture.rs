@@ -15,7 +15,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::color::srgb_to_linear;
-use crate::error::{image_error, Error, Result};
+use crate::error::{Error, Result};
 
 /// What a sampler does with a texel index outside the image (the glTF sampler's `wrapS` and
 /// `wrapT`; the index rules of OpenGL 4.6 §8.14.2, table 8.20).
@@ -118,8 +118,8 @@ impl Texture {
             Ok(image::ImageFormat::Jpeg) => (image::ImageFormat::Jpeg, "JPEG"),
             _ => return Err(Error::mesh(what, "not a PNG or JPEG image")),
         };
-        let decoded = image::load_from_memory_with_format(bytes, format)
-            .map_err(|e| Error::mesh(what, format!("{name}: {}", image_error(&e))))?;
+        let decoded = crate::images::decode(bytes, format)
+            .map_err(|e| Error::mesh(what, format!("{name}: {e}")))?;
         let (width, height) = (decoded.width(), decoded.height());
         Texture::new(width, height, linear_texels(decoded), what)
     }

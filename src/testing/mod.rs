@@ -6,13 +6,22 @@
 use std::path::Path;
 use std::process::Command;
 
+pub mod hostile;
+pub mod mutate;
 pub mod oracle;
+pub mod seeds;
 
 /// The names in `dir`, sorted: what a test left behind (no partial or temporary files).
 pub fn entries(dir: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(dir)
         .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
-        .map(|entry| entry.unwrap().file_name().to_string_lossy().into_owned())
+        .map(|entry| {
+            entry
+                .expect("a readable entry")
+                .file_name()
+                .to_string_lossy()
+                .into_owned()
+        })
         .collect();
     names.sort();
     names

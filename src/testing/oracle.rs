@@ -180,7 +180,7 @@ fn read_vec3s(path: &Path) -> Vec<Vec3> {
     bytes
         .chunks_exact(12)
         .map(|c| {
-            let f = |i: usize| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().unwrap());
+            let f = |i: usize| f32::from_le_bytes(c[4 * i..4 * i + 4].try_into().expect("4 bytes"));
             Vec3::new(f(0), f(1), f(2))
         })
         .collect()

@@ -416,7 +416,7 @@ fn primitive_geometry(
 
 /// The primitive's triangles as a list (strips and fans converted), `None` for points and
 /// lines; every index checked against the vertex count.
-fn triangle_list(
+pub(crate) fn triangle_list(
     root: &Root,
     buffers: &[Vec<u8>],
     primitive: &gltf_json::mesh::Primitive,
@@ -432,16 +432,24 @@ fn triangle_list(
     ) {
         return Ok(None);
     }
-    let vertex_count = primitive
+    let positions = primitive
         .attributes
-        .get(&Checked::Valid(Semantic::Positions))
+        .get(&Checked::Valid(Semantic::Positions));
+    let vertex_count = positions
         .and_then(|a| root.accessors.get(a.value()))
         .map_or(0, |a| a.count.0 as usize);
-    let indices = match primitive.indices {
-        Some(index) => dense(root, buffers, index.value())?
+    let indices = match (primitive.indices, positions) {
+        (Some(index), _) => dense(root, buffers, index.value())?
             .indices()
             .map_err(|e| format!("{what}: {e}"))?,
-        None => (0..vertex_count as u32).collect(),
+        // One index per vertex: as many as the positions the buffers hold (read, so that a
+        // count the data cannot back is an error before anything is reserved for it).
+        (None, Some(positions)) => {
+            let held = dense(root, buffers, positions.value())?.count;
+            (0..u32::try_from(held).map_err(|_| format!("{what} has over 2^32 vertices"))?)
+                .collect()
+        }
+        (None, None) => Vec::new(),
     };
     if let Some(&bad) = indices.iter().find(|&&i| i as usize >= vertex_count) {
         return Err(format!(

@@ -154,11 +154,10 @@ pub fn image_error(error: &image::ImageError) -> String {
 mod tests {
     use super::*;
 
-    /// A PNG whose header chunk is damaged: the error names the chunk, with no debug dump.
-    /// A PLY header line of a thousand bytes with NULs in it, as a fuzzer wrote: its start
-    /// and end, its NULs escaped.
+    /// A message of a thousand characters with a NUL in it (a PLY header line quoted as a
+    /// fuzzer wrote it, unescaped): its start and end, the NUL escaped.
     #[test]
-    fn quoted_file_bytes_are_printable_and_short() {
+    fn messages_are_printable_and_short() {
         let line = format!(
             "unsupported PLY version '0.0{}\0r' (only 1.0 is supported)",
             "S".repeat(1000)
@@ -176,6 +175,7 @@ mod tests {
         assert!(!shown.chars().any(char::is_control));
     }
 
+    /// A PNG whose header chunk is damaged: the error names the chunk, with no debug dump.
     #[test]
     fn image_errors_are_plain_words_on_one_line() {
         let mut png = Vec::new();

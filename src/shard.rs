@@ -287,24 +287,7 @@ pub fn read_part(path: &Path) -> Result<Part> {
         weights: floats(values + offsets + entries, entries).collect(),
     });
     if let Some(m) = &matrix {
-        let ascending = m.row_offsets.windows(2).all(|w| w[0] <= w[1]);
-        if m.row_offsets.first() != Some(&0)
-            || !ascending
-            || m.row_offsets.last() != Some(&(entries as u32))
-        {
-            return Err(broken("gather rows out of order"));
-        }
-        // Columns index every receiver of the bake, not only the part's.
-        if let Some(&column) = m
-            .columns
-            .iter()
-            .find(|&&c| u64::from(c) >= header.receivers_total)
-        {
-            return Err(broken(&format!(
-                "gather column {column} is past the bake's {} receivers",
-                header.receivers_total
-            )));
-        }
+        check_gather_rows(m, entries, header.receivers_total).map_err(|why| broken(&why))?;
     }
     let adaptive = header.adaptive.then(|| {
         let errors_at = 4 * (words_before_adaptive + receivers);
@@ -337,6 +320,28 @@ pub fn read_part(path: &Path) -> Result<Part> {
         adaptive,
     };
     Ok(Part { header, direct })
+}
+
+/// A part's gather rows in order from 0 to its `entries`, every column one of the bake's
+/// `receivers_total` receivers (columns index every receiver, not only the part's).
+fn check_gather_rows(
+    m: &GatherMatrix,
+    entries: usize,
+    receivers_total: u64,
+) -> std::result::Result<(), String> {
+    let ascending = m.row_offsets.windows(2).all(|w| w[0] <= w[1]);
+    if m.row_offsets.first() != Some(&0)
+        || !ascending
+        || m.row_offsets.last() != Some(&(entries as u32))
+    {
+        return Err("gather rows out of order".into());
+    }
+    match m.columns.iter().find(|&&c| u64::from(c) >= receivers_total) {
+        Some(column) => Err(format!(
+            "gather column {column} is past the bake's {receivers_total} receivers"
+        )),
+        None => Ok(()),
+    }
 }
 
 /// What to tell the user when parts of one bake (their fingerprints agree) were baked by

@@ -15,6 +15,7 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use prt_gpu::images;
+use prt_gpu::light::envmap;
 use prt_gpu::testing::hostile::{self, Outcome, Reader};
 use prt_gpu::testing::mutate::Mutator;
 use prt_gpu::testing::seeds::seeds;
@@ -37,12 +38,14 @@ const BYTES_PER_INPUT_BYTE: usize = 64;
 
 /// The bound of a case of `input` bytes. A compressed image may decode to what
 /// `images::decodable_bytes` allows, at one byte a pixel or more, and is then held as float
-/// RGB twice over (24 bytes a pixel).
+/// RGB twice over (24 bytes a pixel); an OpenEXR file to `envmap::exr_pixels_allowed`.
 fn allowed(reader: Reader, input: usize) -> usize {
     match reader {
         Reader::Png | Reader::Jpeg | Reader::Hdr => {
             FLOOR_BYTES + 25 * images::decodable_bytes(input) as usize
         }
+        // An OpenEXR file's pixels, as float RGB twice over.
+        Reader::Exr => FLOOR_BYTES + 24 * envmap::exr_pixels_allowed(input),
         _ => FLOOR_BYTES + BYTES_PER_INPUT_BYTE * input,
     }
 }

@@ -159,6 +159,22 @@ fn radiance_renamed(bytes: &[u8]) -> Option<Vec<u8>> {
 /// A header is a few bytes, so its data window alone justifies no allocation.
 pub const MAX_EXR_PIXELS: usize = 1 << 28;
 
+/// The most pixels an OpenEXR file may declare per byte it holds, beyond
+/// [`EXR_PIXELS_ANY_FILE`]: 190 times the 5.4 of the most compressed map here (DWAB), above
+/// what deflate leaves of half-float RGB (172).
+pub const EXR_PIXELS_PER_BYTE: usize = 1024;
+
+/// Pixels any OpenEXR file may declare, however small (a flat map compresses to almost nothing).
+pub const EXR_PIXELS_ANY_FILE: usize = 1 << 20;
+
+/// The most pixels an OpenEXR file of `file_bytes` may declare.
+pub fn exr_pixels_allowed(file_bytes: usize) -> usize {
+    file_bytes
+        .saturating_mul(EXR_PIXELS_PER_BYTE)
+        .saturating_add(EXR_PIXELS_ANY_FILE)
+        .min(MAX_EXR_PIXELS)
+}
+
 /// Pixels of the first valid layer, largest resolution level; R, G, B must be present and any
 /// alpha is ignored. Half, float and uint samples all arrive as f32. A file without R, G, B
 /// whose first layer with a Y channel has no chroma (RY, BY) is read as grey, R = G = B = Y.
@@ -169,7 +185,8 @@ fn decode_exr(bytes: &[u8], path: &Path) -> Result<EnvImage> {
     if let Ok(meta) = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false) {
         for header in &meta.headers {
             let size = header.layer_size;
-            if size.width().saturating_mul(size.height()) > MAX_EXR_PIXELS {
+            let pixels = size.width().saturating_mul(size.height());
+            if pixels > MAX_EXR_PIXELS {
                 return Err(Error::light(
                     path,
                     format!(
@@ -178,6 +195,18 @@ fn decode_exr(bytes: &[u8], path: &Path) -> Result<EnvImage> {
                         size.width(),
                         size.height(),
                         MAX_EXR_PIXELS
+                    ),
+                ));
+            }
+            if pixels > exr_pixels_allowed(bytes.len()) {
+                return Err(Error::light(
+                    path,
+                    format!(
+                        "OpenEXR: its data window is {} x {} pixels, more than its {} bytes \
+                         can hold (truncated or damaged)",
+                        size.width(),
+                        size.height(),
+                        bytes.len()
                     ),
                 ));
             }
@@ -429,6 +458,27 @@ mod tests {
             assert_one_line(&e).contains("data window is 65536 x 65536"),
             "{e}"
         );
+    }
+
+    /// The fuzzer's corpus held an EXR of 2 KB declaring 2^27 pixels, within the cap: 1.6 GB
+    /// were reserved before a pixel was read. Now the data window is weighed against the file.
+    #[test]
+    fn an_exr_declaring_more_than_its_bytes_hold_is_refused() {
+        let mut bytes = exr_with_channels(&[("Y", |_, _| 1.0)]);
+        for name in [&b"dataWindow\0box2i\0"[..], b"displayWindow\0box2i\0"] {
+            let at = bytes.windows(name.len()).position(|w| w == name).unwrap() + name.len() + 4;
+            bytes[at + 8..at + 12].copy_from_slice(&16383i32.to_le_bytes());
+            bytes[at + 12..at + 16].copy_from_slice(&8191i32.to_le_bytes());
+        }
+        const { assert!(16384 * 8192 <= MAX_EXR_PIXELS) };
+        let e = decode(&bytes, Path::new("dense.exr")).unwrap_err();
+        let said = assert_one_line(&e);
+        assert!(
+            said.contains("16384 x 8192 pixels, more than its"),
+            "{said}"
+        );
+        // The real maps are far from the bound: 1024 x 512 in 97,867 bytes.
+        assert!(exr_pixels_allowed(97_867) > 512 * 1024 * 100);
     }
 
     #[test]

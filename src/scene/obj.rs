@@ -197,7 +197,7 @@ fn check_statements(tidied: &Tidied) -> std::result::Result<(), String> {
         let numbers = |n: usize, what: &str| -> std::result::Result<(), String> {
             let read = line.split_whitespace().skip(1).take(n);
             if read.filter(|v| f32::from_str(v).is_ok()).count() < n {
-                return Err(at(format!("{what} needs {n} numbers: '{}'", line.trim())));
+                return Err(at(format!("{what} needs {n} numbers: {:?}", line.trim())));
             }
             Ok(())
         };
@@ -220,7 +220,7 @@ fn check_statements(tidied: &Tidied) -> std::result::Result<(), String> {
                 for corner in words {
                     let indices = corner_indices(corner).ok_or_else(|| {
                         at(format!(
-                            "'{corner}' is not a vertex reference (v, v/vt, v//vn or v/vt/vn)"
+                            "{corner:?} is not a vertex reference (v, v/vt, v//vn or v/vt/vn)"
                         ))
                     })?;
                     if is_face {
@@ -502,7 +502,7 @@ mod tests {
         // `6#not` is no comment (no white space before the #), so it is a bad index.
         let error = tidied.unwrap_err().to_string();
         // Line 11: the comment ending in `\` on line 9 continues nothing.
-        assert!(error.contains("line 11: '6#not'"), "{error}");
+        assert!(error.contains("line 11: \"6#not\""), "{error}");
         let tidy_me = tidy_me.replace("6#not", "6 #not");
         assert_eq!(
             load(&write(dir.path(), "tidy.obj", &tidy_me)).unwrap(),
@@ -533,15 +533,15 @@ mod tests {
                 "f -1 -2 -4\n",
                 "line 5: vertex index -4 reaches before the first vertex",
             ),
-            ("f 1 2 x\n", "line 5: 'x' is not a vertex reference"),
+            ("f 1 2 x\n", "line 5: \"x\" is not a vertex reference"),
             (
                 "f 1/1/1/1 2 3\n",
-                "line 5: '1/1/1/1' is not a vertex reference",
+                "line 5: \"1/1/1/1\" is not a vertex reference",
             ),
-            ("f 1 2 /3\n", "line 5: '/3' is not a vertex reference"),
+            ("f 1 2 /3\n", "line 5: \"/3\" is not a vertex reference"),
             (
                 "vt 0.5\nf 1 2 3\n",
-                "line 5: a texture coordinate needs 2 numbers: 'vt 0.5'",
+                "line 5: a texture coordinate needs 2 numbers: \"vt 0.5\"",
             ),
             ("vn 0 0 z\n", "line 5: a normal needs 3 numbers"),
             (

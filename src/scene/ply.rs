@@ -216,7 +216,7 @@ fn parse_header(bytes: &[u8]) -> Parsed<(Header, &[u8])> {
                 .properties
                 .push(parse_property(words, line)?),
             Some("end_header") => break,
-            Some(_) => return Err(format!("unexpected PLY header line '{}'", line.trim())),
+            Some(_) => return Err(format!("unexpected PLY header line {:?}", line.trim())),
         }
     }
     let encoding = encoding.ok_or("PLY header has no format line")?;
@@ -236,7 +236,7 @@ fn parse_format<'a>(mut words: impl Iterator<Item = &'a str>) -> Parsed<Encoding
         Some("binary_big_endian") => Encoding::BigEndian,
         other => {
             return Err(format!(
-                "unsupported PLY format '{}'",
+                "unsupported PLY format {:?}",
                 other.unwrap_or_default()
             ))
         }
@@ -244,14 +244,14 @@ fn parse_format<'a>(mut words: impl Iterator<Item = &'a str>) -> Parsed<Encoding
     match words.next() {
         Some("1.0") | Some("1") => Ok(encoding),
         other => Err(format!(
-            "unsupported PLY version '{}' (only 1.0 is supported)",
+            "unsupported PLY version {:?} (only 1.0 is supported)",
             other.unwrap_or_default()
         )),
     }
 }
 
 fn parse_element<'a>(mut words: impl Iterator<Item = &'a str>, line: &str) -> Parsed<Element> {
-    let invalid = || format!("invalid PLY element line '{}'", line.trim());
+    let invalid = || format!("invalid PLY element line {:?}", line.trim());
     let name = words.next().ok_or_else(invalid)?;
     let count = words
         .next()
@@ -265,10 +265,10 @@ fn parse_element<'a>(mut words: impl Iterator<Item = &'a str>, line: &str) -> Pa
 }
 
 fn parse_property<'a>(mut words: impl Iterator<Item = &'a str>, line: &str) -> Parsed<Property> {
-    let invalid = || format!("invalid PLY property line '{}'", line.trim());
+    let invalid = || format!("invalid PLY property line {:?}", line.trim());
     let scalar = |word: Option<&str>| -> Parsed<Scalar> {
         let word = word.ok_or_else(invalid)?;
-        Scalar::from_name(word).ok_or_else(|| format!("unknown PLY property type '{word}'"))
+        Scalar::from_name(word).ok_or_else(|| format!("unknown PLY property type {word:?}"))
     };
     let first = words.next();
     let kind = if first == Some("list") {
@@ -436,7 +436,7 @@ impl Source for Ascii<'_> {
             Scalar::F64 => token.parse::<f64>().ok(),
             _ => token.parse::<i64>().ok().map(|v| v as f64),
         };
-        value.ok_or_else(|| format!("invalid number '{token}'"))
+        value.ok_or_else(|| format!("invalid number {token:?}"))
     }
 
     fn skip(&mut self, _ty: Scalar, n: usize) -> Parsed<()> {
@@ -976,7 +976,7 @@ mod tests {
         let no_z = text.replace("property float32 z\n", "");
         assert!(error_of(no_z.as_bytes()).contains("no 'z' property"));
         let bad_type = text.replace("property float y", "property quad y");
-        assert!(error_of(bad_type.as_bytes()).contains("unknown PLY property type 'quad'"));
+        assert!(error_of(bad_type.as_bytes()).contains("unknown PLY property type \"quad\""));
         let no_list = text.replace("vertex_indices", "corners");
         assert!(error_of(no_list.as_bytes()).contains("no vertex_indices list"));
     }
@@ -1016,7 +1016,7 @@ mod tests {
         assert!(message.contains("face with 2 vertices"), "{message}");
         assert!(message.contains("item 0 of 1"), "{message}");
         let message = error_of(&small("3 0 1 x"));
-        assert!(message.contains("invalid number 'x'"), "{message}");
+        assert!(message.contains("invalid number \"x\""), "{message}");
     }
 
     #[test]

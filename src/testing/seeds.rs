@@ -251,13 +251,7 @@ fn baked(data: &Path, scratch: &Path) -> Result<Vec<(String, Vec<u8>)>> {
 /// BoxTextured baked in place (unshadowed, two bands): a scene file as `render` reads one.
 fn baked_in_place(data: &Path) -> Result<Vec<u8>> {
     let (gltf, scene) = crate::scene::gltf::load(&data.join("gltf/BoxTextured.glb"))?;
-    let options = BakeOptions {
-        bands: 2,
-        samples: 16,
-        mode: Mode::Unshadowed,
-        ..BakeOptions::default()
-    };
-    let (baked, report) = bake::bake(scene, &options, &Backend::Cpu, &NoProgress)?;
+    let (baked, report) = super::hostile::quick_bake(scene)?;
     let (bytes, _) = glb::scene::encode_scene_glb(&gltf, &baked, &report.vertex_map)?;
     Ok(bytes)
 }

@@ -255,9 +255,10 @@ fn embed_accessors(
     Ok(repaired)
 }
 
-/// Replaces the NaN and infinite floats of accessor `index`: a primitive's normals by the
-/// smooth normals of its triangles (what `prepare` baked with), anything else by zero (a morph
-/// target's zero moves nothing). Says what it did; `None` where every value was finite.
+/// Replaces what a reader cannot use in accessor `index`: a primitive's normals that are NaN,
+/// infinite or zero by the smooth normals of its triangles (`prepare` baked with computed
+/// ones too), any other NaN or infinite float by zero (a morph target's zero moves nothing).
+/// Says what it did; `None` where nothing needed it.
 fn repair_non_finite(
     root: &Root,
     buffers: &[Vec<u8>],
@@ -269,36 +270,38 @@ fn repair_non_finite(
         return None;
     }
     let mut values = data.floats();
+    let name = root.accessors[index].name.as_deref().unwrap_or("");
+    let unusable = |e: &[f32]| !e.iter().all(|v| v.is_finite()) || e.iter().all(|&v| v == 0.0);
+    if let Some((mesh, primitive)) = usage.normal_of.filter(|_| data.components == 3) {
+        let bad = values.chunks_exact(3).filter(|e| unusable(e)).count();
+        let computed = (bad > 0)
+            .then(|| primitive_normals(root, buffers, mesh, primitive))
+            .flatten()
+            .filter(|normals| normals.len() == data.count);
+        if let Some(normals) = computed {
+            for (element, normal) in values.chunks_exact_mut(3).zip(normals) {
+                if unusable(element) {
+                    element.copy_from_slice(&normal.to_array());
+                }
+            }
+            data.bytes = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+            return Some(format!(
+                "accessor {index} {name:?} had {bad} normal(s) NaN, infinite or zero, written \
+                 as the normals computed from its triangles"
+            ));
+        }
+    }
     let bad = values.iter().filter(|v| !v.is_finite()).count();
     if bad == 0 {
         return None;
     }
-    let computed = usage
-        .normal_of
-        .filter(|_| data.components == 3)
-        .and_then(|(mesh, primitive)| primitive_normals(root, buffers, mesh, primitive))
-        .filter(|normals| normals.len() == data.count);
-    let how = match &computed {
-        Some(normals) => {
-            for (element, normal) in values.chunks_exact_mut(3).zip(normals) {
-                if !element.iter().all(|v| v.is_finite()) {
-                    element.copy_from_slice(&normal.to_array());
-                }
-            }
-            "normals computed from its triangles"
-        }
-        None => {
-            values
-                .iter_mut()
-                .filter(|v| !v.is_finite())
-                .for_each(|v| *v = 0.0);
-            "zeros"
-        }
-    };
+    values
+        .iter_mut()
+        .filter(|v| !v.is_finite())
+        .for_each(|v| *v = 0.0);
     data.bytes = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-    let name = root.accessors[index].name.as_deref().unwrap_or("");
     Some(format!(
-        "accessor {index} {name:?} had {bad} NaN or infinite value(s), written as {how}"
+        "accessor {index} {name:?} had {bad} NaN or infinite value(s), written as zeros"
     ))
 }
 

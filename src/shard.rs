@@ -23,6 +23,7 @@ use crate::bake::{DirectPass, ShardPass};
 use crate::error::{Error, Result};
 use crate::fs::write_atomically;
 use crate::scene::Scene;
+use crate::spec::BakeSpec;
 
 const MAGIC: &[u8; 8] = b"prtpart1";
 
@@ -79,8 +80,13 @@ pub struct PartHeader {
     pub rays_cast: u64,
     /// The backend the shard ran on (`cpu`, or `gpu: adapter`).
     pub backend: String,
+    /// What the bake is: the merge bakes the rest of it as this says.
+    pub spec: BakeSpec,
+    /// The mesh baked (none for the built-in scene), as given: relative paths are from
+    /// `directory`, where the shard ran.
+    pub mesh: Option<PathBuf>,
     /// The bake command (arguments after the program's name) and the directory it ran in,
-    /// from which the merge bakes the rest.
+    /// shown when parts of one bake were baked by different commands.
     pub command: Vec<String>,
     pub directory: PathBuf,
     pub tool_version: String,
@@ -97,13 +103,14 @@ pub struct Part {
 }
 
 impl Part {
-    /// The part of `pass`, shard `index` of `count`, baked by `command` in `directory`.
+    /// The part of `pass`, shard `index` of `count` of the bake of `mesh` that `spec` says,
+    /// baked by `command` in `directory`.
     pub fn new(
         pass: ShardPass,
         (index, count): (u32, u32),
+        (spec, mesh): (BakeSpec, Option<PathBuf>),
         fingerprint: String,
-        command: Vec<String>,
-        directory: PathBuf,
+        (command, directory): (Vec<String>, PathBuf),
     ) -> Part {
         let receivers = pass.receivers.len();
         let coeffs = pass.direct.scalar.len().checked_div(receivers).unwrap_or(0) as u32;
@@ -119,6 +126,8 @@ impl Part {
             adaptive: pass.direct.adaptive.is_some(),
             rays_cast: pass.direct.rays_cast,
             backend: pass.ran_on,
+            spec,
+            mesh,
             command,
             directory,
             tool_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -247,8 +256,10 @@ pub fn read_part(path: &Path) -> Result<Part> {
     let json = bytes
         .get(12..12 + json_len)
         .ok_or_else(|| broken("truncated header"))?;
-    let header: PartHeader =
-        serde_json::from_slice(json).map_err(|e| broken(&format!("header: {e}")))?;
+    let header: PartHeader = serde_json::from_slice(json).map_err(|e| {
+        // serde names an unknown field as the file spells it: escape what it echoes.
+        broken(&crate::error::printable(&format!("header: {e}")))
+    })?;
     let body = &bytes[12 + json_len..];
     // Sizes from the header, checked against the data before anything is read or reserved.
     let sizes = part_sizes(&header).filter(|s| s.bytes == body.len() as u64);

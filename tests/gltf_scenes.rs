@@ -12,6 +12,7 @@ use base64::Engine;
 use glam::{Mat3, Mat4, Quat, Vec3};
 use prt_gpu::bake::{bake, Backend, BakeOptions, BakeReport, BakedMesh, Mode, NoProgress};
 use prt_gpu::glb::scene::{encode_scene_glb, read_scene_glb, write_scene_glb};
+use prt_gpu::precision::Precision;
 use prt_gpu::sampling::Sampling;
 use prt_gpu::scene::gltf::{self as gltf_scene, GltfScene};
 use prt_gpu::scene::{self, builtin, Scene};
@@ -102,7 +103,8 @@ fn the_assimp_scenes_bake_and_pass_the_validator() {
             .path()
             .join(name.replace('/', "_"))
             .with_extension("glb");
-        let written = write_scene_glb(&target, &gltf, &baked, &report.vertex_map).unwrap();
+        let written =
+            write_scene_glb(&target, &gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
         let primitives: usize = gltf.instances.iter().map(|i| i.primitives.len()).sum();
         assert_eq!(written.primitives_baked, primitives, "{name}");
         assert_valid(&target);
@@ -391,7 +393,7 @@ fn two_placements_bake_like_the_mesh_transformed_by_hand() {
     let (gltf, baked, report) = bake_gltf(&gltf_path, &options, &Backend::Cpu);
     assert_eq!(gltf.instances.len(), 3);
     let out = dir.path().join("placed.prt.glb");
-    let written = write_scene_glb(&out, &gltf, &baked, &report.vertex_map).unwrap();
+    let written = write_scene_glb(&out, &gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
     assert_eq!(
         written.mesh_copies, 1,
         "the second sphere gets its own mesh"
@@ -533,7 +535,8 @@ fn the_round_trip_keeps_nodes_meshes_materials_textures_names_and_indices() {
     ] {
         let input = data(name);
         let (gltf, baked, report) = bake_gltf(&input, &quick(), &Backend::Cpu);
-        let (bytes, written) = encode_scene_glb(&gltf, &baked, &report.vertex_map).unwrap();
+        let (bytes, written) =
+            encode_scene_glb(&gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
         let before = input_json(&input);
         let after = glb_json(&bytes);
         for array in [
@@ -599,18 +602,29 @@ fn the_round_trip_keeps_nodes_meshes_materials_textures_names_and_indices() {
 fn the_numpy_recipe_reads_a_scene_baked_in_place() {
     let dir = tempfile::tempdir().unwrap();
     let (gltf, baked, report) = bake_gltf(&data("BoxTextured.glb"), &quick(), &Backend::Cpu);
-    let target = dir.path().join("box.prt.glb");
-    write_scene_glb(&target, &gltf, &baked, &report.vertex_map).unwrap();
-    let Some(printed) = prt_gpu::testing::numpy_reader_output(&target) else {
-        return;
-    };
-    assert_eq!(printed["positions"], json!([24, 3]));
-    assert_eq!(printed["indices"], json!([12, 3]));
-    assert_eq!(printed["transfer"], json!([24, 3, 16]));
-    let back = read_scene_glb(&target).unwrap();
-    let last: Vec<Vec<f32>> = serde_json::from_value(printed["last_vertex"].clone()).unwrap();
-    for (channel, row) in last.iter().enumerate() {
-        assert_eq!(row[..], back.transfer.vertex_channel(23, channel)[..]);
+    let mut float32 = None;
+    for precision in [Precision::F32, Precision::F16] {
+        let target = dir.path().join(format!("box-{precision:?}.prt.glb"));
+        write_scene_glb(&target, &gltf, &baked, &report.vertex_map, precision).unwrap();
+        let Some(printed) = prt_gpu::testing::numpy_reader_output(&target) else {
+            return;
+        };
+        assert_eq!(printed["positions"], json!([24, 3]));
+        assert_eq!(printed["indices"], json!([12, 3]));
+        assert_eq!(printed["transfer"], json!([24, 3, 16]));
+        let back = read_scene_glb(&target).unwrap();
+        match &float32 {
+            None => float32 = Some(back.transfer.clone()),
+            Some(exact) => assert_eq!(back.transfer, prt_gpu::glb::rounded_to_f16(exact)),
+        }
+        let last: Vec<Vec<f32>> = serde_json::from_value(printed["last_vertex"].clone()).unwrap();
+        for (channel, row) in last.iter().enumerate() {
+            assert_eq!(
+                row[..],
+                back.transfer.vertex_channel(23, channel)[..],
+                "{precision:?}"
+            );
+        }
     }
 }
 
@@ -650,7 +664,7 @@ fn interreflected_scenes_bake_in_place_too() {
         &Backend::Cpu,
     );
     let target = dir.path().join("box.glb");
-    write_scene_glb(&target, &gltf, &baked, &report.vertex_map).unwrap();
+    write_scene_glb(&target, &gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
     assert_valid(&target);
     assert_eq!(prt_gpu::glb::read_metadata(&target).unwrap().0.bounces, 2);
 }
@@ -740,7 +754,7 @@ fn quantized_interleaved_and_sparse_accessors_are_read_as_specified() {
 
     let (baked, report) = bake(loaded, &quick(), &Backend::Cpu, &NoProgress).unwrap();
     let target = dir.path().join("quantized.prt.glb");
-    write_scene_glb(&target, &gltf, &baked, &report.vertex_map).unwrap();
+    write_scene_glb(&target, &gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
     assert_valid(&target);
     let written = glb_json(&std::fs::read(&target).unwrap());
     let accessors = &written["accessors"];
@@ -790,7 +804,7 @@ fn skinned_and_morphing_meshes_bake_in_their_rest_pose_with_a_note() {
             gltf.notes
         );
         let target = out.path().join("out.glb");
-        write_scene_glb(&target, &gltf, &baked, &report.vertex_map).unwrap();
+        write_scene_glb(&target, &gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
         assert_valid(&target);
         // Skins, joints, morph targets and animations travel with the scene.
         let (before, after) = (
@@ -1094,7 +1108,8 @@ fn non_finite_normals_and_morph_targets_are_written_repaired() {
     });
     let path = builder.finish(doc, dir.path(), "nan.gltf");
     let (gltf, baked, report) = bake_gltf(&path, &quick(), &Backend::Cpu);
-    let (bytes, written) = encode_scene_glb(&gltf, &baked, &report.vertex_map).unwrap();
+    let (bytes, written) =
+        encode_scene_glb(&gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
     assert_eq!(written.repaired.len(), 2, "{:?}", written.repaired);
     assert!(
         written.repaired[0].contains("3 normal(s) NaN, infinite or zero, written as the normals"),

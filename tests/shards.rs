@@ -394,3 +394,72 @@ fn merge_warns_when_the_parts_commands_differ() {
     let out = prt_gpu(&["merge", &same[0], &same[1], "-o", "again.glb"], d);
     assert!(!String::from_utf8_lossy(&out.stderr).contains("warning:"));
 }
+
+/// A part says what its bake is as a spec, and the merge bakes the rest by that spec: a part
+/// whose recorded command was changed (resealed, so its checksum holds) still merges to the
+/// bytes of the whole bake.
+#[test]
+fn a_part_holds_its_bake_spec_and_the_merge_bakes_by_it_not_by_the_command() {
+    use prt_gpu::precision::Precision;
+    use prt_gpu::shard::{read_part, write_part};
+    use prt_gpu::spec::{Bands, Compression, Layout};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let flags = [
+        "--bands",
+        "auto",
+        "--compress",
+        "8x4",
+        "--precision",
+        "f16",
+        "--seed",
+        "5",
+    ];
+    let parts = [0, 1].map(|i| shard(d, BUNNY, &flags, i, 2));
+    for path in &parts {
+        let mut part = read_part(path).unwrap();
+        let spec = &part.header.spec;
+        assert_eq!(spec.transfer.bands, Bands::Auto { threshold: 0.05 });
+        assert_eq!(spec.transfer.seed, 5);
+        assert_eq!(spec.transfer.samples, 32);
+        assert_eq!(spec.storage.precision, Precision::F16);
+        assert_eq!(
+            spec.storage.layout,
+            Layout::Cpca(Compression::Shape {
+                clusters: 8,
+                components: 4
+            })
+        );
+        assert_eq!(part.header.mesh.as_deref(), Some(Path::new(BUNNY)));
+        part.header.command = ["bake", "--bands", "2", "elsewhere.obj"]
+            .map(String::from)
+            .to_vec();
+        write_part(path, &part).unwrap();
+    }
+    let parts = parts.map(|p| p.display().to_string());
+    let out = prt_gpu(&["merge", &parts[0], &parts[1], "-o", "merged.glb"], d);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut whole = vec![
+        "bake",
+        BUNNY,
+        "--device",
+        "cpu",
+        "--samples",
+        "32",
+        "-o",
+        "whole.glb",
+    ];
+    whole.extend(flags);
+    let out = prt_gpu(&whole, d);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let read = |name: &str| std::fs::read(d.join(name)).unwrap();
+    assert_eq!(read("merged.glb"), read("whole.glb"));
+}

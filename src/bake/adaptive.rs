@@ -39,7 +39,7 @@ pub const MIN_BATCHES: u32 = 4;
 pub const OPEN_BATCHES: u32 = 2;
 
 /// What an error-targeted bake is asked.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TargetError {
     /// The standard error to reach, relative to unoccluded transfer's norm.
     pub relative: f64,

@@ -5,6 +5,7 @@ use glam::Vec3;
 use prt_gpu::bake::{self, BakeOptions, Mode, DEFAULT_SAMPLES, DEFAULT_SAMPLING};
 use prt_gpu::sampling::Sampling;
 use prt_gpu::sh::window::Window;
+use prt_gpu::spec::Compression;
 
 /// What `bake` and `bench` compute per vertex.
 #[derive(clap::Args)]
@@ -34,8 +35,7 @@ pub(crate) enum Bands {
     Auto,
 }
 
-/// The most bands `--bands auto` bakes and chooses among.
-pub(crate) const AUTO_MAX_BANDS: u32 = 8;
+use prt_gpu::spec::AUTO_MAX_BANDS;
 
 fn parse_bands(text: &str) -> std::result::Result<Bands, String> {
     if text.eq_ignore_ascii_case("auto") {
@@ -75,21 +75,17 @@ pub(crate) struct LightShaping {
     pub(crate) rotate: Option<Vec3>,
 }
 
-/// `--compress`: a shape, or an error target to choose one by.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) enum Compression {
-    Shape(u32, u32),
-    Target(f64),
-}
-
 pub(crate) fn parse_compression(text: &str) -> std::result::Result<Compression, String> {
     match text.strip_prefix("auto:") {
         Some(target) => target
             .trim()
             .parse::<f64>()
-            .map(Compression::Target)
+            .map(|error| Compression::Target { error })
             .map_err(|e| format!("expected auto:ERROR, such as auto:0.02: {e}")),
-        None => parse_cpca_shape(text).map(|(k, m)| Compression::Shape(k, m)),
+        None => parse_cpca_shape(text).map(|(clusters, components)| Compression::Shape {
+            clusters,
+            components,
+        }),
     }
 }
 

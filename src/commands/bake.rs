@@ -5,22 +5,22 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 
 use super::args::{
-    parse_compression, parse_cpca_shape, parse_rgb, parse_shard, parse_size, Bands, Compression,
-    TransferArgs, AUTO_MAX_BANDS,
+    parse_compression, parse_cpca_shape, parse_rgb, parse_shard, parse_size, Bands, TransferArgs,
 };
 use super::progress::{batch_bar, BarProgress};
 use prt_gpu::bake::adaptive::TargetError;
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
 use prt_gpu::bake::{self, Backend, BakeOptions, BakeReport, Fit, Storage};
-use prt_gpu::compress::{self, Cpca, CpcaOptions};
 use prt_gpu::device::{self, DeviceChoice, GpuContext};
-use prt_gpu::glb::Precision;
-use prt_gpu::light;
 use prt_gpu::local::LocalOptions;
+use prt_gpu::precision::Precision;
 use prt_gpu::receivers::PointDensity;
 use prt_gpu::render::{self, ToneMap};
 use prt_gpu::shard::{self, PartHeader};
-use prt_gpu::{fs, glb, scene, Error, Result};
+use prt_gpu::spec::{
+    self, BakeSpec, Compression, Container, Layout, ReceiverSpec, StorageSpec, TransferSpec,
+};
+use prt_gpu::{fs, glb, light, pipeline, scene, Error, Result};
 
 #[derive(clap::Args)]
 pub(crate) struct BakeArgs {
@@ -149,21 +149,95 @@ pub(crate) struct LocalArgs {
     pub(crate) sparsity: f32,
 }
 
+/// How a bake runs, beside what it is (its spec): the preview rendered beside it, the memory
+/// it may use, the GPU's chunks.
+pub(crate) struct Execution {
+    pub(crate) preview: Option<PathBuf>,
+    pub(crate) memory_limit: Option<u64>,
+    pub(crate) chunking: Chunking,
+}
+
+impl Execution {
+    pub(crate) fn of(args: &BakeArgs) -> Execution {
+        Execution {
+            preview: args.preview.clone(),
+            memory_limit: args.memory_limit,
+            chunking: Chunking {
+                max_vertices: args.chunk_vertices,
+                max_samples: args.chunk_samples,
+                max_steps: None,
+            },
+        }
+    }
+}
+
 /// One mesh (or the built-in scene) baked to one file.
 pub(crate) fn run_one(args: &BakeArgs, mesh: Option<PathBuf>) -> Result<()> {
-    let options = bake_options(args)?;
-    options.validate()?;
+    let spec = bake_spec(args, &mesh)?;
+    spec.validate()?;
     check_chunking(args)?;
-    let device = Device::new(|| bake_backend(&options, args.device, args.adapter.as_deref()));
+    let device = Device::new(|| bake_backend(&spec, args.device, args.adapter.as_deref()));
     let progress = BarProgress::default();
-    bake_one(args, &mesh, args.output.clone(), &device, None, &progress)
+    let execution = Execution::of(args);
+    bake_one(
+        &spec,
+        &execution,
+        &mesh,
+        args.output.clone(),
+        &device,
+        None,
+        &progress,
+    )
+}
+
+/// What `bake`'s arguments ask of the bake of `mesh` (whose kind decides the container).
+pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeSpec> {
+    // Checked even where the bands are fixed: a nonsense option is refused, not ignored.
+    spec::check_bands_threshold(args.bands_threshold)?;
+    let defaults = BakeSpec::default();
+    let options = args.transfer.options();
+    Ok(BakeSpec {
+        receivers: ReceiverSpec {
+            fit: args.fit,
+            fit_points: args.fit_points,
+            lightmap: args.lightmap,
+        },
+        transfer: TransferSpec {
+            bands: match args.transfer.bands {
+                Bands::Fixed(bands) => spec::Bands::Fixed(bands),
+                Bands::Auto => spec::Bands::Auto {
+                    threshold: args.bands_threshold,
+                },
+            },
+            samples: options.samples,
+            sampling: options.sampling,
+            seed: args.seed,
+            mode: options.mode,
+            albedo: args.albedo.map(|albedo| albedo.to_array()),
+            bounces: args.bounces,
+            bounce_tolerance: args.bounce_tolerance,
+            target_error: args.target_error.map(|relative| TargetError {
+                relative,
+                max_samples: args.max_samples,
+            }),
+        },
+        storage: StorageSpec {
+            channels: args.storage,
+            precision: args.precision,
+            layout: args.compress.map_or(Layout::PerVertex, Layout::Cpca),
+        },
+        container: match mesh {
+            Some(path) if scene::is_gltf(path) => Container::GltfInPlace,
+            _ => Container::Mesh,
+        },
+        ..defaults
+    })
 }
 
 /// Where the direct pass comes from: computed here, or the merged parts' (whose fingerprint
-/// must be this mesh's and options').
+/// must be this mesh's and spec's).
 fn direct_source(
-    args: &BakeArgs,
-    options: &BakeOptions,
+    spec: &BakeSpec,
     scene: &scene::Scene,
     mesh: &Option<PathBuf>,
     merged: Option<(PartHeader, bake::DirectPass)>,
@@ -171,7 +245,7 @@ fn direct_source(
     let Some((header, direct)) = merged else {
         return Ok(bake::DirectSource::Compute);
     };
-    if shard::fingerprint(scene, &fingerprinted_options(args, options)) != header.fingerprint {
+    if shard::fingerprint(scene, &spec.fingerprint_text()) != header.fingerprint {
         return Err(Error::Merge(format!(
             "{} is not the mesh the parts were baked from (it changed since)",
             mesh_shown(mesh)
@@ -256,11 +330,14 @@ pub(crate) fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
         };
         fs::check_outputs(&[output], &inputs)?;
     }
-    let options = bake_options(args)?;
-    options.validate()?;
+    // The rules that hold for any mesh, checked once; each mesh's container is checked as it
+    // bakes.
+    let spec = bake_spec(args, &None)?;
+    spec.validate()?;
     check_chunking(args)?;
     std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
-    let device = Device::new(|| bake_backend(&options, args.device, args.adapter.as_deref()));
+    let device = Device::new(|| bake_backend(&spec, args.device, args.adapter.as_deref()));
+    let execution = Execution::of(args);
     let started = std::time::Instant::now();
     let mut failed = Vec::new();
     let weights = scene::batch::work_weights(meshes);
@@ -269,7 +346,18 @@ pub(crate) fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
         overall.set_message(format!("batch {}/{}", k + 1, meshes.len()));
         let progress = BarProgress::in_batch(k + 1, meshes.len(), &stem(mesh));
         let mesh = Some(mesh.clone());
-        if let Err(error) = bake_one(args, &mesh, Some(output), &device, None, &progress) {
+        let baked = bake_spec(args, &mesh).and_then(|spec| {
+            bake_one(
+                &spec,
+                &execution,
+                &mesh,
+                Some(output),
+                &device,
+                None,
+                &progress,
+            )
+        });
+        if let Err(error) = baked {
             progress.finish();
             eprintln!("error: {error}");
             failed.push(mesh_shown(&mesh));
@@ -294,120 +382,113 @@ pub(crate) fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
     }
 }
 
-/// One bake of `mesh` to `output`, its direct pass computed on `baker` (the CPU without one)
-/// or, merging, joined from the parts of a sharded bake of the same mesh and options.
+/// One bake of `mesh` to `output` as `spec` says, its direct pass computed on the device
+/// (the CPU without one) or, merging, joined from the parts of a sharded bake of the same mesh
+/// and spec.
 pub(crate) fn bake_one(
-    args: &BakeArgs,
+    spec: &BakeSpec,
+    execution: &Execution,
     mesh: &Option<PathBuf>,
     output: Option<PathBuf>,
     device: &Device,
     merged: Option<(PartHeader, bake::DirectPass)>,
     progress: &BarProgress,
 ) -> Result<()> {
-    let options = bake_options(args)?;
+    spec.validate()?;
     let output_path = output.unwrap_or_else(|| default_output(mesh));
     // Fail before the long part (and before reading the mesh), not after it.
-    check_bake_outputs(args, mesh, &output_path, &[])?;
+    check_bake_outputs(spec, execution.preview.as_deref(), mesh, &output_path, &[])?;
     let loading = std::time::Instant::now();
     let (scene, gltf, name) = load_bake_input(mesh)?;
-    check_output_forms(args, &options, gltf.is_some())?;
     let seconds_load = loading.elapsed().as_secs_f64();
+    let options = spec.options();
     note_samples_rounded(&options);
     let baker = device.get()?;
+    let backend = backend_of(baker, &execution.chunking);
     if merged.is_none() {
-        if let Some(chunk) = memory_plan(args, &options, &scene, gltf.is_some())? {
+        if let Some(chunk) = memory_plan(spec, execution, &scene)? {
             let planned = bake::stream::StreamedBake::plan(scene, &options)
                 .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
-            let backend = backend_of(baker, args);
             let report =
                 glb::stream::bake_streamed(&planned, &backend, chunk, &output_path, progress)?;
             progress.finish();
-            print_bake_report(&name, &options, &report, &output_path, None);
+            print_bake_report(&name, spec, options.bands, &report, &output_path, None);
             return Ok(());
         }
     }
     let merged_from = merged
         .as_ref()
         .map(|(header, _)| (header.shard_count, header.backend.clone()));
-    let source = direct_source(args, &options, &scene, mesh, merged)?;
-    let backend = backend_of(baker, args);
-    let (mut baked, report) = bake::bake_from(scene, &options, &backend, source, progress)
+    let source = direct_source(spec, &scene, mesh, merged)?;
+    let baked = pipeline::run(spec, scene, &backend, source, progress)
         .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
     progress.finish();
-    let mut options = options;
-    if args.transfer.bands == Bands::Auto {
-        options.bands = choose_auto_bands(&mut baked, args.bands_threshold);
-    }
-    let cpca = match args.compress {
-        Some(shape) => Some(compress_transfer(
-            &baked,
-            shape,
-            args.precision,
-            baker.as_ref().map(|b| &b.context),
-        )?),
-        None => None,
-    };
+    print_shaping_lines(&baked);
     // Rendered before the .glb is written, so that a preview that cannot be made leaves no bake.
-    let preview = match &args.preview {
+    let preview = match &execution.preview {
         Some(path) => Some((
             path,
             match baker {
-                Some(baker) => render_preview(&baker.context, &baked)?,
-                None => render_preview(&open_render_device(None)?, &baked)?,
+                Some(baker) => render_preview(&baker.context, &baked.mesh)?,
+                None => render_preview(&open_render_device(None)?, &baked.mesh)?,
             },
         )),
         None => None,
     };
     let writing = std::time::Instant::now();
-    let written = match &gltf {
-        Some(gltf) => Some(glb::scene::write_scene_glb(
-            &output_path,
-            gltf,
-            &baked,
-            &report.vertex_map,
-        )?),
-        None => {
-            glb::write_glb_as(&output_path, &baked, cpca.as_ref(), args.precision)?;
-            None
-        }
-    };
-    if args.precision == Precision::F16 && cpca.is_none() {
-        report_f16_error(&baked)?;
+    let written = pipeline::write(spec, &baked, gltf.as_ref(), &output_path)?;
+    if let Some(cost) = &baked.half_float {
+        eprintln!("{cost}");
     }
     let seconds_write = writing.elapsed().as_secs_f64();
     if let Some((path, image)) = preview {
-        write_preview_or_undo(path, &image, &output_path, baked.lightmap.is_some())?;
+        write_preview_or_undo(path, &image, &output_path, baked.mesh.lightmap.is_some())?;
     }
     if let Some(written) = written {
         print_in_place_report(&written, seconds_load, seconds_write);
     }
-    print_bake_report(&name, &options, &report, &output_path, merged_from);
+    let bands = baked.mesh.transfer.bands;
+    print_bake_report(&name, spec, bands, &baked.report, &output_path, merged_from);
     Ok(())
+}
+
+/// What the stages after the transfer did: the bands chosen, where compression ran, what it
+/// made.
+fn print_shaping_lines(baked: &pipeline::Baked) {
+    if let Some(chosen) = &baked.bands_chosen {
+        eprintln!("{chosen}");
+    }
+    for note in &baked.notes {
+        eprintln!("note: {note}");
+    }
+    if let Some(compressed) = &baked.compressed {
+        eprintln!("{compressed}");
+    }
 }
 
 /// How the bake of `scene` fits the memory limit: `None` whole, or streamed in chunks of that
 /// many receivers. A bake that cannot fit an explicit limit fails before it starts, saying what
 /// it needs; over the machine's available memory, a warning.
 fn memory_plan(
-    args: &BakeArgs,
-    options: &BakeOptions,
+    spec: &BakeSpec,
+    execution: &Execution,
     scene: &scene::Scene,
-    gltf: bool,
 ) -> Result<Option<usize>> {
     use bake::stream::{format_bytes, MemoryNeed};
-    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), options);
-    let Some(limit) = args.memory_limit.or_else(device::available_memory) else {
+    let options = spec.options();
+    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options);
+    let Some(limit) = execution.memory_limit.or_else(device::available_memory) else {
         return Ok(None);
     };
     if need.whole() <= limit {
         return Ok(None);
     }
-    let streamable = bake::stream::streams(options)
-        && !gltf
-        && args.compress.is_none()
-        && args.precision == Precision::F32
-        && args.transfer.bands != Bands::Auto
-        && args.preview.is_none();
+    let streamable = bake::stream::streams(&options)
+        && spec.container == Container::Mesh
+        && spec.storage.layout == Layout::PerVertex
+        && spec.storage.precision == Precision::F32
+        && matches!(spec.transfer.bands, spec::Bands::Fixed(_))
+        && execution.preview.is_none();
     let cannot = match streamable {
         true => None,
         false => Some(
@@ -415,7 +496,7 @@ fn memory_plan(
              without --compress, --precision f16, --bands auto or --preview, stream in chunks",
         ),
     };
-    match (cannot, args.memory_limit) {
+    match (cannot, execution.memory_limit) {
         (None, _) => {
             let chunk = need.chunk_within(limit)?;
             eprintln!(
@@ -473,204 +554,25 @@ pub(crate) fn check_chunking(args: &BakeArgs) -> Result<()> {
     Ok(())
 }
 
-/// The backend of `baker` (the CPU's without one), chunked as `args` ask.
-pub(crate) fn backend_of<'a>(baker: &'a Option<GpuBaker>, args: &BakeArgs) -> Backend<'a> {
+/// The backend of `baker` (the CPU's without one), in `chunking`'s chunks.
+pub(crate) fn backend_of<'a>(baker: &'a Option<GpuBaker>, chunking: &Chunking) -> Backend<'a> {
     match baker {
         Some(baker) => Backend::Gpu {
             baker,
-            chunking: Chunking {
-                max_vertices: args.chunk_vertices,
-                max_samples: args.chunk_samples,
-                max_steps: None,
-            },
+            chunking: *chunking,
         },
         None => Backend::Cpu,
     }
 }
 
-/// Refuses output forms a bake cannot give: compressed, lean or lightmapped glTF scenes baked
-/// in place, compressed lightmaps.
-pub(crate) fn check_output_forms(args: &BakeArgs, options: &BakeOptions, gltf: bool) -> Result<()> {
-    let refuse = |message: &str| Err(Error::Options(message.to_string()));
-    if let Some(Compression::Target(error)) = args.compress {
-        if !(error > 0.0 && error < 1.0) {
-            return Err(Error::Options(format!(
-                "--compress auto:{error}: the error target must lie in (0, 1)"
-            )));
-        }
-    }
-    if args.compress.is_some() && (gltf || options.lightmap.is_some()) {
-        return refuse(
-            "--compress stores the transfer of OBJ, PLY and the built-in scene per vertex; \
-             glTF scenes baked in place and lightmaps are not compressed",
-        );
-    }
-    if args.precision == Precision::F16 && (gltf || options.lightmap.is_some()) {
-        return refuse(
-            "--precision f16 stores the per-vertex or compressed transfer of OBJ, PLY and the \
-             built-in scene; glTF scenes baked in place and lightmaps keep their own storage",
-        );
-    }
-    if gltf && options.storage == Storage::Lean {
-        return refuse(
-            "--storage lean stores OBJ, PLY and the built-in scene; a glTF scene baked in place \
-             keeps RGB transfer",
-        );
-    }
-    if gltf && options.lightmap.is_some() {
-        return refuse(
-            "--lightmap bakes OBJ, PLY and the built-in scene; a glTF scene is baked in place \
-             per vertex (lightmaps for glTF scenes are not supported yet)",
-        );
-    }
-    Ok(())
-}
-
-/// What storing `baked`'s transfer as half floats cost: bytes, and the relit error.
-fn report_f16_error(baked: &bake::BakedMesh) -> Result<()> {
-    let rounded = glb::rounded_to_f16(&baked.transfer);
-    let light = light::preview_light(baked.transfer.bands)?;
-    let exact = render::relight(&baked.transfer, &light)?;
-    let stored = render::relight(&rounded, &light)?;
-    let worst = baked
-        .transfer
-        .coeffs
-        .iter()
-        .zip(&rounded.coeffs)
-        .filter(|(x, _)| x.abs() >= 1e-4)
-        .map(|(x, r)| ((r - x) / x).abs())
-        .fold(0f32, f32::max);
-    eprintln!(
-        "precision f16: transfer {} bytes instead of {}; relit error {:.1e} under the preview \
-         light, worst coefficient {:.1e} relative (of those above 1e-4)",
-        baked.transfer.coeffs.len() * 2,
-        baked.transfer.coeffs.len() * 4,
-        compress::radiance_error(&exact, &stored),
-        worst
-    );
-    Ok(())
-}
-
-/// `--bands auto`: the baked mesh cut to the bands the threshold asks for, said; returns them.
-fn choose_auto_bands(baked: &mut bake::BakedMesh, threshold: f64) -> u32 {
-    let (bands, beyond) = bake::choose_bands(&baked.transfer, threshold);
-    bake::truncate_baked(baked, bands);
-    eprintln!(
-        "bands auto: {bands} ({:.2}% of the transfer's energy lies in bands {bands} to {}, \
-         below --bands-threshold {threshold})",
-        100.0 * beyond,
-        AUTO_MAX_BANDS - 1,
-    );
-    bands
-}
-
-/// What `bake`'s arguments ask of the bake.
-pub(crate) fn bake_options(args: &BakeArgs) -> Result<BakeOptions> {
-    if !(args.bands_threshold > 0.0 && args.bands_threshold < 1.0) {
-        return Err(Error::Options(format!(
-            "--bands-threshold {} must lie in (0, 1)",
-            args.bands_threshold
-        )));
-    }
-    Ok(BakeOptions {
-        seed: args.seed,
-        albedo: args.albedo,
-        bounces: args.bounces,
-        bounce_tolerance: args.bounce_tolerance,
-        fit: args.fit,
-        lightmap: args.lightmap,
-        storage: args.storage,
-        target_error: args.target_error.map(|relative| TargetError {
-            relative,
-            max_samples: args.max_samples,
-        }),
-        point_density: PointDensity {
-            per_vertex: args.fit_points,
-            ..PointDensity::default()
-        },
-        ..args.transfer.options()
-    })
-}
-
-/// The baked transfer compressed to `(clusters, components)` and rounded as a file at
-/// `precision` stores it, with its sizes and errors (those of the stored form) said. The
-/// assignment steps run on `gpu` where it pays (`GpuAssigner::where_it_pays`).
-fn compress_transfer(
-    baked: &bake::BakedMesh,
-    compression: Compression,
-    precision: Precision,
-    gpu: Option<&prt_gpu::device::GpuContext>,
-) -> Result<Cpca> {
-    let started = std::time::Instant::now();
-    let transfer = &baked.transfer;
-    let points = compress::Points {
-        data: &transfer.coeffs,
-        dimension: transfer.channels as usize * transfer.coeffs_per_channel(),
-    };
-    let most_components = match compression {
-        Compression::Shape(_, components) => components as usize,
-        Compression::Target(_) => points.dimension,
-    };
-    let gpu_assigner = match gpu {
-        Some(context) => {
-            let (assigner, why_not) =
-                compress::gpu::GpuAssigner::where_it_pays(context, points, most_components)?;
-            if let Some(why) = why_not {
-                eprintln!("note: {why}; clustering on the CPU");
-            }
-            assigner
-        }
-        None => None,
-    };
-    let (assigner, ran_on): (&dyn compress::Assigner, String) = match &gpu_assigner {
-        Some(assigner) => (assigner, format!("gpu: {}", assigner.label())),
-        None => (&compress::CpuAssigner, "cpu".into()),
-    };
-    let (cpca, options) = match compression {
-        Compression::Shape(clusters, components) => {
-            let options = CpcaOptions {
-                clusters,
-                components,
-                ..CpcaOptions::default()
-            };
-            (
-                compress::compress_with(transfer, &options, assigner)?,
-                options,
-            )
-        }
-        Compression::Target(error) => {
-            compress::choose_with(transfer, error, CpcaOptions::default().seed, assigner)?
-        }
-    };
-    let cpca = cpca.rounded(precision);
-    let (clusters, components) = (options.clusters, options.components);
-    let seconds = started.elapsed().as_secs_f64();
-    let before = compress::uncompressed_bytes(&baked.transfer);
-    let after = cpca.byte_size(precision);
-    let light = light::preview_light(baked.transfer.bands)?;
-    let half = match precision {
-        Precision::F32 => "",
-        Precision::F16 => " as half floats",
-    };
-    eprintln!(
-        "compressed: {clusters} clusters x {components} components in {seconds:.2} s \
-         ({ran_on}), {after} bytes{half} of {before} ({:.1}x smaller); coefficient error \
-         {:.2}%, relit error {:.2}% under the preview light",
-        before as f64 / after as f64,
-        100.0 * compress::relative_error(&baked.transfer, &cpca),
-        100.0 * compress::relit_error(&baked.transfer, &cpca, &light)?
-    );
-    Ok(cpca)
-}
-
-/// The GPU baker a bake with `options` uses, or `None` for the CPU backend (error-targeted
-/// bakes always run there).
+/// The GPU baker a bake of `spec` uses, or `None` for the CPU backend (error-targeted bakes
+/// always run there).
 pub(crate) fn bake_backend(
-    options: &BakeOptions,
+    spec: &BakeSpec,
     device: DeviceChoice,
     adapter: Option<&str>,
 ) -> Result<Option<GpuBaker>> {
-    if options.target_error.is_some() {
+    if spec.transfer.target_error.is_some() {
         if device == DeviceChoice::Gpu {
             eprintln!("note: error-targeted bakes run on the CPU backend");
         }
@@ -758,11 +660,12 @@ fn lightmap_beside(glb: &Path) -> PathBuf {
     glb.with_file_name(glb::lightmap_file_name(glb))
 }
 
-/// The files one bake writes — the .glb at `output`, the lightmap beside it, the preview —
-/// checked before any work: their names end as their formats need, none is the mesh, one of
-/// `inputs` (a merge's parts) or another of them, and their directories exist.
+/// The files one bake writes — the .glb at `output`, the lightmap beside it (when `spec` has
+/// one), the preview — checked before any work: their names end as their formats need, none is
+/// the mesh, one of `inputs` (a merge's parts) or another of them, and their directories exist.
 pub(crate) fn check_bake_outputs(
-    args: &BakeArgs,
+    spec: &BakeSpec,
+    preview: Option<&Path>,
     mesh: &Option<PathBuf>,
     output: &Path,
     inputs: &[&Path],
@@ -773,7 +676,7 @@ pub(crate) fn check_bake_outputs(
     };
     let lightmap = lightmap_beside(output);
     let mut outputs = vec![glb_output];
-    if args.lightmap.is_some() {
+    if spec.receivers.lightmap.is_some() {
         if fs::is_special_file(output) {
             return Err(Error::Options(format!(
                 "--lightmap writes {} beside the .glb; -o {} is not a file to put it beside",
@@ -786,7 +689,7 @@ pub(crate) fn check_bake_outputs(
             path: &lightmap,
         });
     }
-    if let Some(preview) = &args.preview {
+    if let Some(preview) = preview {
         outputs.push(fs::Output {
             option: "--preview",
             path: preview,
@@ -797,7 +700,7 @@ pub(crate) fn check_bake_outputs(
     fs::check_outputs(&outputs, &all_inputs)?;
     fs::check_extension(glb_output, &["glb"], "a bake is written as binary glTF")?;
     fs::check_destination(output)?;
-    if let Some(preview) = &args.preview {
+    if let Some(preview) = preview {
         check_preview(preview)?;
     }
     Ok(())
@@ -895,7 +798,8 @@ fn print_stage_lines(report: &BakeReport, output: &Path) {
 /// A finished bake's report: what prepare repaired, a line per stage, the one summary line.
 fn print_bake_report(
     name: &str,
-    options: &BakeOptions,
+    spec: &BakeSpec,
+    bands: u32,
     report: &BakeReport,
     output: &Path,
     merged_from: MergedFrom,
@@ -929,13 +833,13 @@ fn print_bake_report(
          {:.2} s in all ({}) -> {}",
         report.prepare.vertices,
         report.prepare.triangles,
-        options.bands,
+        bands,
         match &report.adaptive {
             Some(adaptive) => format!("{:.0} (mean)", adaptive.samples_mean),
             None => report.samples_used.to_string(),
         },
-        options.sampling.name(),
-        options.mode.name(),
+        spec.transfer.sampling.name(),
+        spec.transfer.mode.name(),
         seconds,
         report.backend,
         output.display()
@@ -982,14 +886,6 @@ pub(crate) fn load_mesh(path: &Path) -> Result<scene::Scene> {
 /// The name a mesh file is reported by.
 pub(crate) fn stem(path: &Path) -> String {
     scene::batch::mesh_name(path)
-}
-
-/// What besides the mesh decides a bake's output, as text for its fingerprint.
-pub(crate) fn fingerprinted_options(args: &BakeArgs, options: &BakeOptions) -> String {
-    format!(
-        "{options:?} bands {:?} threshold {} compress {:?} precision {:?}",
-        args.transfer.bands, args.bands_threshold, args.compress, args.precision
-    )
 }
 
 /// Any adapter, software ones included: rasterising a preview is cheap anywhere.

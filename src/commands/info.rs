@@ -38,9 +38,20 @@ pub(crate) fn run_devices() -> Result<()> {
 /// Prints a baked file's description; a reader that stops early (`| head`) ends it quietly.
 pub(crate) fn run_info(path: &Path) -> Result<()> {
     use std::io::Write;
-    if glb::local::is_local_file(&std::fs::read(path).map_err(|e| Error::io(path, e))?) {
+    let (local, scene) = {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        (
+            glb::local::is_local_file(&bytes),
+            glb::is_scene_file(&bytes),
+        )
+    };
+    if local {
         return print_local_info(path);
     }
+    let albedo = match scene {
+        true => "the material's base colour",
+        false => "COLOR_0",
+    };
     // Read whole, as render and view read it, so that a file they would refuse is refused
     // here too rather than described.
     glb::read_glb_compressed(path)?;
@@ -59,9 +70,9 @@ pub(crate) fn run_info(path: &Path) -> Result<()> {
         "channels:     {}{}",
         metadata.channels,
         if metadata.albedo_free {
-            " (albedo-free: radiance = COLOR_0 x transfer . light)"
+            format!(" (albedo-free: radiance = {albedo} x transfer . light)")
         } else {
-            ""
+            String::new()
         }
     ));
     lines.push(format!(

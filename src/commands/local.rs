@@ -6,10 +6,11 @@ use super::args::Bands;
 use super::bake::{bake_backend, check_bake_outputs, load_mesh, stem, BakeArgs};
 use super::progress::BarProgress;
 use prt_gpu::bake::gpu::Chunking;
-use prt_gpu::bake::{Backend, BakeOptions, Fit, Storage};
+use prt_gpu::bake::{Backend, Fit, Storage};
 use prt_gpu::glb::Precision;
 use prt_gpu::local::build::OperatorShape;
 use prt_gpu::local::{self, LocalOptions};
+use prt_gpu::spec::BakeSpec;
 use prt_gpu::{glb, scene, Error, Result};
 
 pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
@@ -25,7 +26,8 @@ pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
     // --lightmap and --preview are refused above, so this checks the .glb alone.
-    check_bake_outputs(&args, &args.meshes.first().cloned(), &output, &[])?;
+    let spec = BakeSpec::default();
+    check_bake_outputs(&spec, None, &args.meshes.first().cloned(), &output, &[])?;
     let scene = match args.meshes.first() {
         Some(path) => load_mesh(path)?,
         None => scene::builtin::interior_scene(),
@@ -34,11 +36,7 @@ pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
     if let Some(albedo) = args.albedo {
         scene.albedo.iter_mut().for_each(|a| *a = albedo);
     }
-    let baker = bake_backend(
-        &BakeOptions::default(),
-        args.device,
-        args.adapter.as_deref(),
-    )?;
+    let baker = bake_backend(&spec, args.device, args.adapter.as_deref())?;
     let backend = match &baker {
         Some(baker) => Backend::Gpu {
             baker,

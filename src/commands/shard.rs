@@ -2,21 +2,19 @@
 
 use std::path::{Path, PathBuf};
 
-use clap::Parser;
-
-use prt_gpu::bake::gpu::GpuBaker;
+use prt_gpu::bake::gpu::{Chunking, GpuBaker};
 use prt_gpu::bake::{self, Backend, BakeOptions, Mode};
 use prt_gpu::device::{self, DeviceChoice};
 use prt_gpu::shard::{self, Part};
+use prt_gpu::spec::BakeSpec;
 use prt_gpu::{fs, scene, Error, Result};
 
 use super::bake::{
-    backend_of, bake_backend, bake_name, bake_one, bake_options, check_chunking,
-    check_output_forms, check_preview, fingerprinted_options, load_bake_input, mesh_shown,
-    naming_the_mesh, note_samples_rounded, BakeArgs, Device,
+    backend_of, bake_backend, bake_name, bake_one, bake_spec, check_chunking, check_preview,
+    load_bake_input, mesh_shown, naming_the_mesh, note_samples_rounded, BakeArgs, Device,
+    Execution,
 };
 use super::progress::BarProgress;
-use crate::{Cli, Command};
 
 #[derive(clap::Args)]
 pub(crate) struct MergeArgs {
@@ -33,8 +31,9 @@ pub(crate) struct MergeArgs {
 
 /// `bake … --shard I/N`: the direct pass of one shard's receivers, written as a part file.
 pub(crate) fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Shard) -> Result<()> {
-    let options = bake_options(args)?;
-    options.validate()?;
+    let spec = bake_spec(args, mesh)?;
+    spec.validate()?;
+    let options = spec.options();
     if args.preview.is_some() {
         return Err(Error::Options(
             "--preview renders a whole bake: give it to `prt-gpu merge`, not to a shard".into(),
@@ -49,14 +48,13 @@ pub(crate) fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Sh
         ))
     });
     check_part_output(mesh, &output)?;
-    let (scene, gltf, name) = load_bake_input(mesh)?;
-    check_output_forms(args, &options, gltf.is_some())?;
+    let (scene, _, name) = load_bake_input(mesh)?;
     check_shard_memory(args, &options, &scene, shard)?;
     note_samples_rounded(&options);
     check_chunking(args)?;
-    let fingerprint = shard::fingerprint(&scene, &fingerprinted_options(args, &options));
-    let baker = bake_backend(&options, args.device, args.adapter.as_deref())?;
-    let backend = backend_of(&baker, args);
+    let fingerprint = shard::fingerprint(&scene, &spec.fingerprint_text());
+    let baker = bake_backend(&spec, args.device, args.adapter.as_deref())?;
+    let backend = backend_of(&baker, &Execution::of(args).chunking);
     let progress = BarProgress::default();
     let started = std::time::Instant::now();
     let pass = bake::bake_shard(scene, &options, &backend, shard, &progress)
@@ -72,9 +70,9 @@ pub(crate) fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Sh
     let part = Part::new(
         pass,
         (shard.index, shard.count),
+        (spec, mesh.clone()),
         fingerprint,
-        command,
-        directory,
+        (command, directory),
     );
     shard::write_part(&output, &part)?;
     if range.is_empty() {
@@ -126,41 +124,27 @@ pub(crate) fn run_merge(args: MergeArgs) -> Result<()> {
     if let Some(differences) = differences {
         eprintln!("warning: {differences}");
     }
-    let command = std::iter::once("prt-gpu".to_string()).chain(header.command.iter().cloned());
-    let bake_args = match Cli::try_parse_from(command).map(|cli| cli.command) {
-        Ok(Command::Bake(bake_args)) => bake_args,
-        _ => {
-            return Err(Error::Merge(format!(
-                "the parts' command is not a bake: {}",
-                header.command.join(" ")
-            )))
-        }
-    };
-    let bake_args = BakeArgs {
+    let spec: BakeSpec = header.spec.clone();
+    let mesh = header.mesh.as_ref().map(|mesh| header.directory.join(mesh));
+    let execution = Execution {
         preview: args.preview,
-        ..bake_args
+        memory_limit: None,
+        chunking: Chunking::default(),
     };
-    let given: Vec<PathBuf> = bake_args
-        .meshes
-        .iter()
-        .map(|m| header.directory.join(m))
-        .collect();
-    let mesh = match scene::batch::mesh_files(&given)?.as_slice() {
-        [] => None,
-        [mesh] => Some(mesh.clone()),
-        _ => {
-            return Err(Error::Merge(format!(
-                "the parts' command bakes several meshes: {}",
-                header.command.join(" ")
-            )))
-        }
-    };
-    let options = bake_options(&bake_args)?;
     let backend = header.backend.clone();
+    let options = spec.options();
     let device = Device::new(|| merge_backend(&options, &backend));
     let progress = BarProgress::default();
     let merged = Some((header, direct));
-    bake_one(&bake_args, &mesh, args.output, &device, merged, &progress)
+    bake_one(
+        &spec,
+        &execution,
+        &mesh,
+        args.output,
+        &device,
+        merged,
+        &progress,
+    )
 }
 
 /// What `merge` was told to write, checked before any part is read: neither is a part, nor the

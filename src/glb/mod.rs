@@ -304,16 +304,22 @@ pub fn read_metadata(path: &Path) -> Result<(BakeMetadata, usize, usize)> {
 /// (`extras.prt.lightmap`) and how its transfer is compressed (`extras.prt.cpca`), each if
 /// any; the JSON only is parsed.
 pub fn read_references(path: &Path) -> Result<References> {
-    Ok(
-        read_prt_extras(path)?.map_or_else(References::default, |prt| References {
-            precision: match prt.transfer_precision.as_deref() {
-                Some(FLOAT16) => Precision::F16,
-                _ => Precision::F32,
-            },
-            lightmap: prt.lightmap,
-            cpca: prt.cpca,
-        }),
-    )
+    let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
+    if is_scene_file(&bytes) {
+        return Ok(References {
+            precision: scene::stored_precision(&bytes),
+            ..References::default()
+        });
+    }
+    let prt = mesh_prt_extras(&bytes, path)?;
+    Ok(References {
+        precision: match prt.transfer_precision.as_deref() {
+            Some(FLOAT16) => Precision::F16,
+            _ => Precision::F32,
+        },
+        lightmap: prt.lightmap,
+        cpca: prt.cpca,
+    })
 }
 
 /// What a baked file's `extras.prt` says about where and how its transfer is stored.
@@ -324,12 +330,8 @@ pub struct References {
     pub precision: Precision,
 }
 
-/// `extras.prt` of a single-mesh baked file (`None` for a glTF scene baked in place).
-fn read_prt_extras(path: &Path) -> Result<Option<PrtExtrasIn>> {
-    let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
-    if is_scene_file(&bytes) {
-        return Ok(None);
-    }
+/// `extras.prt` of the single-mesh baked file `bytes` (read from `path`).
+fn mesh_prt_extras(bytes: &[u8], path: &Path) -> Result<PrtExtrasIn> {
     let head = bytes
         .get(..20)
         .ok_or_else(|| Error::baked(path, "too short to be a glTF binary (.glb) file"))?;
@@ -339,7 +341,7 @@ fn read_prt_extras(path: &Path) -> Result<Option<PrtExtrasIn>> {
         .meshes
         .first()
         .ok_or_else(|| Error::baked(path, "the file contains no mesh"))?;
-    Ok(Some(prt_extras(mesh).map_err(|m| Error::baked(path, m))?))
+    prt_extras(mesh).map_err(|m| Error::baked(path, m))
 }
 
 /// Encodes `baked` as a `.glb` in memory, after checking that its parts agree. A lightmap is

@@ -13,7 +13,10 @@
 //!   after the first gets its own copy of the mesh (sharing all but the transfer);
 //! - `extras.prt` of each baked mesh holds the bake's metadata and, for its first primitive,
 //!   `vertices` and `transfer_buffer_view`; each baked primitive's own `extras.prt` holds its
-//!   `vertices` and `transfer_buffer_view`; the root's `extras.prt.baked_in_place` is true.
+//!   `vertices` and `transfer_buffer_view`; the root's `extras.prt.baked_in_place` is true;
+//! - half-float transfer (`--precision f16`) has no accessor type in glTF: each primitive's
+//!   view is named by its `extras.prt` alone, with `transfer_precision: "float16"`, and it has
+//!   no `_PRT_*` attributes. Lean transfer leaves out the material's base colour.
 //!
 //! The transfer of a placement is in world space: it relights the scene as placed.
 
@@ -27,10 +30,13 @@ use gltf_json::validation::{Checked, USize64};
 use gltf_json::{Index, Root};
 use serde_json::{json, Value};
 
-use super::{glb_container, groups, transfer_attribute_name, TRANSFER_LAYOUT};
+use super::{
+    glb_container, groups, transfer_attribute_name, FLOAT16, TRANSFER_LAYOUT, TRANSFER_LAYOUT_F16,
+};
 use crate::bake::{BakeMetadata, BakedMesh, Transfer};
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
+use crate::precision::Precision;
 use crate::scene::gltf::accessor::{component_size, dense, Dense};
 use crate::scene::gltf::{self, GltfScene};
 use crate::scene::prepare::DROPPED;
@@ -53,9 +59,10 @@ pub fn write_scene_glb(
     gltf: &GltfScene,
     baked: &BakedMesh,
     vertex_map: &[u32],
+    precision: Precision,
 ) -> Result<SceneWrite> {
     check_destination(path)?;
-    let (bytes, report) = encode_scene_glb(gltf, baked, vertex_map)?;
+    let (bytes, report) = encode_scene_glb(gltf, baked, vertex_map, precision)?;
     write_atomically(path, &bytes)?;
     Ok(report)
 }
@@ -65,6 +72,7 @@ pub fn encode_scene_glb(
     gltf: &GltfScene,
     baked: &BakedMesh,
     vertex_map: &[u32],
+    precision: Precision,
 ) -> Result<(Vec<u8>, SceneWrite)> {
     let bad = |message: String| Error::Geometry(format!("cannot write the scene: {message}"));
     let mut root = gltf.root.clone();
@@ -73,7 +81,7 @@ pub fn encode_scene_glb(
     embed_images(&mut root, gltf, &mut bin);
     let report = SceneWrite {
         repaired,
-        ..add_transfer(&mut root, gltf, baked, vertex_map, &mut bin).map_err(bad)?
+        ..add_transfer(&mut root, gltf, (baked, precision), vertex_map, &mut bin).map_err(bad)?
     };
     root.buffers = vec![gltf_json::Buffer {
         byte_length: USize64(bin.bytes.len() as u64),
@@ -402,11 +410,13 @@ fn embed_images(root: &mut Root, gltf: &GltfScene, bin: &mut Bin) {
     }
 }
 
-/// Adds the `_PRT_*` attributes of every baked primitive, copying meshes shown twice.
+/// Adds the transfer of every baked primitive, copying meshes shown twice: the `_PRT_*`
+/// attributes of its float32 view, or (float16, which no accessor can describe) the view alone,
+/// named in the primitive's `extras.prt`.
 fn add_transfer(
     root: &mut Root,
     gltf: &GltfScene,
-    baked: &BakedMesh,
+    (baked, precision): (&BakedMesh, Precision),
     vertex_map: &[u32],
     bin: &mut Bin,
 ) -> std::result::Result<SceneWrite, String> {
@@ -425,25 +435,28 @@ fn add_transfer(
         let mut first_primitive = None;
         for span in &instance.primitives {
             let map = &vertex_map[span.first..span.first + span.count];
-            let view = push_transfer(bin, &baked.transfer, map);
+            let view = push_transfer(bin, &baked.transfer, map, precision);
             let primitive = &mut root.meshes[mesh].primitives[span.primitive];
-            add_attributes(
-                &mut root.accessors,
-                primitive,
-                &baked.transfer,
-                view,
-                span.count,
-            );
-            primitive.extras = raw(&json!({ "prt": {
+            let mut prt = json!({
                 "vertices": span.count,
                 "transfer_buffer_view": view,
-            }}))
-            .map_err(|e| e.to_string())?;
+            });
+            match precision {
+                Precision::F32 => add_attributes(
+                    &mut root.accessors,
+                    primitive,
+                    &baked.transfer,
+                    view,
+                    span.count,
+                ),
+                Precision::F16 => prt["transfer_precision"] = json!(FLOAT16),
+            }
+            primitive.extras = raw(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
             first_primitive.get_or_insert((span.count, view));
             report.primitives_baked += 1;
         }
         if let Some((vertices, view)) = first_primitive {
-            root.meshes[mesh].extras = mesh_extras(&baked.metadata, vertices, view)?;
+            root.meshes[mesh].extras = mesh_extras(&baked.metadata, vertices, view, precision)?;
         }
     }
     Ok(report)
@@ -453,34 +466,49 @@ fn mesh_extras(
     metadata: &BakeMetadata,
     vertices: usize,
     view: u32,
+    precision: Precision,
 ) -> std::result::Result<gltf_json::Extras, String> {
     let mut prt = serde_json::to_value(metadata).map_err(|e| e.to_string())?;
     if let Value::Object(fields) = &mut prt {
         fields.insert("vertices".into(), json!(vertices));
         fields.insert("transfer_buffer_view".into(), json!(view));
-        fields.insert("transfer_layout".into(), json!(TRANSFER_LAYOUT));
+        let layout = match precision {
+            Precision::F32 => TRANSFER_LAYOUT,
+            Precision::F16 => {
+                fields.insert("transfer_precision".into(), json!(FLOAT16));
+                TRANSFER_LAYOUT_F16
+            }
+        };
+        fields.insert("transfer_layout".into(), json!(layout));
     }
     raw(&json!({ "prt": prt })).map_err(|e| e.to_string())
 }
 
 /// The transfer of the vertices `map` names, planar `[channel][group][vertex][4]` as in the
-/// single-mesh format; dropped vertices (in no baked triangle) get zeros.
-fn push_transfer(bin: &mut Bin, transfer: &Transfer, map: &[u32]) -> u32 {
+/// single-mesh format, at `precision`; dropped vertices (in no baked triangle) get zeros.
+fn push_transfer(bin: &mut Bin, transfer: &Transfer, map: &[u32], precision: Precision) -> u32 {
     let groups = groups(transfer.bands);
-    let mut bytes = Vec::with_capacity(transfer.channels as usize * groups * map.len() * 16);
+    let vertices = map.len();
+    let mut bytes =
+        Vec::with_capacity(transfer.channels as usize * groups * vertices * 4 * precision.bytes());
     for channel in 0..transfer.channels as usize {
         for group in 0..groups {
             for &vertex in map {
                 let coeffs =
                     (vertex != DROPPED).then(|| transfer.vertex_channel(vertex as usize, channel));
-                for k in 4 * group..4 * group + 4 {
-                    let value = coeffs.and_then(|c| c.get(k).copied()).unwrap_or(0.0);
-                    bytes.extend_from_slice(&value.to_le_bytes());
-                }
+                let lanes: [f32; 4] = std::array::from_fn(|lane| {
+                    coeffs
+                        .and_then(|c| c.get(4 * group + lane).copied())
+                        .unwrap_or(0.0)
+                });
+                precision.encode(&lanes, &mut bytes);
             }
         }
     }
-    bin.push(&bytes, Some(16), Some(Target::ArrayBuffer))
+    match precision {
+        Precision::F32 => bin.push(&bytes, Some(16), Some(Target::ArrayBuffer)),
+        Precision::F16 => bin.push(&bytes, None, None),
+    }
 }
 
 /// One VEC4 float accessor per `(channel, group)` into `view`, named as attributes.
@@ -525,6 +553,28 @@ pub fn is_baked_in_place(root: &Root) -> bool {
         .as_ref()
         .and_then(|raw| serde_json::from_str::<Value>(raw.get()).ok())
         .is_some_and(|v| v["prt"]["baked_in_place"] == json!(true))
+}
+
+/// How the transfer of a scene file (`bytes`, one that [`super::is_scene_file`] accepts) is
+/// stored, from its first baked mesh's `extras.prt`.
+pub(crate) fn stored_precision(bytes: &[u8]) -> Precision {
+    let json = bytes.get(12..20).and_then(|head| {
+        let len = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
+        bytes.get(20..20usize.checked_add(len)?)
+    });
+    let document: Value = json
+        .and_then(|json| serde_json::from_slice(json).ok())
+        .unwrap_or(Value::Null);
+    let half = document["meshes"].as_array().is_some_and(|meshes| {
+        meshes
+            .iter()
+            .find_map(|mesh| mesh["extras"]["prt"]["transfer_precision"].as_str())
+            == Some(FLOAT16)
+    });
+    match half {
+        true => Precision::F16,
+        false => Precision::F32,
+    }
 }
 
 /// Reads a scene written by [`write_scene_glb`] as one baked mesh in world space: every
@@ -573,7 +623,7 @@ fn scene_metadata(root: &Root) -> std::result::Result<BakeMetadata, String> {
     Ok(metadata)
 }
 
-/// The `_PRT_*` attributes of every placement, in the order of `scene`'s vertices.
+/// The transfer of every placement, in the order of `scene`'s vertices.
 fn gather_transfer(
     gltf: &GltfScene,
     scene: &Scene,
@@ -587,30 +637,24 @@ fn gather_transfer(
         let mesh = &gltf.root.meshes[instance.mesh];
         for span in &instance.primitives {
             let primitive = &mesh.primitives[span.primitive];
-            for channel in 0..channels {
-                for group in 0..groups {
-                    let name = transfer_attribute_name(channels, channel, group);
-                    let semantic = Semantic::Extras(name.trim_start_matches('_').to_string());
-                    let accessor = primitive
-                        .attributes
-                        .get(&Checked::Valid(semantic))
-                        .ok_or_else(|| format!("mesh {} has no attribute {name}", instance.mesh))?;
-                    let values =
-                        dense(&gltf.root, &gltf.buffers, accessor.value())?.vectors::<4>(&name)?;
-                    if values.len() != span.count {
-                        return Err(format!(
-                            "{name} of mesh {} has the wrong length",
-                            instance.mesh
-                        ));
-                    }
-                    for (v, lanes) in values.iter().enumerate() {
-                        let vertex = span.first + v;
-                        let row = (vertex * channels as usize + channel as usize) * per_channel;
-                        for (lane, &value) in lanes.iter().enumerate() {
-                            let k = 4 * group + lane;
-                            if k < per_channel {
-                                coeffs[row + k] = value;
-                            }
+            if span.count == 0 {
+                continue;
+            }
+            let shape = (channels as usize, groups, span.count);
+            let planar = match half_float_view(primitive)? {
+                Some(view) => half_float_blocks(gltf, view, shape),
+                None => attribute_blocks(gltf, primitive, shape),
+            }
+            .map_err(|why| format!("mesh {}: {why}", instance.mesh))?;
+            // planar[(channel * groups + group) * count + v][lane]
+            for (block, values) in planar.chunks_exact(4 * span.count).enumerate() {
+                let (channel, group) = (block / groups, block % groups);
+                for (v, lanes) in values.chunks_exact(4).enumerate() {
+                    let row = ((span.first + v) * channels as usize + channel) * per_channel;
+                    for (lane, &value) in lanes.iter().enumerate() {
+                        let k = 4 * group + lane;
+                        if k < per_channel {
+                            coeffs[row + k] = value;
                         }
                     }
                 }
@@ -623,4 +667,80 @@ fn gather_transfer(
         vertex_count: scene.positions.len(),
         coeffs,
     })
+}
+
+/// The view a primitive's `extras.prt` names as its half-float transfer, if it has one.
+fn half_float_view(
+    primitive: &gltf_json::mesh::Primitive,
+) -> std::result::Result<Option<usize>, String> {
+    let Some(raw) = &primitive.extras else {
+        return Ok(None);
+    };
+    let prt: Value = serde_json::from_str(raw.get()).map_err(|e| e.to_string())?;
+    match prt["prt"]["transfer_precision"].as_str() {
+        None => Ok(None),
+        Some(FLOAT16) => prt["prt"]["transfer_buffer_view"]
+            .as_u64()
+            .map(|view| Some(view as usize))
+            .ok_or_else(|| "a float16 primitive names no transfer_buffer_view".to_string()),
+        Some(other) => Err(format!(
+            "extras.prt.transfer_precision {other:?} is not one this reader knows (float16)"
+        )),
+    }
+}
+
+/// A primitive's half-float transfer view decoded: `(channels, groups, vertices)` planar
+/// blocks of four lanes.
+fn half_float_blocks(
+    gltf: &GltfScene,
+    view: usize,
+    (channels, groups, vertices): (usize, usize, usize),
+) -> std::result::Result<Vec<f32>, String> {
+    let view = gltf
+        .root
+        .buffer_views
+        .get(view)
+        .ok_or_else(|| format!("transfer_buffer_view {view} does not exist"))?;
+    let buffer = gltf
+        .buffers
+        .get(view.buffer.value())
+        .ok_or("the transfer view's buffer does not exist")?;
+    let start = view.byte_offset.map_or(0, |o| o.0) as usize;
+    let expected = channels * groups * vertices * 4 * Precision::F16.bytes();
+    if view.byte_length.0 as usize != expected {
+        return Err(format!(
+            "its float16 transfer view holds {} bytes where {expected} are needed",
+            view.byte_length.0
+        ));
+    }
+    let bytes = start
+        .checked_add(expected)
+        .and_then(|end| buffer.get(start..end))
+        .ok_or("the transfer view runs past its buffer")?;
+    Ok(Precision::F16.decode(bytes))
+}
+
+/// A primitive's `_PRT_*` attributes as `(channels, groups, vertices)` planar blocks.
+fn attribute_blocks(
+    gltf: &GltfScene,
+    primitive: &gltf_json::mesh::Primitive,
+    (channels, groups, vertices): (usize, usize, usize),
+) -> std::result::Result<Vec<f32>, String> {
+    let mut planar = Vec::with_capacity(channels * groups * vertices * 4);
+    for channel in 0..channels as u32 {
+        for group in 0..groups {
+            let name = transfer_attribute_name(channels as u32, channel, group);
+            let semantic = Semantic::Extras(name.trim_start_matches('_').to_string());
+            let accessor = primitive
+                .attributes
+                .get(&Checked::Valid(semantic))
+                .ok_or_else(|| format!("no attribute {name}"))?;
+            let values = dense(&gltf.root, &gltf.buffers, accessor.value())?.vectors::<4>(&name)?;
+            if values.len() != vertices {
+                return Err(format!("{name} has the wrong length"));
+            }
+            planar.extend(values.iter().flatten());
+        }
+    }
+    Ok(planar)
 }

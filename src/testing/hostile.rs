@@ -172,7 +172,12 @@ fn read(reader: Reader, path: &Path) -> Result<Option<String>> {
         Reader::Gltf | Reader::Glb => {
             let (gltf, scene) = scene::gltf::load(path)?;
             let (baked, report) = quick_bake(scene)?;
-            let (written, _) = glb::scene::encode_scene_glb(&gltf, &baked, &report.vertex_map)?;
+            let (written, _) = glb::scene::encode_scene_glb(
+                &gltf,
+                &baked,
+                &report.vertex_map,
+                crate::precision::Precision::F32,
+            )?;
             Ok(non_finite_baked(&baked).or_else(|| non_finite_glb(&written)))
         }
         Reader::Exr | Reader::Hdr | Reader::Png | Reader::Jpeg | Reader::LightJson => {

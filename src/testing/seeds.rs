@@ -4,7 +4,7 @@
 //! the tool's own writers where it has one, so that they follow the format as it reads it.
 //! `examples/fuzz_seeds.rs` writes them as the fuzzers' first corpus; the suite mutates them.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::hostile::{Reader, COMPANION_MTL};
 use crate::bake::adaptive::ReceiverErrors;
@@ -13,6 +13,7 @@ use crate::bake::{self, Backend, BakeOptions, DirectPass, Mode, NoProgress, Shar
 use crate::error::{Error, Result};
 use crate::precision::Precision;
 use crate::scene::Scene;
+use crate::spec::BakeSpec;
 use crate::{compress, glb, light, shard};
 
 /// Named seed files of `reader`; `data` is the suite's `tests/data` (glTF samples are read
@@ -201,7 +202,9 @@ fn part(scratch: &Path, gather: bool, adaptive: bool) -> Result<Vec<u8>> {
     let command = ["bake", "--shard", "0/1", "mesh.obj"]
         .map(String::from)
         .to_vec();
-    let part = shard::Part::new(pass, (0, 1), "0123456789abcdef".into(), command, ".".into());
+    let what = (BakeSpec::default(), Some(PathBuf::from("mesh.obj")));
+    let fingerprint = "0123456789abcdef".to_string();
+    let part = shard::Part::new(pass, (0, 1), what, fingerprint, (command, ".".into()));
     let path = scratch.join("seed.part");
     shard::write_part(&path, &part)?;
     std::fs::read(&path).map_err(io(&path))
@@ -244,14 +247,18 @@ fn baked(data: &Path, scratch: &Path) -> Result<Vec<(String, Vec<u8>)>> {
             "compressed.glb".into(),
             std::fs::read(&path).map_err(io(&path))?,
         ),
-        ("in-place.glb".into(), baked_in_place(data)?),
+        ("in-place.glb".into(), baked_in_place(data, Precision::F32)?),
+        (
+            "in-place-f16.glb".into(),
+            baked_in_place(data, Precision::F16)?,
+        ),
     ])
 }
 
 /// BoxTextured baked in place (unshadowed, two bands): a scene file as `render` reads one.
-fn baked_in_place(data: &Path) -> Result<Vec<u8>> {
+fn baked_in_place(data: &Path, precision: Precision) -> Result<Vec<u8>> {
     let (gltf, scene) = crate::scene::gltf::load(&data.join("gltf/BoxTextured.glb"))?;
     let (baked, report) = super::hostile::quick_bake(scene)?;
-    let (bytes, _) = glb::scene::encode_scene_glb(&gltf, &baked, &report.vertex_map)?;
+    let (bytes, _) = glb::scene::encode_scene_glb(&gltf, &baked, &report.vertex_map, precision)?;
     Ok(bytes)
 }

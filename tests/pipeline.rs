@@ -1,0 +1,143 @@
+//! One spec, one run: a library caller with a `BakeSpec` gets what `prt-gpu bake` writes for
+//! the same options, byte for byte, on both backends — compressed, lean, half-float and
+//! auto-band stages included, which the command line alone had.
+
+mod common;
+
+use std::path::Path;
+
+use common::{backends, prt_gpu};
+use prt_gpu::bake::{Backend, DirectSource, NoProgress, Storage};
+use prt_gpu::precision::Precision;
+use prt_gpu::spec::{BakeSpec, Bands, Compression, Layout};
+use prt_gpu::{pipeline, scene};
+
+const TEAPOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
+
+/// The spec of `bake TEAPOT --samples 64` with `edit` applied, and the flags that say it.
+fn cases() -> Vec<(BakeSpec, Vec<&'static str>)> {
+    let spec = |edit: fn(&mut BakeSpec)| {
+        let mut spec = BakeSpec::default();
+        spec.transfer.samples = 64;
+        edit(&mut spec);
+        spec
+    };
+    vec![
+        (
+            spec(|s| {
+                s.storage.channels = Storage::Lean;
+                s.storage.precision = Precision::F16;
+                s.storage.layout = Layout::Cpca(Compression::Shape {
+                    clusters: 8,
+                    components: 4,
+                });
+            }),
+            vec![
+                "--storage",
+                "lean",
+                "--precision",
+                "f16",
+                "--compress",
+                "8x4",
+            ],
+        ),
+        (
+            spec(|s| {
+                s.transfer.bands = Bands::Auto { threshold: 0.02 };
+                s.storage.precision = Precision::F16;
+            }),
+            vec![
+                "--bands",
+                "auto",
+                "--bands-threshold",
+                "0.02",
+                "--precision",
+                "f16",
+            ],
+        ),
+    ]
+}
+
+fn run_library(spec: &BakeSpec, backend: &Backend, path: &Path) -> pipeline::Baked {
+    let scene = scene::load(Path::new(TEAPOT)).unwrap();
+    let baked = pipeline::run(spec, scene, backend, DirectSource::Compute, &NoProgress).unwrap();
+    assert!(pipeline::write(spec, &baked, None, path).unwrap().is_none());
+    baked
+}
+
+#[test]
+fn a_spec_run_through_the_library_writes_the_command_lines_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (k, (spec, flags)) in cases().into_iter().enumerate() {
+        spec.validate().unwrap();
+        for (b, backend) in backends().iter().enumerate() {
+            let device = match backend {
+                Backend::Cpu => "cpu",
+                Backend::Gpu { .. } => "gpu",
+            };
+            let cli = format!("cli{k}-{device}.glb");
+            let mut args = vec![
+                "bake",
+                TEAPOT,
+                "--samples",
+                "64",
+                "--device",
+                device,
+                "-o",
+                &cli,
+            ];
+            args.extend(&flags);
+            let out = prt_gpu(&args, d);
+            assert!(
+                out.status.success(),
+                "{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let cli = std::fs::read(d.join(&cli)).unwrap();
+            let path = d.join(format!("library{k}-{b}.glb"));
+            let baked = run_library(&spec, backend, &path);
+            assert_eq!(
+                std::fs::read(&path).unwrap(),
+                cli,
+                "{flags:?} on {}",
+                backend.describe()
+            );
+            // What each stage reports is what the file holds.
+            if let Bands::Auto { .. } = spec.transfer.bands {
+                let chosen = baked.bands_chosen.expect("bands chosen");
+                assert_eq!(chosen.bands, baked.mesh.transfer.bands);
+                assert!(chosen.beyond < 0.02);
+            }
+            match (&baked.cpca, &baked.compressed, &baked.half_float) {
+                (Some(cpca), Some(compressed), None) => {
+                    assert_eq!(compressed.bytes, cpca.byte_size(Precision::F16));
+                    assert!(compressed.bytes < compressed.bytes_uncompressed);
+                }
+                (None, None, Some(cost)) => {
+                    assert_eq!(cost.bytes * 2, cost.bytes_f32);
+                    assert!(cost.relit_error > 0.0 && cost.relit_error < 1e-3);
+                }
+                _ => panic!("{flags:?}: compressed and half-float reports disagree with the spec"),
+            }
+        }
+    }
+}
+
+#[test]
+fn a_spec_the_file_formats_cannot_hold_is_refused_before_any_ray() {
+    let mut spec = BakeSpec::default();
+    spec.receivers.lightmap = Some(256);
+    spec.storage.layout = Layout::Cpca(Compression::Target { error: 0.05 });
+    let scene = scene::builtin::default_scene();
+    let error = pipeline::run(
+        &spec,
+        scene,
+        &Backend::Cpu,
+        DirectSource::Compute,
+        &NoProgress,
+    )
+    .err()
+    .expect("refused");
+    assert!(error.to_string().contains("--compress"), "{error}");
+}

@@ -41,7 +41,8 @@ pub struct Lightmap {
 }
 
 /// Reads a baked file's lightmap with Python, numpy and OpenEXR (pip's `OpenEXR` 3.x):
-/// `python3 reader.py file.glb`. Gives `uv` (V, 2), each vertex's lightmap coordinates, and
+/// `python3 reader.py file.glb`. Gives `uv` (V, 2), each vertex's lightmap coordinates (of the
+/// first primitive, for a glTF scene baked in place; float coordinates), and
 /// `texels` (height, width, channels, bands^2), the transfer of every texel (row 0 at the top,
 /// as `uv`'s v = 0); prints their shapes and the centre texel's transfer as JSON.
 pub const PYTHON_READER: &str = r#"import json, pathlib, struct, sys, numpy as np, OpenEXR
@@ -49,7 +50,7 @@ data = open(sys.argv[1], "rb").read()
 n = struct.unpack_from("<I", data, 12)[0]  # JSON chunk length; BIN chunk data starts at 28 + n
 gltf, binary = json.loads(data[20:20 + n]), data[28 + n:]
 prim, prt = gltf["meshes"][0]["primitives"][0], gltf["meshes"][0]["extras"]["prt"]
-lightmap = prt["lightmap"]
+lightmap = prt.get("lightmap") or gltf["extras"]["prt"]["lightmap"]  # a mesh's, or a scene's
 accessor = gltf["accessors"][prim["attributes"]["TEXCOORD_%d" % lightmap["texcoord"]]]
 view = gltf["bufferViews"][accessor["bufferView"]]
 uv = np.frombuffer(binary, "<f4", view["byteLength"] // 4, view.get("byteOffset", 0)).reshape(-1, 2)

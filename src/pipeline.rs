@@ -7,13 +7,16 @@ use std::fmt;
 use std::path::Path;
 use std::time::Instant;
 
+use crate::bake::stream::{format_bytes, MemoryNeed};
 use crate::bake::{self, Backend, BakeReport, BakedMesh, DirectSource, Progress};
 use crate::compress::{self, Cpca, CpcaOptions};
 use crate::device::GpuContext;
+use crate::error::Error;
 use crate::precision::Precision;
+use crate::receivers::uv_set::{self, UvSet};
 use crate::scene::gltf::GltfScene;
 use crate::scene::Scene;
-use crate::spec::{BakeSpec, Bands, Compression, AUTO_MAX_BANDS};
+use crate::spec::{BakeSpec, Bands, Compression, Container, Layout, AUTO_MAX_BANDS};
 use crate::{glb, light, render, Result};
 
 /// A bake done and shaped as its spec stores it, not yet written.
@@ -31,62 +34,227 @@ pub struct Baked {
     pub notes: Vec<String>,
 }
 
-/// Bakes `scene` as `spec` asks, its direct pass from `source`, on `backend`.
+/// Bakes `scene` as `spec` asks, its direct pass from `source`, on `backend`; `gltf` is the
+/// document of a glTF scene (`scene` as `gltf::load` made it), which a spec whose container is
+/// the scene in place needs. ([`plan`], then [`Planned::run`].)
 pub fn run(
     spec: &BakeSpec,
     scene: Scene,
+    gltf: Option<&GltfScene>,
     backend: &Backend,
     source: DirectSource,
     progress: &dyn Progress,
 ) -> Result<Baked> {
+    plan(spec, scene, gltf)?.run(backend, source, progress)
+}
+
+/// A bake checked before any device is opened or ray cast: its spec valid and fit for its
+/// container, its lightmap's UV set chosen.
+pub struct Planned<'s> {
+    spec: &'s BakeSpec,
+    scene: Scene,
+    uv_set: Option<UvSet>,
+    notes: Vec<String>,
+}
+
+/// Checks the bake of `scene` as `spec` asks (see [`run`]) and chooses what it can before any
+/// ray: a glTF scene's lightmap UV set.
+pub fn plan<'s>(spec: &'s BakeSpec, scene: Scene, gltf: Option<&GltfScene>) -> Result<Planned<'s>> {
     spec.validate()?;
-    let (mut mesh, report) = bake::bake_from(scene, &spec.options(), backend, source, progress)?;
-    let bands_chosen = match spec.transfer.bands {
-        Bands::Auto { threshold } => Some(choose_auto_bands(&mut mesh, threshold)),
-        Bands::Fixed(_) => None,
-    };
+    check_container(spec, gltf)?;
     let mut notes = Vec::new();
-    let compressed = match spec.compression() {
-        Some(compression) => Some(compress_transfer(
-            &mesh,
-            compression,
-            spec.storage.precision,
-            gpu_context(backend),
-            &mut notes,
-        )?),
-        None => None,
-    };
-    let half_float = match (spec.storage.precision, &compressed) {
-        (Precision::F16, None) => Some(half_float_cost(&mesh)?),
+    let uv_set = match (spec.receivers.lightmap, gltf) {
+        (Some(size), Some(gltf)) => {
+            let named = spec.receivers.lightmap_uv;
+            let (set, note) = uv_set::lightmap_set(gltf, &scene.triangles, named, size)?;
+            notes.extend(note);
+            Some(set)
+        }
         _ => None,
     };
-    let (cpca, compressed) = compressed.unzip();
-    Ok(Baked {
-        mesh,
-        cpca,
-        report,
-        bands_chosen,
-        compressed,
-        half_float,
+    Ok(Planned {
+        spec,
+        scene,
+        uv_set,
         notes,
     })
 }
 
+impl Planned<'_> {
+    /// The scene to bake, as given.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// Bakes it: the transfer, then the stages that shape what is stored.
+    pub fn run(
+        self,
+        backend: &Backend,
+        source: DirectSource,
+        progress: &dyn Progress,
+    ) -> Result<Baked> {
+        let Planned {
+            spec,
+            scene,
+            uv_set,
+            mut notes,
+        } = self;
+        let options = spec.options();
+        let (mut mesh, report) =
+            bake::bake_from(scene, &options, backend, source, uv_set.as_ref(), progress)?;
+        let bands_chosen = match spec.transfer.bands {
+            Bands::Auto { threshold } => Some(choose_auto_bands(&mut mesh, threshold)),
+            Bands::Fixed(_) => None,
+        };
+        let compressed = match spec.compression() {
+            Some(compression) => Some(compress_transfer(
+                &mesh,
+                compression,
+                spec.storage.precision,
+                gpu_context(backend),
+                &mut notes,
+            )?),
+            None => None,
+        };
+        let half_float = match (spec.storage.precision, &compressed) {
+            (Precision::F16, None) => Some(half_float_cost(&mesh)?),
+            _ => None,
+        };
+        let (cpca, compressed) = compressed.unzip();
+        Ok(Baked {
+            mesh,
+            cpca,
+            report,
+            bands_chosen,
+            compressed,
+            half_float,
+            notes,
+        })
+    }
+
+    /// Bakes it streamed to `path` in chunks of `chunk` receivers (a plan of [`plan_memory`]):
+    /// the file equals the whole bake's, byte for byte.
+    pub fn run_streamed(
+        self,
+        backend: &Backend,
+        chunk: usize,
+        path: &Path,
+        progress: &dyn Progress,
+    ) -> Result<BakeReport> {
+        let streamed = bake::stream::StreamedBake::plan(self.scene, &self.spec.options())?;
+        glb::stream::bake_streamed(&streamed, backend, chunk, path, progress)
+    }
+}
+
+/// How a bake fits the memory it may use.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MemoryPlan {
+    /// Streamed in chunks of this many receivers (`None`: whole).
+    pub chunk: Option<usize>,
+    /// What to tell the user: a `note:` that the bake streams, or a `warning:` that it needs
+    /// more than the machine has.
+    pub message: Option<String>,
+}
+
+/// How the bake of `scene` as `spec` asks fits `limit` (the user's `--memory-limit`) or, without
+/// one, the machine's `available` memory: whole, or streamed to the file in chunks that fit.
+/// A bake that cannot fit an explicit limit fails before it starts, saying what it needs; over
+/// the available memory, a warning. `preview`: the bake is also rendered (which needs it whole).
+pub fn plan_memory(
+    spec: &BakeSpec,
+    scene: &Scene,
+    limit: Option<u64>,
+    available: Option<u64>,
+    preview: bool,
+) -> Result<MemoryPlan> {
+    let whole = MemoryPlan {
+        chunk: None,
+        message: None,
+    };
+    let options = spec.options();
+    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options);
+    let Some(budget) = limit.or(available) else {
+        return Ok(whole);
+    };
+    if need.whole() <= budget {
+        return Ok(whole);
+    }
+    let streamable = bake::stream::streams(&options)
+        && spec.container == Container::Mesh
+        && spec.storage.layout == Layout::PerVertex
+        && spec.storage.precision == Precision::F32
+        && matches!(spec.transfer.bands, Bands::Fixed(_))
+        && !preview;
+    let why_not = "only shadowed and unshadowed per-vertex bakes of OBJ, PLY and the built-in \
+                   scene, without --compress, --precision f16, --bands auto or --preview, \
+                   stream in chunks";
+    match (streamable, limit) {
+        (true, _) => {
+            let chunk = need.chunk_within(budget)?;
+            Ok(MemoryPlan {
+                chunk: Some(chunk),
+                message: Some(format!(
+                    "note: streaming the transfer in chunks of {chunk} receivers to stay within \
+                     {} (about {} whole, {} streamed)",
+                    format_bytes(budget),
+                    format_bytes(need.whole()),
+                    format_bytes(need.streamed(chunk))
+                )),
+            })
+        }
+        (false, Some(_)) => Err(Error::Options(format!(
+            "--memory-limit {}: this bake needs about {}, and {why_not}",
+            format_bytes(budget),
+            format_bytes(need.whole())
+        ))),
+        (false, None) => Ok(MemoryPlan {
+            chunk: None,
+            message: Some(format!(
+                "warning: this bake needs about {}, more than the {} this machine has \
+                 available, and {why_not}",
+                format_bytes(need.whole()),
+                format_bytes(budget)
+            )),
+        }),
+    }
+}
+
+/// Refuses a container without what it needs: the scene in place needs its document, and a
+/// mesh has none.
+fn check_container(spec: &BakeSpec, gltf: Option<&GltfScene>) -> Result<()> {
+    match (spec.container, gltf.is_some()) {
+        (Container::GltfInPlace, false) => Err(Error::Options(
+            "the spec writes a glTF scene in place, and no glTF scene was given".into(),
+        )),
+        (Container::Mesh, true) => Err(Error::Options(
+            "the spec writes a baked mesh, and a glTF scene was given (its container is the \
+             scene in place)"
+                .into(),
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// Writes `baked` to `path` in the spec's container: a baked mesh, or `gltf` written back with
-/// its transfer (what that repaired and copied is returned).
+/// its transfer (what that repaired and copied is returned). The lightmap, if any, goes beside
+/// the file.
 pub fn write(
     spec: &BakeSpec,
     baked: &Baked,
     gltf: Option<&GltfScene>,
     path: &Path,
 ) -> Result<Option<glb::scene::SceneWrite>> {
+    check_container(spec, gltf)?;
     match gltf {
         Some(gltf) => Ok(Some(glb::scene::write_scene_glb(
             path,
             gltf,
-            &baked.mesh,
+            glb::scene::Stored {
+                baked: &baked.mesh,
+                cpca: baked.cpca.as_ref(),
+                precision: spec.storage.precision,
+            },
             &baked.report.vertex_map,
-            spec.storage.precision,
         )?)),
         None => {
             glb::write_glb_as(

@@ -38,8 +38,13 @@ pub struct ReceiverSpec {
     pub fit: Fit,
     /// Least-squares fit: surface points per vertex, on average.
     pub fit_points: f32,
-    /// A lightmap about this many texels on its longer side (a generated atlas).
+    /// A lightmap about this many texels on its longer side: on a generated atlas for a mesh,
+    /// on the scene's own UV set for a glTF scene (`receivers::uv_set`).
     pub lightmap: Option<u32>,
+    /// The glTF scene's `TEXCOORD_n` set the lightmap bakes on, where the user names one.
+    /// Left out of the JSON when unset, so specs written before it hash as they did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lightmap_uv: Option<u32>,
 }
 
 /// What transfer is computed, and from how many samples.
@@ -124,6 +129,7 @@ impl Default for BakeSpec {
                 fit: Fit::Point,
                 fit_points: PointDensity::default().per_vertex,
                 lightmap: None,
+                lightmap_uv: None,
             },
             transfer: TransferSpec {
                 bands: Bands::Fixed(4),
@@ -206,17 +212,17 @@ impl BakeSpec {
         self.check_storage_fits_container()
     }
 
-    /// Refuses storage a container cannot hold: compressed or lightmapped glTF scenes baked
-    /// in place, lean ones whose albedo the materials do not say; compressed lightmaps, and
-    /// half-float ones (they are half floats already).
+    /// Refuses storage a container cannot hold: lean glTF scenes whose albedo the materials do
+    /// not say; compressed lightmaps, and half-float ones (they are half floats already); a UV
+    /// set named for a mesh, which gets a generated atlas.
     fn check_storage_fits_container(&self) -> Result<()> {
         let refuse = |message: &str| Err(Error::Options(message.to_string()));
         let gltf = self.container == Container::GltfInPlace;
         let lightmap = self.receivers.lightmap.is_some();
-        if self.compression().is_some() && (gltf || lightmap) {
+        if self.compression().is_some() && lightmap {
             return refuse(
-                "--compress stores the transfer of OBJ, PLY and the built-in scene per vertex; \
-                 glTF scenes baked in place and lightmaps are not compressed",
+                "--compress stores per-vertex transfer as clusters; a lightmap's texels are \
+                 stored whole (OpenEXR)",
             );
         }
         if self.storage.precision == Precision::F16 && lightmap {
@@ -231,11 +237,19 @@ impl BakeSpec {
                  its materials, which --albedo does not change (bake RGB transfer instead)",
             );
         }
-        if gltf && lightmap {
-            return refuse(
-                "--lightmap bakes OBJ, PLY and the built-in scene; a glTF scene is baked in \
-                 place per vertex (lightmaps for glTF scenes are not supported yet)",
-            );
+        if let Some(set) = self.receivers.lightmap_uv {
+            if !lightmap {
+                return Err(Error::Options(format!(
+                    "--lightmap-uv {set} names the UV set of a lightmap; ask for one with \
+                     --lightmap SIZE"
+                )));
+            }
+            if !gltf {
+                return Err(Error::Options(format!(
+                    "--lightmap-uv {set} names a glTF scene's UV set; an OBJ, a PLY and the \
+                     built-in scene get a generated atlas"
+                )));
+            }
         }
         Ok(())
     }
@@ -308,8 +322,15 @@ mod tests {
                 s.storage.channels = Storage::Lean;
                 s.transfer.albedo = Some([0.5; 3]);
             }),
-            gltf(|s| s.receivers.lightmap = Some(256)),
+            gltf(|s| s.receivers.lightmap_uv = Some(1)),
+            {
+                let mut spec = BakeSpec::default();
+                spec.receivers.lightmap = Some(256);
+                spec.receivers.lightmap_uv = Some(1);
+                spec
+            },
             gltf(|s| {
+                s.receivers.lightmap = Some(64);
                 s.storage.layout = Layout::Cpca(Compression::Shape {
                     clusters: 8,
                     components: 4,
@@ -346,5 +367,14 @@ mod tests {
         }
         .validate()
         .expect("a glTF scene bakes per vertex in RGB float32");
+        let mut lightmapped = BakeSpec {
+            container: Container::GltfInPlace,
+            ..BakeSpec::default()
+        };
+        lightmapped.receivers.lightmap = Some(256);
+        lightmapped.receivers.lightmap_uv = Some(1);
+        lightmapped
+            .validate()
+            .expect("a glTF scene bakes a lightmap on its own UV set");
     }
 }

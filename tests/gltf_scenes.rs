@@ -9,9 +9,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use base64::Engine;
+use common::gltf_builder::{ground_and_card_gltf, GltfBuilder};
 use glam::{Mat3, Mat4, Quat, Vec3};
 use prt_gpu::bake::{bake, Backend, BakeOptions, BakeReport, BakedMesh, Mode, NoProgress};
-use prt_gpu::glb::scene::{encode_scene_glb, read_scene_glb, write_scene_glb};
+use prt_gpu::glb::scene::{encode_scene_glb, read_scene_glb, write_scene_glb, Stored};
 use prt_gpu::precision::Precision;
 use prt_gpu::sampling::Sampling;
 use prt_gpu::scene::gltf::{self as gltf_scene, GltfScene};
@@ -103,8 +104,13 @@ fn the_assimp_scenes_bake_and_pass_the_validator() {
             .path()
             .join(name.replace('/', "_"))
             .with_extension("glb");
-        let written =
-            write_scene_glb(&target, &gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
+        let written = write_scene_glb(
+            &target,
+            &gltf,
+            Stored::per_vertex(&baked, Precision::F32),
+            &report.vertex_map,
+        )
+        .unwrap();
         let primitives: usize = gltf.instances.iter().map(|i| i.primitives.len()).sum();
         assert_eq!(written.primitives_baked, primitives, "{name}");
         assert_valid(&target);
@@ -219,107 +225,6 @@ fn strips_and_fans_are_the_triangles_they_describe() {
     }
 }
 
-/// A .gltf whose buffer is a base64 `data:` URI, built in the tests.
-#[derive(Default)]
-struct GltfBuilder {
-    bin: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-}
-
-impl GltfBuilder {
-    fn floats(&mut self, values: &[f32], kind: &str, bounds: bool) -> usize {
-        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-        let components = match kind {
-            "VEC2" => 2,
-            "VEC3" => 3,
-            _ => 4,
-        };
-        let mut accessor = json!({
-            "bufferView": self.view(&bytes, 34962),
-            "componentType": 5126,
-            "count": values.len() / components,
-            "type": kind,
-        });
-        if bounds {
-            let column = |c: usize, pick: fn(f32, f32) -> f32| {
-                values
-                    .iter()
-                    .skip(c)
-                    .step_by(components)
-                    .copied()
-                    .reduce(pick)
-                    .unwrap()
-            };
-            accessor["min"] = json!((0..components)
-                .map(|c| column(c, f32::min))
-                .collect::<Vec<_>>());
-            accessor["max"] = json!((0..components)
-                .map(|c| column(c, f32::max))
-                .collect::<Vec<_>>());
-        }
-        self.accessors.push(accessor);
-        self.accessors.len() - 1
-    }
-
-    fn indices(&mut self, triangles: &[[u32; 3]]) -> usize {
-        let bytes: Vec<u8> = triangles
-            .iter()
-            .flatten()
-            .flat_map(|i| (*i as u16).to_le_bytes())
-            .collect();
-        let view = self.view(&bytes, 34963);
-        self.accessors.push(json!({
-            "bufferView": view, "componentType": 5123, "count": triangles.len() * 3, "type": "SCALAR"
-        }));
-        self.accessors.len() - 1
-    }
-
-    fn view(&mut self, bytes: &[u8], target: u32) -> usize {
-        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
-        self.views.push(json!({
-            "buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len(), "target": target
-        }));
-        self.bin.extend_from_slice(bytes);
-        self.views.len() - 1
-    }
-
-    /// A primitive of `mesh` (positions, normals, optional UVs) as glTF attributes.
-    fn primitive(&mut self, mesh: &Scene, uvs: Option<&[[f32; 2]]>) -> Value {
-        let positions: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
-        let normals: Vec<f32> = mesh
-            .normals
-            .as_ref()
-            .unwrap()
-            .iter()
-            .flat_map(|n| n.to_array())
-            .collect();
-        let mut attributes = json!({
-            "POSITION": self.floats(&positions, "VEC3", true),
-            "NORMAL": self.floats(&normals, "VEC3", false),
-        });
-        if let Some(uvs) = uvs {
-            let flat: Vec<f32> = uvs.iter().flatten().copied().collect();
-            attributes["TEXCOORD_0"] = json!(self.floats(&flat, "VEC2", false));
-        }
-        json!({ "attributes": attributes, "indices": self.indices(&mesh.triangles) })
-    }
-
-    fn finish(self, mut doc: Value, dir: &Path, name: &str) -> PathBuf {
-        let uri = format!(
-            "data:application/octet-stream;base64,{}",
-            base64::engine::general_purpose::STANDARD.encode(&self.bin)
-        );
-        doc["asset"] = json!({ "version": "2.0" });
-        doc["buffers"] = json!([{ "byteLength": self.bin.len(), "uri": uri }]);
-        doc["bufferViews"] = json!(self.views);
-        doc["accessors"] = json!(self.accessors);
-        let path = dir.join(name);
-        std::fs::write(&path, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
-        path
-    }
-}
-
 /// A sphere shown by two nodes — one translated and turned, one mirrored by a negative scale —
 /// over a ground mesh: bake it as glTF, and bake the same geometry transformed by hand as an
 /// OBJ. Placement for placement, vertex for vertex, the transfer must be the same.
@@ -393,7 +298,13 @@ fn two_placements_bake_like_the_mesh_transformed_by_hand() {
     let (gltf, baked, report) = bake_gltf(&gltf_path, &options, &Backend::Cpu);
     assert_eq!(gltf.instances.len(), 3);
     let out = dir.path().join("placed.prt.glb");
-    let written = write_scene_glb(&out, &gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
+    let written = write_scene_glb(
+        &out,
+        &gltf,
+        Stored::per_vertex(&baked, Precision::F32),
+        &report.vertex_map,
+    )
+    .unwrap();
     assert_eq!(
         written.mesh_copies, 1,
         "the second sphere gets its own mesh"
@@ -535,8 +446,13 @@ fn the_round_trip_keeps_nodes_meshes_materials_textures_names_and_indices() {
     ] {
         let input = data(name);
         let (gltf, baked, report) = bake_gltf(&input, &quick(), &Backend::Cpu);
-        let (bytes, written) =
-            encode_scene_glb(&gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
+        let (bytes, written) = encode_scene_glb(
+            &gltf,
+            Stored::per_vertex(&baked, Precision::F32),
+            &report.vertex_map,
+            None,
+        )
+        .unwrap();
         let before = input_json(&input);
         let after = glb_json(&bytes);
         for array in [
@@ -605,7 +521,13 @@ fn the_numpy_recipe_reads_a_scene_baked_in_place() {
     let mut float32 = None;
     for precision in [Precision::F32, Precision::F16] {
         let target = dir.path().join(format!("box-{precision:?}.prt.glb"));
-        write_scene_glb(&target, &gltf, &baked, &report.vertex_map, precision).unwrap();
+        write_scene_glb(
+            &target,
+            &gltf,
+            Stored::per_vertex(&baked, precision),
+            &report.vertex_map,
+        )
+        .unwrap();
         let Some(printed) = prt_gpu::testing::numpy_reader_output(&target) else {
             return;
         };
@@ -664,7 +586,13 @@ fn interreflected_scenes_bake_in_place_too() {
         &Backend::Cpu,
     );
     let target = dir.path().join("box.glb");
-    write_scene_glb(&target, &gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
+    write_scene_glb(
+        &target,
+        &gltf,
+        Stored::per_vertex(&baked, Precision::F32),
+        &report.vertex_map,
+    )
+    .unwrap();
     assert_valid(&target);
     assert_eq!(prt_gpu::glb::read_metadata(&target).unwrap().0.bounces, 2);
 }
@@ -754,7 +682,13 @@ fn quantized_interleaved_and_sparse_accessors_are_read_as_specified() {
 
     let (baked, report) = bake(loaded, &quick(), &Backend::Cpu, &NoProgress).unwrap();
     let target = dir.path().join("quantized.prt.glb");
-    write_scene_glb(&target, &gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
+    write_scene_glb(
+        &target,
+        &gltf,
+        Stored::per_vertex(&baked, Precision::F32),
+        &report.vertex_map,
+    )
+    .unwrap();
     assert_valid(&target);
     let written = glb_json(&std::fs::read(&target).unwrap());
     let accessors = &written["accessors"];
@@ -804,7 +738,13 @@ fn skinned_and_morphing_meshes_bake_in_their_rest_pose_with_a_note() {
             gltf.notes
         );
         let target = out.path().join("out.glb");
-        write_scene_glb(&target, &gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
+        write_scene_glb(
+            &target,
+            &gltf,
+            Stored::per_vertex(&baked, Precision::F32),
+            &report.vertex_map,
+        )
+        .unwrap();
         assert_valid(&target);
         // Skins, joints, morph targets and animations travel with the scene.
         let (before, after) = (
@@ -1108,8 +1048,13 @@ fn non_finite_normals_and_morph_targets_are_written_repaired() {
     });
     let path = builder.finish(doc, dir.path(), "nan.gltf");
     let (gltf, baked, report) = bake_gltf(&path, &quick(), &Backend::Cpu);
-    let (bytes, written) =
-        encode_scene_glb(&gltf, &baked, &report.vertex_map, Precision::F32).unwrap();
+    let (bytes, written) = encode_scene_glb(
+        &gltf,
+        Stored::per_vertex(&baked, Precision::F32),
+        &report.vertex_map,
+        None,
+    )
+    .unwrap();
     assert_eq!(written.repaired.len(), 2, "{:?}", written.repaired);
     assert!(
         written.repaired[0].contains("3 normal(s) NaN, infinite or zero, written as the normals"),
@@ -1156,4 +1101,287 @@ fn non_finite_normals_and_morph_targets_are_written_repaired() {
     }
     let written_moves = floats(target_accessor);
     assert_eq!((written_moves[1], written_moves[4]), (0.0, 0.25));
+}
+
+/// Random points on the triangles `triangles` of a scene, fixed-seeded.
+fn points_on(
+    triangles: std::ops::Range<u32>,
+    count: usize,
+) -> Vec<prt_gpu::receivers::SurfacePoint> {
+    let mut random = prt_gpu::sampling::Pcg32::new(7);
+    (0..count)
+        .map(|_| {
+            let span = triangles.end - triangles.start;
+            let triangle =
+                triangles.start + ((random.next_f32() * span as f32) as u32).min(span - 1);
+            let (a, b) = (random.next_f32(), random.next_f32());
+            let (a, b) = if a + b > 1.0 {
+                (1.0 - a, 1.0 - b)
+            } else {
+                (a, b)
+            };
+            prt_gpu::receivers::SurfacePoint {
+                triangle,
+                barycentrics: [1.0 - a - b, a, b],
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn a_gltf_scene_bakes_a_lightmap_on_its_own_texcoord_1() {
+    use prt_gpu::bake::bake_at;
+    use prt_gpu::receivers::Receivers;
+    let dir = tempfile::tempdir().unwrap();
+    let input = ground_and_card_gltf(dir.path(), Some(1), true, false);
+    let out = common::prt_gpu(
+        &[
+            "bake",
+            "lit.gltf",
+            "--lightmap",
+            "64",
+            "--samples",
+            "2048",
+            "--device",
+            "cpu",
+            "-o",
+            "lit.prt.glb",
+        ],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("lightmap: 64x64 texels"), "{stderr}");
+    let glb = dir.path().join("lit.prt.glb");
+    assert!(dir.path().join("lit.prt.lightmap.exr").is_file());
+    assert_valid(&glb);
+    let doc = glb_json(&std::fs::read(&glb).unwrap());
+    let lightmap = &doc["extras"]["prt"]["lightmap"];
+    assert_eq!(lightmap["texcoord"], 1, "{lightmap}");
+    assert_eq!(lightmap["uri"], "lit.prt.lightmap.exr", "{lightmap}");
+    assert_eq!(
+        (lightmap["width"].clone(), lightmap["height"].clone()),
+        (json!(64), json!(64))
+    );
+
+    // The scene keeps its vertices and both UV sets.
+    let (input_gltf, input_scene) = gltf_scene::load(&input).unwrap();
+    let (output_gltf, output_scene) = gltf_scene::load(&glb).unwrap();
+    assert_eq!(output_scene.positions, input_scene.positions);
+    for set in [0, 1] {
+        let read = |gltf: &GltfScene| gltf_scene::texcoords(gltf, set).unwrap().unwrap();
+        assert_eq!(read(&output_gltf), read(&input_gltf), "TEXCOORD_{set}");
+    }
+    // OpenEXR's reader, through the README's recipe, reads the lightmap the .glb names.
+    if let Some(read) = prt_gpu::testing::lightmap_reader_output(&glb) {
+        assert_eq!(read["texels"], json!([64, 64, 3, 16]), "{read}");
+        assert_eq!(read["uv"], json!([9 * 9, 2]), "{read}");
+    }
+    let info = common::prt_gpu(&["info", "lit.prt.glb"], dir.path());
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        text.contains("lightmap:     64x64 texels in lit.prt.lightmap.exr (TEXCOORD_1)"),
+        "{text}"
+    );
+
+    // A texel looked up through TEXCOORD_1 gives what a point bake at that surface point does.
+    let baked = prt_gpu::glb::read_glb(&glb).unwrap();
+    let texels = baked.lightmap.as_ref().expect("the lightmap is read back");
+    assert_eq!(texels.set, 1);
+    let ground_triangles = 0..(8 * 8 * 2);
+    let points = points_on(ground_triangles, 400);
+    let light = prt_gpu::light::preview_light(4).unwrap();
+    let looked_up = prt_gpu::render::relight(
+        &prt_gpu::surface::texel_transfer_at(texels, &points),
+        &light,
+    )
+    .unwrap();
+    // The prepared scene keeps the loaded triangles in order (none is degenerate).
+    let prepared = scene::prepare::prepare(input_scene).unwrap().0;
+    let options = BakeOptions {
+        samples: 2048,
+        ..BakeOptions::default()
+    };
+    let point_bake = |points: &[prt_gpu::receivers::SurfacePoint]| {
+        let receivers = Receivers::at_points(&prepared, points);
+        let (transfer, _) = bake_at(
+            &prepared,
+            &receivers,
+            &options,
+            &Backend::Cpu,
+            None,
+            &NoProgress,
+        )
+        .unwrap();
+        prt_gpu::render::relight(&transfer, &light).unwrap()
+    };
+    let error = prt_gpu::compress::radiance_error(&point_bake(&points), &looked_up);
+    // The control: the same lookups against points mirrored across the card's shadow.
+    let mirrored: Vec<_> = points
+        .iter()
+        .map(|p| {
+            let position: Vec3 = (0..3)
+                .map(|i| {
+                    p.barycentrics[i]
+                        * prepared.positions[prepared.triangles[p.triangle as usize][i] as usize]
+                })
+                .sum();
+            nearest_point_on_ground(&prepared, Vec3::new(-position.x, 0.0, position.z))
+        })
+        .collect();
+    let control = prt_gpu::compress::radiance_error(&point_bake(&mirrored), &looked_up);
+    eprintln!(
+        "lookup against a point bake: {:.2}%, mirrored {:.2}%",
+        100.0 * error,
+        100.0 * control
+    );
+    assert!(
+        error < 0.015,
+        "lookup against a point bake: {:.2}%",
+        100.0 * error
+    );
+    assert!(control > 4.0 * error, "control {control} against {error}");
+}
+
+/// The point of the ground's triangles (the first 128 of `scene`) at `at`, `at` lying on it.
+fn nearest_point_on_ground(scene: &Scene, at: Vec3) -> prt_gpu::receivers::SurfacePoint {
+    for t in 0..128u32 {
+        let [a, b, c] = scene.triangles[t as usize].map(|i| scene.positions[i as usize]);
+        let area = (b - a).cross(c - a).y;
+        let w = [
+            (c - b).cross(at - b).y / area,
+            (a - c).cross(at - c).y / area,
+            (b - a).cross(at - a).y / area,
+        ];
+        if w.iter().all(|&w| w >= -1e-6) {
+            return prt_gpu::receivers::SurfacePoint {
+                triangle: t,
+                barycentrics: w,
+            };
+        }
+    }
+    panic!("{at} is not on the ground");
+}
+
+#[test]
+fn a_gltf_scene_without_a_usable_lightmap_set_is_refused_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let bake = |args: &[&str]| {
+        let mut all = vec!["bake", "lit.gltf", "--samples", "16", "--device", "cpu"];
+        all.extend_from_slice(args);
+        let out = common::prt_gpu(&all, dir.path());
+        assert!(!out.status.success());
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+        assert!(!dir.path().join("lit.prt.glb").exists(), "{stderr}");
+        assert!(
+            !dir.path().join("lit.prt.lightmap.exr").exists(),
+            "{stderr}"
+        );
+        stderr
+    };
+    ground_and_card_gltf(dir.path(), None, true, false);
+    let error = bake(&["--lightmap", "64"]);
+    assert!(
+        error.contains("no usable UV set (no TEXCOORD_1; TEXCOORD_0 overlaps itself"),
+        "{error}"
+    );
+    let error = bake(&["--lightmap", "64", "--lightmap-uv", "2"]);
+    assert!(
+        error.contains("a baked primitive has no TEXCOORD_2"),
+        "{error}"
+    );
+    let error = bake(&["--lightmap-uv", "0"]);
+    assert!(error.contains("--lightmap SIZE"), "{error}");
+    ground_and_card_gltf(dir.path(), Some(1), false, true);
+    let error = bake(&["--lightmap", "64"]);
+    assert!(error.contains("mesh 1 is shown by 2 nodes"), "{error}");
+    let obj = common::prt_gpu(
+        &[
+            "bake",
+            "--lightmap",
+            "64",
+            "--lightmap-uv",
+            "1",
+            "--samples",
+            "16",
+        ],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&obj.stderr);
+    assert!(
+        !obj.status.success() && stderr.contains("generated atlas"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_gltf_scene_whose_texcoord_0_does_not_overlap_bakes_its_lightmap_there() {
+    let dir = tempfile::tempdir().unwrap();
+    ground_and_card_gltf(dir.path(), Some(0), false, false);
+    let out = common::prt_gpu(
+        &[
+            "bake",
+            "lit.gltf",
+            "--lightmap",
+            "64",
+            "--samples",
+            "16",
+            "--device",
+            "cpu",
+        ],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("note: the scene has no TEXCOORD_1"),
+        "{stderr}"
+    );
+    let glb = dir.path().join("lit.prt.glb");
+    assert_valid(&glb);
+    let doc = glb_json(&std::fs::read(&glb).unwrap());
+    assert_eq!(doc["extras"]["prt"]["lightmap"]["texcoord"], 0);
+    let baked = prt_gpu::glb::read_glb(&glb).unwrap();
+    assert_eq!(baked.lightmap.map(|l| l.set), Some(0));
+}
+
+#[test]
+fn a_gltf_lightmap_on_its_own_uv_set_bakes_alike_on_the_cpu_and_the_gpu() {
+    use prt_gpu::bake::DirectSource;
+    use prt_gpu::pipeline;
+    use prt_gpu::spec::{BakeSpec, Container};
+    let dir = tempfile::tempdir().unwrap();
+    let input = ground_and_card_gltf(dir.path(), Some(1), false, false);
+    let (gltf, scene) = gltf_scene::load(&input).unwrap();
+    let mut spec = BakeSpec {
+        container: Container::GltfInPlace,
+        ..BakeSpec::default()
+    };
+    spec.receivers.lightmap = Some(32);
+    spec.transfer.samples = 64;
+    spec.transfer.mode = Mode::Interreflected;
+    let light = prt_gpu::light::preview_light(4).unwrap();
+    let relit: Vec<Vec<[f32; 3]>> = common::backends()
+        .iter()
+        .map(|backend| {
+            let run = pipeline::run;
+            let source = DirectSource::Compute;
+            let baked = run(
+                &spec,
+                scene.clone(),
+                Some(&gltf),
+                backend,
+                source,
+                &NoProgress,
+            );
+            let texels = baked.unwrap().mesh.lightmap.expect("a lightmap");
+            assert_eq!((texels.width, texels.height, texels.set), (32, 32, 1));
+            prt_gpu::render::relight(&texels.transfer, &light).unwrap()
+        })
+        .collect();
+    for gpu in &relit[1..] {
+        let error = prt_gpu::compress::radiance_error(&relit[0], gpu);
+        assert!(error < 1e-4, "CPU and GPU lightmaps differ by {error:.2e}");
+    }
 }

@@ -235,7 +235,7 @@ fn bad_lightmap_requests_fail_cleanly() {
                 "-o",
                 "o.glb",
             ],
-            "--lightmap bakes OBJ, PLY and the built-in scene",
+            "no usable UV set (no TEXCOORD_1; TEXCOORD_0 leaves [0, 1]",
         ),
     ] {
         let out = prt_gpu(&args, dir.path());

@@ -60,7 +60,15 @@ fn cases() -> Vec<(BakeSpec, Vec<&'static str>)> {
 
 fn run_library(spec: &BakeSpec, backend: &Backend, path: &Path) -> pipeline::Baked {
     let scene = scene::load(Path::new(TEAPOT)).unwrap();
-    let baked = pipeline::run(spec, scene, backend, DirectSource::Compute, &NoProgress).unwrap();
+    let baked = pipeline::run(
+        spec,
+        scene,
+        None,
+        backend,
+        DirectSource::Compute,
+        &NoProgress,
+    )
+    .unwrap();
     assert!(pipeline::write(spec, &baked, None, path).unwrap().is_none());
     baked
 }
@@ -133,6 +141,7 @@ fn a_spec_the_file_formats_cannot_hold_is_refused_before_any_ray() {
     let error = pipeline::run(
         &spec,
         scene,
+        None,
         &Backend::Cpu,
         DirectSource::Compute,
         &NoProgress,

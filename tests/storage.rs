@@ -361,3 +361,98 @@ fn info_names_half_float_transfer() {
     let info = common::prt_gpu(&["info", "f.glb"], dir.path());
     assert!(!String::from_utf8_lossy(&info.stdout).contains("precision"));
 }
+
+/// A glTF scene baked in place with `--compress`: the clusters' means and bases once, each
+/// primitive's clusters and weights in views its `extras.prt.cpca` names (the mesh's
+/// `extras.prt.cpca` repeating its first primitive's, as the single-mesh recipe reads it). Read
+/// back, every vertex holds the compressed form's reconstruction exactly, in float32 and half
+/// floats, lean or RGB; numpy reads the first primitive alike; the Khronos validator passes.
+#[test]
+fn gltf_scenes_baked_in_place_store_compressed_transfer() {
+    use prt_gpu::bake::DirectSource;
+    use prt_gpu::glb::scene::read_scene_glb;
+    use prt_gpu::precision::Precision;
+    use prt_gpu::spec::{BakeSpec, Compression, Container, Layout};
+    let dir = tempfile::tempdir().unwrap();
+    let input = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/gltf/2CylinderEngine.glb"
+    );
+    let (gltf, scene) = prt_gpu::scene::gltf::load(std::path::Path::new(input)).unwrap();
+    let mut sizes = Vec::new();
+    for (storage, precision) in [
+        (Storage::Rgb, Precision::F32),
+        (Storage::Lean, Precision::F16),
+        (Storage::Rgb, Precision::F16),
+    ] {
+        let mut spec = BakeSpec {
+            container: Container::GltfInPlace,
+            ..BakeSpec::default()
+        };
+        spec.transfer.samples = 32;
+        spec.storage.channels = storage;
+        spec.storage.precision = precision;
+        spec.storage.layout = Layout::Cpca(Compression::Shape {
+            clusters: 16,
+            components: 4,
+        });
+        let what = format!("{storage:?} {precision:?}");
+        let source = DirectSource::Compute;
+        let baked = prt_gpu::pipeline::run(
+            &spec,
+            scene.clone(),
+            Some(&gltf),
+            &Backend::Cpu,
+            source,
+            &NoProgress,
+        )
+        .unwrap();
+        let path = dir.path().join(format!("{storage:?}-{precision:?}.glb"));
+        prt_gpu::pipeline::write(&spec, &baked, Some(&gltf), &path).unwrap();
+        sizes.push(std::fs::metadata(&path).unwrap().len());
+        if let Some(report) = common::validate_gltf(&path) {
+            assert_eq!(report.num_errors, 0, "{what}: {}", report.listing());
+        }
+        let info = common::prt_gpu(&["info", path.to_str().unwrap()], dir.path());
+        let info = String::from_utf8_lossy(&info.stdout).to_string();
+        assert!(
+            info.contains("compressed:   CPCA, 16 clusters x 4 components"),
+            "{what}: {info}"
+        );
+        let back = read_scene_glb(&path).unwrap();
+        let reconstructed = baked.cpca.as_ref().expect("compressed").reconstruct();
+        let map = &baked.report.vertex_map;
+        for (v, &prepared) in map.iter().enumerate() {
+            if prepared == prt_gpu::scene::prepare::DROPPED {
+                continue;
+            }
+            for c in 0..back.transfer.channels as usize {
+                assert_eq!(
+                    back.transfer.vertex_channel(v, c),
+                    reconstructed.vertex_channel(prepared as usize, c),
+                    "{what}: vertex {v}, channel {c}"
+                );
+            }
+        }
+        // numpy's recipe reads the first primitive: its vertices, reconstructed alike.
+        if let Some(read) = prt_gpu::testing::compressed_reader_output(&path) {
+            // Mesh 0's extras describe its first placement's first primitive.
+            let shown = gltf.instances.iter().find(|i| i.mesh == 0).unwrap();
+            let first = shown.primitives[0];
+            let channels = back.transfer.channels as usize;
+            assert_eq!(
+                read["transfer"],
+                serde_json::json!([first.count, channels, 16])
+            );
+            let last = first.first + first.count - 1;
+            for c in 0..channels {
+                for (k, &ours) in back.transfer.vertex_channel(last, c).iter().enumerate() {
+                    let theirs = read["last_vertex"][c][k].as_f64().unwrap();
+                    assert!((theirs - ours as f64).abs() <= 1e-5 * (ours.abs() as f64).max(1.0));
+                }
+            }
+        }
+    }
+    // Lean half floats are the smallest; every form is well under the plain RGB transfer's 18 MB.
+    assert!(sizes[1] < sizes[2] && sizes[2] < sizes[0], "{sizes:?}");
+}

@@ -17,9 +17,10 @@ use crate::error::{Error, Result};
 use crate::ray::offset_ray_origin;
 use crate::receivers;
 use crate::receivers::fit::{fit_vertices, FitOptions, FitReport};
+use crate::receivers::uv_set::UvSet;
 use crate::receivers::{spread_points, PointDensity, Receivers, SurfacePoint};
 use crate::sampling::{Estimator, SampleSet, Sampling, MAX_SAMPLES};
-use crate::scene::prepare::{prepare_mapped, PrepareReport, VertexMap};
+use crate::scene::prepare::{kept_triangles, prepare_mapped, PrepareReport, VertexMap};
 use crate::scene::Scene;
 use crate::sh::rotation::EulerShRotation;
 use crate::sh::{coeff_count, ShTable, CONVENTION, MAX_BANDS};
@@ -95,9 +96,14 @@ pub struct BakedMesh {
 pub struct TexelBake {
     pub width: u32,
     pub height: u32,
-    /// Lightmap coordinates of every vertex of the scene, in [0, 1] as glTF's `TEXCOORD_n`:
-    /// texel (x, y) (row y from the top) has its centre at `((x + 0.5) / width, (y + 0.5) / height)`.
+    /// Lightmap coordinates of every triangle corner of the scene (corner i of triangle t at
+    /// `3t + i`), in [0, 1] as glTF's `TEXCOORD_n`: texel (x, y) (row y from the top) has its
+    /// centre at `((x + 0.5) / width, (y + 0.5) / height)`. A mesh with a generated atlas is
+    /// split at its corners, so these are its vertices' coordinates too.
     pub texcoords: Vec<[f32; 2]>,
+    /// The `TEXCOORD_n` set the coordinates are: 0 for a generated atlas, the scene's own
+    /// lightmap set otherwise.
+    pub set: u32,
     /// The texels' transfer, row-major: `vertex_count` is `width * height`.
     pub transfer: Transfer,
 }
@@ -467,7 +473,14 @@ pub fn bake(
     backend: &Backend,
     progress: &dyn Progress,
 ) -> Result<(BakedMesh, BakeReport)> {
-    bake_from(scene, options, backend, DirectSource::Compute, progress)
+    bake_from(
+        scene,
+        options,
+        backend,
+        DirectSource::Compute,
+        None,
+        progress,
+    )
 }
 
 /// Where a bake's direct pass comes from.
@@ -575,21 +588,37 @@ fn plan(scene: Scene, options: &BakeOptions) -> Result<Planned> {
     })
 }
 
-/// [`bake`] with its direct pass from `source`.
+/// [`bake`] with its direct pass from `source`, and its lightmap (when the options ask for one)
+/// on `uv_set` (given per triangle of `scene`), or on a generated atlas without one.
 pub fn bake_from(
     scene: Scene,
     options: &BakeOptions,
     backend: &Backend,
     source: DirectSource,
+    uv_set: Option<&UvSet>,
     progress: &dyn Progress,
 ) -> Result<(BakedMesh, BakeReport)> {
     options.validate()?;
+    let uv_set = uv_set.map(|set| set.kept(&kept_triangles(&scene)));
     let mut planned = plan(scene, options)?;
     // A lightmap that cannot fit fails now, not after the vertices are baked.
-    let atlas = options
-        .lightmap
-        .map(|size| texels::plan_atlas(&planned.scene, size))
-        .transpose()?;
+    let atlas = match (options.lightmap, &uv_set) {
+        (Some(size), Some(set)) => {
+            if set.corners.len() != planned.scene.triangles.len() {
+                return Err(Error::Geometry(format!(
+                    "the lightmap's UV set has {} triangles, the prepared scene {}",
+                    set.corners.len(),
+                    planned.scene.triangles.len()
+                )));
+            }
+            Some(set.atlas(size))
+        }
+        (Some(size), None) => Some(texels::plan_atlas(&planned.scene, size)?),
+        (None, _) => None,
+    };
+    // A generated atlas gives every corner its own coordinates, and the mesh is split to
+    // carry them; a scene's own set keeps them on its vertices.
+    let set = uv_set.as_ref().map(|set| set.set);
 
     let started = Instant::now();
     let (direct, ran_on) = match source {
@@ -618,7 +647,7 @@ pub fn bake_from(
     let scene = std::mem::take(&mut planned.scene);
     let (scene, transfer, lightmap, texel_report) = match &atlas {
         None => (scene, transfer, None, None),
-        Some(atlas) => add_lightmap(scene, transfer, atlas, options, backend, progress)?,
+        Some(atlas) => add_lightmap(scene, transfer, atlas, set, options, backend, progress)?,
     };
     let fit_points = (options.fit == Fit::LeastSquares).then_some(planned.points.len() as u32);
     let samples_used = planned.inputs.samples.len();
@@ -745,11 +774,12 @@ fn stored(
 }
 
 /// The scene, its transfer and its lightmap's bake: the texels of `atlas` baked, and the mesh
-/// split at every corner to carry their coordinates.
+/// split at every corner to carry their coordinates, unless they are the scene's own `set`.
 fn add_lightmap(
     scene: Scene,
     transfer: Transfer,
     atlas: &receivers::atlas::Atlas,
+    set: Option<u32>,
     options: &BakeOptions,
     backend: &Backend,
     progress: &dyn Progress,
@@ -759,9 +789,13 @@ fn add_lightmap(
     Option<TexelBake>,
     Option<texels::TexelReport>,
 )> {
-    let (lightmap, report) =
+    let (mut lightmap, report) =
         texels::bake_atlas(&scene, &transfer, options, atlas, backend, progress)?;
-    let (scene, transfer) = texels::split_corners(&scene, &transfer);
+    lightmap.set = set.unwrap_or(0);
+    let (scene, transfer) = match set {
+        None => texels::split_corners(&scene, &transfer),
+        Some(_) => (scene, transfer),
+    };
     Ok((scene, transfer, Some(lightmap), Some(report)))
 }
 

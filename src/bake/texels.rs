@@ -142,6 +142,7 @@ pub fn bake_atlas(
         width,
         height,
         texcoords,
+        set: 0,
         transfer: Transfer {
             bands: at_texels.bands,
             channels: at_texels.channels,
@@ -238,6 +239,25 @@ pub fn leaking_or_covered_in(
 /// 3t, 3t + 1, 3t + 2), and the vertex transfer copied to them: the mesh a lightmap's
 /// per-corner coordinates belong to.
 pub fn split_corners(scene: &Scene, transfer: &Transfer) -> (Scene, Transfer) {
+    let corners = scene.triangles.iter().flatten().map(|&i| i as usize);
+    let stride = transfer.channels as usize * transfer.coeffs_per_channel();
+    let coeffs: Vec<f32> = corners
+        .flat_map(|i| {
+            transfer.coeffs[i * stride..(i + 1) * stride]
+                .iter()
+                .copied()
+        })
+        .collect();
+    let transfer = Transfer {
+        vertex_count: 3 * scene.triangles.len(),
+        coeffs,
+        ..transfer.clone()
+    };
+    (split_scene_corners(scene), transfer)
+}
+
+/// The scene of [`split_corners`], without transfer.
+pub fn split_scene_corners(scene: &Scene) -> Scene {
     let corners: Vec<usize> = scene
         .triangles
         .iter()
@@ -245,29 +265,14 @@ pub fn split_corners(scene: &Scene, transfer: &Transfer) -> (Scene, Transfer) {
         .map(|&i| i as usize)
         .collect();
     let pick = |values: &[Vec3]| corners.iter().map(|&i| values[i]).collect::<Vec<_>>();
-    let stride = transfer.channels as usize * transfer.coeffs_per_channel();
-    let split = Scene {
+    Scene {
         positions: pick(&scene.positions),
         normals: scene.normals.as_deref().map(pick),
         albedo: pick(&scene.albedo),
         triangles: (0..scene.triangles.len() as u32)
             .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
             .collect(),
-    };
-    let coeffs = corners
-        .iter()
-        .flat_map(|&i| {
-            transfer.coeffs[i * stride..(i + 1) * stride]
-                .iter()
-                .copied()
-        })
-        .collect();
-    let transfer = Transfer {
-        vertex_count: corners.len(),
-        coeffs,
-        ..transfer.clone()
-    };
-    (split, transfer)
+    }
 }
 
 /// Bilinear lookup of per-texel values (`[texel][channel]`, row-major, `channels` each) at

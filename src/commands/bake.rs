@@ -85,11 +85,17 @@ pub(crate) struct BakeArgs {
     /// Sizes and the error against the uncompressed transfer are reported.
     #[arg(long, value_name = "CLUSTERSxCOMPONENTS|auto:E", value_parser = parse_compression)]
     pub(crate) compress: Option<Compression>,
-    /// Also bake per-texel transfer into a lightmap about SIZE texels on its longer side (a
-    /// generated atlas): written as <output stem>.lightmap.exr beside the .glb, which then
-    /// holds the lightmap coordinates as TEXCOORD_0 (every triangle corner its own vertex).
+    /// Also bake per-texel transfer into a lightmap about SIZE texels on its longer side,
+    /// written as <output stem>.lightmap.exr beside the .glb. An OBJ, a PLY or the built-in
+    /// scene gets a generated atlas, and the .glb holds its coordinates as TEXCOORD_0 (every
+    /// triangle corner its own vertex); a glTF scene keeps its vertices, and its lightmap (SIZE
+    /// texels square) lies on its own UV set: TEXCOORD_1, or TEXCOORD_0 where that does not
+    /// overlap.
     #[arg(long, value_name = "SIZE")]
     pub(crate) lightmap: Option<u32>,
+    /// With --lightmap on a glTF scene: the TEXCOORD_n set to bake it on.
+    #[arg(long, value_name = "N")]
+    pub(crate) lightmap_uv: Option<u32>,
     /// Override every material's albedo, as linear R,G,B in [0, 1].
     #[arg(long, value_parser = parse_rgb)]
     pub(crate) albedo: Option<Vec3>,
@@ -201,6 +207,7 @@ pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeS
             fit: args.fit,
             fit_points: args.fit_points,
             lightmap: args.lightmap,
+            lightmap_uv: args.lightmap_uv,
         },
         transfer: TransferSpec {
             bands: match args.transfer.bands {
@@ -401,16 +408,29 @@ pub(crate) fn bake_one(
     let loading = std::time::Instant::now();
     let (scene, gltf, name) = load_bake_input(mesh)?;
     let seconds_load = loading.elapsed().as_secs_f64();
+    let naming = |e| naming_the_mesh(e, &mesh_shown(mesh));
+    let planned = pipeline::plan(spec, scene, gltf.as_ref()).map_err(naming)?;
     let options = spec.options();
     note_samples_rounded(&options);
     let baker = device.get()?;
     let backend = backend_of(baker, &execution.chunking);
     if merged.is_none() {
-        if let Some(chunk) = memory_plan(spec, execution, &scene)? {
-            let planned = bake::stream::StreamedBake::plan(scene, &options)
-                .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
-            let report =
-                glb::stream::bake_streamed(&planned, &backend, chunk, &output_path, progress)?;
+        let available = device::available_memory();
+        let preview = execution.preview.is_some();
+        let plan = pipeline::plan_memory(
+            spec,
+            planned.scene(),
+            execution.memory_limit,
+            available,
+            preview,
+        )?;
+        if let Some(message) = plan.message {
+            eprintln!("{message}");
+        }
+        if let Some(chunk) = plan.chunk {
+            let report = planned
+                .run_streamed(&backend, chunk, &output_path, progress)
+                .map_err(naming)?;
             progress.finish();
             print_bake_report(&name, spec, options.bands, &report, &output_path, None);
             return Ok(());
@@ -419,9 +439,8 @@ pub(crate) fn bake_one(
     let merged_from = merged
         .as_ref()
         .map(|(header, _)| (header.shard_count, header.backend.clone()));
-    let source = direct_source(spec, &scene, mesh, merged)?;
-    let baked = pipeline::run(spec, scene, &backend, source, progress)
-        .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
+    let source = direct_source(spec, planned.scene(), mesh, merged)?;
+    let baked = planned.run(&backend, source, progress).map_err(naming)?;
     progress.finish();
     print_shaping_lines(&baked);
     // Rendered before the .glb is written, so that a preview that cannot be made leaves no bake.
@@ -463,65 +482,6 @@ fn print_shaping_lines(baked: &pipeline::Baked) {
     }
     if let Some(compressed) = &baked.compressed {
         eprintln!("{compressed}");
-    }
-}
-
-/// How the bake of `scene` fits the memory limit: `None` whole, or streamed in chunks of that
-/// many receivers. A bake that cannot fit an explicit limit fails before it starts, saying what
-/// it needs; over the machine's available memory, a warning.
-fn memory_plan(
-    spec: &BakeSpec,
-    execution: &Execution,
-    scene: &scene::Scene,
-) -> Result<Option<usize>> {
-    use bake::stream::{format_bytes, MemoryNeed};
-    let options = spec.options();
-    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options);
-    let Some(limit) = execution.memory_limit.or_else(device::available_memory) else {
-        return Ok(None);
-    };
-    if need.whole() <= limit {
-        return Ok(None);
-    }
-    let streamable = bake::stream::streams(&options)
-        && spec.container == Container::Mesh
-        && spec.storage.layout == Layout::PerVertex
-        && spec.storage.precision == Precision::F32
-        && matches!(spec.transfer.bands, spec::Bands::Fixed(_))
-        && execution.preview.is_none();
-    let cannot = match streamable {
-        true => None,
-        false => Some(
-            "only shadowed and unshadowed per-vertex bakes of OBJ, PLY and the built-in scene, \
-             without --compress, --precision f16, --bands auto or --preview, stream in chunks",
-        ),
-    };
-    match (cannot, execution.memory_limit) {
-        (None, _) => {
-            let chunk = need.chunk_within(limit)?;
-            eprintln!(
-                "note: streaming the transfer in chunks of {chunk} receivers to stay within {} \
-                 (about {} whole, {} streamed)",
-                format_bytes(limit),
-                format_bytes(need.whole()),
-                format_bytes(need.streamed(chunk))
-            );
-            Ok(Some(chunk))
-        }
-        (Some(why), Some(_)) => Err(Error::Options(format!(
-            "--memory-limit {}: this bake needs about {}, and {why}",
-            format_bytes(limit),
-            format_bytes(need.whole())
-        ))),
-        (Some(why), None) => {
-            eprintln!(
-                "warning: this bake needs about {}, more than the {} this machine has available, \
-                 and {why}",
-                format_bytes(need.whole()),
-                format_bytes(limit)
-            );
-            Ok(None)
-        }
     }
 }
 

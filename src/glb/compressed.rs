@@ -120,6 +120,24 @@ pub(super) fn decode<X>(
     doc: &Document<X>,
     bin: &[u8],
     extras: &CpcaExtras,
+    shape: (usize, u32, u32),
+    precision: Precision,
+) -> Result<Cpca, String> {
+    decode_with(
+        &|index, what| doc_view(doc, bin, index, what),
+        extras,
+        shape,
+        precision,
+    )
+}
+
+/// The bytes of a buffer view, by its index, for a message naming `what` it holds.
+pub(super) type ViewBytes<'b, 'f> = &'f dyn Fn(usize, &str) -> Result<&'b [u8], String>;
+
+/// [`decode`] from views that `view` gives (those of a glTF scene baked in place too).
+pub(super) fn decode_with(
+    view: ViewBytes,
+    extras: &CpcaExtras,
     (vertices, bands, channels): (usize, u32, u32),
     precision: Precision,
 ) -> Result<Cpca, String> {
@@ -140,7 +158,7 @@ pub(super) fn decode<X>(
             extras.dimension
         ));
     }
-    let rows = decode_rows(doc, bin, extras, vertices)?;
+    let rows = decode_rows_with(view, extras, vertices)?;
     Ok(Cpca {
         bands,
         channels,
@@ -172,6 +190,14 @@ pub(super) fn decode_rows<X>(
     extras: &CpcaExtras,
     vertices: usize,
 ) -> Result<Cpca, String> {
+    decode_rows_with(
+        &|index, what| doc_view(doc, bin, index, what),
+        extras,
+        vertices,
+    )
+}
+
+fn decode_rows_with(view: ViewBytes, extras: &CpcaExtras, vertices: usize) -> Result<Cpca, String> {
     let dimension = extras.dimension;
     if dimension == 0 || extras.clusters == 0 || extras.components > dimension {
         return Err(format!(
@@ -186,7 +212,11 @@ pub(super) fn decode_rows<X>(
             .ok_or_else(|| format!("{a} x {b} values overflow"))
     };
     let values = |index: usize, count: usize, what: &str| {
-        values_at(doc, bin, (index, count), precision, what)
+        finite(
+            sized(view(index, what)?, count, precision.bytes(), what)?,
+            precision,
+            what,
+        )
     };
     let means = values(extras.means_buffer_view, count(k, dimension)?, "mean")?;
     let bases = values(
@@ -195,20 +225,15 @@ pub(super) fn decode_rows<X>(
         "basis",
     )?;
     let weights = values(extras.weights_buffer_view, count(vertices, m)?, "weight")?;
-    let assignment: Vec<u32> = sized_view_bytes(
-        doc,
-        bin,
-        (extras.assignment_buffer_view, vertices),
-        index_width,
-        "assignment",
-    )?
-    .chunks_exact(index_width)
-    .map(|b| {
-        let mut word = [0u8; 4];
-        word[..index_width].copy_from_slice(b);
-        u32::from_le_bytes(word)
-    })
-    .collect();
+    let assignment_bytes = view(extras.assignment_buffer_view, "assignment")?;
+    let assignment: Vec<u32> = sized(assignment_bytes, vertices, index_width, "assignment")?
+        .chunks_exact(index_width)
+        .map(|b| {
+            let mut word = [0u8; 4];
+            word[..index_width].copy_from_slice(b);
+            u32::from_le_bytes(word)
+        })
+        .collect();
     if let Some(v) = assignment.iter().position(|&a| a as usize >= k) {
         return Err(format!(
             "vertex {v} is assigned to cluster {} but there are only {k}",
@@ -246,15 +271,29 @@ fn sized_view_bytes<'b, X>(
     width: usize,
     what: &str,
 ) -> Result<&'b [u8], String> {
+    sized(doc_view(doc, bin, index, what)?, count, width, what)
+}
+
+/// The bytes of the single-mesh file's buffer view `index`.
+fn doc_view<'b, X>(
+    doc: &Document<X>,
+    bin: &'b [u8],
+    index: usize,
+    what: &str,
+) -> Result<&'b [u8], String> {
     let view = doc
         .buffer_views
         .get(index)
         .ok_or(format!("the {what} buffer view does not exist"))?;
     let start = view.byte_offset as usize;
-    let bytes = start
+    start
         .checked_add(view.byte_length as usize)
         .and_then(|end| bin.get(start..end))
-        .ok_or(format!("the {what} buffer view runs past the BIN chunk"))?;
+        .ok_or(format!("the {what} buffer view runs past the BIN chunk"))
+}
+
+/// `bytes`, checked to hold exactly `count` values of `width` bytes.
+fn sized<'b>(bytes: &'b [u8], count: usize, width: usize, what: &str) -> Result<&'b [u8], String> {
     if Some(bytes.len()) != count.checked_mul(width) {
         return Err(format!(
             "the {what} view has {} bytes, expected {width} x {count}",
@@ -284,6 +323,11 @@ fn values_at<X>(
     what: &str,
 ) -> Result<Vec<f32>, String> {
     let bytes = sized_view_bytes(doc, bin, (index, count), precision.bytes(), what)?;
+    finite(bytes, precision, what)
+}
+
+/// The values of `bytes` at `precision`, each finite.
+fn finite(bytes: &[u8], precision: Precision, what: &str) -> Result<Vec<f32>, String> {
     let values = precision.decode(bytes);
     match values.iter().position(|x| !x.is_finite()) {
         Some(i) => Err(format!("non-finite {what} value at {i}")),

@@ -247,6 +247,7 @@ fn read_texels(
         width: map.width,
         height: map.height,
         texcoords,
+        set: extras.texcoord,
         transfer: Transfer {
             bands: map.bands,
             channels: map.channels,
@@ -308,7 +309,8 @@ pub fn read_references(path: &Path) -> Result<References> {
     if is_scene_file(&bytes) {
         return Ok(References {
             precision: scene::stored_precision(&bytes),
-            ..References::default()
+            lightmap: scene::stored_lightmap(&bytes).map_err(|m| Error::baked(path, m))?,
+            cpca: scene::stored_clusters(&bytes).map_err(|m| Error::baked(path, m))?,
         });
     }
     let prt = mesh_prt_extras(&bytes, path)?;

@@ -11,6 +11,7 @@
 pub mod atlas;
 pub mod fit;
 pub mod texels;
+pub mod uv_set;
 
 use glam::{DVec3, Vec3};
 

@@ -6,7 +6,7 @@ use wgpu::util::DeviceExt;
 
 use super::camera::{bounds, usable_radius, Camera};
 use super::relight::{relight, relight_baked};
-use crate::bake::texels::sample_bilinear;
+use crate::bake::texels::{self, sample_bilinear};
 use crate::bake::{BakedMesh, TexelBake};
 use crate::device::GpuContext;
 use crate::error::{Error, Result};
@@ -125,6 +125,16 @@ fn render_texels(
         .flatten()
         .collect();
     let coordinates: Vec<[f32; 3]> = texels.texcoords.iter().map(|&[u, v]| [u, v, 0.0]).collect();
+    // The coordinates are per triangle corner: a scene that keeps its vertices (a glTF scene's
+    // own UV set) is drawn split at its corners to carry them. A split one stays as it is.
+    let split;
+    let scene = match scene.vertex_count() == coordinates.len() {
+        true => scene,
+        false => {
+            split = texels::split_scene_corners(scene);
+            &split
+        }
+    };
     let mut pixels = render(ctx, scene, &coordinates, camera, width, height)?;
     for pixel in pixels.iter_mut().filter(|p| p[3] > 0.0) {
         let rgb = sample_bilinear(&relit, 3, texels.width, texels.height, [pixel[0], pixel[1]]);

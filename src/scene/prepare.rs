@@ -426,6 +426,18 @@ fn remove_degenerate_triangles(mut scene: Scene, report: &mut PrepareReport) -> 
     Ok(scene)
 }
 
+/// Per triangle of `scene`, whether `prepare` keeps it: it drops the degenerate ones and keeps
+/// the rest in order, so that values given per input triangle can follow it. A triangle with
+/// an index out of range counts as dropped (`prepare` refuses such a scene).
+pub fn kept_triangles(scene: &Scene) -> Vec<bool> {
+    let n = scene.positions.len() as u32;
+    scene
+        .triangles
+        .iter()
+        .map(|t| t.iter().all(|&i| i < n) && !is_degenerate(t, &scene.positions))
+        .collect()
+}
+
 fn is_degenerate(&[i, j, k]: &[u32; 3], positions: &[Vec3]) -> bool {
     i == j
         || j == k

@@ -172,12 +172,9 @@ fn read(reader: Reader, path: &Path) -> Result<Option<String>> {
         Reader::Gltf | Reader::Glb => {
             let (gltf, scene) = scene::gltf::load(path)?;
             let (baked, report) = quick_bake(scene)?;
-            let (written, _) = glb::scene::encode_scene_glb(
-                &gltf,
-                &baked,
-                &report.vertex_map,
-                crate::precision::Precision::F32,
-            )?;
+            let stored = glb::scene::Stored::per_vertex(&baked, crate::precision::Precision::F32);
+            let (written, _) =
+                glb::scene::encode_scene_glb(&gltf, stored, &report.vertex_map, None)?;
             Ok(non_finite_baked(&baked).or_else(|| non_finite_glb(&written)))
         }
         Reader::Exr | Reader::Hdr | Reader::Png | Reader::Jpeg | Reader::LightJson => {

@@ -259,6 +259,11 @@ fn baked(data: &Path, scratch: &Path) -> Result<Vec<(String, Vec<u8>)>> {
 fn baked_in_place(data: &Path, precision: Precision) -> Result<Vec<u8>> {
     let (gltf, scene) = crate::scene::gltf::load(&data.join("gltf/BoxTextured.glb"))?;
     let (baked, report) = super::hostile::quick_bake(scene)?;
-    let (bytes, _) = glb::scene::encode_scene_glb(&gltf, &baked, &report.vertex_map, precision)?;
+    let (bytes, _) = glb::scene::encode_scene_glb(
+        &gltf,
+        glb::scene::Stored::per_vertex(&baked, precision),
+        &report.vertex_map,
+        None,
+    )?;
     Ok(bytes)
 }

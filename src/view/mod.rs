@@ -434,6 +434,7 @@ mod tests {
             width: 1,
             height: 1,
             texcoords: vec![[0.5; 2]; baked.scene.vertex_count()],
+            set: 0,
             transfer: baked.transfer.clone(),
         });
         let refused = viewer(&texels, &ShLight::constant(3, [1.0; 3])).unwrap_err();

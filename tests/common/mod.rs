@@ -9,6 +9,8 @@
 
 #![allow(dead_code)]
 
+pub mod gltf_builder;
+
 use std::path::Path;
 use std::sync::OnceLock;
 

@@ -349,6 +349,52 @@ fn assemble(gltf: &mut GltfScene) -> std::result::Result<Scene, String> {
     Ok(scene)
 }
 
+/// The scene's `TEXCOORD_<set>` coordinates, one pair per vertex of the [`Scene`] `load`
+/// made (placement after placement, primitive after primitive): `Ok(None)` where a baked
+/// primitive lacks the set; an error where one holds NaN or infinite coordinates.
+pub fn texcoords(gltf: &GltfScene, set: u32) -> std::result::Result<Option<Vec<[f32; 2]>>, String> {
+    let mut uvs = Vec::new();
+    for instance in &gltf.instances {
+        let mesh = &gltf.root.meshes[instance.mesh];
+        for span in &instance.primitives {
+            let primitive = &mesh.primitives[span.primitive];
+            let what = format!("mesh {} primitive {}", instance.mesh, span.primitive);
+            let Some(accessor) = primitive
+                .attributes
+                .get(&Checked::Valid(Semantic::TexCoords(set)))
+            else {
+                return Ok(None);
+            };
+            let own = dense(&gltf.root, &gltf.buffers, accessor.value())?
+                .vectors::<2>(&format!("{what} TEXCOORD_{set}"))?;
+            if own.len() != span.count {
+                return Err(format!(
+                    "{what}: TEXCOORD_{set} holds {} coordinates for {} vertices",
+                    own.len(),
+                    span.count
+                ));
+            }
+            if let Some(vertex) = own.iter().position(|uv| !uv.iter().all(|c| c.is_finite())) {
+                return Err(format!(
+                    "{what}: TEXCOORD_{set} is NaN or infinite at vertex {vertex}"
+                ));
+            }
+            uvs.extend(own);
+        }
+    }
+    Ok(Some(uvs))
+}
+
+/// A mesh the scene shows at more than one placement, if any: its index and how many nodes
+/// show it.
+pub fn mesh_placed_twice(gltf: &GltfScene) -> Option<(usize, usize)> {
+    let mut shown = std::collections::BTreeMap::new();
+    for instance in &gltf.instances {
+        *shown.entry(instance.mesh).or_insert(0usize) += 1;
+    }
+    shown.into_iter().find(|&(_, nodes)| nodes > 1)
+}
+
 /// Appends `part` (whose own indices start at 0) to `scene`, its vertices from `first`.
 fn append(scene: &mut Scene, normals: &mut Vec<Vec3>, part: Part, first: usize) {
     let offset = first as u32;

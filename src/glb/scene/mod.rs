@@ -30,17 +30,44 @@ use gltf_json::validation::{Checked, USize64};
 use gltf_json::{Index, Root};
 use serde_json::{json, Value};
 
+mod read;
+
+pub use read::{is_baked_in_place, read_scene_glb};
+pub(crate) use read::{stored_clusters, stored_lightmap, stored_precision};
+
+use super::compressed::{self, CpcaExtras};
 use super::{
-    glb_container, groups, transfer_attribute_name, FLOAT16, TRANSFER_LAYOUT, TRANSFER_LAYOUT_F16,
+    glb_container, groups, transfer_attribute_name, LightmapExtras, FLOAT16, TRANSFER_LAYOUT,
+    TRANSFER_LAYOUT_F16,
 };
 use crate::bake::{BakeMetadata, BakedMesh, Transfer};
+use crate::compress::{index_bytes, Cpca};
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
 use crate::precision::Precision;
 use crate::scene::gltf::accessor::{component_size, dense, Dense};
 use crate::scene::gltf::{self, GltfScene};
 use crate::scene::prepare::DROPPED;
-use crate::scene::Scene;
+
+/// A bake as a scene file stores it: its transfer at a precision, compressed or not (the
+/// compressed form then replaces the per-vertex one).
+#[derive(Clone, Copy)]
+pub struct Stored<'a> {
+    pub baked: &'a BakedMesh,
+    pub cpca: Option<&'a Cpca>,
+    pub precision: Precision,
+}
+
+impl<'a> Stored<'a> {
+    /// `baked`'s transfer per vertex at `precision`.
+    pub fn per_vertex(baked: &'a BakedMesh, precision: Precision) -> Stored<'a> {
+        Stored {
+            baked,
+            cpca: None,
+            precision,
+        }
+    }
+}
 
 /// What writing a scene did, for the report line.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -53,27 +80,41 @@ pub struct SceneWrite {
 }
 
 /// Writes `gltf` with the transfer of `baked` (whose vertex `vertex_map[i]` is vertex `i` of
-/// the scene `gltf` was loaded into) to `path`, atomically.
+/// the scene `gltf` was loaded into) to `path`, atomically, and its lightmap (if any) beside
+/// it; neither stays where the other cannot be written.
 pub fn write_scene_glb(
     path: &Path,
     gltf: &GltfScene,
-    baked: &BakedMesh,
+    stored: Stored,
     vertex_map: &[u32],
-    precision: Precision,
 ) -> Result<SceneWrite> {
     check_destination(path)?;
-    let (bytes, report) = encode_scene_glb(gltf, baked, vertex_map, precision)?;
-    write_atomically(path, &bytes)?;
+    let baked = stored.baked;
+    let Some(texels) = &baked.lightmap else {
+        let (bytes, report) = encode_scene_glb(gltf, stored, vertex_map, None)?;
+        write_atomically(path, &bytes)?;
+        return Ok(report);
+    };
+    let name = super::lightmap_file_name(path);
+    let (bytes, report) = encode_scene_glb(gltf, stored, vertex_map, Some(&name))?;
+    let exr_path = path.with_file_name(&name);
+    check_destination(&exr_path)?;
+    crate::lightmap::write_lightmap(&exr_path, &super::lightmap_of(texels))?;
+    write_atomically(path, &bytes).inspect_err(|_| {
+        let _ = std::fs::remove_file(&exr_path);
+    })?;
     Ok(report)
 }
 
-/// [`write_scene_glb`] in memory.
+/// [`write_scene_glb`] in memory: the lightmap, if `baked` has one, is named `lightmap_uri`
+/// in the root's `extras.prt.lightmap`.
 pub fn encode_scene_glb(
     gltf: &GltfScene,
-    baked: &BakedMesh,
+    stored: Stored,
     vertex_map: &[u32],
-    precision: Precision,
+    lightmap_uri: Option<&str>,
 ) -> Result<(Vec<u8>, SceneWrite)> {
+    let baked = stored.baked;
     let bad = |message: String| Error::Geometry(format!("cannot write the scene: {message}"));
     let mut root = gltf.root.clone();
     let mut bin = Bin::default();
@@ -81,7 +122,7 @@ pub fn encode_scene_glb(
     embed_images(&mut root, gltf, &mut bin);
     let report = SceneWrite {
         repaired,
-        ..add_transfer(&mut root, gltf, (baked, precision), vertex_map, &mut bin).map_err(bad)?
+        ..add_transfer(&mut root, gltf, stored, vertex_map, &mut bin).map_err(bad)?
     };
     root.buffers = vec![gltf_json::Buffer {
         byte_length: USize64(bin.bytes.len() as u64),
@@ -91,7 +132,18 @@ pub fn encode_scene_glb(
         extras: None,
     }];
     root.buffer_views = bin.views;
-    root.extras = raw(&json!({ "prt": { "baked_in_place": true } }))?;
+    let mut prt = json!({ "baked_in_place": true });
+    if let Some(texels) = &baked.lightmap {
+        let uri = lightmap_uri.ok_or_else(|| bad("the lightmap has no file name".into()))?;
+        prt["lightmap"] = json!(LightmapExtras {
+            uri: uri.into(),
+            width: texels.width,
+            height: texels.height,
+            texcoord: texels.set,
+            layout: crate::lightmap::LAYOUT.to_string(),
+        });
+    }
+    root.extras = raw(&json!({ "prt": prt }))?;
     root.asset.generator = Some(format!(
         "prt-gpu {} (bake in place)",
         env!("CARGO_PKG_VERSION")
@@ -416,10 +468,21 @@ fn embed_images(root: &mut Root, gltf: &GltfScene, bin: &mut Bin) {
 fn add_transfer(
     root: &mut Root,
     gltf: &GltfScene,
-    (baked, precision): (&BakedMesh, Precision),
+    stored: Stored,
     vertex_map: &[u32],
     bin: &mut Bin,
 ) -> std::result::Result<SceneWrite, String> {
+    let (baked, precision) = (stored.baked, stored.precision);
+    // The clusters' means and bases, once for the scene; each primitive's vertices get their
+    // clusters and weights.
+    let shared = stored.cpca.map(|cpca| {
+        let mut encoded = |values: &[f32]| {
+            let mut bytes = Vec::new();
+            precision.encode(values, &mut bytes);
+            bin.push(&bytes, None, None) as usize
+        };
+        (cpca, encoded(&cpca.means), encoded(&cpca.bases))
+    });
     let mut report = SceneWrite::default();
     let mut baked_meshes = BTreeSet::new();
     for instance in &gltf.instances {
@@ -433,8 +496,21 @@ fn add_transfer(
         };
         root.nodes[instance.node].mesh = Some(Index::new(mesh as u32));
         let mut first_primitive = None;
+        let mut first_cpca = None;
         for span in &instance.primitives {
             let map = &vertex_map[span.first..span.first + span.count];
+            if let Some((cpca, means, bases)) = shared {
+                let extras = push_clusters(bin, cpca, (means, bases), map, precision);
+                let mut prt = json!({ "vertices": span.count, "cpca": extras });
+                if precision == Precision::F16 {
+                    prt["transfer_precision"] = json!(FLOAT16);
+                }
+                let primitive = &mut root.meshes[mesh].primitives[span.primitive];
+                primitive.extras = raw(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
+                first_cpca.get_or_insert((span.count, extras));
+                report.primitives_baked += 1;
+                continue;
+            }
             let view = push_transfer(bin, &baked.transfer, map, precision);
             let primitive = &mut root.meshes[mesh].primitives[span.primitive];
             let mut prt = json!({
@@ -456,32 +532,94 @@ fn add_transfer(
             report.primitives_baked += 1;
         }
         if let Some((vertices, view)) = first_primitive {
-            root.meshes[mesh].extras = mesh_extras(&baked.metadata, vertices, view, precision)?;
+            let stored = StoredAt::Planar(view);
+            root.meshes[mesh].extras = mesh_extras(&baked.metadata, vertices, stored, precision)?;
+        }
+        if let Some((vertices, cpca)) = first_cpca {
+            let stored = StoredAt::Clusters(cpca);
+            root.meshes[mesh].extras = mesh_extras(&baked.metadata, vertices, stored, precision)?;
         }
     }
     Ok(report)
 }
 
+/// Where a mesh's first primitive keeps its transfer.
+enum StoredAt {
+    Planar(u32),
+    Clusters(CpcaExtras),
+}
+
 fn mesh_extras(
     metadata: &BakeMetadata,
     vertices: usize,
-    view: u32,
+    stored: StoredAt,
     precision: Precision,
 ) -> std::result::Result<gltf_json::Extras, String> {
     let mut prt = serde_json::to_value(metadata).map_err(|e| e.to_string())?;
     if let Value::Object(fields) = &mut prt {
         fields.insert("vertices".into(), json!(vertices));
-        fields.insert("transfer_buffer_view".into(), json!(view));
-        let layout = match precision {
-            Precision::F32 => TRANSFER_LAYOUT,
-            Precision::F16 => {
-                fields.insert("transfer_precision".into(), json!(FLOAT16));
-                TRANSFER_LAYOUT_F16
+        if precision == Precision::F16 {
+            fields.insert("transfer_precision".into(), json!(FLOAT16));
+        }
+        match stored {
+            StoredAt::Planar(view) => {
+                fields.insert("transfer_buffer_view".into(), json!(view));
+                let layout = match precision {
+                    Precision::F32 => TRANSFER_LAYOUT,
+                    Precision::F16 => TRANSFER_LAYOUT_F16,
+                };
+                fields.insert("transfer_layout".into(), json!(layout));
             }
-        };
-        fields.insert("transfer_layout".into(), json!(layout));
+            StoredAt::Clusters(cpca) => {
+                fields.insert("cpca".into(), json!(cpca));
+            }
+        }
     }
     raw(&json!({ "prt": prt })).map_err(|e| e.to_string())
+}
+
+/// The clusters and weights of the vertices `map` names, as the views of a compressed
+/// primitive (the scene's shared `means` and `bases` views beside them); a dropped vertex (in
+/// no baked triangle) takes cluster 0 with zero weights.
+fn push_clusters(
+    bin: &mut Bin,
+    cpca: &Cpca,
+    (means, bases): (usize, usize),
+    map: &[u32],
+    precision: Precision,
+) -> CpcaExtras {
+    let m = cpca.components;
+    let width = index_bytes(cpca.cluster_count(), precision);
+    let mut assignment = Vec::with_capacity(map.len() * width);
+    let mut weights = Vec::with_capacity(map.len() * m);
+    for &vertex in map {
+        match vertex {
+            DROPPED => {
+                assignment.extend(&0u32.to_le_bytes()[..width]);
+                weights.extend(std::iter::repeat_n(0.0, m));
+            }
+            v => {
+                let v = v as usize;
+                assignment.extend(&cpca.assignment[v].to_le_bytes()[..width]);
+                weights.extend_from_slice(&cpca.weights[v * m..(v + 1) * m]);
+            }
+        }
+    }
+    let assignment_view = bin.push(&assignment, None, None) as usize;
+    let mut encoded = Vec::new();
+    precision.encode(&weights, &mut encoded);
+    let weights_view = bin.push(&encoded, None, None) as usize;
+    CpcaExtras {
+        clusters: cpca.cluster_count(),
+        components: m,
+        dimension: cpca.dimension,
+        means_buffer_view: means,
+        bases_buffer_view: bases,
+        assignment_buffer_view: assignment_view,
+        weights_buffer_view: weights_view,
+        layout: compressed::layout(precision).to_string(),
+        assignment_bytes: (precision == Precision::F16).then_some(width),
+    }
 }
 
 /// The transfer of the vertices `map` names, planar `[channel][group][vertex][4]` as in the
@@ -545,202 +683,4 @@ fn add_attributes(
             );
         }
     }
-}
-
-/// Whether `root` is a scene written by [`write_scene_glb`].
-pub fn is_baked_in_place(root: &Root) -> bool {
-    root.extras
-        .as_ref()
-        .and_then(|raw| serde_json::from_str::<Value>(raw.get()).ok())
-        .is_some_and(|v| v["prt"]["baked_in_place"] == json!(true))
-}
-
-/// How the transfer of a scene file (`bytes`, one that [`super::is_scene_file`] accepts) is
-/// stored, from its first baked mesh's `extras.prt`.
-pub(crate) fn stored_precision(bytes: &[u8]) -> Precision {
-    let json = bytes.get(12..20).and_then(|head| {
-        let len = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
-        bytes.get(20..20usize.checked_add(len)?)
-    });
-    let document: Value = json
-        .and_then(|json| serde_json::from_slice(json).ok())
-        .unwrap_or(Value::Null);
-    let half = document["meshes"].as_array().is_some_and(|meshes| {
-        meshes
-            .iter()
-            .find_map(|mesh| mesh["extras"]["prt"]["transfer_precision"].as_str())
-            == Some(FLOAT16)
-    });
-    match half {
-        true => Precision::F16,
-        false => Precision::F32,
-    }
-}
-
-/// Reads a scene written by [`write_scene_glb`] as one baked mesh in world space: every
-/// placement's geometry and its transfer, for relighting and rendering.
-pub fn read_scene_glb(path: &Path) -> Result<BakedMesh> {
-    let (gltf, scene) = gltf::load(path)?;
-    let bad = |message: String| Error::baked(path, message);
-    let metadata = scene_metadata(&gltf.root).map_err(bad)?;
-    let transfer = gather_transfer(&gltf, &scene, &metadata).map_err(bad)?;
-    let mut scene = scene;
-    if scene.normals.is_none() {
-        scene.normals = Some(crate::scene::prepare::smooth_normals(
-            &scene.positions,
-            &scene.triangles,
-        ));
-    }
-    let baked = BakedMesh {
-        scene,
-        transfer,
-        metadata,
-        lightmap: None,
-    };
-    // What the single-mesh reader refuses value by value (a NaN position, an infinite
-    // coefficient) is refused here for the scene as a whole.
-    super::validate(&baked).map_err(|e| match e {
-        Error::Geometry(message) => Error::baked(path, message),
-        other => other,
-    })?;
-    Ok(baked)
-}
-
-/// The metadata of the first baked mesh.
-fn scene_metadata(root: &Root) -> std::result::Result<BakeMetadata, String> {
-    let extras = root
-        .meshes
-        .iter()
-        .filter_map(|m| m.extras.as_ref())
-        .find_map(|raw| {
-            let value: Value = serde_json::from_str(raw.get()).ok()?;
-            value.get("prt").cloned()
-        })
-        .ok_or("no mesh has extras.prt")?;
-    let metadata =
-        serde_json::from_value(extras).map_err(|e| format!("invalid extras.prt: {e}"))?;
-    super::check_shape(&metadata)?;
-    Ok(metadata)
-}
-
-/// The transfer of every placement, in the order of `scene`'s vertices.
-fn gather_transfer(
-    gltf: &GltfScene,
-    scene: &Scene,
-    metadata: &BakeMetadata,
-) -> std::result::Result<Transfer, String> {
-    let (bands, channels) = (metadata.bands, metadata.channels);
-    let per_channel = (bands * bands) as usize;
-    let groups = groups(bands);
-    let mut coeffs = vec![0.0f32; scene.positions.len() * channels as usize * per_channel];
-    for instance in &gltf.instances {
-        let mesh = &gltf.root.meshes[instance.mesh];
-        for span in &instance.primitives {
-            let primitive = &mesh.primitives[span.primitive];
-            if span.count == 0 {
-                continue;
-            }
-            let shape = (channels as usize, groups, span.count);
-            let planar = match half_float_view(primitive)? {
-                Some(view) => half_float_blocks(gltf, view, shape),
-                None => attribute_blocks(gltf, primitive, shape),
-            }
-            .map_err(|why| format!("mesh {}: {why}", instance.mesh))?;
-            // planar[(channel * groups + group) * count + v][lane]
-            for (block, values) in planar.chunks_exact(4 * span.count).enumerate() {
-                let (channel, group) = (block / groups, block % groups);
-                for (v, lanes) in values.chunks_exact(4).enumerate() {
-                    let row = ((span.first + v) * channels as usize + channel) * per_channel;
-                    for (lane, &value) in lanes.iter().enumerate() {
-                        let k = 4 * group + lane;
-                        if k < per_channel {
-                            coeffs[row + k] = value;
-                        }
-                    }
-                }
-            }
-        }
-    }
-    Ok(Transfer {
-        bands,
-        channels,
-        vertex_count: scene.positions.len(),
-        coeffs,
-    })
-}
-
-/// The view a primitive's `extras.prt` names as its half-float transfer, if it has one.
-fn half_float_view(
-    primitive: &gltf_json::mesh::Primitive,
-) -> std::result::Result<Option<usize>, String> {
-    let Some(raw) = &primitive.extras else {
-        return Ok(None);
-    };
-    let prt: Value = serde_json::from_str(raw.get()).map_err(|e| e.to_string())?;
-    match prt["prt"]["transfer_precision"].as_str() {
-        None => Ok(None),
-        Some(FLOAT16) => prt["prt"]["transfer_buffer_view"]
-            .as_u64()
-            .map(|view| Some(view as usize))
-            .ok_or_else(|| "a float16 primitive names no transfer_buffer_view".to_string()),
-        Some(other) => Err(format!(
-            "extras.prt.transfer_precision {other:?} is not one this reader knows (float16)"
-        )),
-    }
-}
-
-/// A primitive's half-float transfer view decoded: `(channels, groups, vertices)` planar
-/// blocks of four lanes.
-fn half_float_blocks(
-    gltf: &GltfScene,
-    view: usize,
-    (channels, groups, vertices): (usize, usize, usize),
-) -> std::result::Result<Vec<f32>, String> {
-    let view = gltf
-        .root
-        .buffer_views
-        .get(view)
-        .ok_or_else(|| format!("transfer_buffer_view {view} does not exist"))?;
-    let buffer = gltf
-        .buffers
-        .get(view.buffer.value())
-        .ok_or("the transfer view's buffer does not exist")?;
-    let start = view.byte_offset.map_or(0, |o| o.0) as usize;
-    let expected = channels * groups * vertices * 4 * Precision::F16.bytes();
-    if view.byte_length.0 as usize != expected {
-        return Err(format!(
-            "its float16 transfer view holds {} bytes where {expected} are needed",
-            view.byte_length.0
-        ));
-    }
-    let bytes = start
-        .checked_add(expected)
-        .and_then(|end| buffer.get(start..end))
-        .ok_or("the transfer view runs past its buffer")?;
-    Ok(Precision::F16.decode(bytes))
-}
-
-/// A primitive's `_PRT_*` attributes as `(channels, groups, vertices)` planar blocks.
-fn attribute_blocks(
-    gltf: &GltfScene,
-    primitive: &gltf_json::mesh::Primitive,
-    (channels, groups, vertices): (usize, usize, usize),
-) -> std::result::Result<Vec<f32>, String> {
-    let mut planar = Vec::with_capacity(channels * groups * vertices * 4);
-    for channel in 0..channels as u32 {
-        for group in 0..groups {
-            let name = transfer_attribute_name(channels as u32, channel, group);
-            let semantic = Semantic::Extras(name.trim_start_matches('_').to_string());
-            let accessor = primitive
-                .attributes
-                .get(&Checked::Valid(semantic))
-                .ok_or_else(|| format!("no attribute {name}"))?;
-            let values = dense(&gltf.root, &gltf.buffers, accessor.value())?.vectors::<4>(&name)?;
-            if values.len() != vertices {
-                return Err(format!("{name} has the wrong length"));
-            }
-            planar.extend(values.iter().flatten());
-        }
-    }
-    Ok(planar)
 }

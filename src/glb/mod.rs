@@ -307,11 +307,7 @@ pub fn read_metadata(path: &Path) -> Result<(BakeMetadata, usize, usize)> {
 pub fn read_references(path: &Path) -> Result<References> {
     let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
     if is_scene_file(&bytes) {
-        return Ok(References {
-            precision: scene::stored_precision(&bytes),
-            lightmap: scene::stored_lightmap(&bytes).map_err(|m| Error::baked(path, m))?,
-            cpca: scene::stored_clusters(&bytes).map_err(|m| Error::baked(path, m))?,
-        });
+        return scene::stored_references(&bytes).map_err(|m| Error::baked(path, m));
     }
     let prt = mesh_prt_extras(&bytes, path)?;
     Ok(References {

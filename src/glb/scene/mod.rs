@@ -32,8 +32,8 @@ use serde_json::{json, Value};
 
 mod read;
 
+pub(crate) use read::stored_references;
 pub use read::{is_baked_in_place, read_scene_glb};
-pub(crate) use read::{stored_clusters, stored_lightmap, stored_precision};
 
 use super::compressed::{self, CpcaExtras};
 use super::{

@@ -11,7 +11,7 @@ use serde_json::{json, Value};
 use crate::bake::{BakeMetadata, BakedMesh, Transfer};
 use crate::error::{Error, Result};
 use crate::glb::compressed::{self, CpcaExtras};
-use crate::glb::{groups, transfer_attribute_name, LightmapExtras, FLOAT16};
+use crate::glb::{groups, transfer_attribute_name, LightmapExtras, References, FLOAT16};
 use crate::precision::Precision;
 use crate::scene::gltf::accessor::{dense, view_bytes};
 use crate::scene::gltf::{self, GltfScene};
@@ -25,43 +25,38 @@ pub fn is_baked_in_place(root: &Root) -> bool {
         .is_some_and(|v| v["prt"]["baked_in_place"] == json!(true))
 }
 
-/// How the transfer of a scene file (`bytes`, one that [`crate::glb::is_scene_file`] accepts) is
-/// stored, from its first baked mesh's `extras.prt`.
-pub(crate) fn stored_precision(bytes: &[u8]) -> Precision {
+/// What a scene file (`bytes`, one that [`crate::glb::is_scene_file`] accepts) says about how
+/// its transfer is stored, its JSON parsed once: the precision and compression of its first
+/// baked mesh's `extras.prt` (every primitive's are alike), and the lightmap the root's
+/// `extras.prt.lightmap` names.
+pub(crate) fn stored_references(bytes: &[u8]) -> std::result::Result<References, String> {
     let document = json_of(bytes);
-    let half = document["meshes"].as_array().is_some_and(|meshes| {
-        meshes
-            .iter()
-            .find_map(|mesh| mesh["extras"]["prt"]["transfer_precision"].as_str())
-            == Some(FLOAT16)
-    });
-    match half {
-        true => Precision::F16,
-        false => Precision::F32,
-    }
-}
-
-/// The lightmap a scene file's root `extras.prt.lightmap` names, if it names one.
-pub(crate) fn stored_lightmap(bytes: &[u8]) -> std::result::Result<Option<LightmapExtras>, String> {
-    lightmap_extras(&json_of(bytes))
-}
-
-/// How a scene file's transfer is compressed, if it is: its first baked mesh's
-/// `extras.prt.cpca` (every primitive's has the same shape).
-pub(crate) fn stored_clusters(bytes: &[u8]) -> std::result::Result<Option<CpcaExtras>, String> {
-    let document = json_of(bytes);
-    let Some(meshes) = document["meshes"].as_array() else {
-        return Ok(None);
+    let first_prt = |field: &str| -> Option<Value> {
+        document["meshes"].as_array().and_then(|meshes| {
+            meshes
+                .iter()
+                .map(|mesh| &mesh["extras"]["prt"][field])
+                .find(|value| !value.is_null())
+                .cloned()
+        })
     };
-    match meshes
-        .iter()
-        .find_map(|mesh| mesh["extras"]["prt"]["cpca"].as_object())
+    let precision = match first_prt("transfer_precision")
+        .as_ref()
+        .and_then(Value::as_str)
     {
-        Some(cpca) => serde_json::from_value(Value::Object(cpca.clone()))
-            .map(Some)
-            .map_err(|e| format!("invalid extras.prt.cpca: {e}")),
-        None => Ok(None),
-    }
+        Some(FLOAT16) => Precision::F16,
+        _ => Precision::F32,
+    };
+    let cpca = first_prt("cpca")
+        .map(|cpca| {
+            serde_json::from_value(cpca).map_err(|e| format!("invalid extras.prt.cpca: {e}"))
+        })
+        .transpose()?;
+    Ok(References {
+        precision,
+        lightmap: lightmap_extras(&document)?,
+        cpca,
+    })
 }
 
 fn lightmap_extras(document: &Value) -> std::result::Result<Option<LightmapExtras>, String> {

@@ -185,9 +185,9 @@ pub fn plan_memory(
         && spec.storage.precision == Precision::F32
         && matches!(spec.transfer.bands, Bands::Fixed(_))
         && !preview;
-    let why_not = "only shadowed and unshadowed per-vertex bakes of OBJ, PLY and the built-in \
-                   scene, without --compress, --precision f16, --bands auto or --preview, \
-                   stream in chunks";
+    let why_not = "only bakes at the vertices (no least-squares fit, lightmap or error target) \
+                   of OBJ, PLY and the built-in scene, without --compress, --precision f16, \
+                   --bands auto or --preview, stream in chunks";
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;

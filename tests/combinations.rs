@@ -165,7 +165,6 @@ impl Cell {
     fn streams(&self) -> bool {
         self.input == Input::Obj
             && self.receivers == Receivers::Vertices
-            && !self.interreflected
             && !self.half
             && !self.compressed
     }

@@ -28,7 +28,8 @@ fn bake(dir: &Path, args: &[&str]) -> std::process::Output {
 fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let cases: [&[&str]; 4] = [
+    const INTERREFLECTED: [&str; 2] = ["--mode", "interreflected"];
+    let cases: [&[&str]; 8] = [
         &["--device", "cpu"],
         &["--device", "cpu", "--storage", "lean", "--bands", "6"],
         &[
@@ -40,14 +41,41 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             "stratified",
         ],
         &["--device", "gpu"],
+        // Interreflection: the direct pass streams, the bounces read a chunk of gather rows at
+        // a time; the bunny's grey albedo makes the lean file one channel.
+        &["--device", "cpu", "--mode", "interreflected"],
+        &[
+            "--device",
+            "cpu",
+            "--mode",
+            "interreflected",
+            "--storage",
+            "lean",
+            "--bounces",
+            "2",
+        ],
+        &[
+            "--device",
+            "cpu",
+            "--mode",
+            "interreflected",
+            "--bounce-tolerance",
+            "0.05",
+        ],
+        &["--device", "gpu", "--mode", "interreflected"],
     ];
     for extra in cases {
         if extra.contains(&"gpu") && common::gpu_baker().is_none() {
             continue;
         }
+        let interreflected = extra.windows(2).any(|w| w == INTERREFLECTED);
         let options = BakeOptions {
             bands: if extra.contains(&"6") { 6 } else { 4 },
             samples: 64,
+            mode: match interreflected {
+                true => prt_gpu::bake::Mode::Interreflected,
+                false => prt_gpu::bake::Mode::Shadowed,
+            },
             ..BakeOptions::default()
         };
         let need = bunny_need(&options);
@@ -92,7 +120,7 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
     let cases: [(&[&str], &str); 4] = [
         (&["--memory-limit", &below_any_chunk], "needs at least"),
         (
-            &["--memory-limit", &below_whole, "--mode", "interreflected"],
+            &["--memory-limit", &below_whole, "--fit", "least-squares"],
             "stream in chunks",
         ),
         (
@@ -132,8 +160,8 @@ fn a_shard_over_the_limit_is_refused_naming_a_count_that_fits() {
             ..BakeOptions::default()
         };
         let need = bunny_need(&options);
-        let limit = need.shard(4, &options);
-        let fewest = need.shards_within(limit, &options).unwrap();
+        let limit = need.shard(4);
+        let fewest = need.shards_within(limit).unwrap();
         assert!((2..=4).contains(&fewest), "{mode}: {fewest}");
         let limit_text = limit.to_string();
         let base = [

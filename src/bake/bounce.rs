@@ -63,9 +63,13 @@ impl GatherMatrix {
     }
 
     fn from_rows(rows: Vec<Vec<(u32, f32)>>) -> Self {
+        // Sized once: grown by doubling, the two arrays would briefly take three times their
+        // size, which a bake in bounded memory cannot spare.
+        let entries = rows.iter().map(Vec::len).sum();
         let mut matrix = GatherMatrix {
             row_offsets: Vec::with_capacity(rows.len() + 1),
-            ..Default::default()
+            columns: Vec::with_capacity(entries),
+            weights: Vec::with_capacity(entries),
         };
         matrix.row_offsets.push(0);
         for row in rows {
@@ -265,12 +269,24 @@ pub fn apply_cpu(
 /// Energy a bounce adds relative to all transfer so far: the ratio of the summed DC terms
 /// (what a vertex reflects under constant white light), over all vertices and channels.
 pub fn relative_energy(added: &[f32], total: &[f32], coeffs: usize) -> f64 {
-    let dc = |t: &[f32]| -> f64 { t.iter().step_by(coeffs).map(|&x| x.abs() as f64).sum() };
-    let total = dc(total);
+    energy_ratio(dc_energy(0.0, added, coeffs), dc_energy(0.0, total, coeffs))
+}
+
+/// `sum`, plus the summed DC terms `|t[c][0]|` of `transfer` in order: continued over the
+/// chunks of a transfer, it gives the sum over the whole, to the last bit.
+pub fn dc_energy(sum: f64, transfer: &[f32], coeffs: usize) -> f64 {
+    transfer
+        .iter()
+        .step_by(coeffs)
+        .fold(sum, |sum, &x| sum + x.abs() as f64)
+}
+
+/// The energy a bounce `added` over the `total` before it (zero when there was none).
+pub fn energy_ratio(added: f64, total: f64) -> f64 {
     if total == 0.0 {
         0.0
     } else {
-        dc(added) / total
+        added / total
     }
 }
 

@@ -4,6 +4,7 @@ pub mod adaptive;
 pub mod bounce;
 pub mod cpu;
 pub mod gpu;
+pub mod spill;
 pub mod stream;
 pub mod texels;
 

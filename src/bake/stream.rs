@@ -3,15 +3,23 @@
 //! BVH and one chunk rather than every vertex's transfer. A chunk's transfer depends only on
 //! its receivers, so a chunked bake writes the bytes of the whole one.
 //!
-//! Only bakes whose vertex values are their own receivers' can stream: shadowed or unshadowed
-//! transfer at the vertices, no fit, lightmap or error target. Interreflection needs every
-//! receiver's gather row for each bounce, and a fit solves for all vertices at once.
+//! Only bakes whose vertex values are their own receivers' can stream: transfer at the
+//! vertices, no fit, lightmap or error target (a fit solves for all vertices at once).
+//! Interreflection streams its direct pass; each bounce then reads every vertex's previous
+//! bounce, so the bake holds one transfer of every vertex (the previous bounce) and keeps the
+//! gather rows, the sum so far and the next bounce in a scratch file ([`super::spill`]), a
+//! chunk at a time in memory. Every value is computed as the whole bake computes it, so the
+//! file's bytes are the same.
 
 use std::ops::Range;
 
+use glam::Vec3;
+
+use super::bounce::{self, GatherMatrix};
+use super::spill::Spill;
 use super::{
     direct_pass, metadata_for, plan, tint_by_albedo, Backend, BakeMetadata, BakeOptions,
-    DirectInputs, Fit, Mode, Progress, Storage, Transfer,
+    BounceStat, DirectInputs, Fit, Mode, Progress, Storage, Transfer,
 };
 use crate::error::{Error, Result};
 use crate::scene::Scene;
@@ -19,10 +27,7 @@ use crate::sh::coeff_count;
 
 /// Whether a bake with `options` can be computed in chunks ([module docs](self)).
 pub fn streams(options: &BakeOptions) -> bool {
-    options.mode != Mode::Interreflected
-        && options.fit == Fit::Point
-        && options.lightmap.is_none()
-        && options.target_error.is_none()
+    options.fit == Fit::Point && options.lightmap.is_none() && options.target_error.is_none()
 }
 
 /// Bytes a bake needs, estimated from the mesh's size before it starts: what it holds
@@ -31,6 +36,9 @@ pub fn streams(options: &BakeOptions) -> bool {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MemoryNeed {
     pub fixed: u64,
+    /// What a streamed bake holds for every vertex whatever the chunk: an interreflected
+    /// bake's previous bounce.
+    pub held_streamed: u64,
     pub per_receiver_whole: u64,
     pub per_receiver_streamed: u64,
     pub receivers: u64,
@@ -58,13 +66,21 @@ impl MemoryNeed {
         let transfer = 4 * coeffs * 3;
         let groups = coeffs.div_ceil(4);
         let file_transfer = 16 * groups * 3;
+        // Interreflection: each receiver's gather row (a column and a weight per blocked ray
+        // at most, as the rays find it and as the matrix holds it), and the previous and next
+        // bounce; streamed, the previous bounce of every vertex stays in memory.
+        let (gather, bounces_whole, bounces_held) = match options.mode {
+            Mode::Interreflected => (2 * 8 * samples, 2 * transfer, transfer),
+            _ => (0, 0, 0),
+        };
         MemoryNeed {
             fixed,
+            held_streamed: v * bounces_held,
             // The direct pass, its RGB transfer, and the file's bytes twice (encoded BIN,
             // then the whole container).
-            per_receiver_whole: 4 * coeffs + transfer + 2 * file_transfer,
+            per_receiver_whole: 4 * coeffs + transfer + 2 * file_transfer + gather + bounces_whole,
             // The same for one chunk, and its file blocks.
-            per_receiver_streamed: 4 * coeffs + transfer + file_transfer,
+            per_receiver_streamed: 4 * coeffs + transfer + file_transfer + gather + bounces_whole,
             receivers: v,
         }
     }
@@ -76,33 +92,29 @@ impl MemoryNeed {
 
     /// The need of a bake streamed `chunk` receivers at a time.
     pub fn streamed(&self, chunk: usize) -> u64 {
-        self.fixed + chunk as u64 * self.per_receiver_streamed
+        self.fixed + self.held_streamed + chunk as u64 * self.per_receiver_streamed
     }
 
-    /// The need of one of `shards` shards of a bake with `options`: the mesh and its BVH, and
-    /// its share of the receivers at a whole bake's cost each, plus for interreflection their
-    /// gather rows (a column and a weight per sample, in the pass and in the part file).
-    pub fn shard(&self, shards: u32, options: &BakeOptions) -> u64 {
+    /// The need of one of `shards` shards of the bake: the mesh and its BVH, and
+    /// its share of the receivers at a whole bake's cost each (for interreflection their
+    /// gather rows too, in the pass and in the part file).
+    pub fn shard(&self, shards: u32) -> u64 {
         let share = self.receivers.div_ceil(shards.max(1) as u64);
-        let gather = match options.mode {
-            Mode::Interreflected => 2 * 8 * options.samples_used() as u64,
-            _ => 0,
-        };
-        self.fixed + share * (self.per_receiver_whole + gather)
+        self.fixed + share * self.per_receiver_whole
     }
 
     /// The fewest shards, at most `receivers`, each within `limit` bytes; `None` when the mesh
     /// and its BVH alone exceed it.
-    pub fn shards_within(&self, limit: u64, options: &BakeOptions) -> Option<u32> {
+    pub fn shards_within(&self, limit: u64) -> Option<u32> {
         let most = self.receivers.clamp(1, u32::MAX as u64) as u32;
-        if self.shard(most, options) > limit {
+        if self.shard(most) > limit {
             return None;
         }
         // The need falls as the shard count grows: the first count that fits, by bisection.
         let (mut low, mut high) = (1u32, most);
         while low < high {
             let middle = low + (high - low) / 2;
-            match self.shard(middle, options) <= limit {
+            match self.shard(middle) <= limit {
                 true => high = middle,
                 false => low = middle + 1,
             }
@@ -113,12 +125,17 @@ impl MemoryNeed {
     /// The largest chunk that keeps a streamed bake within `limit` bytes, or the error that
     /// says how much the smallest chunk needs.
     pub fn chunk_within(&self, limit: u64) -> Result<usize> {
-        let room = limit.saturating_sub(self.fixed) / self.per_receiver_streamed.max(1);
+        let held = self.fixed + self.held_streamed;
+        let room = limit.saturating_sub(held) / self.per_receiver_streamed.max(1);
         let chunk = (room as usize).min(self.receivers as usize);
         if chunk < MIN_CHUNK.min(self.receivers as usize) {
+            let bounce = match self.held_streamed {
+                0 => String::new(),
+                held => format!(", the previous bounce {}", format_bytes(held)),
+            };
             return Err(Error::Options(format!(
-                "--memory-limit {}: this bake needs at least {} (the mesh and its BVH {}, one \
-                 chunk of {MIN_CHUNK} receivers {})",
+                "--memory-limit {}: this bake needs at least {} (the mesh and its BVH {}{bounce}, \
+                 one chunk of {MIN_CHUNK} receivers {})",
                 format_bytes(limit),
                 format_bytes(self.streamed(MIN_CHUNK)),
                 format_bytes(self.fixed),
@@ -161,8 +178,8 @@ impl StreamedBake {
         options.validate()?;
         if !streams(options) {
             return Err(Error::Options(
-                "only shadowed and unshadowed bakes at the vertices stream in chunks (no \
-                 interreflection, fit, lightmap or error target)"
+                "only bakes at the vertices stream in chunks (no least-squares fit, lightmap \
+                 or error target)"
                     .into(),
             ));
         }
@@ -180,21 +197,34 @@ impl StreamedBake {
         self.planned.receivers.len()
     }
 
-    /// The transfer's shape: bands and channels (one for lean storage).
+    /// The stored transfer's channels, by the whole bake's lean rule: one for direct
+    /// transfer (albedo-free), and for interreflected transfer when every albedo is grey.
     pub fn channels(&self) -> u32 {
-        match self.options.storage {
-            Storage::Lean => 1,
-            Storage::Rgb => 3,
+        match (self.options.storage, self.options.mode) {
+            (Storage::Rgb, _) => 3,
+            (Storage::Lean, Mode::Interreflected) if !self.all_grey() => 3,
+            (Storage::Lean, _) => 1,
         }
     }
 
-    /// What the baked file records, as the whole bake on `backend` would.
-    pub fn metadata(&self, backend: &Backend) -> BakeMetadata {
+    fn all_grey(&self) -> bool {
+        let albedo = &self.planned.scene.albedo;
+        albedo.iter().all(|a| a.x == a.y && a.y == a.z)
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.options.mode
+    }
+
+    /// What the baked file records, as the whole bake on `backend` would, after `bounces`.
+    pub fn metadata(&self, backend: &Backend, bounces: usize) -> BakeMetadata {
+        let samples = self.planned.inputs.samples.len();
         BakeMetadata {
             channels: self.channels(),
-            albedo_free: self.options.storage == Storage::Lean,
+            albedo_free: self.options.storage == Storage::Lean
+                && self.options.mode != Mode::Interreflected,
             backend: backend.describe(),
-            ..metadata_for(&self.options, self.planned.inputs.samples.len(), 0, None)
+            ..metadata_for(&self.options, samples, bounces, None)
         }
     }
 
@@ -229,6 +259,88 @@ impl StreamedBake {
         Ok((transfer, direct.rays_cast))
     }
 
+    /// Interreflected transfer in bounded memory ([module docs](self)): the direct pass
+    /// `chunk` receivers at a time, then each bounce a chunk of gather rows at a time. Returns
+    /// the RGB transfer in the scratch file, each bounce's share and the rays cast.
+    pub fn interreflected(
+        &self,
+        chunk: usize,
+        backend: &Backend,
+        progress: &dyn Progress,
+    ) -> Result<Interreflected> {
+        let receivers = self.receivers();
+        let bands = self.options.bands;
+        let coeffs = coeff_count(bands);
+        let stride = 3 * coeffs;
+        let albedo = &self.planned.receivers.albedo;
+        let ranges: Vec<Range<usize>> = (0..receivers)
+            .step_by(chunk.max(1))
+            .map(|first| first..(first + chunk).min(receivers))
+            .collect();
+        let mut spill = Spill::new()?;
+        // The scratch file: the transfer so far, the next bounce, then each chunk's rows.
+        let (total_at, next_at) = (0, (receivers * stride * 4) as u64);
+        spill.reserve(2 * next_at);
+        let mut previous = vec![0.0f32; receivers * stride];
+        let mut rows = Vec::with_capacity(ranges.len());
+        let mut rays_cast = 0;
+        let mut gather_entries = 0;
+        progress.stage("transfer", receivers as u64);
+        for range in &ranges {
+            let view = self.planned.inputs.view();
+            let part = DirectInputs {
+                origins: &view.origins[range.clone()],
+                normals: &view.normals[range.clone()],
+                ..view
+            };
+            let direct = direct_pass(&part, Mode::Interreflected, backend, &Advancing(progress))?;
+            let matrix = direct.matrix.expect("an interreflected pass gathers");
+            let tinted = tint_by_albedo(&direct.scalar, &albedo[range.clone()], bands);
+            previous[range.start * stride..range.end * stride].copy_from_slice(&tinted.coeffs);
+            rows.push(SpilledRows::put(&mut spill, &matrix)?);
+            rays_cast += direct.rays_cast;
+            gather_entries += matrix.columns.len();
+        }
+        spill.write_at(total_at, &previous)?;
+
+        progress.stage("bounces", self.options.bounces as u64);
+        let mut bounces = Vec::new();
+        for _ in 0..self.options.bounces {
+            let started = std::time::Instant::now();
+            let (mut added, mut before) = (0.0, 0.0);
+            for (range, spilled) in ranges.iter().zip(&rows) {
+                let matrix = spilled.read(&mut spill)?;
+                let albedo = &albedo[range.clone()];
+                let next = bounce_chunk(&matrix, &previous, albedo, bands, backend)?;
+                let at = (range.start * stride * 4) as u64;
+                let mut total: Vec<f32> = spill.read_vec(total_at + at, next.len())?;
+                added = bounce::dc_energy(added, &next, coeffs);
+                before = bounce::dc_energy(before, &total, coeffs);
+                total.iter_mut().zip(&next).for_each(|(t, n)| *t += n);
+                spill.write_at(total_at + at, &total)?;
+                spill.write_at(next_at + at, &next)?;
+            }
+            spill.read_at(next_at, &mut previous)?;
+            let relative_energy = bounce::energy_ratio(added, before);
+            bounces.push(BounceStat {
+                relative_energy,
+                seconds: started.elapsed().as_secs_f64(),
+            });
+            progress.advance(1);
+            if relative_energy < self.options.bounce_tolerance {
+                break;
+            }
+        }
+        Ok(Interreflected {
+            spill,
+            total_at,
+            bands,
+            bounces,
+            rays_cast,
+            gather_entries,
+        })
+    }
+
     /// The tree's node count, for the report.
     pub fn bvh_nodes(&self) -> usize {
         self.planned.inputs.bvh.nodes.len()
@@ -251,6 +363,93 @@ impl StreamedBake {
             &self.planned.vertex_map,
             self.planned.seconds,
         )
+    }
+}
+
+/// A streamed interreflected bake's transfer, RGB `[vertex][channel][k]` in its scratch file,
+/// and what the report says of it.
+pub struct Interreflected {
+    spill: Spill,
+    total_at: u64,
+    bands: u32,
+    pub bounces: Vec<BounceStat>,
+    pub rays_cast: u64,
+    pub gather_entries: usize,
+}
+
+impl Interreflected {
+    /// The stored transfer of the receivers `range`, `channels` of it (1: the lean form of
+    /// grey albedo, the red channel).
+    pub fn chunk(&mut self, range: Range<usize>, channels: u32) -> Result<Transfer> {
+        let coeffs = coeff_count(self.bands);
+        let stride = 3 * coeffs;
+        let at = self.total_at + (range.start * stride * 4) as u64;
+        let rgb: Vec<f32> = self.spill.read_vec(at, range.len() * stride)?;
+        let coeffs = match channels {
+            1 => rgb
+                .chunks_exact(stride)
+                .flat_map(|v| v[..coeffs].iter().copied())
+                .collect(),
+            _ => rgb,
+        };
+        Ok(Transfer {
+            bands: self.bands,
+            channels,
+            vertex_count: range.len(),
+            coeffs,
+        })
+    }
+}
+
+/// Where one chunk's gather rows lie in the scratch file.
+struct SpilledRows {
+    offsets_at: u64,
+    columns_at: u64,
+    weights_at: u64,
+    rows: usize,
+    entries: usize,
+}
+
+impl SpilledRows {
+    fn put(spill: &mut Spill, matrix: &GatherMatrix) -> Result<SpilledRows> {
+        Ok(SpilledRows {
+            offsets_at: spill.append(&matrix.row_offsets)?,
+            columns_at: spill.append(&matrix.columns)?,
+            weights_at: spill.append(&matrix.weights)?,
+            rows: matrix.rows(),
+            entries: matrix.columns.len(),
+        })
+    }
+
+    fn read(&self, spill: &mut Spill) -> Result<GatherMatrix> {
+        Ok(GatherMatrix {
+            row_offsets: spill.read_vec(self.offsets_at, self.rows + 1)?,
+            columns: spill.read_vec(self.columns_at, self.entries)?,
+            weights: spill.read_vec(self.weights_at, self.entries)?,
+        })
+    }
+}
+
+/// One bounce of a chunk's rows, on the backend's device, as the whole bake computes it: each
+/// row's sum depends on that row alone.
+fn bounce_chunk(
+    matrix: &GatherMatrix,
+    previous: &[f32],
+    albedo: &[Vec3],
+    bands: u32,
+    backend: &Backend,
+) -> Result<Vec<f32>> {
+    match backend {
+        Backend::Gpu { baker, .. } => {
+            let uploaded = baker.upload_gather_matrix(matrix, albedo, bands)?;
+            baker.bounce(&uploaded, previous)
+        }
+        Backend::Cpu => Ok(bounce::apply_cpu(
+            matrix,
+            previous,
+            albedo,
+            coeff_count(bands),
+        )),
     }
 }
 

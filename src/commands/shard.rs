@@ -194,11 +194,11 @@ fn check_shard_memory(
     let Some(limit) = args.memory_limit.or_else(device::available_memory) else {
         return Ok(());
     };
-    let shard_need = need.shard(shard.count, options);
+    let shard_need = need.shard(shard.count);
     if shard_need <= limit {
         return Ok(());
     }
-    let advice = match need.shards_within(limit, options) {
+    let advice = match need.shards_within(limit) {
         Some(count) => format!("{count} or more shards would each fit"),
         None => format!(
             "the mesh and its BVH alone need about {}, so no shard count fits",

@@ -13,7 +13,7 @@ use super::{
     transfer_view, validate_shape, Shape, CHUNK_BIN, CHUNK_JSON, GLB_MAGIC, GLB_VERSION,
 };
 use crate::bake::stream::StreamedBake;
-use crate::bake::{Backend, BakeMetadata, BakeReport, Progress, Transfer};
+use crate::bake::{Backend, BakeMetadata, BakeReport, Mode, Progress, Transfer};
 use crate::error::{Error, Result};
 use crate::fs::AtomicFile;
 
@@ -105,7 +105,22 @@ pub fn bake_streamed(
     progress: &dyn Progress,
 ) -> Result<BakeReport> {
     let started = Instant::now();
-    let metadata: BakeMetadata = bake.metadata(backend);
+    let receivers = bake.receivers();
+    if chunk == 0 || receivers != bake.scene().vertex_count() {
+        return Err(Error::Options(format!(
+            "a streamed bake needs chunks of at least one receiver, one per vertex ({receivers} \
+             receivers, {} vertices)",
+            bake.scene().vertex_count()
+        )));
+    }
+    // Interreflection finishes every bounce before the file starts: the file records how
+    // many bounces ran, and each bounce reads every vertex's last.
+    let mut interreflected = match bake.mode() {
+        Mode::Interreflected => Some(bake.interreflected(chunk, backend, progress)?),
+        _ => None,
+    };
+    let bounces = interreflected.as_ref().map_or(0, |i| i.bounces.len());
+    let metadata: BakeMetadata = bake.metadata(backend, bounces);
     let shape_transfer = Transfer {
         bands: metadata.bands,
         channels: metadata.channels,
@@ -119,23 +134,30 @@ pub fn bake_streamed(
         lightmap: None,
     };
     let mut file = GlbStream::create(path, shape)?;
-    let receivers = bake.receivers();
-    if chunk == 0 || receivers != shape_transfer.vertex_count {
-        return Err(Error::Options(format!(
-            "a streamed bake needs chunks of at least one receiver, one per vertex ({receivers} \
-             receivers, {} vertices)",
-            shape_transfer.vertex_count
-        )));
+    if interreflected.is_none() {
+        progress.stage("transfer", receivers as u64);
     }
-    progress.stage("transfer", receivers as u64);
     let mut rays_cast = 0;
     for first in (0..receivers).step_by(chunk) {
         let range: Range<usize> = first..(first + chunk).min(receivers);
-        let (transfer, rays) = bake.chunk(range, backend, progress)?;
+        let transfer = match &mut interreflected {
+            Some(baked) => baked.chunk(range, metadata.channels)?,
+            None => {
+                let (transfer, rays) = bake.chunk(range, backend, progress)?;
+                rays_cast += rays;
+                transfer
+            }
+        };
         file.put(first, &transfer)?;
-        rays_cast += rays;
     }
     file.commit()?;
+    let (bounce_stats, gather_entries) = match interreflected {
+        Some(baked) => {
+            rays_cast = baked.rays_cast;
+            (baked.bounces, baked.gather_entries)
+        }
+        None => (Vec::new(), 0),
+    };
     let (prepare, vertex_map, seconds_prepare) = bake.prepared();
     Ok(BakeReport {
         prepare: prepare.clone(),
@@ -150,8 +172,8 @@ pub fn bake_streamed(
         fit: None,
         texels: None,
         adaptive: None,
-        bounces: Vec::new(),
-        gather_entries: 0,
+        bounces: bounce_stats,
+        gather_entries,
         backend: backend.describe(),
     })
 }

@@ -1,12 +1,24 @@
 //! The bake: options in, one [`Transfer`] out, whichever backend computes it.
 
 pub mod adaptive;
+mod baked;
+mod bands;
 pub mod bounce;
 pub mod cpu;
 pub mod gpu;
+mod inputs;
+mod options;
+mod shard;
 pub mod spill;
 pub mod stream;
 pub mod texels;
+
+// The bake's parts, each in its own file; their items are the module's.
+pub use baked::*;
+pub use bands::*;
+pub use inputs::*;
+pub use options::*;
+pub use shard::*;
 
 use std::time::Instant;
 
@@ -26,301 +38,6 @@ use crate::scene::Scene;
 use crate::sh::rotation::EulerShRotation;
 use crate::sh::{coeff_count, ShTable, CONVENTION, MAX_BANDS};
 
-/// Which light transport the transfer vectors capture.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "lowercase")]
-pub enum Mode {
-    /// Clamped cosine only: every direction above the horizon is assumed visible.
-    Unshadowed,
-    /// Clamped cosine times binary visibility against the whole scene.
-    Shadowed,
-    /// Shadowed transfer plus light reflected between surfaces (`--bounces`).
-    Interreflected,
-    /// Point and spot lights inside the scene (`crate::local`): depth maps and the
-    /// direct-to-indirect operator, not SH transfer; baked by `local::bake_local`.
-    Local,
-}
-
-impl Mode {
-    pub fn name(self) -> &'static str {
-        match self {
-            Mode::Unshadowed => "unshadowed",
-            Mode::Shadowed => "shadowed",
-            Mode::Interreflected => "interreflected",
-            Mode::Local => "local",
-        }
-    }
-}
-
-/// The most bounces a bake accepts.
-pub const MAX_BOUNCES: u32 = 64;
-
-/// Per-vertex transfer vectors, RGB.
-///
-/// Layout: `coeffs[(vertex * channels + channel) * bands^2 + k]`, `k = l(l+1) + m`.
-/// Exit radiance of vertex v in channel c under lighting coefficients `light[c][k]` is
-/// `sum_k light[c][k] * coeffs[(v * channels + c) * bands^2 + k]`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Transfer {
-    pub bands: u32,
-    pub channels: u32,
-    pub vertex_count: usize,
-    pub coeffs: Vec<f32>,
-}
-
-impl Transfer {
-    pub fn coeffs_per_channel(&self) -> usize {
-        (self.bands * self.bands) as usize
-    }
-
-    /// The bands^2 coefficients of one vertex and channel.
-    pub fn vertex_channel(&self, vertex: usize, channel: usize) -> &[f32] {
-        let n = self.coeffs_per_channel();
-        let start = (vertex * self.channels as usize + channel) * n;
-        &self.coeffs[start..start + n]
-    }
-}
-
-/// A baked mesh: the prepared scene (normals `Some`), its transfer and how it was made.
-#[derive(Clone, Debug, PartialEq)]
-pub struct BakedMesh {
-    pub scene: Scene,
-    pub transfer: Transfer,
-    pub metadata: BakeMetadata,
-    /// Per-texel transfer, when a lightmap was baked (the scene is then split so that every
-    /// triangle corner has its own vertex and lightmap coordinates).
-    pub lightmap: Option<TexelBake>,
-}
-
-/// Transfer per texel of a lightmap atlas.
-#[derive(Clone, Debug, PartialEq)]
-pub struct TexelBake {
-    pub width: u32,
-    pub height: u32,
-    /// Lightmap coordinates of every triangle corner of the scene (corner i of triangle t at
-    /// `3t + i`), in [0, 1] as glTF's `TEXCOORD_n`: texel (x, y) (row y from the top) has its
-    /// centre at `((x + 0.5) / width, (y + 0.5) / height)`. A mesh with a generated atlas is
-    /// split at its corners, so these are its vertices' coordinates too.
-    pub texcoords: Vec<[f32; 2]>,
-    /// The `TEXCOORD_n` set the coordinates are: 0 for a generated atlas, the scene's own
-    /// lightmap set otherwise.
-    pub set: u32,
-    /// The texels' transfer, row-major: `vertex_count` is `width * height`.
-    pub transfer: Transfer,
-}
-
-/// Everything a baked file records about how it was made (glTF mesh extras `prt`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct BakeMetadata {
-    pub tool: String,
-    pub tool_version: String,
-    pub bands: u32,
-    pub channels: u32,
-    pub mode: Mode,
-    /// Sample directions actually used (a square number for the grid strategies).
-    pub samples: u32,
-    /// The `--sampling` strategy's name.
-    pub sampling: String,
-    pub seed: u64,
-    pub backend: String,
-    /// One line describing the SH basis; see `sh::CONVENTION`.
-    pub sh_convention: String,
-    /// One line describing the radiometric meaning of the coefficients.
-    pub radiometry: String,
-    /// Interreflection bounces added to the direct transfer (0 for the other modes).
-    #[serde(default)]
-    pub bounces: u32,
-    /// How vertex values were obtained from the baked receivers (absent: `point`).
-    #[serde(default, skip_serializing_if = "Fit::is_point")]
-    pub fit: Fit,
-    /// Least-squares fit: the surface points baked.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub fit_points: Option<u32>,
-    /// An error-targeted bake's target (`samples` is then the mean over receivers).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub target_error: Option<f64>,
-    /// The transfer leaves the albedo out: radiance is `albedo * sum_k l_k t_k`, the albedo
-    /// being the vertex colour (`COLOR_0`).
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub albedo_free: bool,
-}
-
-/// How a bake turns transfer baked at receivers into the per-vertex values a renderer
-/// interpolates.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum Fit {
-    /// Bake at the vertices: exact there, whatever lies between them.
-    #[default]
-    Point,
-    /// Bake at points spread over every triangle and fit the vertex values whose
-    /// interpolation matches them best over the surface (Kavan et al. 2011).
-    LeastSquares,
-}
-
-impl Fit {
-    pub fn name(self) -> &'static str {
-        match self {
-            Fit::Point => "point",
-            Fit::LeastSquares => "least-squares",
-        }
-    }
-
-    fn is_point(&self) -> bool {
-        *self == Fit::Point
-    }
-}
-
-/// The strategy a bake uses when none is asked for; chosen from `prt-gpu chart` (README): the
-/// least error per sample, and with fan packets on the CPU as many rays per second as the
-/// shared-direction sets.
-pub const DEFAULT_SAMPLING: Sampling = Sampling::Cosine;
-
-/// The sample count a bake uses when none is asked for (README: with the default strategy it
-/// has a third of the error of the tutorial's 1024 stratified samples, at the same count).
-pub const DEFAULT_SAMPLES: u32 = 1024;
-
-/// What the user asks of a bake.
-#[derive(Clone, Debug, PartialEq)]
-pub struct BakeOptions {
-    pub bands: u32,
-    /// Requested sample directions; the grid strategies use the nearest square.
-    pub samples: u32,
-    pub sampling: Sampling,
-    pub seed: u64,
-    pub mode: Mode,
-    /// Replaces every material's albedo when set.
-    pub albedo: Option<Vec3>,
-    /// Interreflected mode: bounces after the direct pass.
-    pub bounces: u32,
-    /// Interreflected mode: stop once a bounce adds less than this fraction of the energy.
-    pub bounce_tolerance: f64,
-    pub fit: Fit,
-    /// Least-squares fit: how many surface points to bake.
-    pub point_density: PointDensity,
-    /// Also bake a lightmap about this many texels on its longer side.
-    pub lightmap: Option<u32>,
-    /// Cast samples per receiver until this error is reached (instead of `samples` each).
-    pub target_error: Option<adaptive::TargetError>,
-    pub storage: Storage,
-}
-
-/// How the transfer is stored.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "lowercase")]
-pub enum Storage {
-    /// Red, green and blue transfer, albedo included.
-    #[default]
-    Rgb,
-    /// One channel where one suffices: shadowed and unshadowed transfer albedo-free (the albedo,
-    /// in `COLOR_0`, is applied at relighting); interreflected transfer when every albedo is
-    /// grey (its channels are then equal); RGB otherwise.
-    Lean,
-}
-
-impl Default for BakeOptions {
-    fn default() -> Self {
-        BakeOptions {
-            bands: 4,
-            samples: DEFAULT_SAMPLES,
-            sampling: DEFAULT_SAMPLING,
-            seed: 1,
-            mode: Mode::Shadowed,
-            albedo: None,
-            bounces: 3,
-            bounce_tolerance: 0.0,
-            fit: Fit::Point,
-            point_density: PointDensity::default(),
-            lightmap: None,
-            target_error: None,
-            storage: Storage::Rgb,
-        }
-    }
-}
-
-impl BakeOptions {
-    pub fn validate(&self) -> Result<()> {
-        if self.mode == Mode::Local {
-            return Err(Error::Options(
-                "--mode local bakes depth maps and a direct-to-indirect operator, not SH \
-                 transfer (local::bake_local)"
-                    .into(),
-            ));
-        }
-        if self.bands == 0 || self.bands > MAX_BANDS {
-            return Err(Error::Options(format!(
-                "--bands {} is out of range (1 to {MAX_BANDS})",
-                self.bands
-            )));
-        }
-        if self.samples == 0 || self.samples > MAX_SAMPLES {
-            return Err(Error::Options(format!(
-                "--samples {} is out of range (1 to {MAX_SAMPLES})",
-                self.samples
-            )));
-        }
-        if self.bounces > MAX_BOUNCES {
-            return Err(Error::Options(format!(
-                "--bounces {} is out of range (0 to {MAX_BOUNCES})",
-                self.bounces
-            )));
-        }
-        if !(0.0..1.0).contains(&self.bounce_tolerance) {
-            return Err(Error::Options(format!(
-                "--bounce-tolerance {} must lie in [0, 1)",
-                self.bounce_tolerance
-            )));
-        }
-        if let Some(size) = self.lightmap {
-            let max = crate::receivers::atlas::MAX_ATLAS_SIZE;
-            if !(1..=max).contains(&size) {
-                return Err(Error::Options(format!(
-                    "--lightmap {size} is out of range (1 to {max} texels)"
-                )));
-            }
-        }
-        if let Some(target) = &self.target_error {
-            target.validate()?;
-            if self.mode == Mode::Interreflected {
-                return Err(Error::Options(
-                    "--target-error bakes shadowed and unshadowed transfer, not interreflected"
-                        .into(),
-                ));
-            }
-        }
-        if self.storage == Storage::Lean && self.lightmap.is_some() {
-            return Err(Error::Options(
-                "--storage lean stores vertex transfer; lightmaps are stored in RGB".into(),
-            ));
-        }
-        let density = self.point_density;
-        if !(density.per_vertex.is_finite()
-            && density.per_vertex > 0.0
-            && density.per_vertex <= 1e4)
-            || density.min_per_triangle == 0
-        {
-            return Err(Error::Options(format!(
-                "--fit-points {} must be a number of points per vertex in (0, 10000]",
-                density.per_vertex
-            )));
-        }
-        if let Some(a) = self.albedo {
-            if !a.is_finite() || a.min_element() < 0.0 || a.max_element() > 1.0 {
-                return Err(Error::Options(format!(
-                    "--albedo {},{},{} must lie in [0, 1]",
-                    a.x, a.y, a.z
-                )));
-            }
-        }
-        Ok(())
-    }
-
-    /// The sample count actually used (the nearest square for the grid strategies).
-    pub fn samples_used(&self) -> u32 {
-        self.sampling.samples_used(self.samples)
-    }
-}
-
 /// Receives progress from long stages; the CLI draws it, tests ignore it.
 pub trait Progress: Sync {
     /// A stage of `total` work items begins.
@@ -331,28 +48,8 @@ pub trait Progress: Sync {
 
 /// Progress that goes nowhere.
 pub struct NoProgress;
-impl Progress for NoProgress {}
 
-/// The flattened inputs every backend reads: the same arrays the GPU uploads.
-pub struct DirectInputs<'a> {
-    /// Ray origins, one per receiver: its position moved off the surface
-    /// (`ray::offset_ray_origin`).
-    pub origins: &'a [Vec3],
-    /// The receivers' unit shading normals.
-    pub normals: &'a [Vec3],
-    /// The scene's triangles (what hit triangles' `source_index` refers to).
-    pub triangles: &'a [[u32; 3]],
-    /// The scene's vertex normals (for the shading normal at a hit); the same as `normals`
-    /// when the receivers are the vertices.
-    pub vertex_normals: &'a [Vec3],
-    pub bvh: &'a Bvh,
-    pub samples: &'a SampleSet,
-    /// SH of each sample direction, `[sample][k]` (in the tangent frame for tangent sets).
-    pub table: &'a ShTable,
-    pub estimator: Estimator,
-    /// Turns a tangent set's sums into the world, vertex by vertex (`table.bands` bands).
-    pub tangent_to_world: &'a EulerShRotation,
-}
+impl Progress for NoProgress {}
 
 /// Where the transfer is computed.
 pub enum Backend<'a> {
@@ -371,43 +68,6 @@ impl Backend<'_> {
             Backend::Gpu { baker, .. } => format!("gpu: {}", baker.context.adapter.label()),
         }
     }
-}
-
-/// What a bake did, for the summary line.
-#[derive(Clone, Debug)]
-pub struct BakeReport {
-    pub prepare: PrepareReport,
-    /// For every vertex of the scene as given, its vertex in the baked (prepared) mesh.
-    pub vertex_map: VertexMap,
-    /// Points the transfer was computed at (the vertices, or the fit's surface points).
-    pub receivers: usize,
-    pub samples_used: u32,
-    pub rays_cast: u64,
-    pub bvh_nodes: usize,
-    pub seconds_prepare: f64,
-    /// The direct pass (and, interreflected, the hits and the gather matrix).
-    pub seconds_transfer: f64,
-    /// The least-squares fit of the direct pass (zero for point values).
-    pub seconds_fit: f64,
-    /// The fit's solve, when the vertex values were fitted.
-    pub fit: Option<FitReport>,
-    /// The lightmap's bake, when one was asked for.
-    pub texels: Option<texels::TexelReport>,
-    /// The error-targeted direct pass, when a target was given.
-    pub adaptive: Option<adaptive::AdaptiveReport>,
-    /// One entry per bounce performed (each including its fit).
-    pub bounces: Vec<BounceStat>,
-    /// Non-zero entries of the gather matrix (interreflected mode).
-    pub gather_entries: usize,
-    pub backend: String,
-}
-
-/// What one bounce added and what it cost.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BounceStat {
-    /// DC energy the bounce added over the DC energy of all transfer before it.
-    pub relative_energy: f64,
-    pub seconds: f64,
 }
 
 /// What a bounce reads: the gather matrix (rows: receivers), the receivers' albedo, and the
@@ -491,64 +151,6 @@ pub enum DirectSource {
     /// Already computed (by the shards of a sharded bake, merged), on the backend `ran_on`
     /// describes: the rest of the bake (fit, bounces, lightmap) runs here.
     Given { direct: DirectPass, ran_on: String },
-}
-
-/// A part of a bake's receivers: shard `index` of `count`, each a contiguous run of about
-/// the same number of receivers in the prepared (Morton) order, so a shard's rays stay
-/// coherent. Which receivers a shard holds depends only on the receiver count, and what
-/// each receiver gets only on the receiver, so shards merge to the unsharded bake bit for bit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Shard {
-    pub index: u32,
-    pub count: u32,
-}
-
-impl Shard {
-    pub fn new(index: u32, count: u32) -> Result<Shard> {
-        if count == 0 || index >= count {
-            return Err(Error::Options(format!(
-                "--shard {index}/{count}: the shard index must lie in 0 to count - 1"
-            )));
-        }
-        Ok(Shard { index, count })
-    }
-
-    /// The receivers of `total` this shard bakes.
-    pub fn receivers(&self, total: usize) -> std::ops::Range<usize> {
-        let edge = |i: u32| (total as u128 * i as u128 / self.count as u128) as usize;
-        edge(self.index)..edge(self.index + 1)
-    }
-}
-
-/// What a shard bakes: the direct pass of its receivers (gather rows included, for
-/// interreflection), which of how many receivers they are, and the backend it ran on.
-pub struct ShardPass {
-    pub receivers: std::ops::Range<usize>,
-    pub receivers_total: usize,
-    pub direct: DirectPass,
-    pub ran_on: String,
-}
-
-/// The direct pass of `shard`'s receivers of the bake of `scene` with `options`: everything a
-/// shard computes. Bounces, fits and lightmaps need every receiver and run where the shards
-/// are merged ([`bake_from`] with [`DirectSource::Given`]).
-pub fn bake_shard(
-    scene: Scene,
-    options: &BakeOptions,
-    backend: &Backend,
-    shard: Shard,
-    progress: &dyn Progress,
-) -> Result<ShardPass> {
-    options.validate()?;
-    let planned = plan(scene, options)?;
-    let range = shard.receivers(planned.receivers.len());
-    let direct = direct_or_adaptive(&planned.inputs, range.clone(), options, backend, progress)?;
-    Ok(ShardPass {
-        receivers: range,
-        receivers_total: planned.receivers.len(),
-        direct,
-        ran_on: direct_pass_ran_on(options, backend),
-    })
 }
 
 /// The backend a direct pass with `options` runs on: error-targeted passes run on the CPU
@@ -921,33 +523,6 @@ fn choose_receivers(
     }
 }
 
-/// What the baked file records about a bake with `options`.
-fn metadata_for(
-    options: &BakeOptions,
-    samples: usize,
-    bounces: usize,
-    fit_points: Option<u32>,
-) -> BakeMetadata {
-    BakeMetadata {
-        tool: env!("CARGO_PKG_NAME").to_string(),
-        tool_version: env!("CARGO_PKG_VERSION").to_string(),
-        bands: options.bands,
-        channels: 3,
-        mode: options.mode,
-        samples: samples as u32,
-        sampling: options.sampling.name().to_string(),
-        seed: options.seed,
-        backend: String::new(),
-        sh_convention: CONVENTION.to_string(),
-        radiometry: RADIOMETRY.to_string(),
-        bounces: bounces as u32,
-        fit: options.fit,
-        fit_points,
-        target_error: options.target_error.map(|t| t.relative),
-        albedo_free: false,
-    }
-}
-
 /// Transfer at `receivers` on a prepared `scene` (RGB, `[receiver][channel][k]`; the
 /// receivers' albedo unless `options.albedo` replaces it), and the rays cast. Interreflected
 /// mode adds one final gather of `vertex_transfer` (the scene's baked vertex transfer, bounces
@@ -1057,135 +632,6 @@ pub fn direct_pass(
     })
 }
 
-/// The arrays [`DirectInputs`] borrows, built from a prepared scene: what both backends read.
-pub struct BakeInputs {
-    pub origins: Vec<Vec3>,
-    pub normals: Vec<Vec3>,
-    pub triangles: Vec<[u32; 3]>,
-    pub vertex_normals: Vec<Vec3>,
-    pub bvh: Bvh,
-    pub samples: SampleSet,
-    pub table: ShTable,
-    pub estimator: Estimator,
-    pub tangent_to_world: EulerShRotation,
-}
-
-impl BakeInputs {
-    /// Stratified sampling (the tutorial's); `scene` must be prepared (normals present) and
-    /// `samples` a square.
-    pub fn new(scene: &Scene, bands: u32, samples: u32, seed: u64) -> Self {
-        Self::with_sampling(scene, bands, samples, seed, Sampling::Stratified)
-    }
-
-    /// What a bake of the vertices with `options` reads.
-    pub fn for_options(scene: &Scene, options: &BakeOptions) -> Self {
-        Self::for_receivers(scene, &Receivers::vertices(scene), options)
-    }
-
-    /// What a bake with `options` at `receivers` on `scene` reads.
-    pub fn for_receivers(scene: &Scene, receivers: &Receivers, options: &BakeOptions) -> Self {
-        Self::at_receivers(
-            scene,
-            receivers,
-            options.bands,
-            options.samples_used(),
-            options.seed,
-            options.sampling,
-        )
-    }
-
-    /// `samples` must come from [`Sampling::samples_used`].
-    pub fn with_sampling(
-        scene: &Scene,
-        bands: u32,
-        samples: u32,
-        seed: u64,
-        sampling: Sampling,
-    ) -> Self {
-        let receivers = Receivers::vertices(scene);
-        Self::at_receivers(scene, &receivers, bands, samples, seed, sampling)
-    }
-
-    /// [`BakeInputs::for_receivers`] with the scene's tree already built.
-    pub fn with_tree(
-        scene: &Scene,
-        receivers: &Receivers,
-        bvh: Bvh,
-        options: &BakeOptions,
-    ) -> Self {
-        let sampling = (
-            options.bands,
-            options.samples_used(),
-            options.seed,
-            options.sampling,
-        );
-        Self::assemble(scene, receivers, bvh, sampling)
-    }
-
-    fn at_receivers(
-        scene: &Scene,
-        receivers: &Receivers,
-        bands: u32,
-        samples: u32,
-        seed: u64,
-        sampling: Sampling,
-    ) -> Self {
-        let bvh = Bvh::build(&scene.positions, &scene.triangles);
-        Self::assemble(scene, receivers, bvh, (bands, samples, seed, sampling))
-    }
-
-    fn assemble(
-        scene: &Scene,
-        receivers: &Receivers,
-        bvh: Bvh,
-        (bands, samples, seed, sampling): (u32, u32, u64, Sampling),
-    ) -> Self {
-        let vertex_normals = scene.normals.clone().expect("a prepared scene has normals");
-        let origins = ray_origins(&receivers.ray_starts, &receivers.normals, bvh.extent());
-        let samples = sampling.directions(samples, seed);
-        let table = ShTable::new(bands, &samples.directions);
-        BakeInputs {
-            origins,
-            normals: receivers.normals.clone(),
-            triangles: scene.triangles.clone(),
-            vertex_normals,
-            bvh,
-            samples,
-            table,
-            estimator: sampling.estimator(),
-            tangent_to_world: EulerShRotation::new(bands),
-        }
-    }
-
-    pub fn view(&self) -> DirectInputs<'_> {
-        DirectInputs {
-            origins: &self.origins,
-            normals: &self.normals,
-            triangles: &self.triangles,
-            vertex_normals: &self.vertex_normals,
-            bvh: &self.bvh,
-            samples: &self.samples,
-            table: &self.table,
-            estimator: self.estimator,
-            tangent_to_world: &self.tangent_to_world,
-        }
-    }
-}
-
-/// Every receiver's ray start moved off its surface along its normal, where its rays start
-/// (`extent`: the scene's, which sets the offset's floor).
-pub fn ray_origins(starts: &[Vec3], normals: &[Vec3], extent: f32) -> Vec<Vec3> {
-    starts
-        .iter()
-        .zip(normals)
-        .map(|(&p, &n)| offset_ray_origin(p, n, extent))
-        .collect()
-}
-
-/// The meaning of the coefficients, for file metadata.
-pub const RADIOMETRY: &str = "exit radiance L_o = sum_k l_k t_k per channel, \
-l_k = integral L_in(w) y_k(w) dw, t_k = (albedo/pi) integral V(w) max(0, n.w) y_k(w) dw";
-
 /// RGB transfer from albedo-free scalar transfer: channel c of vertex v is `albedo[v][c]` times it.
 pub fn tint_by_albedo(scalar: &[f32], albedo: &[Vec3], bands: u32) -> Transfer {
     let n = coeff_count(bands);
@@ -1200,109 +646,5 @@ pub fn tint_by_albedo(scalar: &[f32], albedo: &[Vec3], bands: u32) -> Transfer {
         channels: 3,
         vertex_count: albedo.len(),
         coeffs,
-    }
-}
-
-/// The fraction of a transfer's energy (sum of squared coefficients over vertices and channels)
-/// in each band `l`.
-pub fn band_energy_fractions(transfer: &Transfer) -> Vec<f64> {
-    let n = transfer.coeffs_per_channel();
-    let mut energy = vec![0.0f64; transfer.bands as usize];
-    for row in transfer.coeffs.chunks_exact(n) {
-        for (k, &t) in row.iter().enumerate() {
-            energy[(k as f64).sqrt() as usize] += (t as f64) * (t as f64);
-        }
-    }
-    let total: f64 = energy.iter().sum();
-    energy
-        .iter()
-        .map(|e| e / total.max(f64::MIN_POSITIVE))
-        .collect()
-}
-
-/// The fewest bands whose transfer leaves less than `threshold` of the energy in the bands
-/// above them, and the fraction it leaves.
-pub fn choose_bands(transfer: &Transfer, threshold: f64) -> (u32, f64) {
-    let fractions = band_energy_fractions(transfer);
-    (1..=transfer.bands)
-        .map(|bands| (bands, fractions[bands as usize..].iter().sum::<f64>()))
-        .find(|&(_, beyond)| beyond < threshold)
-        .unwrap_or((transfer.bands, 0.0))
-}
-
-/// `transfer` with only its first `bands` bands: the lower bands of SH transfer do not depend on
-/// the higher ones, so this is the transfer a bake of `bands` bands computes.
-pub fn truncate_bands(transfer: &Transfer, bands: u32) -> Transfer {
-    let (n, kept) = (transfer.coeffs_per_channel(), coeff_count(bands));
-    Transfer {
-        bands,
-        channels: transfer.channels,
-        vertex_count: transfer.vertex_count,
-        coeffs: transfer
-            .coeffs
-            .chunks_exact(n)
-            .flat_map(|row| row[..kept].iter().copied())
-            .collect(),
-    }
-}
-
-/// A baked mesh cut to `bands` bands (its lightmap too), its metadata saying so.
-pub fn truncate_baked(baked: &mut BakedMesh, bands: u32) {
-    baked.transfer = truncate_bands(&baked.transfer, bands);
-    if let Some(texels) = &mut baked.lightmap {
-        texels.transfer = truncate_bands(&texels.transfer, bands);
-    }
-    baked.metadata.bands = bands;
-}
-
-#[cfg(test)]
-mod band_tests {
-    use super::*;
-
-    #[test]
-    fn bands_are_chosen_by_the_energy_above_them() {
-        // One vertex, one channel, 3 bands: energies 1 (l = 0), 0.09 (l = 1), 0.01 (l = 2).
-        let transfer = Transfer {
-            bands: 3,
-            channels: 1,
-            vertex_count: 1,
-            coeffs: vec![1.0, 0.3, 0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0],
-        };
-        let fractions = band_energy_fractions(&transfer);
-        assert!((fractions[2] - 0.01 / 1.1).abs() < 1e-9, "{fractions:?}");
-        assert_eq!(choose_bands(&transfer, 0.05).0, 2);
-        assert_eq!(choose_bands(&transfer, 0.2).0, 1);
-        assert_eq!(choose_bands(&transfer, 0.001).0, 3);
-        let cut = truncate_bands(&transfer, 2);
-        assert_eq!(cut.coeffs, vec![1.0, 0.3, 0.0, 0.0]);
-    }
-
-    #[test]
-    fn a_bake_cut_to_fewer_bands_is_the_bake_of_fewer_bands() {
-        let scene = crate::scene::builtin::icosphere(Vec3::ZERO, 1.0, 2);
-        let plane = crate::scene::builtin::grid_plane(
-            Vec3::new(0.0, -1.0, 0.0),
-            Vec3::X * 3.0,
-            Vec3::NEG_Z * 3.0,
-            6,
-            Vec3::ONE,
-        );
-        let scene = crate::scene::builtin::merge(&[scene, plane]);
-        let bake_with = |bands| {
-            let options = BakeOptions {
-                bands,
-                samples: 256,
-                ..BakeOptions::default()
-            };
-            bake(scene.clone(), &options, &Backend::Cpu, &NoProgress)
-                .unwrap()
-                .0
-        };
-        let (eight, four) = (bake_with(8), bake_with(4));
-        let cut = truncate_bands(&eight.transfer, 4);
-        for (a, b) in cut.coeffs.iter().zip(&four.transfer.coeffs) {
-            // The same sums; only the rotation's rounding differs with the band count.
-            assert!((a - b).abs() <= 1e-5 * b.abs().max(1e-2), "{a} vs {b}");
-        }
     }
 }

@@ -1,0 +1,162 @@
+//! What a bake gives: the transfer, the baked mesh, what its file records and what the
+//! summary line reports.
+
+use super::*;
+
+/// Per-vertex transfer vectors, RGB.
+///
+/// Layout: `coeffs[(vertex * channels + channel) * bands^2 + k]`, `k = l(l+1) + m`.
+/// Exit radiance of vertex v in channel c under lighting coefficients `light[c][k]` is
+/// `sum_k light[c][k] * coeffs[(v * channels + c) * bands^2 + k]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Transfer {
+    pub bands: u32,
+    pub channels: u32,
+    pub vertex_count: usize,
+    pub coeffs: Vec<f32>,
+}
+
+impl Transfer {
+    pub fn coeffs_per_channel(&self) -> usize {
+        (self.bands * self.bands) as usize
+    }
+
+    /// The bands^2 coefficients of one vertex and channel.
+    pub fn vertex_channel(&self, vertex: usize, channel: usize) -> &[f32] {
+        let n = self.coeffs_per_channel();
+        let start = (vertex * self.channels as usize + channel) * n;
+        &self.coeffs[start..start + n]
+    }
+}
+
+/// A baked mesh: the prepared scene (normals `Some`), its transfer and how it was made.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakedMesh {
+    pub scene: Scene,
+    pub transfer: Transfer,
+    pub metadata: BakeMetadata,
+    /// Per-texel transfer, when a lightmap was baked (the scene is then split so that every
+    /// triangle corner has its own vertex and lightmap coordinates).
+    pub lightmap: Option<TexelBake>,
+}
+
+/// Transfer per texel of a lightmap atlas.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TexelBake {
+    pub width: u32,
+    pub height: u32,
+    /// Lightmap coordinates of every triangle corner of the scene (corner i of triangle t at
+    /// `3t + i`), in [0, 1] as glTF's `TEXCOORD_n`: texel (x, y) (row y from the top) has its
+    /// centre at `((x + 0.5) / width, (y + 0.5) / height)`. A mesh with a generated atlas is
+    /// split at its corners, so these are its vertices' coordinates too.
+    pub texcoords: Vec<[f32; 2]>,
+    /// The `TEXCOORD_n` set the coordinates are: 0 for a generated atlas, the scene's own
+    /// lightmap set otherwise.
+    pub set: u32,
+    /// The texels' transfer, row-major: `vertex_count` is `width * height`.
+    pub transfer: Transfer,
+}
+
+/// Everything a baked file records about how it was made (glTF mesh extras `prt`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BakeMetadata {
+    pub tool: String,
+    pub tool_version: String,
+    pub bands: u32,
+    pub channels: u32,
+    pub mode: Mode,
+    /// Sample directions actually used (a square number for the grid strategies).
+    pub samples: u32,
+    /// The `--sampling` strategy's name.
+    pub sampling: String,
+    pub seed: u64,
+    pub backend: String,
+    /// One line describing the SH basis; see `sh::CONVENTION`.
+    pub sh_convention: String,
+    /// One line describing the radiometric meaning of the coefficients.
+    pub radiometry: String,
+    /// Interreflection bounces added to the direct transfer (0 for the other modes).
+    #[serde(default)]
+    pub bounces: u32,
+    /// How vertex values were obtained from the baked receivers (absent: `point`).
+    #[serde(default, skip_serializing_if = "Fit::is_point")]
+    pub fit: Fit,
+    /// Least-squares fit: the surface points baked.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit_points: Option<u32>,
+    /// An error-targeted bake's target (`samples` is then the mean over receivers).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_error: Option<f64>,
+    /// The transfer leaves the albedo out: radiance is `albedo * sum_k l_k t_k`, the albedo
+    /// being the vertex colour (`COLOR_0`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub albedo_free: bool,
+}
+
+/// The meaning of the coefficients, for file metadata.
+pub const RADIOMETRY: &str = "exit radiance L_o = sum_k l_k t_k per channel, \
+l_k = integral L_in(w) y_k(w) dw, t_k = (albedo/pi) integral V(w) max(0, n.w) y_k(w) dw";
+
+/// What the baked file records about a bake with `options`.
+pub(super) fn metadata_for(
+    options: &BakeOptions,
+    samples: usize,
+    bounces: usize,
+    fit_points: Option<u32>,
+) -> BakeMetadata {
+    BakeMetadata {
+        tool: env!("CARGO_PKG_NAME").to_string(),
+        tool_version: env!("CARGO_PKG_VERSION").to_string(),
+        bands: options.bands,
+        channels: 3,
+        mode: options.mode,
+        samples: samples as u32,
+        sampling: options.sampling.name().to_string(),
+        seed: options.seed,
+        backend: String::new(),
+        sh_convention: CONVENTION.to_string(),
+        radiometry: RADIOMETRY.to_string(),
+        bounces: bounces as u32,
+        fit: options.fit,
+        fit_points,
+        target_error: options.target_error.map(|t| t.relative),
+        albedo_free: false,
+    }
+}
+
+/// What a bake did, for the summary line.
+#[derive(Clone, Debug)]
+pub struct BakeReport {
+    pub prepare: PrepareReport,
+    /// For every vertex of the scene as given, its vertex in the baked (prepared) mesh.
+    pub vertex_map: VertexMap,
+    /// Points the transfer was computed at (the vertices, or the fit's surface points).
+    pub receivers: usize,
+    pub samples_used: u32,
+    pub rays_cast: u64,
+    pub bvh_nodes: usize,
+    pub seconds_prepare: f64,
+    /// The direct pass (and, interreflected, the hits and the gather matrix).
+    pub seconds_transfer: f64,
+    /// The least-squares fit of the direct pass (zero for point values).
+    pub seconds_fit: f64,
+    /// The fit's solve, when the vertex values were fitted.
+    pub fit: Option<FitReport>,
+    /// The lightmap's bake, when one was asked for.
+    pub texels: Option<texels::TexelReport>,
+    /// The error-targeted direct pass, when a target was given.
+    pub adaptive: Option<adaptive::AdaptiveReport>,
+    /// One entry per bounce performed (each including its fit).
+    pub bounces: Vec<BounceStat>,
+    /// Non-zero entries of the gather matrix (interreflected mode).
+    pub gather_entries: usize,
+    pub backend: String,
+}
+
+/// What one bounce added and what it cost.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BounceStat {
+    /// DC energy the bounce added over the DC energy of all transfer before it.
+    pub relative_energy: f64,
+    pub seconds: f64,
+}

@@ -1,0 +1,208 @@
+//! What the user asks of a bake: the mode, the fit, the storage, and the options' checks.
+
+use super::*;
+
+/// Which light transport the transfer vectors capture.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// Clamped cosine only: every direction above the horizon is assumed visible.
+    Unshadowed,
+    /// Clamped cosine times binary visibility against the whole scene.
+    Shadowed,
+    /// Shadowed transfer plus light reflected between surfaces (`--bounces`).
+    Interreflected,
+    /// Point and spot lights inside the scene (`crate::local`): depth maps and the
+    /// direct-to-indirect operator, not SH transfer; baked by `local::bake_local`.
+    Local,
+}
+
+impl Mode {
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Unshadowed => "unshadowed",
+            Mode::Shadowed => "shadowed",
+            Mode::Interreflected => "interreflected",
+            Mode::Local => "local",
+        }
+    }
+}
+
+/// The most bounces a bake accepts.
+pub const MAX_BOUNCES: u32 = 64;
+
+/// How a bake turns transfer baked at receivers into the per-vertex values a renderer
+/// interpolates.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Fit {
+    /// Bake at the vertices: exact there, whatever lies between them.
+    #[default]
+    Point,
+    /// Bake at points spread over every triangle and fit the vertex values whose
+    /// interpolation matches them best over the surface (Kavan et al. 2011).
+    LeastSquares,
+}
+
+impl Fit {
+    pub fn name(self) -> &'static str {
+        match self {
+            Fit::Point => "point",
+            Fit::LeastSquares => "least-squares",
+        }
+    }
+
+    pub(super) fn is_point(&self) -> bool {
+        *self == Fit::Point
+    }
+}
+
+/// The strategy a bake uses when none is asked for; chosen from `prt-gpu chart` (README): the
+/// least error per sample, and with fan packets on the CPU as many rays per second as the
+/// shared-direction sets.
+pub const DEFAULT_SAMPLING: Sampling = Sampling::Cosine;
+
+/// The sample count a bake uses when none is asked for (README: with the default strategy it
+/// has a third of the error of the tutorial's 1024 stratified samples, at the same count).
+pub const DEFAULT_SAMPLES: u32 = 1024;
+
+/// What the user asks of a bake.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakeOptions {
+    pub bands: u32,
+    /// Requested sample directions; the grid strategies use the nearest square.
+    pub samples: u32,
+    pub sampling: Sampling,
+    pub seed: u64,
+    pub mode: Mode,
+    /// Replaces every material's albedo when set.
+    pub albedo: Option<Vec3>,
+    /// Interreflected mode: bounces after the direct pass.
+    pub bounces: u32,
+    /// Interreflected mode: stop once a bounce adds less than this fraction of the energy.
+    pub bounce_tolerance: f64,
+    pub fit: Fit,
+    /// Least-squares fit: how many surface points to bake.
+    pub point_density: PointDensity,
+    /// Also bake a lightmap about this many texels on its longer side.
+    pub lightmap: Option<u32>,
+    /// Cast samples per receiver until this error is reached (instead of `samples` each).
+    pub target_error: Option<adaptive::TargetError>,
+    pub storage: Storage,
+}
+
+/// How the transfer is stored.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Storage {
+    /// Red, green and blue transfer, albedo included.
+    #[default]
+    Rgb,
+    /// One channel where one suffices: shadowed and unshadowed transfer albedo-free (the albedo,
+    /// in `COLOR_0`, is applied at relighting); interreflected transfer when every albedo is
+    /// grey (its channels are then equal); RGB otherwise.
+    Lean,
+}
+
+impl Default for BakeOptions {
+    fn default() -> Self {
+        BakeOptions {
+            bands: 4,
+            samples: DEFAULT_SAMPLES,
+            sampling: DEFAULT_SAMPLING,
+            seed: 1,
+            mode: Mode::Shadowed,
+            albedo: None,
+            bounces: 3,
+            bounce_tolerance: 0.0,
+            fit: Fit::Point,
+            point_density: PointDensity::default(),
+            lightmap: None,
+            target_error: None,
+            storage: Storage::Rgb,
+        }
+    }
+}
+
+impl BakeOptions {
+    pub fn validate(&self) -> Result<()> {
+        if self.mode == Mode::Local {
+            return Err(Error::Options(
+                "--mode local bakes depth maps and a direct-to-indirect operator, not SH \
+                 transfer (local::bake_local)"
+                    .into(),
+            ));
+        }
+        if self.bands == 0 || self.bands > MAX_BANDS {
+            return Err(Error::Options(format!(
+                "--bands {} is out of range (1 to {MAX_BANDS})",
+                self.bands
+            )));
+        }
+        if self.samples == 0 || self.samples > MAX_SAMPLES {
+            return Err(Error::Options(format!(
+                "--samples {} is out of range (1 to {MAX_SAMPLES})",
+                self.samples
+            )));
+        }
+        if self.bounces > MAX_BOUNCES {
+            return Err(Error::Options(format!(
+                "--bounces {} is out of range (0 to {MAX_BOUNCES})",
+                self.bounces
+            )));
+        }
+        if !(0.0..1.0).contains(&self.bounce_tolerance) {
+            return Err(Error::Options(format!(
+                "--bounce-tolerance {} must lie in [0, 1)",
+                self.bounce_tolerance
+            )));
+        }
+        if let Some(size) = self.lightmap {
+            let max = crate::receivers::atlas::MAX_ATLAS_SIZE;
+            if !(1..=max).contains(&size) {
+                return Err(Error::Options(format!(
+                    "--lightmap {size} is out of range (1 to {max} texels)"
+                )));
+            }
+        }
+        if let Some(target) = &self.target_error {
+            target.validate()?;
+            if self.mode == Mode::Interreflected {
+                return Err(Error::Options(
+                    "--target-error bakes shadowed and unshadowed transfer, not interreflected"
+                        .into(),
+                ));
+            }
+        }
+        if self.storage == Storage::Lean && self.lightmap.is_some() {
+            return Err(Error::Options(
+                "--storage lean stores vertex transfer; lightmaps are stored in RGB".into(),
+            ));
+        }
+        let density = self.point_density;
+        if !(density.per_vertex.is_finite()
+            && density.per_vertex > 0.0
+            && density.per_vertex <= 1e4)
+            || density.min_per_triangle == 0
+        {
+            return Err(Error::Options(format!(
+                "--fit-points {} must be a number of points per vertex in (0, 10000]",
+                density.per_vertex
+            )));
+        }
+        if let Some(a) = self.albedo {
+            if !a.is_finite() || a.min_element() < 0.0 || a.max_element() > 1.0 {
+                return Err(Error::Options(format!(
+                    "--albedo {},{},{} must lie in [0, 1]",
+                    a.x, a.y, a.z
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The sample count actually used (the nearest square for the grid strategies).
+    pub fn samples_used(&self) -> u32 {
+        self.sampling.samples_used(self.samples)
+    }
+}

@@ -1,0 +1,206 @@
+//! `prt-gpu bake`: one mesh or a batch, distant-light transfer. Arguments become a spec
+//! ([`bake_spec`]), the pipeline bakes it ([`bake_one`]), the report is printed: the arguments in
+//! `args.rs`, the device in `backend.rs`, the files read and written in `files.rs`, the printed
+//! lines in `report.rs`, batches in `batch.rs`.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+use super::args::{
+    parse_compression, parse_cpca_shape, parse_rgb, parse_shard, parse_size, Bands, TransferArgs,
+};
+use super::progress::{batch_bar, BarProgress};
+use prt_gpu::bake::adaptive::TargetError;
+use prt_gpu::bake::gpu::{Chunking, GpuBaker};
+use prt_gpu::bake::{self, Backend, BakeOptions, BakeReport, Fit, Storage};
+use prt_gpu::device::{self, DeviceChoice, GpuContext};
+use prt_gpu::local::LocalOptions;
+use prt_gpu::precision::Precision;
+use prt_gpu::receivers::PointDensity;
+use prt_gpu::render::{self, ToneMap};
+use prt_gpu::shard::{self, PartHeader};
+use prt_gpu::spec::{
+    self, BakeSpec, Compression, Container, Layout, ReceiverSpec, StorageSpec, TransferSpec,
+};
+use prt_gpu::{fs, glb, light, pipeline, scene, Error, Result};
+
+mod args;
+mod backend;
+mod batch;
+mod files;
+mod report;
+
+// The command's parts, one step each; the other commands use them too.
+pub(crate) use args::*;
+pub(crate) use backend::*;
+pub(crate) use batch::*;
+pub(crate) use files::*;
+pub(crate) use report::*;
+
+/// One mesh (or the built-in scene) baked to one file.
+pub(crate) fn run_one(args: &BakeArgs, mesh: Option<PathBuf>) -> Result<()> {
+    let spec = bake_spec(args, &mesh)?;
+    spec.validate()?;
+    check_chunking(args)?;
+    let device = Device::new(|| bake_backend(&spec, args.device, args.adapter.as_deref()));
+    let progress = BarProgress::default();
+    let execution = Execution::of(args);
+    bake_one(
+        &spec,
+        &execution,
+        &mesh,
+        args.output.clone(),
+        &device,
+        None,
+        &progress,
+    )
+}
+
+/// What `bake`'s arguments ask of the bake of `mesh` (whose kind decides the container).
+pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeSpec> {
+    // Checked even where the bands are fixed: a nonsense option is refused, not ignored.
+    spec::check_bands_threshold(args.bands_threshold)?;
+    let defaults = BakeSpec::default();
+    let options = args.transfer.options();
+    Ok(BakeSpec {
+        receivers: ReceiverSpec {
+            fit: args.fit,
+            fit_points: args.fit_points,
+            lightmap: args.lightmap,
+            lightmap_uv: args.lightmap_uv,
+        },
+        transfer: TransferSpec {
+            bands: match args.transfer.bands {
+                Bands::Fixed(bands) => spec::Bands::Fixed(bands),
+                Bands::Auto => spec::Bands::Auto {
+                    threshold: args.bands_threshold,
+                },
+            },
+            samples: options.samples,
+            sampling: options.sampling,
+            seed: args.seed,
+            mode: options.mode,
+            albedo: args.albedo.map(|albedo| albedo.to_array()),
+            bounces: args.bounces,
+            bounce_tolerance: args.bounce_tolerance,
+            target_error: args.target_error.map(|relative| TargetError {
+                relative,
+                max_samples: args.max_samples,
+            }),
+        },
+        storage: StorageSpec {
+            channels: args.storage,
+            precision: args.precision,
+            layout: args.compress.map_or(Layout::PerVertex, Layout::Cpca),
+        },
+        container: match mesh {
+            Some(path) if scene::is_gltf(path) => Container::GltfInPlace,
+            _ => Container::Mesh,
+        },
+        ..defaults
+    })
+}
+
+/// Where the direct pass comes from: computed here, or the merged parts' (whose fingerprint
+/// must be this mesh's and spec's).
+fn direct_source(
+    spec: &BakeSpec,
+    scene: &scene::Scene,
+    mesh: &Option<PathBuf>,
+    merged: Option<(PartHeader, bake::DirectPass)>,
+) -> Result<bake::DirectSource> {
+    let Some((header, direct)) = merged else {
+        return Ok(bake::DirectSource::Compute);
+    };
+    if shard::fingerprint(scene, &spec.fingerprint_text()) != header.fingerprint {
+        return Err(Error::Merge(format!(
+            "{} is not the mesh the parts were baked from (it changed since)",
+            mesh_shown(mesh)
+        )));
+    }
+    let ran_on = header.backend;
+    Ok(bake::DirectSource::Given { direct, ran_on })
+}
+
+/// One bake of `mesh` to `output` as `spec` says, its direct pass computed on the device
+/// (the CPU without one) or, merging, joined from the parts of a sharded bake of the same mesh
+/// and spec.
+pub(crate) fn bake_one(
+    spec: &BakeSpec,
+    execution: &Execution,
+    mesh: &Option<PathBuf>,
+    output: Option<PathBuf>,
+    device: &Device,
+    merged: Option<(PartHeader, bake::DirectPass)>,
+    progress: &BarProgress,
+) -> Result<()> {
+    spec.validate()?;
+    let output_path = output.unwrap_or_else(|| default_output(mesh));
+    // Fail before the long part (and before reading the mesh), not after it.
+    check_bake_outputs(spec, execution.preview.as_deref(), mesh, &output_path, &[])?;
+    let loading = std::time::Instant::now();
+    let (scene, gltf, name) = load_bake_input(mesh)?;
+    let seconds_load = loading.elapsed().as_secs_f64();
+    let naming = |e| naming_the_mesh(e, &mesh_shown(mesh));
+    let planned = pipeline::plan(spec, scene, gltf.as_ref()).map_err(naming)?;
+    let options = spec.options();
+    note_samples_rounded(&options);
+    let baker = device.get()?;
+    let backend = backend_of(baker, &execution.chunking);
+    if merged.is_none() {
+        let available = device::available_memory();
+        let preview = execution.preview.is_some();
+        let plan = pipeline::plan_memory(
+            spec,
+            planned.scene(),
+            execution.memory_limit,
+            available,
+            preview,
+        )?;
+        if let Some(message) = plan.message {
+            eprintln!("{message}");
+        }
+        if let Some(chunk) = plan.chunk {
+            let report = planned
+                .run_streamed(&backend, chunk, &output_path, progress)
+                .map_err(naming)?;
+            progress.finish();
+            print_bake_report(&name, spec, options.bands, &report, &output_path, None);
+            return Ok(());
+        }
+    }
+    let merged_from = merged
+        .as_ref()
+        .map(|(header, _)| (header.shard_count, header.backend.clone()));
+    let source = direct_source(spec, planned.scene(), mesh, merged)?;
+    let baked = planned.run(&backend, source, progress).map_err(naming)?;
+    progress.finish();
+    print_shaping_lines(&baked);
+    // Rendered before the .glb is written, so that a preview that cannot be made leaves no bake.
+    let preview = match &execution.preview {
+        Some(path) => Some((
+            path,
+            match baker {
+                Some(baker) => render_preview(&baker.context, &baked.mesh)?,
+                None => render_preview(&open_render_device(None)?, &baked.mesh)?,
+            },
+        )),
+        None => None,
+    };
+    let writing = std::time::Instant::now();
+    let written = pipeline::write(spec, &baked, gltf.as_ref(), &output_path)?;
+    if let Some(cost) = &baked.half_float {
+        eprintln!("{cost}");
+    }
+    let seconds_write = writing.elapsed().as_secs_f64();
+    if let Some((path, image)) = preview {
+        write_preview_or_undo(path, &image, &output_path, baked.mesh.lightmap.is_some())?;
+    }
+    if let Some(written) = written {
+        print_in_place_report(&written, seconds_load, seconds_write);
+    }
+    let bands = baked.mesh.transfer.bands;
+    print_bake_report(&name, spec, bands, &baked.report, &output_path, merged_from);
+    Ok(())
+}

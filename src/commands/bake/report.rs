@@ -1,0 +1,167 @@
+//! What a bake prints: a line per stage that ran, and the summary line.
+
+use super::*;
+
+/// What the stages after the transfer did: the bands chosen, where compression ran, what it
+/// made.
+pub(super) fn print_shaping_lines(baked: &pipeline::Baked) {
+    if let Some(chosen) = &baked.bands_chosen {
+        eprintln!("{chosen}");
+    }
+    for note in &baked.notes {
+        eprintln!("note: {note}");
+    }
+    if let Some(compressed) = &baked.compressed {
+        eprintln!("{compressed}");
+    }
+}
+
+/// What baking a glTF scene in place did.
+pub(super) fn print_in_place_report(
+    written: &glb::scene::SceneWrite,
+    seconds_load: f64,
+    seconds_write: f64,
+) {
+    for repair in &written.repaired {
+        eprintln!("warning: {repair}");
+    }
+    eprintln!(
+        "baked in place: {} primitive(s), read in {seconds_load:.2} s, written in \
+         {seconds_write:.2} s{}",
+        written.primitives_baked,
+        match written.mesh_copies {
+            0 => String::new(),
+            n => format!(
+                "; {n} mesh(es) shown by several nodes copied, one per placement \
+                 (each place sees its own occlusion)"
+            ),
+        }
+    );
+}
+
+/// The parts a bake was merged from: how many, and the backend they ran on.
+pub(super) type MergedFrom = Option<(u32, String)>;
+
+/// One line for each stage that ran besides the direct pass: bounces, gather matrix, fit,
+/// error target, lightmap (written beside `output`).
+pub(super) fn print_stage_lines(report: &BakeReport, output: &Path) {
+    for (i, bounce) in report.bounces.iter().enumerate() {
+        eprintln!(
+            "bounce {}: +{:.2}% energy in {:.2} s",
+            i + 1,
+            100.0 * bounce.relative_energy,
+            bounce.seconds
+        );
+    }
+    if report.gather_entries > 0 {
+        // Each entry is a u32 column and an f32 weight.
+        eprintln!(
+            "gather matrix: {} entries ({:.1} MiB)",
+            report.gather_entries,
+            (report.gather_entries * 8) as f64 / (1u64 << 20) as f64
+        );
+    }
+    if let Some(fit) = &report.fit {
+        eprintln!(
+            "least-squares fit: {} surface points, solved in {:.2} s ({} iterations, residual \
+             {:.1e}, {} matrix entries)",
+            report.receivers,
+            report.seconds_fit,
+            fit.iterations,
+            fit.relative_residual,
+            fit.matrix_entries
+        );
+    }
+    if let Some(adaptive) = &report.adaptive {
+        eprintln!(
+            "target error: samples per receiver {} / {} / {} (min / median / max, mean {:.0}), \
+             {} at the cap; estimated error {:.2e} / {:.2e} / {:.2e} (median / 90% / max)",
+            adaptive.samples_min,
+            adaptive.samples_median,
+            adaptive.samples_max,
+            adaptive.samples_mean,
+            adaptive.at_cap,
+            adaptive.error_median,
+            adaptive.error_p90,
+            adaptive.error_max
+        );
+    }
+    if let Some(texels) = &report.texels {
+        eprintln!(
+            "lightmap: {}x{} texels, {} covered ({} inside geometry, refilled), {} rays in \
+             {:.2} s -> {}",
+            texels.width,
+            texels.height,
+            texels.covered,
+            texels.leaking,
+            texels.rays_cast,
+            texels.seconds,
+            output
+                .with_file_name(glb::lightmap_file_name(output))
+                .display()
+        );
+    }
+}
+
+/// A finished bake's report: what prepare repaired, a line per stage, the one summary line.
+pub(super) fn print_bake_report(
+    name: &str,
+    spec: &BakeSpec,
+    bands: u32,
+    report: &BakeReport,
+    output: &Path,
+    merged_from: MergedFrom,
+) {
+    if let Some(repairs) = report.prepare.repairs() {
+        eprintln!("warning: {name}: {repairs}");
+    }
+    print_stage_lines(report, output);
+    let seconds_bounces: f64 = report.bounces.iter().map(|b| b.seconds).sum();
+    let seconds_texels = report.texels.map_or(0.0, |t| t.seconds);
+    let seconds = report.seconds_prepare
+        + report.seconds_transfer
+        + report.seconds_fit
+        + seconds_bounces
+        + seconds_texels;
+    let rays_per_second = report.rays_cast as f64 / report.seconds_transfer.max(1e-9);
+    let rays = match merged_from {
+        None => format!(
+            "{} rays in {:.2} s ({:.2} M rays/s)",
+            report.rays_cast,
+            report.seconds_transfer,
+            rays_per_second / 1e6
+        ),
+        Some((parts, ran_on)) => format!(
+            "{} rays in {parts} shards ({ran_on}), merged",
+            report.rays_cast
+        ),
+    };
+    println!(
+        "baked {name}: {} vertices, {} triangles, {} bands, {} {} samples, {} mode; {rays}, \
+         {:.2} s in all ({}) -> {}",
+        report.prepare.vertices,
+        report.prepare.triangles,
+        bands,
+        match &report.adaptive {
+            Some(adaptive) => format!("{:.0} (mean)", adaptive.samples_mean),
+            None => report.samples_used.to_string(),
+        },
+        spec.transfer.sampling.name(),
+        spec.transfer.mode.name(),
+        seconds,
+        report.backend,
+        output.display()
+    );
+}
+
+pub(crate) fn note_samples_rounded(options: &BakeOptions) {
+    if options.samples_used() != options.samples {
+        let side = (options.samples_used() as f64).sqrt() as u32;
+        eprintln!(
+            "note: --samples {} is not a square; {} sampling uses {} ({side} x {side} strata)",
+            options.samples,
+            options.sampling.name(),
+            options.samples_used()
+        );
+    }
+}

@@ -1,0 +1,347 @@
+//! Encoding a baked mesh: the BIN chunk's views, the JSON, the container.
+
+use super::*;
+
+pub(super) fn put_f32s(bin: &mut Vec<u8>, values: impl IntoIterator<Item = f32>) {
+    for x in values {
+        bin.extend_from_slice(&x.to_le_bytes());
+    }
+}
+
+pub(super) fn encode_valid(
+    baked: &BakedMesh,
+    lightmap_uri: Option<&str>,
+    cpca: Option<&Cpca>,
+    precision: Precision,
+) -> Result<Vec<u8>> {
+    let (mut bin, mut views) = match (precision, cpca) {
+        (Precision::F16, None) => encode_bin_f16(baked),
+        _ => encode_bin(baked, cpca.is_none()),
+    };
+    let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, precision, &mut bin, &mut views));
+    let shape = Shape::of(baked);
+    let json = encode_json(
+        shape,
+        lightmap_uri,
+        cpca_extras,
+        views,
+        bin.len(),
+        precision,
+    )?;
+    glb_container(json, bin)
+}
+
+/// The BIN chunk and its views with the transfer as half floats: the mesh's views, then the
+/// planar transfer at two bytes a coefficient.
+pub(super) fn encode_bin_f16(baked: &BakedMesh) -> (Vec<u8>, Vec<BufferViewJson>) {
+    let mut bin = Vec::new();
+    let mut views = encode_mesh_views(&baked.scene, &mut bin);
+    let start = bin.len();
+    let transfer = &baked.transfer;
+    for channel in 0..transfer.channels as usize {
+        for group in 0..groups(transfer.bands) {
+            for vertex in 0..transfer.vertex_count {
+                let coeffs = transfer.vertex_channel(vertex, channel);
+                for k in 4 * group..4 * group + 4 {
+                    let x = half::f16::from_f32(coeffs.get(k).copied().unwrap_or(0.0));
+                    bin.extend_from_slice(&x.to_le_bytes());
+                }
+            }
+        }
+    }
+    // Each block is 8 bytes a vertex, so the view's length is a multiple of 4 already.
+    views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
+    (bin, views)
+}
+
+/// The JSON chunk of `baked` with the BIN chunk's `views` (`bin_len` bytes in all).
+pub(super) fn encode_json(
+    shape: Shape,
+    lightmap_uri: Option<&str>,
+    cpca_extras: Option<CpcaExtras>,
+    views: Vec<BufferViewJson>,
+    bin_len: usize,
+    precision: Precision,
+) -> Result<Vec<u8>> {
+    let attributes_hold_transfer = cpca_extras.is_none() && precision == Precision::F32;
+    let accessors = accessors_and_attributes(shape, attributes_hold_transfer);
+    let extras = MeshExtras {
+        prt: PrtExtras {
+            metadata: shape.metadata,
+            vertices: shape.scene.positions.len(),
+            transfer_buffer_view: cpca_extras.is_none().then_some(TRANSFER_VIEW),
+            transfer_layout: match precision {
+                Precision::F32 => TRANSFER_LAYOUT,
+                Precision::F16 => TRANSFER_LAYOUT_F16,
+            },
+            transfer_precision: (precision == Precision::F16).then_some(FLOAT16),
+            cpca: cpca_extras,
+            lightmap: shape.lightmap.map(|texels| LightmapExtras {
+                uri: lightmap_uri.unwrap_or(DEFAULT_LIGHTMAP_URI).to_string(),
+                width: texels.width,
+                height: texels.height,
+                texcoord: 0,
+                layout: crate::lightmap::LAYOUT.to_string(),
+            }),
+        },
+    };
+    mesh_json(extras, accessors, views, bin_len)
+}
+
+/// The .glb of every baked file: one scene, one node, one mesh of one triangle primitive
+/// (indices in accessor 3) carrying `extras`, one buffer, the BIN chunk `bin`.
+pub(super) fn mesh_glb<X: Serialize>(
+    extras: X,
+    accessors: (Vec<AccessorJson>, BTreeMap<String, usize>),
+    views: Vec<BufferViewJson>,
+    bin: Vec<u8>,
+) -> Result<Vec<u8>> {
+    let json = mesh_json(extras, accessors, views, bin.len())?;
+    glb_container(json, bin)
+}
+
+/// The JSON chunk of [`mesh_glb`], for a BIN chunk of `bin_len` bytes.
+pub(super) fn mesh_json<X: Serialize>(
+    extras: X,
+    (accessors, attributes): (Vec<AccessorJson>, BTreeMap<String, usize>),
+    views: Vec<BufferViewJson>,
+    bin_len: usize,
+) -> Result<Vec<u8>> {
+    let doc = Document {
+        asset: AssetJson {
+            version: "2.0".into(),
+            generator: Some(format!("prt-gpu {}", env!("CARGO_PKG_VERSION"))),
+        },
+        scene: Some(0),
+        scenes: vec![SceneJson { nodes: vec![0] }],
+        nodes: vec![NodeJson { mesh: Some(0) }],
+        meshes: vec![MeshJson {
+            primitives: vec![PrimitiveJson {
+                attributes,
+                indices: Some(3),
+                mode: Some(TRIANGLES),
+            }],
+            extras: Some(extras),
+        }],
+        accessors,
+        buffer_views: views,
+        buffers: vec![BufferJson {
+            byte_length: bin_len as u64,
+            uri: None,
+        }],
+    };
+    serde_json::to_vec(&doc)
+        .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))
+}
+
+/// The BIN chunk and its views: positions, normals, albedo, indices, then (with `planar`) the
+/// per-vertex transfer and, with a lightmap, its coordinates.
+pub(super) fn encode_bin(baked: &BakedMesh, planar: bool) -> (Vec<u8>, Vec<BufferViewJson>) {
+    let (scene, transfer) = (&baked.scene, &baked.transfer);
+    let capacity = bin_len(
+        scene.positions.len(),
+        scene.triangles.len(),
+        transfer.channels,
+        transfer.bands,
+    );
+    let mut bin = Vec::with_capacity(capacity.unwrap_or(0));
+    let mut views = encode_mesh_views(scene, &mut bin);
+    if !planar {
+        return (bin, views);
+    }
+    let start = bin.len();
+    put_planar_transfer(&mut bin, transfer);
+    views.push(transfer_view(start, bin.len() - start));
+    if let Some(texels) = &baked.lightmap {
+        let start = bin.len();
+        put_f32s(&mut bin, texels.texcoords.iter().flatten().copied());
+        views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
+    }
+    let expected_views = TRANSFER_VIEW + 1 + baked.lightmap.is_some() as usize;
+    debug_assert_eq!(views.len(), expected_views);
+    const { assert!(TEXCOORD_VIEW == TRANSFER_VIEW + 1) };
+    (bin, views)
+}
+
+/// Appends the mesh's positions, normals, albedo and indices to `bin`; their four views.
+pub(super) fn encode_mesh_views(scene: &Scene, bin: &mut Vec<u8>) -> Vec<BufferViewJson> {
+    let normals = scene.normals.as_deref().unwrap_or_default();
+    let mut views = Vec::new();
+    for vectors in [&scene.positions[..], normals, &scene.albedo[..]] {
+        let start = bin.len();
+        put_f32s(bin, vectors.iter().flat_map(|p| p.to_array()));
+        views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
+    }
+    let start = bin.len();
+    for &i in scene.triangles.iter().flatten() {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    views.push(array_view(
+        start,
+        bin.len() - start,
+        None,
+        ELEMENT_ARRAY_BUFFER,
+    ));
+    debug_assert_eq!(views.len(), TRANSFER_VIEW);
+    views
+}
+
+/// The transfer's view, `len` bytes from `start`. Several accessors share it, so the spec
+/// requires an explicit stride.
+pub(super) fn transfer_view(start: usize, len: usize) -> BufferViewJson {
+    array_view(start, len, Some(16), ARRAY_BUFFER)
+}
+
+/// Appends to `bin`, from its next 4-byte boundary, what `write` puts there, and a view of it
+/// to `views`; returns the view's index. Every extras-named view of a baked file (compressed
+/// transfer, local lights) is added this way.
+pub(super) fn append_view(
+    bin: &mut Vec<u8>,
+    views: &mut Vec<BufferViewJson>,
+    write: impl FnOnce(&mut Vec<u8>),
+) -> usize {
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let start = bin.len();
+    write(bin);
+    views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
+    views.len() - 1
+}
+
+pub(super) fn array_view(
+    start: usize,
+    len: usize,
+    stride: Option<u64>,
+    target: u32,
+) -> BufferViewJson {
+    BufferViewJson {
+        buffer: 0,
+        byte_offset: start as u64,
+        byte_length: len as u64,
+        byte_stride: stride,
+        target: Some(target),
+    }
+}
+
+/// Appends `transfer` in the planar layout ([`TRANSFER_LAYOUT`]).
+pub(super) fn put_planar_transfer(bin: &mut Vec<u8>, transfer: &Transfer) {
+    for channel in 0..transfer.channels as usize {
+        for group in 0..groups(transfer.bands) {
+            put_planar_block(bin, transfer, channel, group);
+        }
+    }
+}
+
+/// Appends the `(channel, group)` block of `transfer`'s vertices: four coefficients each.
+pub(super) fn put_planar_block(
+    bin: &mut Vec<u8>,
+    transfer: &Transfer,
+    channel: usize,
+    group: usize,
+) {
+    for vertex in 0..transfer.vertex_count {
+        let coeffs = transfer.vertex_channel(vertex, channel);
+        put_f32s(
+            bin,
+            (4 * group..4 * group + 4).map(|k| coeffs.get(k).copied().unwrap_or(0.0)),
+        );
+    }
+}
+
+/// The accessors of the views [`encode_bin`] lays out, and the primitive's attributes.
+pub(super) fn accessors_and_attributes(
+    shape: Shape,
+    planar: bool,
+) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
+    let (scene, transfer) = (shape.scene, shape.transfer);
+    let v = scene.positions.len();
+    let groups = groups(transfer.bands);
+    let (mut accessors, mut attributes) = mesh_accessors(scene);
+    let planar_channels = if planar {
+        transfer.channels as usize
+    } else {
+        0
+    };
+    for channel in 0..planar_channels {
+        for group in 0..groups {
+            let block = channel * groups + group;
+            let name = transfer_attribute_name(transfer.channels, channel as u32, group);
+            attributes.insert(name, accessors.len());
+            accessors.push(accessor(TRANSFER_VIEW, block * v * 16, FLOAT, v, "VEC4"));
+        }
+    }
+    if shape.lightmap.is_some() {
+        attributes.insert("TEXCOORD_0".into(), accessors.len());
+        accessors.push(accessor(TEXCOORD_VIEW, 0, FLOAT, v, "VEC2"));
+    }
+    (accessors, attributes)
+}
+
+/// An accessor of `count` elements of `kind` at `offset` in view `view`, without bounds.
+pub(super) fn accessor(
+    view: usize,
+    offset: usize,
+    component: u32,
+    count: usize,
+    kind: &str,
+) -> AccessorJson {
+    AccessorJson {
+        buffer_view: Some(view),
+        byte_offset: offset as u64,
+        component_type: component,
+        count: count as u64,
+        kind: kind.to_string(),
+        min: None,
+        max: None,
+        sparse: None,
+    }
+}
+
+/// The accessors of [`encode_mesh`]'s views and the primitive's `POSITION`, `NORMAL` and
+/// `COLOR_0` attributes.
+pub(super) fn mesh_accessors(scene: &Scene) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
+    let v = scene.positions.len();
+    let (min, max) = scene.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let accessors = vec![
+        AccessorJson {
+            min: Some(min.to_array().to_vec()),
+            max: Some(max.to_array().to_vec()),
+            ..accessor(0, 0, FLOAT, v, "VEC3")
+        },
+        accessor(1, 0, FLOAT, v, "VEC3"),
+        accessor(2, 0, FLOAT, v, "VEC3"),
+        accessor(3, 0, UNSIGNED_INT, 3 * scene.triangles.len(), "SCALAR"),
+    ];
+    let attributes: BTreeMap<String, usize> = [("POSITION", 0), ("NORMAL", 1), ("COLOR_0", 2)]
+        .into_iter()
+        .map(|(name, index)| (name.to_string(), index))
+        .collect();
+    (accessors, attributes)
+}
+
+/// The glTF binary container: header, JSON chunk (space-padded), BIN chunk (zero-padded).
+pub(crate) fn glb_container(mut json: Vec<u8>, mut bin: Vec<u8>) -> Result<Vec<u8>> {
+    json.resize(json.len().next_multiple_of(4), b' ');
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let total32 = u32::try_from(total)
+        .map_err(|_| Error::Geometry("the baked file would exceed the 4 GiB .glb limit".into()))?;
+    let mut out = Vec::with_capacity(total);
+    for word in [
+        GLB_MAGIC,
+        GLB_VERSION,
+        total32,
+        json.len() as u32,
+        CHUNK_JSON,
+    ] {
+        out.extend_from_slice(&word.to_le_bytes());
+    }
+    out.extend_from_slice(&json);
+    for word in [bin.len() as u32, CHUNK_BIN] {
+        out.extend_from_slice(&word.to_le_bytes());
+    }
+    out.extend_from_slice(&bin);
+    Ok(out)
+}

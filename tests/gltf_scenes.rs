@@ -1385,3 +1385,128 @@ fn a_gltf_lightmap_on_its_own_uv_set_bakes_alike_on_the_cpu_and_the_gpu() {
         assert!(error < 1e-4, "CPU and GPU lightmaps differ by {error:.2e}");
     }
 }
+
+/// The float `VEC3` values of accessor `index` in a .glb's BIN chunk (tightly packed).
+fn vec3_accessor(bytes: &[u8], doc: &Value, index: u64) -> Vec<[f32; 3]> {
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let bin = &bytes[28 + json_len..];
+    let accessor = &doc["accessors"][index as usize];
+    assert_eq!(accessor["type"], "VEC3");
+    assert_eq!(accessor["componentType"], 5126);
+    let view = &doc["bufferViews"][accessor["bufferView"].as_u64().unwrap() as usize];
+    assert!(view.get("byteStride").is_none_or(|s| s == 12));
+    let start = view["byteOffset"].as_u64().unwrap_or(0) as usize
+        + accessor["byteOffset"].as_u64().unwrap_or(0) as usize;
+    let count = accessor["count"].as_u64().unwrap() as usize;
+    bin[start..start + 12 * count]
+        .chunks_exact(12)
+        .map(|v| {
+            std::array::from_fn(|c| f32::from_le_bytes(v[4 * c..4 * c + 4].try_into().unwrap()))
+        })
+        .collect()
+}
+
+/// `render SCENE -o relit.glb` on a glTF scene baked in place: every baked primitive carries
+/// the relit radiance as `_RADIANCE` (exactly the relighting of the baked file), `COLOR_0` its
+/// shading — radiance over the vertex albedo, over the stated scale — for the material's colour
+/// to multiply, and its material is unlit; the copy passes the Khronos validator and is the
+/// same baked scene in every other respect. RGB (albedo in the transfer) and lean (albedo left
+/// to the material) files, one primitive with a texture and several sharing materials.
+#[test]
+fn a_relit_scene_shows_its_radiance_through_unlit_materials() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scenes = [
+        ("BoxTextured.glb", "rgb"),
+        ("BoxTextured.glb", "lean"),
+        ("TextureTransformTest/TextureTransformTest.gltf", "rgb"),
+    ];
+    for (input, storage) in scenes {
+        let source = data(input);
+        let out = common::prt_gpu(
+            &[
+                "bake",
+                source.to_str().unwrap(),
+                "--samples",
+                "64",
+                "--device",
+                "cpu",
+                "--storage",
+                storage,
+                "-o",
+                "scene.prt.glb",
+            ],
+            d,
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let out = common::prt_gpu(&["render", "scene.prt.glb", "-o", "relit.glb"], d);
+        let said = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(said.contains("_RADIANCE = exit radiance"), "{said}");
+        let relit = d.join("relit.glb");
+        assert_valid(&relit);
+
+        let (gltf, baked) =
+            prt_gpu::glb::scene::read_scene_vertices(&d.join("scene.prt.glb")).unwrap();
+        assert_eq!(baked.metadata.albedo_free, storage == "lean", "{input}");
+        let light = prt_gpu::light::preview_light(baked.metadata.bands).unwrap();
+        let expected = prt_gpu::render::relight_baked(&baked, &light).unwrap();
+        let bytes = std::fs::read(&relit).unwrap();
+        let doc = glb_json(&bytes);
+        let scale = doc["extras"]["prt"]["relit"]["scale"].as_f64().unwrap() as f32;
+        assert!(scale >= 1.0, "{scale}");
+        assert!(doc["extensionsUsed"]
+            .as_array()
+            .unwrap()
+            .contains(&json!("KHR_materials_unlit")));
+        let mut primitives = 0;
+        for instance in &gltf.instances {
+            for span in &instance.primitives {
+                let primitive = &doc["meshes"][instance.mesh]["primitives"][span.primitive];
+                let attribute = |name: &str| {
+                    let index = primitive["attributes"][name].as_u64().unwrap();
+                    vec3_accessor(&bytes, &doc, index)
+                };
+                let radiance = attribute("_RADIANCE");
+                let colors = attribute("COLOR_0");
+                let wanted = &expected[span.first..span.first + span.count];
+                assert_eq!(radiance, wanted, "{input} {storage}: _RADIANCE");
+                let albedo = &baked.scene.albedo[span.first..span.first + span.count];
+                for ((color, r), a) in colors.iter().zip(wanted).zip(albedo) {
+                    for c in 0..3 {
+                        assert!((0.0..=1.0).contains(&color[c]), "{color:?}");
+                        // The material's colour (the albedo) times the shading is the radiance.
+                        let shown = a[c] * color[c] * scale;
+                        let bound = 1e-5 * (1.0 + r[c].abs());
+                        assert!(
+                            (shown - r[c].max(0.0)).abs() <= bound || a[c] == 0.0,
+                            "{input} {storage}: albedo {a:?} x colour {color:?} x {scale} is \
+                             not {r:?}"
+                        );
+                    }
+                }
+                let material = primitive["material"].as_u64().unwrap() as usize;
+                assert!(
+                    doc["materials"][material]["extensions"]["KHR_materials_unlit"].is_object(),
+                    "{input}: material {material} is not unlit"
+                );
+                primitives += 1;
+            }
+        }
+        assert!(primitives > 0);
+        // The copy is the baked scene in every other respect: it reads back to the same transfer.
+        let copy = read_scene_glb(&relit).unwrap();
+        assert_eq!(
+            copy.transfer,
+            read_scene_glb(&d.join("scene.prt.glb")).unwrap().transfer
+        );
+    }
+}

@@ -180,24 +180,10 @@ fn write_relit_distant(args: &RenderArgs) -> Result<()> {
     };
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if glb::is_scene_file(&bytes) {
-        return Err(Error::Options(
-            "-o .glb: a glTF scene baked in place keeps its own vertex colours (not supported yet)"
-                .into(),
-        ));
+        return write_relit_scene(args, path);
     }
     let (baked, cpca) = glb::read_glb_compressed(path)?;
-    let bands = baked.metadata.bands;
-    let (light, name) = match &args.light {
-        Some(light_path) => (
-            load_light(light_path, bands, args.mapping, false)?.light,
-            light_path.display().to_string(),
-        ),
-        None => (
-            light::preview_light(bands)?,
-            "the preview sky and sun".to_string(),
-        ),
-    };
-    let light = shape(light, &args.shaping);
+    let (light, name) = relit_light(args, baked.metadata.bands)?;
     let radiance = match &cpca {
         Some(cpca) => render::apply_albedo(&baked, cpca.relight(&light)?),
         None => render::relight_baked(&baked, &light)?,
@@ -210,6 +196,61 @@ fn write_relit_distant(args: &RenderArgs) -> Result<()> {
         relit_attributes(scale)
     );
     Ok(())
+}
+
+/// The light `-o .glb` relights under, shaped, and its name for the file and the report.
+fn relit_light(args: &RenderArgs, bands: u32) -> Result<(light::ShLight, String)> {
+    let (light, name) = match &args.light {
+        Some(light_path) => (
+            load_light(light_path, bands, args.mapping, false)?.light,
+            light_path.display().to_string(),
+        ),
+        None => (
+            light::preview_light(bands)?,
+            "the preview sky and sun".to_string(),
+        ),
+    };
+    Ok((shape(light, &args.shaping), name))
+}
+
+/// `render SCENE.glb --light ... -o relit.glb` for a glTF scene baked in place: each baked
+/// primitive's relit shading as `COLOR_0` under an unlit material, the radiance as
+/// `_RADIANCE` (`glb::relit`).
+fn write_relit_scene(args: &RenderArgs, path: &Path) -> Result<()> {
+    let (gltf, baked) = glb::scene::read_scene_vertices(path)?;
+    let (light, name) = relit_light(args, baked.metadata.bands)?;
+    let lit = render::relight(&baked.transfer, &light)?;
+    let radiance = render::apply_albedo(&baked, lit.clone());
+    let shading = match baked.metadata.albedo_free {
+        true => lit,
+        false => radiance
+            .iter()
+            .zip(&baked.scene.albedo)
+            .map(|(r, a)| std::array::from_fn(|c| over_albedo(r[c], a[c])))
+            .collect(),
+    };
+    let scale =
+        glb::relit::write_relit_scene_copy(path, &args.output, &gltf, &radiance, &shading, &name)?;
+    println!(
+        "relit {} vertices of {} primitive(s) under {name} -> {} ({} = exit radiance; COLOR_0 \
+         = exit radiance / albedo / {scale} under unlit materials (extras.prt.relit))",
+        radiance.len(),
+        gltf.instances
+            .iter()
+            .map(|i| i.primitives.len())
+            .sum::<usize>(),
+        args.output.display(),
+        glb::relit::RADIANCE_ATTRIBUTE
+    );
+    Ok(())
+}
+
+/// Radiance over the albedo that made it; zero where the albedo is (nothing to show there).
+fn over_albedo(radiance: f32, albedo: f32) -> f32 {
+    match albedo > 0.0 {
+        true => radiance / albedo,
+        false => 0.0,
+    }
 }
 
 /// `render` of a local-lights bake: one image, a sequence (`--frames`), or a relit copy.

@@ -11,12 +11,24 @@
 //! attribute `_RADIANCE` (an application-specific attribute, which viewers ignore): read that
 //! to compare with another renderer. (A scale easy to miss once made a relit interior look
 //! 31% and 61% too dark against a path tracer.)
+//!
+//! A glTF scene baked in place keeps its materials, and glTF multiplies `COLOR_0` by a
+//! material's base colour. So each baked primitive's new `COLOR_0` holds its relit shading —
+//! the radiance over the vertex's albedo, the light its material's colour multiplies — over
+//! the scale, `_RADIANCE` the radiance itself, and the materials of the baked primitives become
+//! unlit (`KHR_materials_unlit`, listed in `extensionsUsed` but not required): a viewer then
+//! shows base colour × `COLOR_0`, the relit scene with its textures, and one without the
+//! extension falls back to its own lighting. The root's `extras.prt.relit` says so.
 
+use std::collections::BTreeSet;
 use std::path::Path;
+
+use serde_json::{json, Value};
 
 use super::{glb_container, split_chunks, FLOAT};
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
+use crate::scene::gltf::GltfScene;
 
 /// `extras.prt.relit.color_0`: what `COLOR_0` now holds.
 pub const RELIT_COLOR: &str =
@@ -27,6 +39,13 @@ pub const RADIANCE_ATTRIBUTE: &str = "_RADIANCE";
 
 /// `extras.prt.relit.radiance`: what [`RADIANCE_ATTRIBUTE`] holds.
 pub const RELIT_RADIANCE: &str = "relit exit radiance, linear RGB, unscaled (W/(m^2 sr))";
+
+/// `extras.prt.relit.color_0` of a relit scene: what each baked primitive's `COLOR_0` holds.
+pub const RELIT_SCENE_COLOR: &str = "relit shading: exit radiance over the vertex's albedo (what \
+the material's base colour multiplies) / scale, linear RGB, negative values as 0";
+
+/// The extension that makes a relit scene's baked materials show `COLOR_0` as it is.
+pub const UNLIT: &str = "KHR_materials_unlit";
 
 /// The baked file `bytes` with `COLOR_0` replaced by `radiance / scale` (one per vertex),
 /// `radiance` itself added as [`RADIANCE_ATTRIBUTE`], and `extras.prt.relit = {color_0,
@@ -46,13 +65,7 @@ pub fn with_relit_colors(
     let target = bin
         .get_mut(range)
         .ok_or_else(|| damaged("COLOR_0 runs past the BIN chunk".into()))?;
-    let scale = radiance
-        .iter()
-        .flatten()
-        .fold(1.0f32, |largest, &x| largest.max(x));
-    if !scale.is_finite() {
-        return Err(Error::Options("the relit radiance is not finite".into()));
-    }
+    let scale = color_scale(radiance)?;
     for (slot, value) in target.chunks_exact_mut(4).zip(radiance.iter().flatten()) {
         slot.copy_from_slice(&(value.max(0.0) / scale).to_le_bytes());
     }
@@ -69,50 +82,209 @@ pub fn with_relit_colors(
             "light": light,
         }),
     );
-    append_radiance(&mut doc, &mut bin, radiance).map_err(damaged)?;
+    let accessor = append_vec3s(&mut doc, &mut bin, radiance.iter().copied()).map_err(damaged)?;
+    set_attribute(&mut doc, 0, 0, RADIANCE_ATTRIBUTE, accessor).map_err(damaged)?;
+    finish(doc, bin, scale)
+}
+
+/// The largest component of `values` where it exceeds 1, else 1: what `COLOR_0` is divided by
+/// to stay in [0, 1].
+fn color_scale(values: &[[f32; 3]]) -> Result<f32> {
+    let scale = values
+        .iter()
+        .flatten()
+        .fold(1.0f32, |largest, &x| largest.max(x));
+    match scale.is_finite() {
+        true => Ok(scale),
+        false => Err(Error::Options("the relit radiance is not finite".into())),
+    }
+}
+
+/// The baked scene `bytes` (read from `path` as `gltf`) relit ([module docs](self)): each baked
+/// primitive's `COLOR_0` becomes its vertices' `shading / scale` (negative values as 0),
+/// `radiance` its [`RADIANCE_ATTRIBUTE`], its material unlit; `radiance` and `shading` hold
+/// one value per vertex of the scene as read, in the order of `gltf`'s primitive spans. Gives
+/// the bytes and the scale.
+pub fn with_relit_scene_colors(
+    bytes: &[u8],
+    path: &Path,
+    gltf: &GltfScene,
+    radiance: &[[f32; 3]],
+    shading: &[[f32; 3]],
+    light: &str,
+) -> Result<(Vec<u8>, f32)> {
+    let damaged = |message: String| Error::baked(path, message);
+    let (json, bin) = split_chunks(bytes, path)?;
+    let mut bin = bin.to_vec();
+    let mut doc: Value =
+        serde_json::from_slice(json).map_err(|e| damaged(format!("invalid glTF JSON: {e}")))?;
+    let one_buffer = doc["buffers"].as_array().is_some_and(|b| b.len() == 1)
+        && doc["buffers"][0].get("uri").is_none();
+    if !one_buffer {
+        return Err(damaged(
+            "a scene baked in place holds one buffer, its BIN chunk; this one does not".into(),
+        ));
+    }
+    let scale = color_scale(shading)?;
+    let mut meshes = BTreeSet::new();
+    let mut materials = BTreeSet::new();
+    let mut unmaterialled = Vec::new();
+    for instance in &gltf.instances {
+        if !meshes.insert(instance.mesh) {
+            return Err(damaged(format!(
+                "mesh {} is shown by several nodes, which a scene baked in place never is",
+                instance.mesh
+            )));
+        }
+        for span in &instance.primitives {
+            let range = span.first..span.first + span.count;
+            let (Some(shaded), Some(radiant)) = (shading.get(range.clone()), radiance.get(range))
+            else {
+                return Err(damaged(format!(
+                    "the relit values cover {} vertices; mesh {} needs more",
+                    radiance.len().min(shading.len()),
+                    instance.mesh
+                )));
+            };
+            let colors = shaded.iter().map(|c| c.map(|x| x.max(0.0) / scale));
+            let color = append_vec3s(&mut doc, &mut bin, colors).map_err(damaged)?;
+            let radiant =
+                append_vec3s(&mut doc, &mut bin, radiant.iter().copied()).map_err(damaged)?;
+            let (mesh, primitive) = (instance.mesh, span.primitive);
+            set_attribute(&mut doc, mesh, primitive, "COLOR_0", color).map_err(damaged)?;
+            set_attribute(&mut doc, mesh, primitive, RADIANCE_ATTRIBUTE, radiant)
+                .map_err(damaged)?;
+            match doc["meshes"][mesh]["primitives"][primitive]["material"].as_u64() {
+                Some(material) => {
+                    materials.insert(material as usize);
+                }
+                None => unmaterialled.push((mesh, primitive)),
+            }
+        }
+    }
+    make_unlit(&mut doc, &materials, &unmaterialled).map_err(damaged)?;
+    let prt = doc
+        .pointer_mut("/extras/prt")
+        .and_then(Value::as_object_mut)
+        .ok_or_else(|| damaged("no extras.prt: not a scene baked in place".into()))?;
+    prt.insert(
+        "relit".into(),
+        json!({
+            "color_0": RELIT_SCENE_COLOR,
+            "scale": scale,
+            "radiance": RELIT_RADIANCE,
+            "materials": format!("{UNLIT} on every baked primitive's material"),
+            "light": light,
+        }),
+    );
+    finish(doc, bin, scale)
+}
+
+/// The materials `materials` made unlit, and the primitives `unmaterialled` given one white
+/// unlit material of their own; the extension listed as used.
+fn make_unlit(
+    doc: &mut Value,
+    materials: &BTreeSet<usize>,
+    unmaterialled: &[(usize, usize)],
+) -> std::result::Result<(), String> {
+    for &material in materials {
+        let material = doc
+            .pointer_mut(&format!("/materials/{material}"))
+            .and_then(Value::as_object_mut)
+            .ok_or(format!("material {material} does not exist"))?;
+        let extensions = material.entry("extensions").or_insert_with(|| json!({}));
+        extensions
+            .as_object_mut()
+            .ok_or("a material's extensions are not an object")?
+            .insert(UNLIT.into(), json!({}));
+    }
+    if !unmaterialled.is_empty() {
+        let white = json!({
+            "name": "prt-gpu relit (unlit white)",
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0]},
+            "extensions": {UNLIT: {}},
+        });
+        let index = push(doc, "materials", white)?;
+        for &(mesh, primitive) in unmaterialled {
+            doc["meshes"][mesh]["primitives"][primitive]["material"] = index.into();
+        }
+    }
+    let root = doc
+        .as_object_mut()
+        .ok_or("the glTF JSON is not an object")?;
+    let used = root.entry("extensionsUsed").or_insert_with(|| json!([]));
+    let used = used
+        .as_array_mut()
+        .ok_or("extensionsUsed is not an array")?;
+    if !used.iter().any(|name| name == UNLIT) {
+        used.push(UNLIT.into());
+    }
+    Ok(())
+}
+
+/// The document and BIN chunk as a .glb, the buffer's length brought up to date.
+fn finish(mut doc: Value, bin: Vec<u8>, scale: f32) -> Result<(Vec<u8>, f32)> {
+    let mut bin = bin;
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    if let Some(buffer) = doc.pointer_mut("/buffers/0").and_then(Value::as_object_mut) {
+        buffer.insert("byteLength".into(), bin.len().into());
+    }
     let json = serde_json::to_vec(&doc)
         .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))?;
     Ok((glb_container(json, bin)?, scale))
 }
 
-/// Appends `radiance` to the BIN chunk as a new buffer view and float `VEC3` accessor, the
-/// first primitive's [`RADIANCE_ATTRIBUTE`].
-fn append_radiance(
-    doc: &mut serde_json::Value,
+/// Appends `values` to the BIN chunk as a new buffer view and float `VEC3` accessor; gives the
+/// accessor's index.
+fn append_vec3s(
+    doc: &mut Value,
     bin: &mut Vec<u8>,
-    radiance: &[[f32; 3]],
-) -> std::result::Result<(), String> {
+    values: impl ExactSizeIterator<Item = [f32; 3]>,
+) -> std::result::Result<usize, String> {
+    let count = values.len();
     bin.resize(bin.len().next_multiple_of(4), 0);
     let offset = bin.len();
-    bin.extend(radiance.iter().flatten().flat_map(|x| x.to_le_bytes()));
-    let mut push = |array: &str, item: serde_json::Value| -> std::result::Result<usize, String> {
-        let list = doc
-            .get_mut(array)
-            .and_then(|a| a.as_array_mut())
-            .ok_or(format!("the file has no {array}"))?;
-        list.push(item);
-        Ok(list.len() - 1)
-    };
+    bin.extend(values.flatten().flat_map(|x| x.to_le_bytes()));
     let view = push(
+        doc,
         "bufferViews",
-        serde_json::json!({"buffer": 0, "byteOffset": offset, "byteLength": 12 * radiance.len()}),
+        json!({"buffer": 0, "byteOffset": offset, "byteLength": 12 * count}),
     )?;
-    let accessor = push(
+    push(
+        doc,
         "accessors",
-        serde_json::json!({
-            "bufferView": view, "componentType": FLOAT, "count": radiance.len(), "type": "VEC3"
-        }),
-    )?;
-    let attributes = doc
-        .pointer_mut("/meshes/0/primitives/0/attributes")
-        .and_then(|a| a.as_object_mut())
-        .ok_or("the file has no primitive attributes")?;
-    attributes.insert(RADIANCE_ATTRIBUTE.into(), accessor.into());
-    let buffer = doc
-        .pointer_mut("/buffers/0")
-        .and_then(|b| b.as_object_mut())
-        .ok_or("the file has no buffer")?;
-    buffer.insert("byteLength".into(), bin.len().into());
+        json!({"bufferView": view, "componentType": FLOAT, "count": count, "type": "VEC3"}),
+    )
+}
+
+/// Pushes `item` onto the document's array `array` (created if missing); gives its index.
+fn push(doc: &mut Value, array: &str, item: Value) -> std::result::Result<usize, String> {
+    let root = doc
+        .as_object_mut()
+        .ok_or("the glTF JSON is not an object")?;
+    let list = root
+        .entry(array)
+        .or_insert_with(|| json!([]))
+        .as_array_mut()
+        .ok_or(format!("{array} is not an array"))?;
+    list.push(item);
+    Ok(list.len() - 1)
+}
+
+/// Points attribute `name` of mesh `mesh`'s primitive `primitive` at `accessor`.
+fn set_attribute(
+    doc: &mut Value,
+    mesh: usize,
+    primitive: usize,
+    name: &str,
+    accessor: usize,
+) -> std::result::Result<(), String> {
+    doc.pointer_mut(&format!("/meshes/{mesh}/primitives/{primitive}/attributes"))
+        .and_then(Value::as_object_mut)
+        .ok_or(format!(
+            "mesh {mesh} has no primitive {primitive} with attributes"
+        ))?
+        .insert(name.into(), accessor.into());
     Ok(())
 }
 
@@ -165,6 +337,23 @@ pub fn write_relit_copy(
     check_destination(output)?;
     let bytes = std::fs::read(source).map_err(|e| Error::io(source, e))?;
     let (relit, scale) = with_relit_colors(&bytes, source, radiance, light)?;
+    write_atomically(output, &relit)?;
+    Ok(scale)
+}
+
+/// Writes [`with_relit_scene_colors`] of the scene at `source` (read as `gltf`) to `output`,
+/// atomically; gives the scale `COLOR_0` was divided by.
+pub fn write_relit_scene_copy(
+    source: &Path,
+    output: &Path,
+    gltf: &GltfScene,
+    radiance: &[[f32; 3]],
+    shading: &[[f32; 3]],
+    light: &str,
+) -> Result<f32> {
+    check_destination(output)?;
+    let bytes = std::fs::read(source).map_err(|e| Error::io(source, e))?;
+    let (relit, scale) = with_relit_scene_colors(&bytes, source, gltf, radiance, shading, light)?;
     write_atomically(output, &relit)?;
     Ok(scale)
 }

@@ -33,7 +33,7 @@ use serde_json::{json, Value};
 mod read;
 
 pub(crate) use read::stored_references;
-pub use read::{is_baked_in_place, read_scene_glb};
+pub use read::{is_baked_in_place, read_scene_glb, read_scene_vertices};
 
 use super::compressed::{self, CpcaExtras};
 use super::{

@@ -83,29 +83,8 @@ fn json_of(bytes: &[u8]) -> Value {
 /// comes split at its triangle corners, each carrying its lightmap coordinates, as a baked
 /// mesh with a generated atlas does.
 pub fn read_scene_glb(path: &Path) -> Result<BakedMesh> {
-    let (gltf, scene) = gltf::load(path)?;
+    let (gltf, mut baked) = read_scene_vertices(path)?;
     let bad = |message: String| Error::baked(path, message);
-    let metadata = scene_metadata(&gltf.root).map_err(bad)?;
-    let transfer = gather_transfer(&gltf, &scene, &metadata).map_err(bad)?;
-    let mut scene = scene;
-    if scene.normals.is_none() {
-        scene.normals = Some(crate::scene::prepare::smooth_normals(
-            &scene.positions,
-            &scene.triangles,
-        ));
-    }
-    let mut baked = BakedMesh {
-        scene,
-        transfer,
-        metadata,
-        lightmap: None,
-    };
-    // What the single-mesh reader refuses value by value (a NaN position, an infinite
-    // coefficient) is refused here for the scene as a whole.
-    crate::glb::validate(&baked).map_err(|e| match e {
-        Error::Geometry(message) => Error::baked(path, message),
-        other => other,
-    })?;
     let root_extras: Value = match &gltf.root.extras {
         Some(raw) => serde_json::from_str(raw.get()).map_err(|e| bad(e.to_string()))?,
         None => Value::Null,
@@ -132,6 +111,36 @@ pub fn read_scene_glb(path: &Path) -> Result<BakedMesh> {
         baked.lightmap = Some(crate::glb::read_texels(path, &baked, extras, texcoords)?);
     }
     Ok(baked)
+}
+
+/// A scene written by [`write_scene_glb`](super::write_scene_glb) as read, and its baked mesh
+/// in world space with one vertex per vertex of its primitives, in the order of the scene's
+/// primitive spans (a lightmap, if any, not read).
+pub fn read_scene_vertices(path: &Path) -> Result<(GltfScene, BakedMesh)> {
+    let (gltf, scene) = gltf::load(path)?;
+    let bad = |message: String| Error::baked(path, message);
+    let metadata = scene_metadata(&gltf.root).map_err(bad)?;
+    let transfer = gather_transfer(&gltf, &scene, &metadata).map_err(bad)?;
+    let mut scene = scene;
+    if scene.normals.is_none() {
+        scene.normals = Some(crate::scene::prepare::smooth_normals(
+            &scene.positions,
+            &scene.triangles,
+        ));
+    }
+    let baked = BakedMesh {
+        scene,
+        transfer,
+        metadata,
+        lightmap: None,
+    };
+    // What the single-mesh reader refuses value by value (a NaN position, an infinite
+    // coefficient) is refused here for the scene as a whole.
+    crate::glb::validate(&baked).map_err(|e| match e {
+        Error::Geometry(message) => Error::baked(path, message),
+        other => other,
+    })?;
+    Ok((gltf, baked))
 }
 
 /// The metadata of the first baked mesh.

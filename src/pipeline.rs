@@ -133,17 +133,61 @@ impl Planned<'_> {
     }
 
     /// Bakes it streamed to `path` in chunks of `chunk` receivers (a plan of [`plan_memory`]):
-    /// the file equals the whole bake's, byte for byte.
+    /// the file equals the whole bake's, byte for byte, and so does what storing it as half
+    /// floats costs. With `preview`, the radiance the preview draws is summed chunk by chunk.
     pub fn run_streamed(
         self,
         backend: &Backend,
         chunk: usize,
         path: &Path,
+        preview: bool,
         progress: &dyn Progress,
-    ) -> Result<BakeReport> {
+    ) -> Result<Streamed> {
         let streamed = bake::stream::StreamedBake::plan(self.scene, &self.spec.options())?;
-        glb::stream::bake_streamed(&streamed, backend, chunk, path, progress)
+        let precision = self.spec.storage.precision;
+        let mut half_float = match precision {
+            Precision::F16 => Some(HalfFloatTally::new(streamed.bands())?),
+            Precision::F32 => None,
+        };
+        let preview_light = light::preview_light(streamed.bands())?;
+        let mut radiance = Vec::new();
+        let albedo_free = streamed.metadata(backend, 0).albedo_free;
+        let albedo = &streamed.scene().albedo;
+        let mut each_chunk = |transfer: &bake::Transfer| {
+            if let Some(tally) = &mut half_float {
+                tally.add(transfer)?;
+            }
+            if preview {
+                let first = radiance.len();
+                let mut relit = render::relight(transfer, &preview_light)?;
+                if albedo_free {
+                    render::tint_by(&mut relit, &albedo[first..]);
+                }
+                radiance.extend(relit);
+            }
+            Ok(())
+        };
+        let sink = glb::stream::StreamSink {
+            path,
+            precision,
+            each_chunk: &mut each_chunk,
+        };
+        let report = glb::stream::bake_streamed(&streamed, backend, chunk, sink, progress)?;
+        Ok(Streamed {
+            report,
+            half_float: half_float.map(|tally| tally.cost()),
+            preview: preview.then(|| (streamed.into_scene(), radiance)),
+        })
     }
+}
+
+/// What a streamed bake gives besides its file.
+pub struct Streamed {
+    pub report: BakeReport,
+    pub half_float: Option<HalfFloatCost>,
+    /// The prepared scene and its radiance at the vertices under the preview light (albedo
+    /// applied), when asked for: what [`render::preview`] would draw of the whole bake.
+    pub preview: Option<(Scene, Vec<[f32; 3]>)>,
 }
 
 /// How a bake fits the memory it may use.
@@ -159,13 +203,12 @@ pub struct MemoryPlan {
 /// How the bake of `scene` as `spec` asks fits `limit` (the user's `--memory-limit`) or, without
 /// one, the machine's `available` memory: whole, or streamed to the file in chunks that fit.
 /// A bake that cannot fit an explicit limit fails before it starts, saying what it needs; over
-/// the available memory, a warning. `preview`: the bake is also rendered (which needs it whole).
+/// the available memory, a warning.
 pub fn plan_memory(
     spec: &BakeSpec,
     scene: &Scene,
     limit: Option<u64>,
     available: Option<u64>,
-    preview: bool,
 ) -> Result<MemoryPlan> {
     let whole = MemoryPlan {
         chunk: None,
@@ -182,12 +225,10 @@ pub fn plan_memory(
     let streamable = bake::stream::streams(&options)
         && spec.container == Container::Mesh
         && spec.storage.layout == Layout::PerVertex
-        && spec.storage.precision == Precision::F32
-        && matches!(spec.transfer.bands, Bands::Fixed(_))
-        && !preview;
+        && matches!(spec.transfer.bands, Bands::Fixed(_));
     let why_not = "only bakes at the vertices (no least-squares fit, lightmap or error target) \
-                   of OBJ, PLY and the built-in scene, without --compress, --precision f16, \
-                   --bands auto or --preview, stream in chunks";
+                   of OBJ, PLY and the built-in scene, without --compress or --bands auto, \
+                   stream in chunks";
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;
@@ -447,23 +488,52 @@ impl fmt::Display for HalfFloatCost {
 }
 
 fn half_float_cost(baked: &BakedMesh) -> Result<HalfFloatCost> {
-    let rounded = glb::rounded_to_f16(&baked.transfer);
-    let light = light::preview_light(baked.transfer.bands)?;
-    let exact = render::relight(&baked.transfer, &light)?;
-    let stored = render::relight(&rounded, &light)?;
-    let worst_coefficient = baked
-        .transfer
-        .coeffs
-        .iter()
-        .zip(&rounded.coeffs)
-        .filter(|(x, _)| x.abs() >= 1e-4)
-        .map(|(x, r)| ((r - x) / x).abs())
-        .fold(0f32, f32::max);
-    let values = baked.transfer.coeffs.len();
-    Ok(HalfFloatCost {
-        bytes: values * Precision::F16.bytes(),
-        bytes_f32: values * Precision::F32.bytes(),
-        relit_error: compress::radiance_error(&exact, &stored),
-        worst_coefficient,
-    })
+    let mut tally = HalfFloatTally::new(baked.transfer.bands)?;
+    tally.add(&baked.transfer)?;
+    Ok(tally.cost())
+}
+
+/// [`HalfFloatCost`] summed over runs of vertices in order: the whole transfer at once, or the
+/// chunks of a streamed bake, give the same figures.
+struct HalfFloatTally {
+    light: light::ShLight,
+    relit: compress::RelativeRms,
+    worst_coefficient: f32,
+    values: usize,
+}
+
+impl HalfFloatTally {
+    fn new(bands: u32) -> Result<HalfFloatTally> {
+        Ok(HalfFloatTally {
+            light: light::preview_light(bands)?,
+            relit: compress::RelativeRms::default(),
+            worst_coefficient: 0.0,
+            values: 0,
+        })
+    }
+
+    fn add(&mut self, transfer: &bake::Transfer) -> Result<()> {
+        let rounded = glb::rounded_to_f16(transfer);
+        let exact = render::relight(transfer, &self.light)?;
+        let stored = render::relight(&rounded, &self.light)?;
+        self.relit.add_radiance(&exact, &stored);
+        self.worst_coefficient = transfer
+            .coeffs
+            .iter()
+            .zip(&rounded.coeffs)
+            .filter(|(x, _)| x.abs() >= 1e-4)
+            .map(|(x, r)| ((r - x) / x).abs())
+            .fold(self.worst_coefficient, f32::max);
+        self.values += transfer.coeffs.len();
+        Ok(())
+    }
+
+    fn cost(&self) -> HalfFloatCost {
+        HalfFloatCost {
+            bytes: self.values * Precision::F16.bytes(),
+            bytes_f32: self.values * Precision::F32.bytes(),
+            relit_error: self.relit.value(),
+            worst_coefficient: self.worst_coefficient,
+        }
+    }
 }

@@ -163,10 +163,7 @@ impl Cell {
 
     /// Whether the cell streams under a memory limit below its whole need.
     fn streams(&self) -> bool {
-        self.input == Input::Obj
-            && self.receivers == Receivers::Vertices
-            && !self.half
-            && !self.compressed
+        self.input == Input::Obj && self.receivers == Receivers::Vertices && !self.compressed
     }
 }
 

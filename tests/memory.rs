@@ -29,7 +29,7 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     const INTERREFLECTED: [&str; 2] = ["--mode", "interreflected"];
-    let cases: [&[&str]; 8] = [
+    let cases: [&[&str]; 10] = [
         &["--device", "cpu"],
         &["--device", "cpu", "--storage", "lean", "--bands", "6"],
         &[
@@ -63,6 +63,18 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             "0.05",
         ],
         &["--device", "gpu", "--mode", "interreflected"],
+        // Half floats: each chunk rounded as the whole file is, and its cost summed in order.
+        &["--device", "cpu", "--precision", "f16"],
+        &[
+            "--device",
+            "cpu",
+            "--mode",
+            "interreflected",
+            "--storage",
+            "lean",
+            "--precision",
+            "f16",
+        ],
     ];
     for extra in cases {
         if extra.contains(&"gpu") && common::gpu_baker().is_none() {
@@ -87,7 +99,8 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
         );
         let mut whole = extra.to_vec();
         whole.extend(["-o", "whole.glb", "--memory-limit", "1T"]);
-        assert!(bake(d, &whole).status.success());
+        let whole = bake(d, &whole);
+        assert!(whole.status.success());
         let limit = limit.to_string();
         let mut streamed = extra.to_vec();
         streamed.extend(["-o", "streamed.glb", "--memory-limit", &limit]);
@@ -104,6 +117,20 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             same,
             "{extra:?}: the streamed file differs from the whole bake's"
         );
+        // What half floats cost, as the whole bake states it.
+        let half_float_line = |stderr: &str| {
+            stderr
+                .lines()
+                .find(|line| line.starts_with("precision f16:"))
+                .map(str::to_string)
+        };
+        let stated = half_float_line(&String::from_utf8_lossy(&whole.stderr));
+        assert_eq!(
+            stated.is_some(),
+            extra.contains(&"f16"),
+            "{extra:?}: {stderr}"
+        );
+        assert_eq!(half_float_line(&stderr), stated, "{extra:?}");
     }
 }
 
@@ -196,4 +223,46 @@ fn a_shard_over_the_limit_is_refused_naming_a_count_that_fits() {
         );
         std::fs::remove_file(dir.path().join("split.part")).unwrap();
     }
+}
+
+/// A streamed bake's preview draws the radiance summed chunk by chunk: the whole bake's
+/// preview, pixel for pixel within a step of 8-bit rounding.
+#[test]
+fn a_streamed_bake_draws_the_whole_bakes_preview() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let options = BakeOptions {
+        samples: 64,
+        storage: prt_gpu::bake::Storage::Lean,
+        ..BakeOptions::default()
+    };
+    let limit = bunny_need(&options).streamed(300).to_string();
+    let lean = ["--device", "cpu", "--storage", "lean"];
+    let mut previews = Vec::new();
+    for (name, memory) in [("whole", "1T"), ("streamed", limit.as_str())] {
+        let (glb, png) = (format!("{name}.glb"), format!("{name}.png"));
+        let mut args = lean.to_vec();
+        args.extend(["-o", &glb, "--preview", &png, "--memory-limit", memory]);
+        let out = bake(d, &args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{name}: {stderr}");
+        assert_eq!(
+            stderr.contains("chunks of 300 receivers"),
+            name == "streamed"
+        );
+        previews.push(image::open(d.join(&png)).unwrap().to_rgb8());
+    }
+    let (whole, streamed) = (&previews[0], &previews[1]);
+    assert_eq!(whole.dimensions(), streamed.dimensions());
+    let worst = whole
+        .as_raw()
+        .iter()
+        .zip(streamed.as_raw())
+        .map(|(a, b)| a.abs_diff(*b))
+        .max()
+        .unwrap();
+    assert!(worst <= 1, "the previews differ by {worst} of 255");
+    // The bunny is drawn: the preview is not one colour.
+    let first = whole.as_raw()[..3].to_vec();
+    assert!(whole.as_raw().chunks(3).any(|p| p != first));
 }

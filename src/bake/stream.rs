@@ -193,8 +193,17 @@ impl StreamedBake {
         &self.planned.scene
     }
 
+    /// The prepared scene, once the bake is done.
+    pub fn into_scene(self) -> Scene {
+        self.planned.scene
+    }
+
     pub fn receivers(&self) -> usize {
         self.planned.receivers.len()
+    }
+
+    pub fn bands(&self) -> u32 {
+        self.options.bands
     }
 
     /// The stored transfer's channels, by the whole bake's lean rule: one for direct

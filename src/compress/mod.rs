@@ -545,20 +545,49 @@ pub fn relit_error(original: &Transfer, cpca: &Cpca, light: &ShLight) -> Result<
 
 /// RMS over vertices and channels of `approximate - reference`, over the RMS of `reference`.
 pub fn radiance_error(reference: &[[f32; 3]], approximate: &[[f32; 3]]) -> f64 {
-    relative_rms(
-        reference.iter().flatten().map(|&x| x as f64),
-        approximate.iter().flatten().map(|&x| x as f64),
-    )
+    let mut sums = RelativeRms::default();
+    sums.add_radiance(reference, approximate);
+    sums.value()
 }
 
 fn relative_rms(reference: impl Iterator<Item = f64>, other: impl Iterator<Item = f64>) -> f64 {
-    let (difference, magnitude) = reference.zip(other).fold((0.0, 0.0), |(d, m), (r, o)| {
-        (d + (o - r) * (o - r), m + r * r)
-    });
-    if difference == 0.0 {
-        0.0
-    } else {
-        (difference / magnitude).sqrt()
+    let mut sums = RelativeRms::default();
+    sums.add(reference, other);
+    sums.value()
+}
+
+/// The sums of a relative RMS error, added to a run of values at a time: a file written in
+/// chunks reports the error the whole file would, summed in the same order.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RelativeRms {
+    difference: f64,
+    magnitude: f64,
+}
+
+impl RelativeRms {
+    /// Adds `other`'s squared differences from `reference`, and `reference`'s squares.
+    pub fn add(&mut self, reference: impl Iterator<Item = f64>, other: impl Iterator<Item = f64>) {
+        for (r, o) in reference.zip(other) {
+            self.difference += (o - r) * (o - r);
+            self.magnitude += r * r;
+        }
+    }
+
+    /// Adds the radiance error of `approximate` against `reference` ([`radiance_error`]).
+    pub fn add_radiance(&mut self, reference: &[[f32; 3]], approximate: &[[f32; 3]]) {
+        self.add(
+            reference.iter().flatten().map(|&x| x as f64),
+            approximate.iter().flatten().map(|&x| x as f64),
+        );
+    }
+
+    /// sqrt(sum of squared differences / sum of squares); 0 where nothing differs.
+    pub fn value(&self) -> f64 {
+        if self.difference == 0.0 {
+            0.0
+        } else {
+            (self.difference / self.magnitude).sqrt()
+        }
     }
 }
 

@@ -205,6 +205,16 @@ pub(super) fn transfer_bytes(v: usize, channels: u32, bands: u32) -> Option<usiz
         .checked_mul(16)
 }
 
+/// The bytes of the planar transfer view at `precision`.
+pub(super) fn planar_bytes(
+    v: usize,
+    channels: u32,
+    bands: u32,
+    precision: Precision,
+) -> Option<usize> {
+    Some(transfer_bytes(v, channels, bands)? / 4 * precision.bytes())
+}
+
 pub(super) fn bin_len(v: usize, t: usize, channels: u32, bands: u32) -> Option<usize> {
     v.checked_mul(36)?
         .checked_add(t.checked_mul(12)?)?

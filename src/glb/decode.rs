@@ -468,7 +468,7 @@ pub(super) fn half_transfer_spans(
         .get(transfer_view)
         .ok_or("extras.prt.transfer_buffer_view does not exist")?;
     let blocks = meta.channels as usize * groups(meta.bands);
-    let expected = transfer_bytes(v, meta.channels, meta.bands).map(|n| n / 2);
+    let expected = planar_bytes(v, meta.channels, meta.bands, Precision::F16);
     if expected.map(|n| n as u64) != Some(view.byte_length) {
         return Err(format!(
             "the half-float transfer view has {} bytes, expected {v} vertices x {blocks} blocks x 8",

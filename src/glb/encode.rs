@@ -14,10 +14,7 @@ pub(super) fn encode_valid(
     cpca: Option<&Cpca>,
     precision: Precision,
 ) -> Result<Vec<u8>> {
-    let (mut bin, mut views) = match (precision, cpca) {
-        (Precision::F16, None) => encode_bin_f16(baked),
-        _ => encode_bin(baked, cpca.is_none()),
-    };
+    let (mut bin, mut views) = encode_bin(baked, cpca.is_none(), precision);
     let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, precision, &mut bin, &mut views));
     let shape = Shape::of(baked);
     let json = encode_json(
@@ -29,29 +26,6 @@ pub(super) fn encode_valid(
         precision,
     )?;
     glb_container(json, bin)
-}
-
-/// The BIN chunk and its views with the transfer as half floats: the mesh's views, then the
-/// planar transfer at two bytes a coefficient.
-pub(super) fn encode_bin_f16(baked: &BakedMesh) -> (Vec<u8>, Vec<BufferViewJson>) {
-    let mut bin = Vec::new();
-    let mut views = encode_mesh_views(&baked.scene, &mut bin);
-    let start = bin.len();
-    let transfer = &baked.transfer;
-    for channel in 0..transfer.channels as usize {
-        for group in 0..groups(transfer.bands) {
-            for vertex in 0..transfer.vertex_count {
-                let coeffs = transfer.vertex_channel(vertex, channel);
-                for k in 4 * group..4 * group + 4 {
-                    let x = half::f16::from_f32(coeffs.get(k).copied().unwrap_or(0.0));
-                    bin.extend_from_slice(&x.to_le_bytes());
-                }
-            }
-        }
-    }
-    // Each block is 8 bytes a vertex, so the view's length is a multiple of 4 already.
-    views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
-    (bin, views)
 }
 
 /// The JSON chunk of `baked` with the BIN chunk's `views` (`bin_len` bytes in all).
@@ -135,8 +109,12 @@ pub(super) fn mesh_json<X: Serialize>(
 }
 
 /// The BIN chunk and its views: positions, normals, albedo, indices, then (with `planar`) the
-/// per-vertex transfer and, with a lightmap, its coordinates.
-pub(super) fn encode_bin(baked: &BakedMesh, planar: bool) -> (Vec<u8>, Vec<BufferViewJson>) {
+/// per-vertex transfer at `precision` and, with a lightmap, its coordinates.
+pub(super) fn encode_bin(
+    baked: &BakedMesh,
+    planar: bool,
+    precision: Precision,
+) -> (Vec<u8>, Vec<BufferViewJson>) {
     let (scene, transfer) = (&baked.scene, &baked.transfer);
     let capacity = bin_len(
         scene.positions.len(),
@@ -150,8 +128,8 @@ pub(super) fn encode_bin(baked: &BakedMesh, planar: bool) -> (Vec<u8>, Vec<Buffe
         return (bin, views);
     }
     let start = bin.len();
-    put_planar_transfer(&mut bin, transfer);
-    views.push(transfer_view(start, bin.len() - start));
+    put_planar_transfer(&mut bin, transfer, precision);
+    views.push(planar_view(start, bin.len() - start, precision));
     if let Some(texels) = &baked.lightmap {
         let start = bin.len();
         put_f32s(&mut bin, texels.texcoords.iter().flatten().copied());
@@ -186,10 +164,14 @@ pub(super) fn encode_mesh_views(scene: &Scene, bin: &mut Vec<u8>) -> Vec<BufferV
     views
 }
 
-/// The transfer's view, `len` bytes from `start`. Several accessors share it, so the spec
-/// requires an explicit stride.
-pub(super) fn transfer_view(start: usize, len: usize) -> BufferViewJson {
-    array_view(start, len, Some(16), ARRAY_BUFFER)
+/// The transfer's view, `len` bytes from `start`. At float32 several accessors share it, so
+/// the spec requires an explicit stride; no accessor reads half floats, so that view has none.
+pub(super) fn planar_view(start: usize, len: usize, precision: Precision) -> BufferViewJson {
+    let stride = match precision {
+        Precision::F32 => Some(16),
+        Precision::F16 => None,
+    };
+    array_view(start, len, stride, ARRAY_BUFFER)
 }
 
 /// Appends to `bin`, from its next 4-byte boundary, what `write` puts there, and a view of it
@@ -222,28 +204,31 @@ pub(super) fn array_view(
     }
 }
 
-/// Appends `transfer` in the planar layout ([`TRANSFER_LAYOUT`]).
-pub(super) fn put_planar_transfer(bin: &mut Vec<u8>, transfer: &Transfer) {
+/// Appends `transfer` in the planar layout at `precision` ([`TRANSFER_LAYOUT`],
+/// [`TRANSFER_LAYOUT_F16`]).
+pub(super) fn put_planar_transfer(bin: &mut Vec<u8>, transfer: &Transfer, precision: Precision) {
     for channel in 0..transfer.channels as usize {
         for group in 0..groups(transfer.bands) {
-            put_planar_block(bin, transfer, channel, group);
+            put_planar_block(bin, transfer, channel, group, precision);
         }
     }
 }
 
-/// Appends the `(channel, group)` block of `transfer`'s vertices: four coefficients each.
+/// Appends the `(channel, group)` block of `transfer`'s vertices: four coefficients each, at
+/// `precision`.
 pub(super) fn put_planar_block(
     bin: &mut Vec<u8>,
     transfer: &Transfer,
     channel: usize,
     group: usize,
+    precision: Precision,
 ) {
     for vertex in 0..transfer.vertex_count {
         let coeffs = transfer.vertex_channel(vertex, channel);
-        put_f32s(
-            bin,
-            (4 * group..4 * group + 4).map(|k| coeffs.get(k).copied().unwrap_or(0.0)),
-        );
+        let lanes = std::array::from_fn::<f32, 4, _>(|lane| {
+            coeffs.get(4 * group + lane).copied().unwrap_or(0.0)
+        });
+        precision.encode(&lanes, bin);
     }
 }
 

@@ -9,8 +9,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use super::{
-    check_finite_coeffs, encode_json, encode_mesh_views, groups, put_planar_block, transfer_bytes,
-    transfer_view, validate_shape, Shape, CHUNK_BIN, CHUNK_JSON, GLB_MAGIC, GLB_VERSION,
+    check_finite_coeffs, encode_json, encode_mesh_views, groups, planar_bytes, planar_view,
+    put_planar_block, validate_shape, Precision, Shape, CHUNK_BIN, CHUNK_JSON, GLB_MAGIC,
+    GLB_VERSION,
 };
 use crate::bake::stream::StreamedBake;
 use crate::bake::{Backend, BakeMetadata, BakeReport, Mode, Progress, Transfer};
@@ -26,21 +27,23 @@ pub struct GlbStream {
     vertices: usize,
     channels: u32,
     bands: u32,
+    precision: Precision,
 }
 
 impl GlbStream {
-    /// Starts the file at `path` for the mesh and transfer shape of `shape`.
-    fn create(path: &Path, shape: Shape) -> Result<GlbStream> {
+    /// Starts the file at `path` for the mesh and transfer shape of `shape`, the transfer at
+    /// `precision`.
+    fn create(path: &Path, shape: Shape, precision: Precision) -> Result<GlbStream> {
         validate_shape(shape)?;
         let transfer = shape.transfer;
         let v = shape.scene.positions.len();
         let mut bin = Vec::new();
         let mut views = encode_mesh_views(shape.scene, &mut bin);
-        let transfer_len = transfer_bytes(v, transfer.channels, transfer.bands)
+        let transfer_len = planar_bytes(v, transfer.channels, transfer.bands, precision)
             .expect("validate_shape bounds the file's size");
-        views.push(transfer_view(bin.len(), transfer_len));
+        views.push(planar_view(bin.len(), transfer_len, precision));
         let bin_len = bin.len() + transfer_len;
-        let mut json = encode_json(shape, None, None, views, bin_len, super::Precision::F32)?;
+        let mut json = encode_json(shape, None, None, views, bin_len, precision)?;
         json.resize(json.len().next_multiple_of(4), b' ');
         // Every view's length is a multiple of 4, so the BIN chunk needs no padding.
         debug_assert_eq!(bin_len % 4, 0);
@@ -69,6 +72,7 @@ impl GlbStream {
             vertices: v,
             channels: transfer.channels,
             bands: transfer.bands,
+            precision,
         })
     }
 
@@ -77,13 +81,15 @@ impl GlbStream {
         assert_eq!((chunk.bands, chunk.channels), (self.bands, self.channels));
         assert!(first + chunk.vertex_count <= self.vertices);
         check_finite_coeffs(chunk, first)?;
-        let mut block = Vec::with_capacity(16 * chunk.vertex_count);
+        // One vertex's four lanes of a block.
+        let lanes = 4 * self.precision.bytes();
+        let mut block = Vec::with_capacity(lanes * chunk.vertex_count);
         for channel in 0..self.channels as usize {
             for group in 0..groups(self.bands) {
                 block.clear();
-                put_planar_block(&mut block, chunk, channel, group);
+                put_planar_block(&mut block, chunk, channel, group, self.precision);
                 let index = channel * groups(self.bands) + group;
-                let at = self.transfer_start + 16 * (index * self.vertices + first) as u64;
+                let at = self.transfer_start + (lanes * (index * self.vertices + first)) as u64;
                 self.file.write_at(at, &block)?;
             }
         }
@@ -95,13 +101,22 @@ impl GlbStream {
     }
 }
 
-/// Bakes `bake` to `path` `chunk` receivers at a time on `backend`: at no time is more than one
-/// chunk's transfer in memory. The file's bytes equal the whole bake's.
+/// Where a streamed bake goes: its file at `path`, the transfer at `precision`, and `each_chunk`,
+/// which sees every chunk's transfer (in vertex order) before it is written, as the stages that
+/// report on the whole transfer would.
+pub struct StreamSink<'a> {
+    pub path: &'a Path,
+    pub precision: Precision,
+    pub each_chunk: &'a mut dyn FnMut(&Transfer) -> Result<()>,
+}
+
+/// Bakes `bake` to its sink `chunk` receivers at a time on `backend`: at no time is more than
+/// one chunk's transfer in memory. The file's bytes equal the whole bake's.
 pub fn bake_streamed(
     bake: &StreamedBake,
     backend: &Backend,
     chunk: usize,
-    path: &Path,
+    sink: StreamSink,
     progress: &dyn Progress,
 ) -> Result<BakeReport> {
     let started = Instant::now();
@@ -133,7 +148,7 @@ pub fn bake_streamed(
         metadata: &metadata,
         lightmap: None,
     };
-    let mut file = GlbStream::create(path, shape)?;
+    let mut file = GlbStream::create(sink.path, shape, sink.precision)?;
     if interreflected.is_none() {
         progress.stage("transfer", receivers as u64);
     }
@@ -148,6 +163,7 @@ pub fn bake_streamed(
                 transfer
             }
         };
+        (sink.each_chunk)(&transfer)?;
         file.put(first, &transfer)?;
     }
     file.commit()?;

@@ -26,5 +26,5 @@ pub use self::image::{
 };
 pub use camera::{bounds, Camera, DEFAULT_FOV_DEG};
 pub use raster::{preview, render, RenderParams};
-pub use relight::{apply_albedo, relight, relight_baked};
+pub use relight::{apply_albedo, relight, relight_baked, tint_by};
 pub use sky::{draw_sky, pixel_ray, sky_radiance};

@@ -2,6 +2,8 @@
 
 use rayon::prelude::*;
 
+use glam::Vec3;
+
 use crate::bake::{BakedMesh, Transfer};
 use crate::error::{Error, Result};
 use crate::light::ShLight;
@@ -37,11 +39,16 @@ pub fn relight_baked(baked: &BakedMesh, light: &ShLight) -> Result<Vec<[f32; 3]>
 /// `radiance` of `baked`'s vertices times their albedo where its transfer leaves it out.
 pub fn apply_albedo(baked: &BakedMesh, mut radiance: Vec<[f32; 3]>) -> Vec<[f32; 3]> {
     if baked.metadata.albedo_free {
-        for (r, a) in radiance.iter_mut().zip(&baked.scene.albedo) {
-            *r = [r[0] * a.x, r[1] * a.y, r[2] * a.z];
-        }
+        tint_by(&mut radiance, &baked.scene.albedo);
     }
     radiance
+}
+
+/// Each vertex's radiance times its albedo, channel by channel.
+pub fn tint_by(radiance: &mut [[f32; 3]], albedo: &[Vec3]) {
+    for (r, a) in radiance.iter_mut().zip(albedo) {
+        *r = [r[0] * a.x, r[1] * a.y, r[2] * a.z];
+    }
 }
 
 /// One vertex: `vertex` holds its `channels * per_channel` coefficients, channel-major.

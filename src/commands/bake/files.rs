@@ -31,6 +31,9 @@ pub(crate) fn naming_the_mesh(error: Error, mesh: &str) -> Error {
     }
 }
 
+/// The preview's width and height in pixels.
+const PREVIEW_SIZE: (u32, u32) = (640, 480);
+
 /// A preview rendered, not yet written.
 pub(super) struct Preview {
     pixels: Vec<[f32; 4]>,
@@ -55,9 +58,26 @@ impl Preview {
 
 /// `baked` rendered under the default sky and sun.
 pub(super) fn render_preview(context: &GpuContext, baked: &bake::BakedMesh) -> Result<Preview> {
-    let (width, height) = (640, 480);
+    let (width, height) = PREVIEW_SIZE;
     let light = light::preview_light(baked.metadata.bands)?;
     let pixels = render::preview(context, baked, &light, None, width, height)?;
+    Ok(Preview {
+        pixels,
+        width,
+        height,
+    })
+}
+
+/// A streamed bake's preview: `radiance` at the vertices of its prepared `scene`, drawn as
+/// [`render_preview`] draws the whole bake.
+pub(super) fn render_radiance_preview(
+    context: &GpuContext,
+    scene: &scene::Scene,
+    radiance: &[[f32; 3]],
+) -> Result<Preview> {
+    let (width, height) = PREVIEW_SIZE;
+    let camera = render::Camera::framing_scene(scene);
+    let pixels = render::render(context, scene, radiance, &camera, width, height)?;
     Ok(Preview {
         pixels,
         width,

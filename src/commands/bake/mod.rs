@@ -150,23 +150,34 @@ pub(crate) fn bake_one(
     let backend = backend_of(baker, &execution.chunking);
     if merged.is_none() {
         let available = device::available_memory();
-        let preview = execution.preview.is_some();
-        let plan = pipeline::plan_memory(
-            spec,
-            planned.scene(),
-            execution.memory_limit,
-            available,
-            preview,
-        )?;
+        let limit = execution.memory_limit;
+        let plan = pipeline::plan_memory(spec, planned.scene(), limit, available)?;
         if let Some(message) = plan.message {
             eprintln!("{message}");
         }
         if let Some(chunk) = plan.chunk {
-            let report = planned
-                .run_streamed(&backend, chunk, &output_path, progress)
+            let preview = execution.preview.is_some();
+            let streamed = planned
+                .run_streamed(&backend, chunk, &output_path, preview, progress)
                 .map_err(naming)?;
             progress.finish();
-            print_bake_report(&name, spec, options.bands, &report, &output_path, None);
+            if let Some(cost) = &streamed.half_float {
+                eprintln!("{cost}");
+            }
+            if let (Some(path), Some((scene, radiance))) = (&execution.preview, &streamed.preview) {
+                let image = match baker {
+                    Some(baker) => render_radiance_preview(&baker.context, scene, radiance),
+                    None => open_render_device(None)
+                        .and_then(|context| render_radiance_preview(&context, scene, radiance)),
+                };
+                // A bake is whole or not at all: no file without the preview asked for.
+                let image = image.inspect_err(|_| {
+                    let _ = std::fs::remove_file(&output_path);
+                })?;
+                write_preview_or_undo(path, &image, &output_path, false)?;
+            }
+            let report = &streamed.report;
+            print_bake_report(&name, spec, options.bands, report, &output_path, None);
             return Ok(());
         }
     }

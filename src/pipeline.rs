@@ -111,7 +111,7 @@ impl Planned<'_> {
                 &mesh,
                 compression,
                 spec.storage.precision,
-                gpu_context(backend),
+                backend.gpu_context(),
                 &mut notes,
             )?),
             None => None,
@@ -306,14 +306,6 @@ pub fn write(
             )?;
             Ok(None)
         }
-    }
-}
-
-/// The device of a GPU backend, for stages that can use it.
-fn gpu_context<'a>(backend: &Backend<'a>) -> Option<&'a GpuContext> {
-    match backend {
-        Backend::Gpu { baker, .. } => Some(&baker.context),
-        Backend::Cpu => None,
     }
 }
 

@@ -1,6 +1,7 @@
 //! The bake: options in, one [`Transfer`] out, whichever backend computes it.
 
 pub mod adaptive;
+mod backend;
 mod baked;
 mod bands;
 pub mod bounce;
@@ -14,6 +15,7 @@ pub mod stream;
 pub mod texels;
 
 // The bake's parts, each in its own file; their items are the module's.
+pub use backend::*;
 pub use baked::*;
 pub use bands::*;
 pub use inputs::*;
@@ -51,25 +53,6 @@ pub struct NoProgress;
 
 impl Progress for NoProgress {}
 
-/// Where the transfer is computed.
-pub enum Backend<'a> {
-    Cpu,
-    Gpu {
-        baker: &'a gpu::GpuBaker,
-        chunking: gpu::Chunking,
-    },
-}
-
-impl Backend<'_> {
-    /// "cpu", or "gpu: adapter (backend, type)".
-    pub fn describe(&self) -> String {
-        match self {
-            Backend::Cpu => "cpu".to_string(),
-            Backend::Gpu { baker, .. } => format!("gpu: {}", baker.context.adapter.label()),
-        }
-    }
-}
-
 /// What a bounce reads: the gather matrix (rows: receivers), the receivers' albedo, and the
 /// map from values at the receivers to vertex values (the identity, or the fit).
 struct Gather<'a> {
@@ -89,22 +72,13 @@ fn add_bounces(
     progress: &dyn Progress,
 ) -> Result<Vec<BounceStat>> {
     let coeffs = coeff_count(transfer.bands);
-    let uploaded = match backend {
-        Backend::Gpu { baker, .. } => Some((
-            baker,
-            baker.upload_gather_matrix(gather.matrix, gather.albedo, transfer.bands)?,
-        )),
-        Backend::Cpu => None,
-    };
+    let gatherer = backend.gatherer(gather.matrix, gather.albedo, transfer.bands)?;
     progress.stage("bounces", options.bounces as u64);
     let mut previous = transfer.coeffs.clone();
     let mut stats = Vec::new();
     for _ in 0..options.bounces {
         let started = Instant::now();
-        let at_receivers = match &uploaded {
-            Some((baker, gpu_matrix)) => baker.bounce(gpu_matrix, &previous)?,
-            None => bounce::apply_cpu(gather.matrix, &previous, gather.albedo, coeffs),
-        };
+        let at_receivers = gatherer.gather(&previous)?;
         let next = (gather.to_vertices)(at_receivers)?;
         let relative_energy = bounce::relative_energy(&next, &transfer.coeffs, coeffs);
         transfer
@@ -568,15 +542,9 @@ pub fn bake_at_in(
                         .into(),
                 )
             })?;
-        let coeffs = coeff_count(options.bands);
-        let gathered = match backend {
-            Backend::Gpu { baker, .. } => {
-                let uploaded =
-                    baker.upload_gather_matrix(matrix, &receivers.albedo, options.bands)?;
-                baker.bounce(&uploaded, &vertices.coeffs)?
-            }
-            Backend::Cpu => bounce::apply_cpu(matrix, &vertices.coeffs, &receivers.albedo, coeffs),
-        };
+        let gathered = backend
+            .gatherer(matrix, &receivers.albedo, options.bands)?
+            .gather(&vertices.coeffs)?;
         transfer
             .coeffs
             .iter_mut()
@@ -596,40 +564,14 @@ pub struct DirectPass {
     pub adaptive: Option<adaptive::ReceiverErrors>,
 }
 
-/// The direct pass over the receivers of `inputs` on either backend.
+/// The direct pass over the receivers of `inputs` on either backend ([`Backend::direct_pass`]).
 pub fn direct_pass(
     inputs: &DirectInputs,
     mode: Mode,
     backend: &Backend,
     progress: &dyn Progress,
 ) -> Result<DirectPass> {
-    progress.stage("transfer", inputs.origins.len() as u64);
-    let (scalar, matrix, rays_cast) = match (backend, mode) {
-        (Backend::Cpu, Mode::Interreflected) => {
-            let (scalar, matrix, rays) =
-                bounce::direct_transfer_and_gather_matrix_cpu(inputs, progress);
-            (scalar, Some(matrix), rays)
-        }
-        (Backend::Cpu, mode) => {
-            let (scalar, rays) = cpu::direct_transfer(inputs, mode, progress);
-            (scalar, None, rays)
-        }
-        (Backend::Gpu { baker, chunking }, Mode::Interreflected) => {
-            let (scalar, matrix, run) =
-                gpu::direct_transfer_and_gather_matrix(baker, inputs, *chunking, progress)?;
-            (scalar, Some(matrix), run.rays_cast)
-        }
-        (Backend::Gpu { baker, chunking }, mode) => {
-            let (scalar, run) = gpu::direct_transfer(baker, inputs, mode, *chunking, progress)?;
-            (scalar, None, run.rays_cast)
-        }
-    };
-    Ok(DirectPass {
-        scalar,
-        matrix,
-        rays_cast,
-        adaptive: None,
-    })
+    backend.direct_pass(inputs, mode, progress)
 }
 
 /// RGB transfer from albedo-free scalar transfer: channel c of vertex v is `albedo[v][c]` times it.

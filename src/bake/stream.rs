@@ -448,18 +448,7 @@ fn bounce_chunk(
     bands: u32,
     backend: &Backend,
 ) -> Result<Vec<f32>> {
-    match backend {
-        Backend::Gpu { baker, .. } => {
-            let uploaded = baker.upload_gather_matrix(matrix, albedo, bands)?;
-            baker.bounce(&uploaded, previous)
-        }
-        Backend::Cpu => Ok(bounce::apply_cpu(
-            matrix,
-            previous,
-            albedo,
-            coeff_count(bands),
-        )),
-    }
+    backend.gatherer(matrix, albedo, bands)?.gather(previous)
 }
 
 /// Progress that passes on advances but not stages: chunks advance one stage of the whole.

@@ -1103,31 +1103,6 @@ fn non_finite_normals_and_morph_targets_are_written_repaired() {
     assert_eq!((written_moves[1], written_moves[4]), (0.0, 0.25));
 }
 
-/// Random points on the triangles `triangles` of a scene, fixed-seeded.
-fn points_on(
-    triangles: std::ops::Range<u32>,
-    count: usize,
-) -> Vec<prt_gpu::receivers::SurfacePoint> {
-    let mut random = prt_gpu::sampling::Pcg32::new(7);
-    (0..count)
-        .map(|_| {
-            let span = triangles.end - triangles.start;
-            let triangle =
-                triangles.start + ((random.next_f32() * span as f32) as u32).min(span - 1);
-            let (a, b) = (random.next_f32(), random.next_f32());
-            let (a, b) = if a + b > 1.0 {
-                (1.0 - a, 1.0 - b)
-            } else {
-                (a, b)
-            };
-            prt_gpu::receivers::SurfacePoint {
-                triangle,
-                barycentrics: [1.0 - a - b, a, b],
-            }
-        })
-        .collect()
-}
-
 #[test]
 fn a_gltf_scene_bakes_a_lightmap_on_its_own_texcoord_1() {
     use prt_gpu::bake::bake_at;
@@ -1189,7 +1164,7 @@ fn a_gltf_scene_bakes_a_lightmap_on_its_own_texcoord_1() {
     let texels = baked.lightmap.as_ref().expect("the lightmap is read back");
     assert_eq!(texels.set, 1);
     let ground_triangles = 0..(8 * 8 * 2);
-    let points = points_on(ground_triangles, 400);
+    let points = common::points_on(ground_triangles, 400);
     let light = prt_gpu::light::preview_light(4).unwrap();
     let looked_up = prt_gpu::render::relight(
         &prt_gpu::surface::texel_transfer_at(texels, &points),
@@ -1226,7 +1201,7 @@ fn a_gltf_scene_bakes_a_lightmap_on_its_own_texcoord_1() {
                         * prepared.positions[prepared.triangles[p.triangle as usize][i] as usize]
                 })
                 .sum();
-            nearest_point_on_ground(&prepared, Vec3::new(-position.x, 0.0, position.z))
+            common::nearest_point_on_ground(&prepared, Vec3::new(-position.x, 0.0, position.z))
         })
         .collect();
     let control = prt_gpu::compress::radiance_error(&point_bake(&mirrored), &looked_up);
@@ -1241,26 +1216,6 @@ fn a_gltf_scene_bakes_a_lightmap_on_its_own_texcoord_1() {
         100.0 * error
     );
     assert!(control > 4.0 * error, "control {control} against {error}");
-}
-
-/// The point of the ground's triangles (the first 128 of `scene`) at `at`, `at` lying on it.
-fn nearest_point_on_ground(scene: &Scene, at: Vec3) -> prt_gpu::receivers::SurfacePoint {
-    for t in 0..128u32 {
-        let [a, b, c] = scene.triangles[t as usize].map(|i| scene.positions[i as usize]);
-        let area = (b - a).cross(c - a).y;
-        let w = [
-            (c - b).cross(at - b).y / area,
-            (a - c).cross(at - c).y / area,
-            (b - a).cross(at - a).y / area,
-        ];
-        if w.iter().all(|&w| w >= -1e-6) {
-            return prt_gpu::receivers::SurfacePoint {
-                triangle: t,
-                barycentrics: w,
-            };
-        }
-    }
-    panic!("{at} is not on the ground");
 }
 
 #[test]

@@ -16,6 +16,8 @@
 //! Where Mitsuba is missing, `oracle::path_trace` says so and each test returns (under CI it
 //! panics instead).
 
+mod common;
+
 use std::sync::OnceLock;
 
 use glam::{DVec3, Vec3};
@@ -193,7 +195,7 @@ impl Figures {
         );
         // One row of docs/accuracy.md (ci/accuracy.sh collects them).
         println!(
-            "accuracy-row | distant light, built-in scene: {what} | {:.2}% | {:.2}% | bake noise \
+            "accuracy-row | distant light, {what} | {:.2}% | {:.2}% | bake noise \
              {:.2}%; bound {:.2}% (3 sigma{}) |",
             100.0 * self.error,
             100.0 * self.oracle_noise,
@@ -277,7 +279,7 @@ fn shadowed_vertices_match_the_path_tracer() {
     let (ours, again) = relit_vertices(&scene, &measured, &sky, &options);
     let figures = Figures::of(&ours, &again, &traced);
     let tolerance = SIGMAS * figures.sigma();
-    figures.print("shadowed vertices, 4 bands", tolerance);
+    figures.print("built-in scene: shadowed vertices, 4 bands", tolerance);
     assert!(
         figures.error <= tolerance,
         "shadowed transfer is off the path tracer by {:.4} > {tolerance:.4}",
@@ -308,7 +310,10 @@ fn interreflected_vertices_match_the_path_tracer_with_two_bounces() {
     let (ours, again) = relit_vertices(&scene, &measured, &sky, &options(2));
     let figures = Figures::of(&ours, &again, &traced);
     let tolerance = SIGMAS * figures.sigma();
-    figures.print("interreflected vertices, 4 bands, 2 bounces", tolerance);
+    figures.print(
+        "built-in scene: interreflected vertices, 4 bands, 2 bounces",
+        tolerance,
+    );
     // The comparison must be able to see the second bounce: without it the bake reads above
     // the tolerance.
     let (one_bounce, _) = relit_vertices(&scene, &measured, &sky, &options(1));
@@ -446,7 +451,7 @@ fn surface() -> Option<&'static Surface> {
             let (direct, direct_again) = (at_points(1), at_points(2));
             let direct_figures = Figures::of(&direct, &direct_again, &traced);
             direct_figures.print(
-                "shadowed surface points, 4 bands",
+                "built-in scene: shadowed surface points, 4 bands",
                 SIGMAS * direct_figures.sigma(),
             );
             Some(Surface {
@@ -519,7 +524,10 @@ fn least_squares_vertices_match_the_path_tracer_between_the_vertices() {
         figures.bake_noise.hypot(direct_figures.bake_noise),
     );
     let tolerance = SIGMAS * figures.sigma();
-    figures.print("least-squares vertices at the points", tolerance);
+    figures.print(
+        "built-in scene: least-squares vertices at the points",
+        tolerance,
+    );
     println!(
         "least-squares vertices against the baker at the points: representation floor \
          {fit_floor:.4}, at most one sigma {:.4}",
@@ -629,7 +637,7 @@ fn lightmap_texels_match_the_path_tracer_at_surface_points() {
         );
         let tolerance = (SIGMAS * figures.sigma()).hypot(floor);
         figures.print_with_floor(
-            &format!("lightmap {size} texels, bilinear at the points"),
+            &format!("built-in scene: lightmap {size} texels, bilinear at the points"),
             tolerance,
             Some(floor),
         );
@@ -660,3 +668,141 @@ fn lightmap_texels_match_the_path_tracer_at_surface_points() {
 
 /// Lightmap sizes for the texel test: a coarse and a fine one.
 const LIGHTMAP_SIZES: [u32; 2] = [384, 768];
+
+/// A glTF scene's own lightmap UV set (`TEXCOORD_1` of a ground and a card floating over it,
+/// each laid out by a planar projection): the lightmap the CLI bakes on that set, read back
+/// from its files and looked up through the set at held-out points of the ground (in and out
+/// of the card's shadow), against the path tracer at those points; shadowed, 4 bands, under
+/// the sky. The tolerance is [`SIGMAS`] sigma widened in quadrature by the texels'
+/// representation floor, measured as in [`lightmap_texels_match_the_path_tracer_at_surface_points`]
+/// against the baker's own transfer at the points.
+#[test]
+fn a_gltf_lightmap_on_its_own_uv_set_matches_the_path_tracer() {
+    const SIZE: &str = "128";
+    let dir = tempfile::tempdir().unwrap();
+    let input = common::gltf_builder::ground_and_card_gltf(dir.path(), Some(1), true, false);
+    // The prepared scene keeps the loaded triangles in order (none is degenerate): the ground
+    // is its first 128.
+    let (_, loaded) = prt_gpu::scene::gltf::load(&input).unwrap();
+    let scene = prepare(loaded).unwrap().0;
+    let held = common::points_on(0..128, HELD_OUT);
+    let normals = scene.normals.as_deref().unwrap();
+    let points: Vec<SurfacePoint> = held
+        .iter()
+        .map(|p| SurfacePoint {
+            position: position(&scene, p),
+            normal: interpolate(&scene, p, normals).normalize(),
+            face: p.triangle,
+        })
+        .collect();
+    let (sky, light) = sky();
+    let Some(traced) = path_trace(&scene, &points, &light, 0, PATHS) else {
+        return;
+    };
+    let looked_up = |seed: u64| -> Vec<Vec3> {
+        let output = format!("lit{seed}.prt.glb");
+        let seed = seed.to_string();
+        let out = common::prt_gpu(
+            &[
+                "bake",
+                input.to_str().unwrap(),
+                "--lightmap",
+                SIZE,
+                "--seed",
+                &seed,
+                "--device",
+                "cpu",
+                "-o",
+                &output,
+            ],
+            dir.path(),
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let baked = prt_gpu::glb::read_glb(&dir.path().join(&output)).unwrap();
+        let texels = baked.lightmap.expect("the lightmap is read back");
+        assert_eq!(texels.set, 1, "looked up through TEXCOORD_1");
+        let transfer = texel_transfer_at(&texels, &held);
+        (0..held.len())
+            .map(|r| relight(&transfer, r, &sky))
+            .collect()
+    };
+    let at_points = |seed| -> Vec<Vec3> {
+        let options = BakeOptions {
+            seed,
+            bands: 4,
+            mode: Mode::Shadowed,
+            ..BakeOptions::default()
+        };
+        let receivers = Receivers::at_points(&scene, &held);
+        let (transfer, _) = bake_at(
+            &scene,
+            &receivers,
+            &options,
+            &Backend::Cpu,
+            None,
+            &NoProgress,
+        )
+        .unwrap();
+        (0..held.len())
+            .map(|r| relight(&transfer, r, &sky))
+            .collect()
+    };
+    let (direct, direct_again) = (at_points(1), at_points(2));
+    let direct_figures = Figures::of(&direct, &direct_again, &traced);
+    let (texels, texels_again) = (looked_up(1), looked_up(2));
+    let figures = Figures::of(&texels, &texels_again, &traced);
+    let floor = beyond_noise(
+        &texels,
+        &direct,
+        &traced.radiance,
+        figures.bake_noise.hypot(direct_figures.bake_noise),
+    );
+    let tolerance = (SIGMAS * figures.sigma()).hypot(floor);
+    direct_figures.print(
+        "ground and card glTF: shadowed surface points",
+        SIGMAS * direct_figures.sigma(),
+    );
+    figures.print_with_floor(
+        &format!("ground and card glTF: lightmap {SIZE} texels on its own TEXCOORD_1"),
+        tolerance,
+        Some(floor),
+    );
+    assert!(
+        direct_figures.error <= SIGMAS * direct_figures.sigma(),
+        "points off the path tracer by {:.4}",
+        direct_figures.error
+    );
+    assert!(
+        figures.error <= tolerance,
+        "the UV-set lightmap is off the path tracer by {:.4} > {tolerance:.4}",
+        figures.error
+    );
+    // The control: the same lookups held to the path tracer at the points mirrored across the
+    // card's shadow (a lookup through the wrong set, or a lightmap of the wrong scene, reads so).
+    let mirrored_points: Vec<_> = held
+        .iter()
+        .map(|p| {
+            let at = position(&scene, p);
+            common::nearest_point_on_ground(&scene, Vec3::new(-at.x, 0.0, at.z))
+        })
+        .collect();
+    let control_points: Vec<SurfacePoint> = mirrored_points
+        .iter()
+        .map(|p| SurfacePoint {
+            position: position(&scene, p),
+            normal: interpolate(&scene, p, normals).normalize(),
+            face: p.triangle,
+        })
+        .collect();
+    let control_truth = path_trace(&scene, &control_points, &light, 0, PATHS / 8).unwrap();
+    let (control, _) = oracle::relative_rms(&texels, &control_truth, &vec![true; held.len()]);
+    println!("control: the lookups against the mirrored points {control:.4}");
+    assert!(
+        control > 4.0 * tolerance,
+        "control {control} against {tolerance}"
+    );
+}

@@ -103,3 +103,51 @@ pub fn assert_clean_failure(input: &BadInput) {
     );
     dir.close().unwrap();
 }
+
+/// Random points on the triangles `triangles` of a scene, fixed-seeded.
+pub fn points_on(
+    triangles: std::ops::Range<u32>,
+    count: usize,
+) -> Vec<prt_gpu::receivers::SurfacePoint> {
+    let mut random = prt_gpu::sampling::Pcg32::new(7);
+    (0..count)
+        .map(|_| {
+            let span = triangles.end - triangles.start;
+            let triangle =
+                triangles.start + ((random.next_f32() * span as f32) as u32).min(span - 1);
+            let (a, b) = (random.next_f32(), random.next_f32());
+            let (a, b) = if a + b > 1.0 {
+                (1.0 - a, 1.0 - b)
+            } else {
+                (a, b)
+            };
+            prt_gpu::receivers::SurfacePoint {
+                triangle,
+                barycentrics: [1.0 - a - b, a, b],
+            }
+        })
+        .collect()
+}
+
+/// The point of the ground's triangles (the first 128 of `scene`) at `at`, `at` lying on it.
+pub fn nearest_point_on_ground(
+    scene: &prt_gpu::scene::Scene,
+    at: glam::Vec3,
+) -> prt_gpu::receivers::SurfacePoint {
+    for t in 0..128u32 {
+        let [a, b, c] = scene.triangles[t as usize].map(|i| scene.positions[i as usize]);
+        let area = (b - a).cross(c - a).y;
+        let w = [
+            (c - b).cross(at - b).y / area,
+            (a - c).cross(at - c).y / area,
+            (b - a).cross(at - a).y / area,
+        ];
+        if w.iter().all(|&w| w >= -1e-6) {
+            return prt_gpu::receivers::SurfacePoint {
+                triangle: t,
+                barycentrics: w,
+            };
+        }
+    }
+    panic!("{at} is not on the ground");
+}

@@ -408,6 +408,40 @@ struct Surface {
     direct_figures: Figures,
 }
 
+/// What the oracle is given of surface points: position, shading normal, face.
+fn points_for_the_oracle(scene: &Scene, held: &[receivers::SurfacePoint]) -> Vec<SurfacePoint> {
+    let normals = scene.normals.as_deref().unwrap();
+    held.iter()
+        .map(|p| SurfacePoint {
+            position: position(scene, p),
+            normal: interpolate(scene, p, normals).normalize(),
+            face: p.triangle,
+        })
+        .collect()
+}
+
+/// The baker's own shadowed transfer (4 bands, default samples) at the points `held`, relit
+/// under the sky.
+fn shadowed_at_points(
+    scene: &Scene,
+    held: &[receivers::SurfacePoint],
+    seed: u64,
+    sky: &[Vec3],
+) -> Vec<Vec3> {
+    let receivers = Receivers::at_points(scene, held);
+    let options = BakeOptions {
+        seed,
+        bands: 4,
+        mode: Mode::Shadowed,
+        ..BakeOptions::default()
+    };
+    let backend = Backend::Cpu;
+    let (transfer, _) = bake_at(scene, &receivers, &options, &backend, None, &NoProgress).unwrap();
+    (0..held.len())
+        .map(|r| relight(&transfer, r, sky))
+        .collect()
+}
+
 /// [`Surface`], made once; `None` where Mitsuba is missing.
 fn surface() -> Option<&'static Surface> {
     static SURFACE: OnceLock<Option<Surface>> = OnceLock::new();
@@ -416,37 +450,9 @@ fn surface() -> Option<&'static Surface> {
             let scene = scene();
             let (sky, light) = sky();
             let held = held_out_points(&scene, HELD_OUT, 5);
-            let normals = scene.normals.as_deref().unwrap();
-            let points: Vec<SurfacePoint> = held
-                .iter()
-                .map(|p| SurfacePoint {
-                    position: position(&scene, p),
-                    normal: interpolate(&scene, p, normals).normalize(),
-                    face: p.triangle,
-                })
-                .collect();
+            let points = points_for_the_oracle(&scene, &held);
             let traced = path_trace(&scene, &points, &light, 0, PATHS)?;
-            let at_points = |seed| -> Vec<Vec3> {
-                let receivers = Receivers::at_points(&scene, &held);
-                let options = BakeOptions {
-                    seed,
-                    bands: 4,
-                    mode: Mode::Shadowed,
-                    ..BakeOptions::default()
-                };
-                let (transfer, _) = bake_at(
-                    &scene,
-                    &receivers,
-                    &options,
-                    &Backend::Cpu,
-                    None,
-                    &NoProgress,
-                )
-                .unwrap();
-                (0..held.len())
-                    .map(|r| relight(&transfer, r, &sky))
-                    .collect()
-            };
+            let at_points = |seed| shadowed_at_points(&scene, &held, seed, &sky);
             // The baker at the points: noise alone.
             let (direct, direct_again) = (at_points(1), at_points(2));
             let direct_figures = Figures::of(&direct, &direct_again, &traced);
@@ -686,15 +692,7 @@ fn a_gltf_lightmap_on_its_own_uv_set_matches_the_path_tracer() {
     let (_, loaded) = prt_gpu::scene::gltf::load(&input).unwrap();
     let scene = prepare(loaded).unwrap().0;
     let held = common::points_on(0..128, HELD_OUT);
-    let normals = scene.normals.as_deref().unwrap();
-    let points: Vec<SurfacePoint> = held
-        .iter()
-        .map(|p| SurfacePoint {
-            position: position(&scene, p),
-            normal: interpolate(&scene, p, normals).normalize(),
-            face: p.triangle,
-        })
-        .collect();
+    let points = points_for_the_oracle(&scene, &held);
     let (sky, light) = sky();
     let Some(traced) = path_trace(&scene, &points, &light, 0, PATHS) else {
         return;
@@ -730,27 +728,7 @@ fn a_gltf_lightmap_on_its_own_uv_set_matches_the_path_tracer() {
             .map(|r| relight(&transfer, r, &sky))
             .collect()
     };
-    let at_points = |seed| -> Vec<Vec3> {
-        let options = BakeOptions {
-            seed,
-            bands: 4,
-            mode: Mode::Shadowed,
-            ..BakeOptions::default()
-        };
-        let receivers = Receivers::at_points(&scene, &held);
-        let (transfer, _) = bake_at(
-            &scene,
-            &receivers,
-            &options,
-            &Backend::Cpu,
-            None,
-            &NoProgress,
-        )
-        .unwrap();
-        (0..held.len())
-            .map(|r| relight(&transfer, r, &sky))
-            .collect()
-    };
+    let at_points = |seed| shadowed_at_points(&scene, &held, seed, &sky);
     let (direct, direct_again) = (at_points(1), at_points(2));
     let direct_figures = Figures::of(&direct, &direct_again, &traced);
     let (texels, texels_again) = (looked_up(1), looked_up(2));
@@ -790,14 +768,7 @@ fn a_gltf_lightmap_on_its_own_uv_set_matches_the_path_tracer() {
             common::nearest_point_on_ground(&scene, Vec3::new(-at.x, 0.0, at.z))
         })
         .collect();
-    let control_points: Vec<SurfacePoint> = mirrored_points
-        .iter()
-        .map(|p| SurfacePoint {
-            position: position(&scene, p),
-            normal: interpolate(&scene, p, normals).normalize(),
-            face: p.triangle,
-        })
-        .collect();
+    let control_points = points_for_the_oracle(&scene, &mirrored_points);
     let control_truth = path_trace(&scene, &control_points, &light, 0, PATHS / 8).unwrap();
     let (control, _) = oracle::relative_rms(&texels, &control_truth, &vec![true; held.len()]);
     println!("control: the lookups against the mirrored points {control:.4}");

@@ -196,38 +196,89 @@ fn charts(vertices: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
 /// Of the texel centres of a `size`-square map, how many lie inside some triangle of
 /// `corners` (unit coordinates), and how many inside two or more (strictly inside each, so a
 /// centre on an edge two neighbours share counts once).
+///
+/// The map is counted a band of rows at a time (at most [`OVERLAP_BAND_BYTES`] of counts), so
+/// that a 16384-texel map costs 16 MiB, not the 256 MiB of all its texels at once.
 fn overlap(corners: &[[Vec2; 3]], size: u32) -> (usize, usize) {
-    let mut count = vec![0u8; size as usize * size as usize];
-    for triangle in corners {
-        let [a, b, c] = triangle.map(|p| p.as_dvec2() * size as f64);
-        let area2 = (b - a).perp_dot(c - a);
-        if area2 == 0.0 || !area2.is_finite() {
-            continue;
-        }
-        let lo = a.min(b).min(c);
-        let hi = a.max(b).max(c);
-        let first = |v: f64| (v - 0.5).ceil().max(0.0) as u32;
-        let last = |v: f64| ((v - 0.5).floor().min(size as f64 - 1.0)).max(-1.0) as i64;
-        for y in first(lo.y) as i64..=last(hi.y) {
-            for x in first(lo.x) as i64..=last(hi.x) {
-                let p = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-                let w = [
-                    (c - b).perp_dot(p - b),
-                    (a - c).perp_dot(p - c),
-                    (b - a).perp_dot(p - a),
-                ]
-                .map(|w| w / area2);
-                // Strictly inside: a centre on an edge belongs to neither side here.
-                if w.iter().all(|&w| w > 1e-9) {
-                    let at = y as usize * size as usize + x as usize;
-                    count[at] = count[at].saturating_add(1);
+    overlap_in_bands(corners, size, OVERLAP_BAND_BYTES)
+}
+
+/// [`overlap`], holding at most `band_bytes` of counts at once (at least one row).
+fn overlap_in_bands(corners: &[[Vec2; 3]], size: u32, band_bytes: usize) -> (usize, usize) {
+    let triangles: Vec<TexelTriangle> = corners
+        .iter()
+        .filter_map(|t| TexelTriangle::new(t, size))
+        .collect();
+    let width = size as usize;
+    let band_rows = (band_bytes / width.max(1)).clamp(1, width.max(1));
+    let mut count = vec![0u8; band_rows * width];
+    let (mut covered, mut shared) = (0, 0);
+    for band_start in (0..width).step_by(band_rows) {
+        let band = band_start as i64..(band_start + band_rows).min(width) as i64;
+        count.fill(0);
+        for triangle in &triangles {
+            let first = (*triangle.rows.start()).max(band.start);
+            let last = (*triangle.rows.end()).min(band.end - 1);
+            let rows = first..=last;
+            for y in rows {
+                for x in triangle.columns.clone() {
+                    if triangle.strictly_inside(x, y) {
+                        let at = (y - band.start) as usize * width + x as usize;
+                        count[at] = count[at].saturating_add(1);
+                    }
                 }
             }
         }
+        covered += count.iter().filter(|&&n| n > 0).count();
+        shared += count.iter().filter(|&&n| n > 1).count();
     }
-    let covered = count.iter().filter(|&&n| n > 0).count();
-    let shared = count.iter().filter(|&&n| n > 1).count();
     (covered, shared)
+}
+
+/// The most bytes of texel counts [`overlap`] holds at once.
+const OVERLAP_BAND_BYTES: usize = 16 << 20;
+
+/// A triangle in texel units, with the rows and columns of texel centres its bounds hold.
+struct TexelTriangle {
+    corners: [DVec2; 3],
+    area2: f64,
+    rows: std::ops::RangeInclusive<i64>,
+    columns: std::ops::RangeInclusive<i64>,
+}
+
+impl TexelTriangle {
+    /// `None` for a triangle of no area.
+    fn new(triangle: &[Vec2; 3], size: u32) -> Option<TexelTriangle> {
+        let [a, b, c] = triangle.map(|p| p.as_dvec2() * size as f64);
+        let area2 = (b - a).perp_dot(c - a);
+        if area2 == 0.0 || !area2.is_finite() {
+            return None;
+        }
+        let lo = a.min(b).min(c);
+        let hi = a.max(b).max(c);
+        let first = |v: f64| (v - 0.5).ceil().max(0.0) as i64;
+        let last = |v: f64| ((v - 0.5).floor().min(size as f64 - 1.0)).max(-1.0) as i64;
+        Some(TexelTriangle {
+            corners: [a, b, c],
+            area2,
+            rows: first(lo.y)..=last(hi.y),
+            columns: first(lo.x)..=last(hi.x),
+        })
+    }
+
+    /// Whether the centre of texel `(x, y)` lies strictly inside: a centre on an edge belongs
+    /// to neither side.
+    fn strictly_inside(&self, x: i64, y: i64) -> bool {
+        let [a, b, c] = self.corners;
+        let p = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+        [
+            (c - b).perp_dot(p - b),
+            (a - c).perp_dot(p - c),
+            (b - a).perp_dot(p - a),
+        ]
+        .iter()
+        .all(|&w| w / self.area2 > 1e-9)
+    }
 }
 
 #[cfg(test)]
@@ -240,6 +291,24 @@ mod tests {
         let uvs: Vec<[f32; 2]> = quad(0.05).into_iter().chain(quad(second_at)).collect();
         let triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
         (uvs, triangles)
+    }
+
+    /// Counted in bands of a few rows or all at once, the same texels are covered and shared.
+    #[test]
+    fn overlap_counted_in_bands_is_overlap_counted_whole() {
+        let mut random = crate::sampling::Pcg32::new(3);
+        let mut point = || Vec2::new(random.next_f32(), random.next_f32());
+        let corners: Vec<[Vec2; 3]> = (0..40).map(|_| [point(), point(), point()]).collect();
+        let size = 97;
+        let whole = overlap_in_bands(&corners, size, usize::MAX);
+        assert!(whole.1 > 0 && whole.0 > whole.1, "{whole:?}");
+        for band_bytes in [1, 97, 5 * 97, 5 * 97 + 13, 96 * 97] {
+            assert_eq!(
+                overlap_in_bands(&corners, size, band_bytes),
+                whole,
+                "{band_bytes}"
+            );
+        }
     }
 
     #[test]

@@ -149,7 +149,9 @@ impl Planned<'_> {
             Precision::F16 => Some(HalfFloatTally::new(streamed.bands())?),
             Precision::F32 => None,
         };
-        let preview_light = light::preview_light(streamed.bands())?;
+        let preview_light = preview
+            .then(|| light::preview_light(streamed.bands()))
+            .transpose()?;
         let mut radiance = Vec::new();
         let albedo_free = streamed.metadata(backend, 0).albedo_free;
         let albedo = &streamed.scene().albedo;
@@ -157,9 +159,9 @@ impl Planned<'_> {
             if let Some(tally) = &mut half_float {
                 tally.add(transfer)?;
             }
-            if preview {
+            if let Some(preview_light) = &preview_light {
                 let first = radiance.len();
-                let mut relit = render::relight(transfer, &preview_light)?;
+                let mut relit = render::relight(transfer, preview_light)?;
                 if albedo_free {
                     render::tint_by(&mut relit, &albedo[first..]);
                 }

@@ -424,13 +424,9 @@ fn cpu_and_gpu_agree() {
         "{differing} of {cells}"
     );
     // The gather matrix and the bounces on either device.
-    let cpu_pass = prt_gpu::bake::direct_pass(
-        &inputs.bake.view(),
-        Mode::Interreflected,
-        &Backend::Cpu,
-        &NoProgress,
-    )
-    .unwrap();
+    let cpu_pass = Backend::Cpu
+        .direct_pass(&inputs.bake.view(), Mode::Interreflected, &NoProgress)
+        .unwrap();
     let bake = local::bake_prepared(scene.clone(), &options, &Backend::Cpu, &NoProgress)
         .unwrap()
         .0;

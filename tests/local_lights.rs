@@ -231,13 +231,9 @@ fn gather_matrix(scene: &Scene, samples: u32, seed: u64) -> (GatherMatrix, Local
         ..LocalOptions::default()
     };
     let inputs = LocalInputs::new(scene, &options);
-    let pass = bake::direct_pass(
-        &inputs.bake.view(),
-        Mode::Interreflected,
-        &Backend::Cpu,
-        &NoProgress,
-    )
-    .unwrap();
+    let pass = Backend::Cpu
+        .direct_pass(&inputs.bake.view(), Mode::Interreflected, &NoProgress)
+        .unwrap();
     (pass.matrix.unwrap(), inputs)
 }
 

@@ -454,7 +454,7 @@ fn direct_or_adaptive(
             normals: &view.normals[range],
             ..view
         };
-        return direct_pass(&part, options.mode, backend, progress);
+        return backend.direct_pass(&part, options.mode, progress);
     };
     progress.stage("transfer", range.len() as u64);
     let (scalar, rays_cast, receivers) = adaptive::adaptive_direct_transfer(
@@ -526,7 +526,7 @@ pub fn bake_at_in(
 ) -> Result<(Transfer, u64)> {
     options.validate()?;
     let owned = BakeInputs::with_tree(scene, receivers, bvh, options);
-    let direct = direct_pass(&owned.view(), options.mode, backend, progress)?;
+    let direct = backend.direct_pass(&owned.view(), options.mode, progress)?;
     let albedo = match options.albedo {
         Some(albedo) => vec![albedo; receivers.len()],
         None => receivers.albedo.clone(),
@@ -562,16 +562,6 @@ pub struct DirectPass {
     pub matrix: Option<bounce::GatherMatrix>,
     pub rays_cast: u64,
     pub adaptive: Option<adaptive::ReceiverErrors>,
-}
-
-/// The direct pass over the receivers of `inputs` on either backend ([`Backend::direct_pass`]).
-pub fn direct_pass(
-    inputs: &DirectInputs,
-    mode: Mode,
-    backend: &Backend,
-    progress: &dyn Progress,
-) -> Result<DirectPass> {
-    backend.direct_pass(inputs, mode, progress)
 }
 
 /// RGB transfer from albedo-free scalar transfer: channel c of vertex v is `albedo[v][c]` times it.

@@ -13,13 +13,11 @@
 
 use std::ops::Range;
 
-use glam::Vec3;
-
 use super::bounce::{self, GatherMatrix};
 use super::spill::Spill;
 use super::{
-    direct_pass, metadata_for, plan, tint_by_albedo, Backend, BakeMetadata, BakeOptions,
-    BounceStat, DirectInputs, Fit, Mode, Progress, Storage, Transfer,
+    metadata_for, plan, tint_by_albedo, Backend, BakeMetadata, BakeOptions, BounceStat,
+    DirectInputs, Fit, Mode, Progress, Storage, Transfer,
 };
 use crate::error::{Error, Result};
 use crate::scene::Scene;
@@ -251,7 +249,7 @@ impl StreamedBake {
             normals: &view.normals[range.clone()],
             ..view
         };
-        let direct = direct_pass(&part, self.options.mode, backend, &Advancing(progress))?;
+        let direct = backend.direct_pass(&part, self.options.mode, &Advancing(progress))?;
         let bands = self.options.bands;
         let transfer = match self.options.storage {
             Storage::Lean => Transfer {
@@ -302,7 +300,7 @@ impl StreamedBake {
                 normals: &view.normals[range.clone()],
                 ..view
             };
-            let direct = direct_pass(&part, Mode::Interreflected, backend, &Advancing(progress))?;
+            let direct = backend.direct_pass(&part, Mode::Interreflected, &Advancing(progress))?;
             let matrix = direct.matrix.expect("an interreflected pass gathers");
             let tinted = tint_by_albedo(&direct.scalar, &albedo[range.clone()], bands);
             previous[range.start * stride..range.end * stride].copy_from_slice(&tinted.coeffs);
@@ -320,7 +318,9 @@ impl StreamedBake {
             for (range, spilled) in ranges.iter().zip(&rows) {
                 let matrix = spilled.read(&mut spill)?;
                 let albedo = &albedo[range.clone()];
-                let next = bounce_chunk(&matrix, &previous, albedo, bands, backend)?;
+                let next = backend
+                    .gatherer(&matrix, albedo, bands)?
+                    .gather(&previous)?;
                 let at = (range.start * stride * 4) as u64;
                 let mut total: Vec<f32> = spill.read_vec(total_at + at, next.len())?;
                 added = bounce::dc_energy(added, &next, coeffs);
@@ -437,18 +437,6 @@ impl SpilledRows {
             weights: spill.read_vec(self.weights_at, self.entries)?,
         })
     }
-}
-
-/// One bounce of a chunk's rows, on the backend's device, as the whole bake computes it: each
-/// row's sum depends on that row alone.
-fn bounce_chunk(
-    matrix: &GatherMatrix,
-    previous: &[f32],
-    albedo: &[Vec3],
-    bands: u32,
-    backend: &Backend,
-) -> Result<Vec<f32>> {
-    backend.gatherer(matrix, albedo, bands)?.gather(previous)
 }
 
 /// Progress that passes on advances but not stages: chunks advance one stage of the whole.

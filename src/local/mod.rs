@@ -229,7 +229,7 @@ pub fn bake_prepared(
     };
     let mut inputs = LocalInputs::new(&scene, options);
     let started = Instant::now();
-    let pass = bake::direct_pass(&inputs.bake.view(), Mode::Interreflected, backend, progress)?;
+    let pass = backend.direct_pass(&inputs.bake.view(), Mode::Interreflected, progress)?;
     let matrix = pass
         .matrix
         .expect("interreflected passes build the gather matrix");

@@ -17,7 +17,7 @@
 use std::path::Path;
 
 use prt_gpu::bake::adaptive::{adaptive_direct_transfer, TargetError};
-use prt_gpu::bake::{direct_pass, Backend, BakeInputs, Mode, NoProgress};
+use prt_gpu::bake::{Backend, BakeInputs, Mode, NoProgress};
 use prt_gpu::sampling::{Estimator, Sampling};
 
 const BANDS: u32 = 4;
@@ -63,7 +63,9 @@ fn main() -> prt_gpu::Result<()> {
     let fixed = |samples: u32, seed: u64| -> prt_gpu::Result<Vec<f32>> {
         let mut inputs = BakeInputs::with_sampling(&scene, BANDS, samples, seed, Sampling::Cosine);
         inputs.estimator = Estimator::Visible;
-        Ok(direct_pass(&inputs.view(), Mode::Shadowed, &Backend::Cpu, &NoProgress)?.scalar)
+        Ok(Backend::Cpu
+            .direct_pass(&inputs.view(), Mode::Shadowed, &NoProgress)?
+            .scalar)
     };
     let reference = fixed(REFERENCE_SAMPLES, 99)?;
     let errors_of = |transfer: &[f32]| -> Vec<f64> {

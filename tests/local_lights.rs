@@ -8,7 +8,7 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 use prt_gpu::bake::bounce::GatherMatrix;
-use prt_gpu::bake::{self, Backend, Mode, NoProgress};
+use prt_gpu::bake::{Backend, Mode, NoProgress};
 use prt_gpu::bvh::Bvh;
 use prt_gpu::local::build::{build_compressed, OperatorShape, SparseOperator};
 use prt_gpu::local::depth::{

@@ -132,17 +132,19 @@ impl Planned<'_> {
         })
     }
 
-    /// Bakes it streamed to `path` in chunks of `chunk` receivers (a plan of [`plan_memory`]):
-    /// the file equals the whole bake's, byte for byte, and so does what storing it as half
-    /// floats costs. With `preview`, the radiance the preview draws is summed chunk by chunk.
+    /// Bakes it streamed to `path` in chunks of `chunk` receivers (a plan of [`plan_memory`]),
+    /// `gltf` written in place where the container is the scene: the file equals the whole
+    /// bake's, byte for byte, and so does what storing it as half floats costs. With
+    /// `preview`, the radiance the preview draws is summed chunk by chunk.
     pub fn run_streamed(
         self,
         backend: &Backend,
         chunk: usize,
-        path: &Path,
+        (path, gltf): (&Path, Option<&GltfScene>),
         preview: bool,
         progress: &dyn Progress,
     ) -> Result<Streamed> {
+        check_container(self.spec, gltf)?;
         let streamed = bake::stream::StreamedBake::plan(self.scene, &self.spec.options())?;
         let precision = self.spec.storage.precision;
         let mut half_float = match precision {
@@ -171,12 +173,15 @@ impl Planned<'_> {
         };
         let sink = glb::stream::StreamSink {
             path,
+            scene: gltf,
             precision,
             each_chunk: &mut each_chunk,
         };
-        let report = glb::stream::bake_streamed(&streamed, backend, chunk, sink, progress)?;
+        let (report, scene_write) =
+            glb::stream::bake_streamed(&streamed, backend, chunk, sink, progress)?;
         Ok(Streamed {
             report,
+            scene_write,
             half_float: half_float.map(|tally| tally.cost()),
             preview: preview.then(|| (streamed.into_scene(), radiance)),
         })
@@ -186,6 +191,8 @@ impl Planned<'_> {
 /// What a streamed bake gives besides its file.
 pub struct Streamed {
     pub report: BakeReport,
+    /// What writing a glTF scene in place did, and its seconds.
+    pub scene_write: Option<(glb::scene::SceneWrite, f64)>,
     pub half_float: Option<HalfFloatCost>,
     /// The prepared scene and its radiance at the vertices under the preview light (albedo
     /// applied), when asked for: what [`render::preview`] would draw of the whole bake.
@@ -225,12 +232,10 @@ pub fn plan_memory(
         return Ok(whole);
     }
     let streamable = bake::stream::streams(&options)
-        && spec.container == Container::Mesh
         && spec.storage.layout == Layout::PerVertex
         && matches!(spec.transfer.bands, Bands::Fixed(_));
-    let why_not = "only bakes at the vertices (no least-squares fit, lightmap or error target) \
-                   of OBJ, PLY and the built-in scene, without --compress or --bands auto, \
-                   stream in chunks";
+    let why_not = "only bakes at the vertices (no least-squares fit, lightmap or error target), \
+                   without --compress or --bands auto, stream in chunks";
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;

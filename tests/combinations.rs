@@ -163,7 +163,7 @@ impl Cell {
 
     /// Whether the cell streams under a memory limit below its whole need.
     fn streams(&self) -> bool {
-        self.input == Input::Obj && self.receivers == Receivers::Vertices && !self.compressed
+        self.receivers == Receivers::Vertices && !self.compressed
     }
 }
 
@@ -304,11 +304,21 @@ fn check_sinks(dir: &Path, input: &str, scene: &prt_gpu::scene::Scene, cell: Cel
         scene.triangle_count(),
         &cell.options(),
     );
-    // Chunks of 300 receivers where the cell streams; half its need where it cannot.
+    // Chunks of 300 receivers where the cell streams (the glTF scene, of fewer vertices,
+    // streams in one chunk of all of them; tests/memory.rs streams a larger one in many);
+    // half its need where it cannot.
+    let chunk = 300.min(scene.vertex_count());
     let limit = match cell.streams() {
-        true => need.streamed(300),
+        true => need.streamed(chunk),
         false => need.whole() / 2,
     };
+    if cell.streams() && cell.input == Input::Gltf && limit >= need.whole() {
+        // An interreflected bake streamed holds every vertex's last bounce beside its chunk,
+        // so the glTF scene's hundred vertices need more streamed than whole: nothing to
+        // stream. tests/memory.rs streams 2CylinderEngine interreflected instead.
+        assert!(cell.interreflected, "{name}");
+        return;
+    }
     assert!(
         limit < need.whole(),
         "{name}: the limit must be below the whole need"
@@ -326,7 +336,7 @@ fn check_sinks(dir: &Path, input: &str, scene: &prt_gpu::scene::Scene, cell: Cel
     if cell.streams() {
         assert!(out.status.success(), "{name} streamed: {stderr}");
         assert!(
-            stderr.contains("chunks of 300 receivers"),
+            stderr.contains(&format!("chunks of {chunk} receivers")),
             "{name}: {stderr}"
         );
         assert!(

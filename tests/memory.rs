@@ -134,6 +134,92 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
     }
 }
 
+/// A glTF scene baked in place streams too: its chunks come in the baked (Morton) order of
+/// vertices and fill the primitives' views in the scene's order at the end. 2CylinderEngine has
+/// 115 primitives, meshes shown by several nodes (copied per placement) and vertices in no
+/// baked triangle (dropped), so every path of the scatter runs.
+#[test]
+fn a_gltf_scene_streamed_in_chunks_writes_the_whole_bakes_bytes() {
+    const ENGINE: &str = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/gltf/2CylinderEngine.glb"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = prt_gpu::scene::load(Path::new(ENGINE)).unwrap();
+    let cases: [&[&str]; 5] = [
+        &["--device", "cpu"],
+        &["--device", "cpu", "--storage", "lean", "--precision", "f16"],
+        &[
+            "--device",
+            "cpu",
+            "--mode",
+            "interreflected",
+            "--bounces",
+            "2",
+        ],
+        &["--device", "gpu"],
+        &[
+            "--device",
+            "gpu",
+            "--mode",
+            "interreflected",
+            "--bounces",
+            "1",
+            "--precision",
+            "f16",
+        ],
+    ];
+    for extra in cases {
+        if extra.contains(&"gpu") && common::gpu_baker().is_none() {
+            continue;
+        }
+        let options = BakeOptions {
+            samples: 32,
+            mode: match extra.contains(&"interreflected") {
+                true => prt_gpu::bake::Mode::Interreflected,
+                false => prt_gpu::bake::Mode::Shadowed,
+            },
+            ..BakeOptions::default()
+        };
+        let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options);
+        let limit = need.streamed(4096);
+        assert!(limit < need.whole());
+        let run = |output: &str, limit: &str| {
+            let mut args = vec!["bake", ENGINE, "--samples", "32", "-o", output];
+            args.extend(["--memory-limit", limit]);
+            args.extend(extra);
+            let out = prt_gpu(&args, d);
+            let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+            assert!(out.status.success(), "{extra:?}: {stderr}");
+            stderr
+        };
+        let whole = run("whole.glb", "1T");
+        let streamed = run("streamed.glb", &limit.to_string());
+        assert!(
+            streamed.contains("chunks of 4096 receivers"),
+            "{extra:?}: {streamed}"
+        );
+        // The same report of what was written in place (primitives, copies).
+        let in_place = |stderr: &str| {
+            let line = stderr.lines().find(|l| l.starts_with("baked in place:"));
+            let line = line.unwrap_or_else(|| panic!("{extra:?}: {stderr}"));
+            line.split(',').next().unwrap().to_string() + line.split(';').nth(1).unwrap_or("")
+        };
+        assert_eq!(in_place(&whole), in_place(&streamed), "{extra:?}");
+        assert!(in_place(&whole).contains("115 primitive(s)"), "{whole}");
+        let same = std::fs::read(d.join("whole.glb")).unwrap()
+            == std::fs::read(d.join("streamed.glb")).unwrap();
+        assert!(
+            same,
+            "{extra:?}: the streamed scene differs from the whole bake's"
+        );
+        if let Some(report) = common::validate_gltf(&d.join("streamed.glb")) {
+            assert_eq!(report.num_errors, 0, "{extra:?}: {report:?}");
+        }
+    }
+}
+
 #[test]
 fn limits_that_cannot_be_met_are_refused_before_the_bake() {
     let dir = tempfile::tempdir().unwrap();

@@ -307,13 +307,22 @@ pub(super) fn mesh_accessors(scene: &Scene) -> (Vec<AccessorJson>, BTreeMap<Stri
 }
 
 /// The glTF binary container: header, JSON chunk (space-padded), BIN chunk (zero-padded).
-pub(crate) fn glb_container(mut json: Vec<u8>, mut bin: Vec<u8>) -> Result<Vec<u8>> {
-    json.resize(json.len().next_multiple_of(4), b' ');
+pub(crate) fn glb_container(json: Vec<u8>, mut bin: Vec<u8>) -> Result<Vec<u8>> {
     bin.resize(bin.len().next_multiple_of(4), 0);
-    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = glb_head(json, bin.len())?;
+    out.extend_from_slice(&bin);
+    Ok(out)
+}
+
+/// A .glb up to its BIN chunk's bytes: the header, the JSON chunk (padded with spaces) and the
+/// BIN chunk's header for `bin_len` bytes (a multiple of 4), which a writer appends.
+pub(crate) fn glb_head(mut json: Vec<u8>, bin_len: usize) -> Result<Vec<u8>> {
+    debug_assert_eq!(bin_len % 4, 0);
+    json.resize(json.len().next_multiple_of(4), b' ');
+    let total = 12 + 8 + json.len() + 8 + bin_len;
     let total32 = u32::try_from(total)
         .map_err(|_| Error::Geometry("the baked file would exceed the 4 GiB .glb limit".into()))?;
-    let mut out = Vec::with_capacity(total);
+    let mut out = Vec::with_capacity(28 + json.len());
     for word in [
         GLB_MAGIC,
         GLB_VERSION,
@@ -324,9 +333,8 @@ pub(crate) fn glb_container(mut json: Vec<u8>, mut bin: Vec<u8>) -> Result<Vec<u
         out.extend_from_slice(&word.to_le_bytes());
     }
     out.extend_from_slice(&json);
-    for word in [bin.len() as u32, CHUNK_BIN] {
+    for word in [bin_len as u32, CHUNK_BIN] {
         out.extend_from_slice(&word.to_le_bytes());
     }
-    out.extend_from_slice(&bin);
     Ok(out)
 }

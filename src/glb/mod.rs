@@ -50,8 +50,8 @@ pub(crate) use check::groups;
 use check::*;
 pub(crate) use decode::check_shape;
 use decode::*;
-pub(crate) use encode::glb_container;
 use encode::*;
+pub(crate) use encode::{glb_container, glb_head};
 pub use json::LightmapExtras;
 use json::*;
 

@@ -8,15 +8,17 @@ use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
 
+use super::scene::stream::SceneStream;
+use super::scene::SceneWrite;
 use super::{
-    check_finite_coeffs, encode_json, encode_mesh_views, groups, planar_bytes, planar_view,
-    put_planar_block, validate_shape, Precision, Shape, CHUNK_BIN, CHUNK_JSON, GLB_MAGIC,
-    GLB_VERSION,
+    check_finite_coeffs, encode_json, encode_mesh_views, glb_head, groups, planar_bytes,
+    planar_view, put_planar_block, validate_shape, Precision, Shape,
 };
 use crate::bake::stream::StreamedBake;
 use crate::bake::{Backend, BakeMetadata, BakeReport, Mode, Progress, Transfer};
 use crate::error::{Error, Result};
 use crate::fs::AtomicFile;
+use crate::scene::gltf::GltfScene;
 
 /// A .glb being written: everything but the transfer is in place; [`GlbStream::put`] fills in
 /// the transfer of a run of vertices, [`GlbStream::commit`] puts the file in place.
@@ -43,25 +45,10 @@ impl GlbStream {
             .expect("validate_shape bounds the file's size");
         views.push(planar_view(bin.len(), transfer_len, precision));
         let bin_len = bin.len() + transfer_len;
-        let mut json = encode_json(shape, None, None, views, bin_len, precision)?;
-        json.resize(json.len().next_multiple_of(4), b' ');
+        let json = encode_json(shape, None, None, views, bin_len, precision)?;
         // Every view's length is a multiple of 4, so the BIN chunk needs no padding.
-        debug_assert_eq!(bin_len % 4, 0);
-        let total = 12 + 8 + json.len() + 8 + bin_len;
-        let mut head = Vec::with_capacity(28 + json.len());
-        for word in [
-            GLB_MAGIC,
-            GLB_VERSION,
-            total as u32,
-            json.len() as u32,
-            CHUNK_JSON,
-        ] {
-            head.extend_from_slice(&word.to_le_bytes());
-        }
-        head.extend_from_slice(&json);
-        for word in [bin_len as u32, CHUNK_BIN] {
-            head.extend_from_slice(&word.to_le_bytes());
-        }
+        let head = glb_head(json, bin_len)?;
+        let total = head.len() + bin_len;
         let mut file = AtomicFile::create(path)?;
         file.set_len(total as u64)?;
         file.write_at(0, &head)?;
@@ -106,19 +93,45 @@ impl GlbStream {
 /// report on the whole transfer would.
 pub struct StreamSink<'a> {
     pub path: &'a Path,
+    /// The glTF scene the bake writes in place, or `None` for a baked mesh.
+    pub scene: Option<&'a GltfScene>,
     pub precision: Precision,
     pub each_chunk: &'a mut dyn FnMut(&Transfer) -> Result<()>,
 }
 
+/// The file a streamed bake writes: a baked mesh, its chunks written in place as they come,
+/// or a glTF scene, whose transfer views are filled at the end in the scene's vertex order.
+enum Streaming<'m> {
+    Mesh(GlbStream),
+    Scene(SceneStream<'m>),
+}
+
+impl Streaming<'_> {
+    fn put(&mut self, first: usize, chunk: &Transfer) -> Result<()> {
+        match self {
+            Streaming::Mesh(file) => file.put(first, chunk),
+            Streaming::Scene(file) => file.put(first, chunk),
+        }
+    }
+
+    fn commit(self) -> Result<Option<(SceneWrite, f64)>> {
+        match self {
+            Streaming::Mesh(file) => file.commit().map(|()| None),
+            Streaming::Scene(file) => file.commit().map(Some),
+        }
+    }
+}
+
 /// Bakes `bake` to its sink `chunk` receivers at a time on `backend`: at no time is more than
-/// one chunk's transfer in memory. The file's bytes equal the whole bake's.
+/// one chunk's transfer in memory. The file's bytes equal the whole bake's; a scene written in
+/// place says what it wrote, and the seconds writing it took.
 pub fn bake_streamed(
     bake: &StreamedBake,
     backend: &Backend,
     chunk: usize,
     sink: StreamSink,
     progress: &dyn Progress,
-) -> Result<BakeReport> {
+) -> Result<(BakeReport, Option<(SceneWrite, f64)>)> {
     let started = Instant::now();
     let receivers = bake.receivers();
     if chunk == 0 || receivers != bake.scene().vertex_count() {
@@ -142,13 +155,26 @@ pub fn bake_streamed(
         vertex_count: bake.scene().vertex_count(),
         coeffs: Vec::new(),
     };
-    let shape = Shape {
-        scene: bake.scene(),
-        transfer: &shape_transfer,
-        metadata: &metadata,
-        lightmap: None,
+    let (prepare, vertex_map, seconds_prepare) = bake.prepared();
+    let mut file = match sink.scene {
+        None => {
+            let shape = Shape {
+                scene: bake.scene(),
+                transfer: &shape_transfer,
+                metadata: &metadata,
+                lightmap: None,
+            };
+            Streaming::Mesh(GlbStream::create(sink.path, shape, sink.precision)?)
+        }
+        Some(gltf) => Streaming::Scene(SceneStream::create(
+            sink.path,
+            gltf,
+            (shape_transfer, &metadata),
+            sink.precision,
+            vertex_map,
+            chunk,
+        )?),
     };
-    let mut file = GlbStream::create(sink.path, shape, sink.precision)?;
     if interreflected.is_none() {
         progress.stage("transfer", receivers as u64);
     }
@@ -166,7 +192,7 @@ pub fn bake_streamed(
         (sink.each_chunk)(&transfer)?;
         file.put(first, &transfer)?;
     }
-    file.commit()?;
+    let written = file.commit()?;
     let (bounce_stats, gather_entries) = match interreflected {
         Some(baked) => {
             rays_cast = baked.rays_cast;
@@ -174,8 +200,7 @@ pub fn bake_streamed(
         }
         None => (Vec::new(), 0),
     };
-    let (prepare, vertex_map, seconds_prepare) = bake.prepared();
-    Ok(BakeReport {
+    let report = BakeReport {
         prepare: prepare.clone(),
         vertex_map: vertex_map.clone(),
         receivers,
@@ -191,5 +216,6 @@ pub fn bake_streamed(
         bounces: bounce_stats,
         gather_entries,
         backend: backend.describe(),
-    })
+    };
+    Ok((report, written))
 }

@@ -158,7 +158,13 @@ pub(crate) fn bake_one(
         if let Some(chunk) = plan.chunk {
             let preview = execution.preview.is_some();
             let streamed = planned
-                .run_streamed(&backend, chunk, &output_path, preview, progress)
+                .run_streamed(
+                    &backend,
+                    chunk,
+                    (&output_path, gltf.as_ref()),
+                    preview,
+                    progress,
+                )
                 .map_err(naming)?;
             progress.finish();
             if let Some(cost) = &streamed.half_float {
@@ -175,6 +181,9 @@ pub(crate) fn bake_one(
                     let _ = std::fs::remove_file(&output_path);
                 })?;
                 write_preview_or_undo(path, &image, &output_path, false)?;
+            }
+            if let Some((written, seconds_write)) = &streamed.scene_write {
+                print_in_place_report(written, seconds_load, *seconds_write);
             }
             let report = &streamed.report;
             print_bake_report(&name, spec, options.bands, report, &output_path, None);

@@ -21,6 +21,7 @@
 //! The transfer of a placement is in world space: it relights the scene as placed.
 
 use std::collections::BTreeSet;
+use std::ops::Range;
 use std::path::Path;
 
 use gltf_json::accessor::{ComponentType, GenericComponentType, Type};
@@ -31,6 +32,7 @@ use gltf_json::{Index, Root};
 use serde_json::{json, Value};
 
 mod read;
+pub mod stream;
 
 pub(crate) use read::stored_references;
 pub use read::{is_baked_in_place, read_scene_glb, read_scene_vertices};
@@ -114,10 +116,22 @@ pub fn encode_scene_glb(
     vertex_map: &[u32],
     lightmap_uri: Option<&str>,
 ) -> Result<(Vec<u8>, SceneWrite)> {
+    let (json, bin, report) = encode_scene(gltf, stored, vertex_map, lightmap_uri, Bin::default())?;
+    Ok((glb_container(json, bin.bytes)?, report))
+}
+
+/// The scene's JSON and its BIN chunk, built on `bin` (which may reserve the transfer's
+/// views: [`stream::SceneStream`]).
+fn encode_scene(
+    gltf: &GltfScene,
+    stored: Stored,
+    vertex_map: &[u32],
+    lightmap_uri: Option<&str>,
+    mut bin: Bin,
+) -> Result<(Vec<u8>, Bin, SceneWrite)> {
     let baked = stored.baked;
     let bad = |message: String| Error::Geometry(format!("cannot write the scene: {message}"));
     let mut root = gltf.root.clone();
-    let mut bin = Bin::default();
     let repaired = embed_accessors(&mut root, &gltf.buffers, &mut bin).map_err(bad)?;
     embed_images(&mut root, gltf, &mut bin);
     let report = SceneWrite {
@@ -125,13 +139,13 @@ pub fn encode_scene_glb(
         ..add_transfer(&mut root, gltf, stored, vertex_map, &mut bin).map_err(bad)?
     };
     root.buffers = vec![gltf_json::Buffer {
-        byte_length: USize64(bin.bytes.len() as u64),
+        byte_length: USize64(bin.len() as u64),
         name: None,
         uri: None,
         extensions: None,
         extras: None,
     }];
-    root.buffer_views = bin.views;
+    root.buffer_views = std::mem::take(&mut bin.views);
     let mut prt = json!({ "baked_in_place": true });
     if let Some(texels) = &baked.lightmap {
         let uri = lightmap_uri.ok_or_else(|| bad("the lightmap has no file name".into()))?;
@@ -154,7 +168,7 @@ pub fn encode_scene_glb(
     // gltf-json writes some absent optional properties as null, which glTF does not allow.
     drop_nulls(&mut document);
     let json_bytes = serde_json::to_vec(&document).map_err(encode)?;
-    Ok((glb_container(json_bytes, bin.bytes)?, report))
+    Ok((json_bytes, bin, report))
 }
 
 fn drop_nulls(value: &mut Value) {
@@ -174,22 +188,65 @@ fn raw(value: &Value) -> Result<gltf_json::Extras> {
         .map_err(|e| Error::Geometry(format!("cannot encode extras: {e}")))
 }
 
-/// The BIN chunk being built and its buffer views.
+/// The BIN chunk being built and its buffer views. A streamed bake's transfer views are
+/// reserved (their place kept, their bytes written later by [`stream::SceneStream`]); they
+/// come last, after every view that holds bytes here.
 #[derive(Default)]
 struct Bin {
     bytes: Vec<u8>,
     views: Vec<gltf_json::buffer::View>,
+    /// Whether the per-vertex transfer's views are reserved rather than encoded.
+    streaming: bool,
+    /// The reserved views: each one's offset in the chunk and the scene vertices it holds.
+    reserved: Vec<(usize, Range<usize>)>,
+    reserved_bytes: usize,
 }
 
 impl Bin {
     /// Appends `bytes` as a new 4-byte aligned view; returns its index.
     fn push(&mut self, bytes: &[u8], stride: Option<usize>, target: Option<Target>) -> u32 {
+        assert_eq!(
+            self.reserved_bytes, 0,
+            "views with bytes come before reserved ones"
+        );
         self.bytes.resize(self.bytes.len().next_multiple_of(4), 0);
         let offset = self.bytes.len();
         self.bytes.extend_from_slice(bytes);
+        self.add_view(offset, bytes.len(), stride, target)
+    }
+
+    /// Appends a 4-byte aligned view of `len` bytes (a multiple of 4) for the transfer of the
+    /// scene vertices `vertices`, to be written later; returns its index.
+    fn reserve(
+        &mut self,
+        len: usize,
+        vertices: Range<usize>,
+        stride: Option<usize>,
+        target: Option<Target>,
+    ) -> u32 {
+        debug_assert_eq!(len % 4, 0);
+        self.bytes.resize(self.bytes.len().next_multiple_of(4), 0);
+        let offset = self.bytes.len() + self.reserved_bytes;
+        self.reserved.push((offset, vertices));
+        self.reserved_bytes += len;
+        self.add_view(offset, len, stride, target)
+    }
+
+    /// The chunk's length: its bytes and the reserved views after them.
+    fn len(&self) -> usize {
+        self.bytes.len() + self.reserved_bytes
+    }
+
+    fn add_view(
+        &mut self,
+        offset: usize,
+        len: usize,
+        stride: Option<usize>,
+        target: Option<Target>,
+    ) -> u32 {
         self.views.push(gltf_json::buffer::View {
             buffer: Index::new(0),
-            byte_length: USize64(bytes.len() as u64),
+            byte_length: USize64(len as u64),
             byte_offset: Some(USize64(offset as u64)),
             byte_stride: stride.map(Stride),
             name: None,
@@ -498,7 +555,8 @@ fn add_transfer(
         let mut first_primitive = None;
         let mut first_cpca = None;
         for span in &instance.primitives {
-            let map = &vertex_map[span.first..span.first + span.count];
+            let vertices = span.first..span.first + span.count;
+            let map = &vertex_map[vertices.clone()];
             if let Some((cpca, means, bases)) = shared {
                 let extras = push_clusters(bin, cpca, (means, bases), map, precision);
                 let mut prt = json!({ "vertices": span.count, "cpca": extras });
@@ -511,7 +569,7 @@ fn add_transfer(
                 report.primitives_baked += 1;
                 continue;
             }
-            let view = push_transfer(bin, &baked.transfer, map, precision);
+            let view = push_transfer(bin, &baked.transfer, (vertex_map, vertices), precision);
             let primitive = &mut root.meshes[mesh].primitives[span.primitive];
             let mut prt = json!({
                 "vertices": span.count,
@@ -622,30 +680,52 @@ fn push_clusters(
     }
 }
 
-/// The transfer of the vertices `map` names, planar `[channel][group][vertex][4]` as in the
-/// single-mesh format, at `precision`; dropped vertices (in no baked triangle) get zeros.
-fn push_transfer(bin: &mut Bin, transfer: &Transfer, map: &[u32], precision: Precision) -> u32 {
+/// The transfer of the scene vertices `vertices` (baked vertex `vertex_map[i]` each), planar
+/// `[channel][group][vertex][4]` as in the single-mesh format, at `precision`; reserved for
+/// later where `bin` is streaming.
+fn push_transfer(
+    bin: &mut Bin,
+    transfer: &Transfer,
+    (vertex_map, vertices): (&[u32], Range<usize>),
+    precision: Precision,
+) -> u32 {
     let groups = groups(transfer.bands);
-    let vertices = map.len();
-    let mut bytes =
-        Vec::with_capacity(transfer.channels as usize * groups * vertices * 4 * precision.bytes());
+    let (stride, target) = match precision {
+        Precision::F32 => (Some(16), Some(Target::ArrayBuffer)),
+        Precision::F16 => (None, None),
+    };
+    let len = transfer.channels as usize * groups * vertices.len() * 4 * precision.bytes();
+    if bin.streaming {
+        return bin.reserve(len, vertices, stride, target);
+    }
+    let map = &vertex_map[vertices];
+    let mut bytes = Vec::with_capacity(len);
     for channel in 0..transfer.channels as usize {
         for group in 0..groups {
-            for &vertex in map {
-                let coeffs =
-                    (vertex != DROPPED).then(|| transfer.vertex_channel(vertex as usize, channel));
-                let lanes: [f32; 4] = std::array::from_fn(|lane| {
-                    coeffs
-                        .and_then(|c| c.get(4 * group + lane).copied())
-                        .unwrap_or(0.0)
-                });
-                precision.encode(&lanes, &mut bytes);
-            }
+            put_plane(&mut bytes, transfer, map, (channel, group), precision);
         }
     }
-    match precision {
-        Precision::F32 => bin.push(&bytes, Some(16), Some(Target::ArrayBuffer)),
-        Precision::F16 => bin.push(&bytes, None, None),
+    bin.push(&bytes, stride, target)
+}
+
+/// The `(channel, group)` plane of the vertices `map` names, four lanes a vertex at
+/// `precision`: zeros for a dropped vertex (in no baked triangle) and past the last
+/// coefficient.
+fn put_plane(
+    out: &mut Vec<u8>,
+    transfer: &Transfer,
+    map: &[u32],
+    (channel, group): (usize, usize),
+    precision: Precision,
+) {
+    for &vertex in map {
+        let coeffs = (vertex != DROPPED).then(|| transfer.vertex_channel(vertex as usize, channel));
+        let lanes: [f32; 4] = std::array::from_fn(|lane| {
+            coeffs
+                .and_then(|c| c.get(4 * group + lane).copied())
+                .unwrap_or(0.0)
+        });
+        precision.encode(&lanes, out);
     }
 }
 

@@ -1,0 +1,158 @@
+//! A glTF scene baked in place by a streamed bake (`bake --memory-limit`): the document and
+//! every view but the transfer's are written first, as [`super::encode_scene_glb`] writes them;
+//! the chunks of transfer, which come in the baked (prepared, Morton) order of vertices, wait in
+//! a scratch file; at the end each primitive's transfer view is filled from it in the scene's
+//! own vertex order, a block of vertices at a time. The bytes are the whole bake's.
+
+use std::ops::Range;
+use std::path::Path;
+use std::time::Instant;
+
+use super::{encode_scene, put_plane, Bin, SceneWrite, Stored};
+use crate::bake::spill::Spill;
+use crate::bake::{BakeMetadata, BakedMesh, Transfer};
+use crate::error::Result;
+use crate::fs::{check_destination, AtomicFile};
+use crate::glb::{check_finite_coeffs, glb_head, groups};
+use crate::precision::Precision;
+use crate::scene::gltf::GltfScene;
+use crate::scene::prepare::DROPPED;
+use crate::scene::Scene;
+
+/// A scene file being written: [`SceneStream::put`] takes the transfer of the next run of
+/// baked vertices, [`SceneStream::commit`] writes the transfer views and puts the file in place.
+pub struct SceneStream<'m> {
+    file: AtomicFile,
+    /// Each transfer view's offset in the file and the scene vertices it holds.
+    views: Vec<(u64, Range<usize>)>,
+    vertex_map: &'m [u32],
+    spill: Spill,
+    /// Baked vertices put so far.
+    put: usize,
+    shape: Transfer,
+    precision: Precision,
+    /// Scene vertices per block when the views are filled.
+    block: usize,
+    report: SceneWrite,
+    /// Seconds spent writing the file (not baking its chunks).
+    seconds: f64,
+}
+
+impl<'m> SceneStream<'m> {
+    /// Starts `gltf` baked in place at `path`, its transfer of the shape of `shape` (no
+    /// coefficients) at `precision`; scene vertex `i` is baked vertex `vertex_map[i]`. The
+    /// views are later filled `block` scene vertices at a time.
+    pub fn create(
+        path: &Path,
+        gltf: &GltfScene,
+        (shape, metadata): (Transfer, &BakeMetadata),
+        precision: Precision,
+        vertex_map: &'m [u32],
+        block: usize,
+    ) -> Result<SceneStream<'m>> {
+        let started = Instant::now();
+        check_destination(path)?;
+        let baked = BakedMesh {
+            scene: Scene::default(),
+            transfer: shape,
+            metadata: metadata.clone(),
+            lightmap: None,
+        };
+        let streaming = Bin {
+            streaming: true,
+            ..Bin::default()
+        };
+        let stored = Stored::per_vertex(&baked, precision);
+        let (json, bin, report) = encode_scene(gltf, stored, vertex_map, None, streaming)?;
+        let bin_len = bin.len().next_multiple_of(4);
+        let head = glb_head(json, bin_len)?;
+        let mut file = AtomicFile::create(path)?;
+        file.set_len((head.len() + bin_len) as u64)?;
+        file.write_at(0, &head)?;
+        file.write_at(head.len() as u64, &bin.bytes)?;
+        let start = head.len() as u64;
+        Ok(SceneStream {
+            file,
+            views: bin
+                .reserved
+                .into_iter()
+                .map(|(offset, vertices)| (start + offset as u64, vertices))
+                .collect(),
+            vertex_map,
+            spill: Spill::new()?,
+            put: 0,
+            shape: baked.transfer,
+            precision,
+            block: block.max(1),
+            report,
+            seconds: started.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Takes the transfer of the baked vertices `first..first + chunk.vertex_count`, the next
+    /// ones in order.
+    pub fn put(&mut self, first: usize, chunk: &Transfer) -> Result<()> {
+        assert_eq!(first, self.put, "chunks come in order");
+        assert_eq!(
+            (chunk.bands, chunk.channels),
+            (self.shape.bands, self.shape.channels)
+        );
+        check_finite_coeffs(chunk, first)?;
+        self.spill.append(&chunk.coeffs)?;
+        self.put += chunk.vertex_count;
+        Ok(())
+    }
+
+    /// Fills every transfer view from the scratch file and puts the file in place: what it
+    /// wrote, and the seconds writing took.
+    pub fn commit(mut self) -> Result<(SceneWrite, f64)> {
+        let started = Instant::now();
+        let (channels, groups) = (self.shape.channels as usize, groups(self.shape.bands));
+        let per_vertex = channels * self.shape.coeffs_per_channel();
+        let lanes = 4 * self.precision.bytes();
+        for (at, vertices) in std::mem::take(&mut self.views) {
+            for start in vertices.clone().step_by(self.block) {
+                let end = (start + self.block).min(vertices.end);
+                let (block, map) = self.read_block(start..end, per_vertex)?;
+                for channel in 0..channels {
+                    for group in 0..groups {
+                        let mut bytes = Vec::with_capacity(lanes * map.len());
+                        put_plane(&mut bytes, &block, &map, (channel, group), self.precision);
+                        let plane = (channel * groups + group) * vertices.len();
+                        let offset = lanes * (plane + start - vertices.start);
+                        self.file.write_at(at + offset as u64, &bytes)?;
+                    }
+                }
+            }
+        }
+        self.file.commit()?;
+        Ok((self.report, self.seconds + started.elapsed().as_secs_f64()))
+    }
+
+    /// The transfer of the scene vertices `vertices`, read from the scratch file, and their
+    /// map into it (dropped vertices stay dropped).
+    fn read_block(
+        &mut self,
+        vertices: Range<usize>,
+        per_vertex: usize,
+    ) -> Result<(Transfer, Vec<u32>)> {
+        let mut coeffs = vec![0.0f32; vertices.len() * per_vertex];
+        let mut map = Vec::with_capacity(vertices.len());
+        for (k, &vertex) in self.vertex_map[vertices].iter().enumerate() {
+            if vertex == DROPPED {
+                map.push(DROPPED);
+                continue;
+            }
+            let row = &mut coeffs[k * per_vertex..(k + 1) * per_vertex];
+            let at = (vertex as usize * per_vertex * 4) as u64;
+            self.spill.read_at(at, row)?;
+            map.push(k as u32);
+        }
+        let block = Transfer {
+            vertex_count: map.len(),
+            coeffs,
+            ..self.shape.clone()
+        };
+        Ok((block, map))
+    }
+}

@@ -147,23 +147,26 @@ impl Planned<'_> {
         check_container(self.spec, gltf)?;
         let streamed = bake::stream::StreamedBake::plan(self.scene, &self.spec.options())?;
         let precision = self.spec.storage.precision;
-        let mut half_float = match precision {
-            Precision::F16 => Some(HalfFloatTally::new(streamed.bands())?),
-            Precision::F32 => None,
-        };
-        let preview_light = preview
-            .then(|| light::preview_light(streamed.bands()))
-            .transpose()?;
+        // Built at the first chunk, of its bands (with --bands auto, those chosen).
+        let mut half_float: Option<HalfFloatTally> = None;
+        let mut preview_light = None;
         let mut radiance = Vec::new();
         let albedo_free = streamed.metadata(backend, 0).albedo_free;
         let albedo = &streamed.scene().albedo;
         let mut each_chunk = |transfer: &bake::Transfer| {
-            if let Some(tally) = &mut half_float {
-                tally.add(transfer)?;
+            if precision == Precision::F16 {
+                if half_float.is_none() {
+                    half_float = Some(HalfFloatTally::new(transfer.bands)?);
+                }
+                half_float.as_mut().expect("built above").add(transfer)?;
             }
-            if let Some(preview_light) = &preview_light {
+            if preview {
+                if preview_light.is_none() {
+                    preview_light = Some(light::preview_light(transfer.bands)?);
+                }
                 let first = radiance.len();
-                let mut relit = render::relight(transfer, preview_light)?;
+                let light = preview_light.as_ref().expect("built above");
+                let mut relit = render::relight(transfer, light)?;
                 if albedo_free {
                     render::tint_by(&mut relit, &albedo[first..]);
                 }
@@ -171,17 +174,28 @@ impl Planned<'_> {
             }
             Ok(())
         };
+        let bands_auto = match self.spec.transfer.bands {
+            Bands::Auto { threshold } => Some(threshold),
+            Bands::Fixed(_) => None,
+        };
         let sink = glb::stream::StreamSink {
             path,
             scene: gltf,
             precision,
+            bands_auto,
             each_chunk: &mut each_chunk,
         };
-        let (report, scene_write) =
-            glb::stream::bake_streamed(&streamed, backend, chunk, sink, progress)?;
+        let written = glb::stream::bake_streamed(&streamed, backend, chunk, sink, progress)?;
         Ok(Streamed {
-            report,
-            scene_write,
+            report: written.report,
+            scene_write: written.scene_write,
+            bands_chosen: written.bands_chosen.zip(bands_auto).map(
+                |((bands, beyond), threshold)| BandsChosen {
+                    bands,
+                    beyond,
+                    threshold,
+                },
+            ),
             half_float: half_float.map(|tally| tally.cost()),
             preview: preview.then(|| (streamed.into_scene(), radiance)),
         })
@@ -193,6 +207,8 @@ pub struct Streamed {
     pub report: BakeReport,
     /// What writing a glTF scene in place did, and its seconds.
     pub scene_write: Option<(glb::scene::SceneWrite, f64)>,
+    /// The bands `--bands auto` chose.
+    pub bands_chosen: Option<BandsChosen>,
     pub half_float: Option<HalfFloatCost>,
     /// The prepared scene and its radiance at the vertices under the preview light (albedo
     /// applied), when asked for: what [`render::preview`] would draw of the whole bake.
@@ -231,11 +247,9 @@ pub fn plan_memory(
     if need.whole() <= budget {
         return Ok(whole);
     }
-    let streamable = bake::stream::streams(&options)
-        && spec.storage.layout == Layout::PerVertex
-        && matches!(spec.transfer.bands, Bands::Fixed(_));
+    let streamable = bake::stream::streams(&options) && spec.storage.layout == Layout::PerVertex;
     let why_not = "only bakes at the vertices (no least-squares fit, lightmap or error target), \
-                   without --compress or --bands auto, stream in chunks";
+                   without --compress, stream in chunks";
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;

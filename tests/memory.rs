@@ -29,8 +29,22 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     const INTERREFLECTED: [&str; 2] = ["--mode", "interreflected"];
-    let cases: [&[&str]; 10] = [
+    let cases: [&[&str]; 12] = [
         &["--device", "cpu"],
+        // --bands auto: the chunks wait at the most bands until the bands are chosen.
+        &["--device", "cpu", "--bands", "auto"],
+        &[
+            "--device",
+            "cpu",
+            "--bands",
+            "auto",
+            "--mode",
+            "interreflected",
+            "--storage",
+            "lean",
+            "--precision",
+            "f16",
+        ],
         &["--device", "cpu", "--storage", "lean", "--bands", "6"],
         &[
             "--device",
@@ -82,7 +96,13 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
         }
         let interreflected = extra.windows(2).any(|w| w == INTERREFLECTED);
         let options = BakeOptions {
-            bands: if extra.contains(&"6") { 6 } else { 4 },
+            bands: if extra.contains(&"6") {
+                6
+            } else if extra.contains(&"auto") {
+                prt_gpu::spec::AUTO_MAX_BANDS
+            } else {
+                4
+            },
             samples: 64,
             mode: match interreflected {
                 true => prt_gpu::bake::Mode::Interreflected,
@@ -131,6 +151,15 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             "{extra:?}: {stderr}"
         );
         assert_eq!(half_float_line(&stderr), stated, "{extra:?}");
+        let bands_line = |stderr: &str| {
+            stderr
+                .lines()
+                .find(|line| line.starts_with("bands auto:"))
+                .map(str::to_string)
+        };
+        let chosen = bands_line(&String::from_utf8_lossy(&whole.stderr));
+        assert_eq!(chosen.is_some(), extra.contains(&"auto"), "{extra:?}");
+        assert_eq!(bands_line(&stderr), chosen, "{extra:?}");
     }
 }
 

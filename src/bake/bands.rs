@@ -6,28 +6,60 @@ use super::*;
 /// The fraction of a transfer's energy (sum of squared coefficients over vertices and channels)
 /// in each band `l`.
 pub fn band_energy_fractions(transfer: &Transfer) -> Vec<f64> {
-    let n = transfer.coeffs_per_channel();
-    let mut energy = vec![0.0f64; transfer.bands as usize];
-    for row in transfer.coeffs.chunks_exact(n) {
-        for (k, &t) in row.iter().enumerate() {
-            energy[(k as f64).sqrt() as usize] += (t as f64) * (t as f64);
-        }
-    }
-    let total: f64 = energy.iter().sum();
-    energy
-        .iter()
-        .map(|e| e / total.max(f64::MIN_POSITIVE))
-        .collect()
+    let mut energy = BandEnergy::new(transfer.bands);
+    energy.add(transfer);
+    energy.fractions()
 }
 
 /// The fewest bands whose transfer leaves less than `threshold` of the energy in the bands
 /// above them, and the fraction it leaves.
 pub fn choose_bands(transfer: &Transfer, threshold: f64) -> (u32, f64) {
-    let fractions = band_energy_fractions(transfer);
-    (1..=transfer.bands)
-        .map(|bands| (bands, fractions[bands as usize..].iter().sum::<f64>()))
-        .find(|&(_, beyond)| beyond < threshold)
-        .unwrap_or((transfer.bands, 0.0))
+    let mut energy = BandEnergy::new(transfer.bands);
+    energy.add(transfer);
+    energy.choose(threshold)
+}
+
+/// The energy of each band summed over runs of vertices in order: the whole transfer at once,
+/// or the chunks of a streamed bake, give the same bits.
+pub struct BandEnergy {
+    energy: Vec<f64>,
+}
+
+impl BandEnergy {
+    pub fn new(bands: u32) -> BandEnergy {
+        BandEnergy {
+            energy: vec![0.0; bands as usize],
+        }
+    }
+
+    pub fn add(&mut self, transfer: &Transfer) {
+        assert_eq!(transfer.bands as usize, self.energy.len());
+        let n = transfer.coeffs_per_channel();
+        for row in transfer.coeffs.chunks_exact(n) {
+            for (k, &t) in row.iter().enumerate() {
+                self.energy[(k as f64).sqrt() as usize] += (t as f64) * (t as f64);
+            }
+        }
+    }
+
+    /// The fraction of the energy in each band.
+    pub fn fractions(&self) -> Vec<f64> {
+        let total: f64 = self.energy.iter().sum();
+        self.energy
+            .iter()
+            .map(|e| e / total.max(f64::MIN_POSITIVE))
+            .collect()
+    }
+
+    /// [`choose_bands`] of what was added.
+    pub fn choose(&self, threshold: f64) -> (u32, f64) {
+        let fractions = self.fractions();
+        let bands = self.energy.len() as u32;
+        (1..=bands)
+            .map(|kept| (kept, fractions[kept as usize..].iter().sum::<f64>()))
+            .find(|&(_, beyond)| beyond < threshold)
+            .unwrap_or((bands, 0.0))
+    }
 }
 
 /// `transfer` with only its first `bands` bands: the lower bands of SH transfer do not depend on

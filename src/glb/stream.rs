@@ -14,11 +14,15 @@ use super::{
     check_finite_coeffs, encode_json, encode_mesh_views, glb_head, groups, planar_bytes,
     planar_view, put_planar_block, validate_shape, Precision, Shape,
 };
+use crate::bake::spill::Spill;
 use crate::bake::stream::StreamedBake;
-use crate::bake::{Backend, BakeMetadata, BakeReport, Mode, Progress, Transfer};
+use crate::bake::{
+    truncate_bands, Backend, BakeMetadata, BakeReport, BandEnergy, Mode, Progress, Transfer,
+};
 use crate::error::{Error, Result};
 use crate::fs::AtomicFile;
 use crate::scene::gltf::GltfScene;
+use crate::sh::coeff_count;
 
 /// A .glb being written: everything but the transfer is in place; [`GlbStream::put`] fills in
 /// the transfer of a run of vertices, [`GlbStream::commit`] puts the file in place.
@@ -96,6 +100,9 @@ pub struct StreamSink<'a> {
     /// The glTF scene the bake writes in place, or `None` for a baked mesh.
     pub scene: Option<&'a GltfScene>,
     pub precision: Precision,
+    /// `--bands auto`'s threshold: the file keeps the fewest bands that leave less than it of
+    /// the energy above them.
+    pub bands_auto: Option<f64>,
     pub each_chunk: &'a mut dyn FnMut(&Transfer) -> Result<()>,
 }
 
@@ -131,7 +138,7 @@ pub fn bake_streamed(
     chunk: usize,
     sink: StreamSink,
     progress: &dyn Progress,
-) -> Result<(BakeReport, Option<(SceneWrite, f64)>)> {
+) -> Result<StreamedWrite> {
     let started = Instant::now();
     let receivers = bake.receivers();
     if chunk == 0 || receivers != bake.scene().vertex_count() {
@@ -148,7 +155,44 @@ pub fn bake_streamed(
         _ => None,
     };
     let bounces = interreflected.as_ref().map_or(0, |i| i.bounces.len());
-    let metadata: BakeMetadata = bake.metadata(backend, bounces);
+    let mut metadata: BakeMetadata = bake.metadata(backend, bounces);
+    if interreflected.is_none() {
+        progress.stage("transfer", receivers as u64);
+    }
+    let ranges: Vec<Range<usize>> = (0..receivers)
+        .step_by(chunk)
+        .map(|first| first..(first + chunk).min(receivers))
+        .collect();
+    let mut rays_cast = 0;
+    let mut next_chunk = |range: Range<usize>| -> Result<Transfer> {
+        match &mut interreflected {
+            Some(baked) => baked.chunk(range, metadata.channels),
+            None => {
+                let (transfer, rays) = bake.chunk(range, backend, progress)?;
+                rays_cast += rays;
+                Ok(transfer)
+            }
+        }
+    };
+    // --bands auto: the bands are known once every chunk is baked, and the file's layout
+    // depends on them, so the chunks wait in a scratch file at the most bands.
+    let mut held = match sink.bands_auto {
+        Some(threshold) => {
+            let mut spill = Spill::new()?;
+            let mut energy = BandEnergy::new(metadata.bands);
+            for range in &ranges {
+                let transfer = next_chunk(range.clone())?;
+                energy.add(&transfer);
+                spill.append(&transfer.coeffs)?;
+            }
+            let (bands, beyond) = energy.choose(threshold);
+            Some((spill, metadata.bands, bands, beyond))
+        }
+        None => None,
+    };
+    if let Some((_, _, bands, _)) = held {
+        metadata.bands = bands;
+    }
     let shape_transfer = Transfer {
         bands: metadata.bands,
         channels: metadata.channels,
@@ -175,19 +219,23 @@ pub fn bake_streamed(
             chunk,
         )?),
     };
-    if interreflected.is_none() {
-        progress.stage("transfer", receivers as u64);
-    }
-    let mut rays_cast = 0;
-    for first in (0..receivers).step_by(chunk) {
-        let range: Range<usize> = first..(first + chunk).min(receivers);
-        let transfer = match &mut interreflected {
-            Some(baked) => baked.chunk(range, metadata.channels)?,
-            None => {
-                let (transfer, rays) = bake.chunk(range, backend, progress)?;
-                rays_cast += rays;
-                transfer
+    let mut bands_chosen = None;
+    for range in ranges {
+        let first = range.start;
+        let transfer = match &mut held {
+            Some((spill, baked_bands, bands, beyond)) => {
+                bands_chosen = Some((*bands, *beyond));
+                let per_vertex = metadata.channels as usize * coeff_count(*baked_bands);
+                let at = (first * per_vertex * 4) as u64;
+                let baked = Transfer {
+                    bands: *baked_bands,
+                    channels: metadata.channels,
+                    vertex_count: range.len(),
+                    coeffs: spill.read_vec(at, range.len() * per_vertex)?,
+                };
+                truncate_bands(&baked, *bands)
             }
+            None => next_chunk(range)?,
         };
         (sink.each_chunk)(&transfer)?;
         file.put(first, &transfer)?;
@@ -217,5 +265,18 @@ pub fn bake_streamed(
         gather_entries,
         backend: backend.describe(),
     };
-    Ok((report, written))
+    Ok(StreamedWrite {
+        report,
+        scene_write: written,
+        bands_chosen,
+    })
+}
+
+/// What a streamed bake wrote.
+pub struct StreamedWrite {
+    pub report: BakeReport,
+    /// What writing a glTF scene in place did, and its seconds.
+    pub scene_write: Option<(SceneWrite, f64)>,
+    /// With `--bands auto`: the bands kept and the fraction of the energy left above them.
+    pub bands_chosen: Option<(u32, f64)>,
 }

@@ -167,6 +167,9 @@ pub(crate) fn bake_one(
                 )
                 .map_err(naming)?;
             progress.finish();
+            if let Some(chosen) = &streamed.bands_chosen {
+                eprintln!("{chosen}");
+            }
             if let Some(cost) = &streamed.half_float {
                 eprintln!("{cost}");
             }
@@ -186,7 +189,10 @@ pub(crate) fn bake_one(
                 print_in_place_report(written, seconds_load, *seconds_write);
             }
             let report = &streamed.report;
-            print_bake_report(&name, spec, options.bands, report, &output_path, None);
+            let bands = streamed
+                .bands_chosen
+                .map_or(options.bands, |chosen| chosen.bands);
+            print_bake_report(&name, spec, bands, report, &output_path, None);
             return Ok(());
         }
     }

@@ -15,7 +15,7 @@ use super::{
     planar_view, put_planar_block, validate_shape, Precision, Shape,
 };
 use crate::bake::spill::Spill;
-use crate::bake::stream::StreamedBake;
+use crate::bake::stream::{Interreflected, StreamedBake};
 use crate::bake::{
     truncate_bands, Backend, BakeMetadata, BakeReport, BandEnergy, Mode, Progress, Transfer,
 };
@@ -113,7 +113,43 @@ enum Streaming<'m> {
     Scene(SceneStream<'m>),
 }
 
-impl Streaming<'_> {
+impl<'m> Streaming<'m> {
+    /// Starts the file of `bake` with `metadata` where `sink` says; a scene's views are filled
+    /// `chunk` scene vertices at a time.
+    fn create(
+        bake: &StreamedBake,
+        metadata: &BakeMetadata,
+        sink: &StreamSink,
+        vertex_map: &'m [u32],
+        chunk: usize,
+    ) -> Result<Streaming<'m>> {
+        let shape_transfer = Transfer {
+            bands: metadata.bands,
+            channels: metadata.channels,
+            vertex_count: bake.scene().vertex_count(),
+            coeffs: Vec::new(),
+        };
+        Ok(match sink.scene {
+            None => {
+                let shape = Shape {
+                    scene: bake.scene(),
+                    transfer: &shape_transfer,
+                    metadata,
+                    lightmap: None,
+                };
+                Streaming::Mesh(GlbStream::create(sink.path, shape, sink.precision)?)
+            }
+            Some(gltf) => Streaming::Scene(SceneStream::create(
+                sink.path,
+                gltf,
+                (shape_transfer, metadata),
+                sink.precision,
+                vertex_map,
+                chunk,
+            )?),
+        })
+    }
+
     fn put(&mut self, first: usize, chunk: &Transfer) -> Result<()> {
         match self {
             Streaming::Mesh(file) => file.put(first, chunk),
@@ -177,70 +213,45 @@ pub fn bake_streamed(
     // --bands auto: the bands are known once every chunk is baked, and the file's layout
     // depends on them, so the chunks wait in a scratch file at the most bands.
     let mut held = match sink.bands_auto {
-        Some(threshold) => {
-            let mut spill = Spill::new()?;
-            let mut energy = BandEnergy::new(metadata.bands);
-            for range in &ranges {
-                let transfer = next_chunk(range.clone())?;
-                energy.add(&transfer);
-                spill.append(&transfer.coeffs)?;
-            }
-            let (bands, beyond) = energy.choose(threshold);
-            Some((spill, metadata.bands, bands, beyond))
-        }
+        Some(threshold) => Some(HeldChunks::bake(
+            &ranges,
+            &mut next_chunk,
+            &metadata,
+            threshold,
+        )?),
         None => None,
     };
-    if let Some((_, _, bands, _)) = held {
-        metadata.bands = bands;
+    if let Some(held) = &held {
+        metadata.bands = held.bands;
     }
-    let shape_transfer = Transfer {
-        bands: metadata.bands,
-        channels: metadata.channels,
-        vertex_count: bake.scene().vertex_count(),
-        coeffs: Vec::new(),
-    };
-    let (prepare, vertex_map, seconds_prepare) = bake.prepared();
-    let mut file = match sink.scene {
-        None => {
-            let shape = Shape {
-                scene: bake.scene(),
-                transfer: &shape_transfer,
-                metadata: &metadata,
-                lightmap: None,
-            };
-            Streaming::Mesh(GlbStream::create(sink.path, shape, sink.precision)?)
-        }
-        Some(gltf) => Streaming::Scene(SceneStream::create(
-            sink.path,
-            gltf,
-            (shape_transfer, &metadata),
-            sink.precision,
-            vertex_map,
-            chunk,
-        )?),
-    };
-    let mut bands_chosen = None;
+    let (_, vertex_map, _) = bake.prepared();
+    let mut file = Streaming::create(bake, &metadata, &sink, vertex_map, chunk)?;
     for range in ranges {
         let first = range.start;
         let transfer = match &mut held {
-            Some((spill, baked_bands, bands, beyond)) => {
-                bands_chosen = Some((*bands, *beyond));
-                let per_vertex = metadata.channels as usize * coeff_count(*baked_bands);
-                let at = (first * per_vertex * 4) as u64;
-                let baked = Transfer {
-                    bands: *baked_bands,
-                    channels: metadata.channels,
-                    vertex_count: range.len(),
-                    coeffs: spill.read_vec(at, range.len() * per_vertex)?,
-                };
-                truncate_bands(&baked, *bands)
-            }
+            Some(held) => held.read(range, metadata.channels)?,
             None => next_chunk(range)?,
         };
         (sink.each_chunk)(&transfer)?;
         file.put(first, &transfer)?;
     }
     let written = file.commit()?;
+    let seconds = started.elapsed().as_secs_f64();
+    Ok(StreamedWrite {
+        report: streamed_report(bake, backend, (rays_cast, seconds), interreflected),
+        scene_write: written,
+        bands_chosen: held.map(|held| (held.bands, held.beyond)),
+    })
+}
+
+/// The report of a streamed bake that cast `rays_cast` rays (its bounces' own count instead
+/// where it is `interreflected`) in `seconds`.
+fn streamed_report(
+    bake: &StreamedBake,
+    backend: &Backend,
+    (mut rays_cast, seconds): (u64, f64),
+    interreflected: Option<Interreflected>,
+) -> BakeReport {
     let (bounce_stats, gather_entries) = match interreflected {
         Some(baked) => {
             rays_cast = baked.rays_cast;
@@ -248,15 +259,16 @@ pub fn bake_streamed(
         }
         None => (Vec::new(), 0),
     };
-    let report = BakeReport {
+    let (prepare, vertex_map, seconds_prepare) = bake.prepared();
+    BakeReport {
         prepare: prepare.clone(),
         vertex_map: vertex_map.clone(),
-        receivers,
+        receivers: bake.receivers(),
         samples_used: bake.samples_used() as u32,
         rays_cast,
         bvh_nodes: bake.bvh_nodes(),
         seconds_prepare,
-        seconds_transfer: started.elapsed().as_secs_f64(),
+        seconds_transfer: seconds,
         seconds_fit: 0.0,
         fit: None,
         texels: None,
@@ -264,12 +276,56 @@ pub fn bake_streamed(
         bounces: bounce_stats,
         gather_entries,
         backend: backend.describe(),
-    };
-    Ok(StreamedWrite {
-        report,
-        scene_write: written,
-        bands_chosen,
-    })
+    }
+}
+
+/// A streamed bake's chunks at the most bands in a scratch file, and the bands `--bands auto`
+/// keeps of them.
+struct HeldChunks {
+    spill: Spill,
+    baked_bands: u32,
+    bands: u32,
+    /// The fraction of the energy in the bands left out.
+    beyond: f64,
+}
+
+impl HeldChunks {
+    /// Bakes the chunks `ranges` with `next_chunk`, summing each band's energy in vertex order
+    /// as the whole bake does, and chooses the bands by `threshold`.
+    fn bake(
+        ranges: &[Range<usize>],
+        next_chunk: &mut dyn FnMut(Range<usize>) -> Result<Transfer>,
+        metadata: &BakeMetadata,
+        threshold: f64,
+    ) -> Result<HeldChunks> {
+        let mut spill = Spill::new()?;
+        let mut energy = BandEnergy::new(metadata.bands);
+        for range in ranges {
+            let transfer = next_chunk(range.clone())?;
+            energy.add(&transfer);
+            spill.append(&transfer.coeffs)?;
+        }
+        let (bands, beyond) = energy.choose(threshold);
+        Ok(HeldChunks {
+            spill,
+            baked_bands: metadata.bands,
+            bands,
+            beyond,
+        })
+    }
+
+    /// The chunk of the receivers `range` at the chosen bands.
+    fn read(&mut self, range: Range<usize>, channels: u32) -> Result<Transfer> {
+        let per_vertex = channels as usize * coeff_count(self.baked_bands);
+        let at = (range.start * per_vertex * 4) as u64;
+        let baked = Transfer {
+            bands: self.baked_bands,
+            channels,
+            vertex_count: range.len(),
+            coeffs: self.spill.read_vec(at, range.len() * per_vertex)?,
+        };
+        Ok(truncate_bands(&baked, self.bands))
+    }
 }
 
 /// What a streamed bake wrote.

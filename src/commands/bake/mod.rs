@@ -167,32 +167,14 @@ pub(crate) fn bake_one(
                 )
                 .map_err(naming)?;
             progress.finish();
-            if let Some(chosen) = &streamed.bands_chosen {
-                eprintln!("{chosen}");
-            }
-            if let Some(cost) = &streamed.half_float {
-                eprintln!("{cost}");
-            }
-            if let (Some(path), Some((scene, radiance))) = (&execution.preview, &streamed.preview) {
-                let image = match baker {
-                    Some(baker) => render_radiance_preview(&baker.context, scene, radiance),
-                    None => open_render_device(None)
-                        .and_then(|context| render_radiance_preview(&context, scene, radiance)),
-                };
-                // A bake is whole or not at all: no file without the preview asked for.
-                let image = image.inspect_err(|_| {
-                    let _ = std::fs::remove_file(&output_path);
-                })?;
-                write_preview_or_undo(path, &image, &output_path, false)?;
-            }
-            if let Some((written, seconds_write)) = &streamed.scene_write {
-                print_in_place_report(written, seconds_load, *seconds_write);
-            }
-            let report = &streamed.report;
-            let bands = streamed
-                .bands_chosen
-                .map_or(options.bands, |chosen| chosen.bands);
-            print_bake_report(&name, spec, bands, report, &output_path, None);
+            let said = (name.as_str(), seconds_load);
+            report_streamed(
+                spec,
+                execution,
+                &streamed,
+                (&output_path, baker.as_ref()),
+                said,
+            )?;
             return Ok(());
         }
     }
@@ -228,5 +210,43 @@ pub(crate) fn bake_one(
     }
     let bands = baked.mesh.transfer.bands;
     print_bake_report(&name, spec, bands, &baked.report, &output_path, merged_from);
+    Ok(())
+}
+
+/// What a streamed bake says when it is done, and its preview drawn (the file removed where the
+/// preview cannot be made, as a whole bake leaves none).
+fn report_streamed(
+    spec: &BakeSpec,
+    execution: &Execution,
+    streamed: &pipeline::Streamed,
+    (output_path, baker): (&Path, Option<&GpuBaker>),
+    (name, seconds_load): (&str, f64),
+) -> Result<()> {
+    if let Some(chosen) = &streamed.bands_chosen {
+        eprintln!("{chosen}");
+    }
+    if let Some(cost) = &streamed.half_float {
+        eprintln!("{cost}");
+    }
+    if let (Some(path), Some((scene, radiance))) = (&execution.preview, &streamed.preview) {
+        let image = match baker {
+            Some(baker) => render_radiance_preview(&baker.context, scene, radiance),
+            None => open_render_device(None)
+                .and_then(|context| render_radiance_preview(&context, scene, radiance)),
+        };
+        // A bake is whole or not at all: no file without the preview asked for.
+        let image = image.inspect_err(|_| {
+            let _ = std::fs::remove_file(output_path);
+        })?;
+        write_preview_or_undo(path, &image, output_path, false)?;
+    }
+    if let Some((written, seconds_write)) = &streamed.scene_write {
+        print_in_place_report(written, seconds_load, *seconds_write);
+    }
+    let report = &streamed.report;
+    let bands = streamed
+        .bands_chosen
+        .map_or(spec.options().bands, |chosen| chosen.bands);
+    print_bake_report(name, spec, bands, report, output_path, None);
     Ok(())
 }

@@ -21,7 +21,7 @@
 
 use std::path::Path;
 
-use prt_gpu::bake::{Backend, BakeInputs, Mode, NoProgress};
+use prt_gpu::bake::{Backend, BakeInputs, CpuBackend, Mode, NoProgress};
 use prt_gpu::sampling::{Estimator, Sampling};
 
 const BANDS: u32 = 4;
@@ -39,7 +39,7 @@ fn main() -> prt_gpu::Result<()> {
     let relit = |samples: u32, seed: u64, estimator: Estimator| -> prt_gpu::Result<Vec<[f64; 3]>> {
         let mut inputs = BakeInputs::with_sampling(&scene, BANDS, samples, seed, Sampling::Cosine);
         inputs.estimator = estimator;
-        let pass = Backend::Cpu.direct_pass(&inputs.view(), Mode::Shadowed, &NoProgress)?;
+        let pass = CpuBackend.direct_pass(&inputs.view(), Mode::Shadowed, &NoProgress)?;
         let n = (BANDS * BANDS) as usize;
         Ok(pass
             .scalar

@@ -17,7 +17,7 @@
 use std::path::Path;
 
 use prt_gpu::bake::adaptive::{adaptive_direct_transfer, TargetError};
-use prt_gpu::bake::{Backend, BakeInputs, Mode, NoProgress};
+use prt_gpu::bake::{Backend, BakeInputs, CpuBackend, Mode, NoProgress};
 use prt_gpu::sampling::{Estimator, Sampling};
 
 const BANDS: u32 = 4;
@@ -63,7 +63,7 @@ fn main() -> prt_gpu::Result<()> {
     let fixed = |samples: u32, seed: u64| -> prt_gpu::Result<Vec<f32>> {
         let mut inputs = BakeInputs::with_sampling(&scene, BANDS, samples, seed, Sampling::Cosine);
         inputs.estimator = Estimator::Visible;
-        Ok(Backend::Cpu
+        Ok(CpuBackend
             .direct_pass(&inputs.view(), Mode::Shadowed, &NoProgress)?
             .scalar)
     };
@@ -100,6 +100,7 @@ fn main() -> prt_gpu::Result<()> {
             max_samples: REFERENCE_SAMPLES / 2,
         };
         let (transfer, _, report) = adaptive_direct_transfer(
+            &CpuBackend,
             &base,
             0..receivers,
             (Sampling::Cosine, SEED, Mode::Shadowed),

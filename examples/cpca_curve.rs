@@ -12,7 +12,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use prt_gpu::bake::{bake, Backend, BakeOptions, BakedMesh, NoProgress, Storage};
+use prt_gpu::bake::{bake, BakeOptions, BakedMesh, CpuBackend, NoProgress, Storage};
 use prt_gpu::compress::{
     compress, radiance_error, relative_error, uncompressed_bytes, CpcaOptions,
 };
@@ -32,7 +32,7 @@ fn main() -> prt_gpu::Result<()> {
             ..BakeOptions::default()
         };
         let scene = prt_gpu::scene::load(&mesh)?;
-        bake(scene, &options, &Backend::Cpu, &NoProgress).map(|(baked, _)| baked)
+        bake(scene, &options, &CpuBackend, &NoProgress).map(|(baked, _)| baked)
     };
     let rgb_baked = baked(Storage::Rgb)?;
     let rgb = &rgb_baked.transfer;

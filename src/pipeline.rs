@@ -41,7 +41,7 @@ pub fn run(
     spec: &BakeSpec,
     scene: Scene,
     gltf: Option<&GltfScene>,
-    backend: &Backend,
+    backend: &dyn Backend,
     source: DirectSource,
     progress: &dyn Progress,
 ) -> Result<Baked> {
@@ -89,7 +89,7 @@ impl Planned<'_> {
     /// Bakes it: the transfer, then the stages that shape what is stored.
     pub fn run(
         self,
-        backend: &Backend,
+        backend: &dyn Backend,
         source: DirectSource,
         progress: &dyn Progress,
     ) -> Result<Baked> {
@@ -138,7 +138,7 @@ impl Planned<'_> {
     /// `preview`, the radiance the preview draws is summed chunk by chunk.
     pub fn run_streamed(
         self,
-        backend: &Backend,
+        backend: &dyn Backend,
         chunk: usize,
         (path, gltf): (&Path, Option<&GltfScene>),
         preview: bool,
@@ -248,8 +248,8 @@ pub fn plan_memory(
         return Ok(whole);
     }
     let streamable = bake::stream::streams(&options) && spec.storage.layout == Layout::PerVertex;
-    let why_not = "only bakes at the vertices (no least-squares fit, lightmap or error target), \
-                   without --compress, stream in chunks";
+    let why_not = "only bakes at the vertices (no least-squares fit or lightmap), without \
+                   --compress, stream in chunks";
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;

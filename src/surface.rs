@@ -41,7 +41,7 @@ pub fn surface_reference(
     count: usize,
     seed: u64,
     options: &BakeOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     light: &ShLight,
     vertex_transfer: Option<&Transfer>,
 ) -> Result<SurfaceReference> {

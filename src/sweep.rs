@@ -10,7 +10,7 @@ use crate::bake::gpu::{Chunking, GpuBaker};
 use crate::bake::texels::bake_texels;
 use crate::bake::Transfer;
 use crate::bake::{
-    bake, cpu, gpu, Backend, BakeOptions, DirectInputs, Fit, Mode, NoProgress, Progress,
+    bake, cpu, gpu, Backend, BakeOptions, CpuBackend, DirectInputs, Fit, Mode, NoProgress, Progress,
 };
 use crate::chart::{ChartPanel, ChartPoint, ChartSeries};
 use crate::error::{Error, Result};
@@ -120,7 +120,7 @@ fn radiance(transfer: &Transfer, light: &ShLight) -> Result<Vec<f32>> {
 pub fn run(
     scene: &Scene,
     options: &SweepOptions,
-    backends: &[(String, Backend)],
+    backends: &[(String, Box<dyn Backend + '_>)],
     light: &ShLight,
     progress: &dyn Progress,
 ) -> Result<Sweep> {
@@ -148,7 +148,7 @@ pub fn run(
     let (reference, _) = bake(
         scene.clone(),
         &reference_options,
-        &backends[0].1,
+        backends[0].1.as_ref(),
         &NoProgress,
     )?;
     let reference_seconds = started.elapsed().as_secs_f64();
@@ -192,7 +192,7 @@ pub fn run(
                 points.extend(measure(
                     scene,
                     &point_options,
-                    (label, backend),
+                    (label, backend.as_ref()),
                     sizes,
                     &references,
                 )?);
@@ -215,7 +215,7 @@ fn surface_reference_of(
     reference: &crate::bake::BakedMesh,
     options: &SweepOptions,
     reference_options: &BakeOptions,
-    backends: &[(String, Backend)],
+    backends: &[(String, Box<dyn Backend + '_>)],
     light: &ShLight,
 ) -> Result<SurfaceReference> {
     let count = match options.surface_points {
@@ -227,7 +227,7 @@ fn surface_reference_of(
         count,
         options.seed.wrapping_add(0x5eed_0001),
         reference_options,
-        &backends[0].1,
+        backends[0].1.as_ref(),
         light,
         Some(&reference.transfer),
     )
@@ -252,7 +252,7 @@ fn measure_targets(
                 target_error: Some(target),
                 ..base.clone()
             };
-            let cpu = ("cpu", &Backend::Cpu);
+            let cpu: (&str, &dyn Backend) = ("cpu", &CpuBackend);
             points.extend(measure(scene, &point_options, cpu, &[], references)?);
         }
     }
@@ -275,7 +275,7 @@ struct References<'a> {
 fn measure(
     scene: &Scene,
     options: &BakeOptions,
-    (label, backend): (&str, &Backend),
+    (label, backend): (&str, &dyn Backend),
     lightmap_sizes: &[u32],
     references: &References,
 ) -> Result<Vec<SweepPoint>> {

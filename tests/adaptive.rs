@@ -1,9 +1,11 @@
 //! Baking to an error target: rays go where the scene needs them, and the error reached matches
 //! the error asked for, against a converged bake.
 
+mod common;
+
 use glam::Vec3;
 use prt_gpu::bake::adaptive::TargetError;
-use prt_gpu::bake::{bake, Backend, BakeOptions, BakedMesh, Mode, NoProgress};
+use prt_gpu::bake::{bake, BakeOptions, BakedMesh, CpuBackend, GpuBackend, Mode, NoProgress};
 use prt_gpu::scene::{builtin, Scene};
 use prt_gpu::sh::{coeff_count, unshadowed_transfer};
 
@@ -27,7 +29,7 @@ fn bake_with(scene: &Scene, options: BakeOptions) -> BakedMesh {
         albedo: Some(Vec3::ONE),
         ..options
     };
-    bake(scene.clone(), &options, &Backend::Cpu, &NoProgress)
+    bake(scene.clone(), &options, &CpuBackend, &NoProgress)
         .unwrap()
         .0
 }
@@ -54,7 +56,7 @@ fn open_receivers_stop_early_and_every_receiver_meets_the_target() {
             seed: 3,
             ..BakeOptions::default()
         },
-        &Backend::Cpu,
+        &CpuBackend,
         &NoProgress,
     )
     .unwrap();
@@ -146,7 +148,7 @@ fn the_slot_gets_more_rays_than_the_open_ground() {
             target_error: Some(target),
             ..BakeOptions::default()
         };
-        bake(scene, &options, &Backend::Cpu, &NoProgress)
+        bake(scene, &options, &CpuBackend, &NoProgress)
             .unwrap()
             .1
             .adaptive
@@ -202,7 +204,74 @@ fn interreflection_and_bad_targets_are_refused() {
             }),
             ..BakeOptions::default()
         };
-        let error = bake(scene.clone(), &options, &Backend::Cpu, &NoProgress).unwrap_err();
+        let error = bake(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap_err();
         assert!(error.to_string().contains("--target-error"), "{error}");
     }
+}
+
+/// The GPU bakes to an error target with the CPU's batches: each receiver stops after the same
+/// batch (but for one whose error lands within float rounding of the target), and its transfer
+/// is the CPU's to float rounding.
+#[test]
+fn an_error_targeted_bake_on_the_gpu_is_the_cpus() {
+    let Some(baker) = common::gpu_baker() else {
+        return;
+    };
+    let scene = open_and_slotted();
+    let options = BakeOptions {
+        bands: BANDS,
+        mode: Mode::Shadowed,
+        albedo: Some(Vec3::ONE),
+        target_error: Some(TargetError {
+            relative: 0.01,
+            max_samples: 4096,
+        }),
+        seed: 5,
+        ..BakeOptions::default()
+    };
+    let (cpu, cpu_report) = bake(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap();
+    let gpu_backend = GpuBackend::new(baker);
+    let (gpu, gpu_report) = bake(scene, &options, &gpu_backend, &NoProgress).unwrap();
+    assert!(
+        gpu.metadata.backend.starts_with("gpu"),
+        "{}",
+        gpu.metadata.backend
+    );
+    let (cpu_samples, gpu_samples) = (
+        &cpu_report.adaptive.as_ref().unwrap().per_receiver,
+        &gpu_report.adaptive.as_ref().unwrap().per_receiver,
+    );
+    let receivers = cpu_samples.len();
+    let differing = cpu_samples
+        .iter()
+        .zip(gpu_samples)
+        .filter(|(c, g)| c != g)
+        .count();
+    assert!(differing * 100 <= receivers, "{differing} of {receivers}");
+    // The open receivers stop early and the slotted ones go on, on both.
+    let (fewest, most) = (
+        gpu_samples.iter().min().unwrap(),
+        gpu_samples.iter().max().unwrap(),
+    );
+    assert!(most >= &(4 * fewest), "{fewest}..{most}");
+    let (mut compared, mut largest) = (0, 0.0f32);
+    for v in 0..receivers {
+        if cpu_samples[v] != gpu_samples[v] {
+            continue;
+        }
+        for (c, g) in transfer_of(&cpu, v).iter().zip(transfer_of(&gpu, v)) {
+            assert!(
+                (c - g).abs() <= 1e-5 * (1.0 + c.abs()),
+                "vertex {v}: {c} vs {g}"
+            );
+            largest = largest.max((c - g).abs());
+        }
+        compared += 1;
+    }
+    eprintln!(
+        "{differing} of {receivers} receivers stop after another batch; {compared} compared, \
+         largest difference {largest:.2e}; rays {} (cpu) and {} (gpu)",
+        cpu_report.rays_cast, gpu_report.rays_cast
+    );
+    assert!(compared > 100, "{compared}");
 }

@@ -6,7 +6,7 @@ mod common;
 use std::path::Path;
 
 use common::prt_gpu;
-use prt_gpu::bake::{bake, Backend, BakeOptions, NoProgress};
+use prt_gpu::bake::{bake, BakeOptions, CpuBackend, NoProgress};
 use prt_gpu::compress::{compress, CpcaOptions};
 use prt_gpu::glb::{read_glb, read_glb_compressed, write_glb, write_glb_as, write_glb_with};
 use prt_gpu::precision::Precision;
@@ -26,7 +26,7 @@ fn compressed_files_round_trip_and_validate() {
         samples: 64,
         ..BakeOptions::default()
     };
-    let (baked, _) = bake(bunny(), &options, &Backend::Cpu, &NoProgress).unwrap();
+    let (baked, _) = bake(bunny(), &options, &CpuBackend, &NoProgress).unwrap();
     let cpca = compress(
         &baked.transfer,
         &CpcaOptions {
@@ -101,7 +101,7 @@ fn half_float_compressed_files_round_trip_validate_and_shrink() {
         storage: prt_gpu::bake::Storage::Lean,
         ..BakeOptions::default()
     };
-    let (baked, _) = bake(bunny(), &options, &Backend::Cpu, &NoProgress).unwrap();
+    let (baked, _) = bake(bunny(), &options, &CpuBackend, &NoProgress).unwrap();
     let v = baked.scene.vertex_count();
     let dir = tempfile::tempdir().unwrap();
     // 16 clusters take one byte an index; 300 take two.

@@ -11,7 +11,9 @@ use std::process::Command;
 use base64::Engine;
 use common::gltf_builder::{ground_and_card_gltf, GltfBuilder};
 use glam::{Mat3, Mat4, Quat, Vec3};
-use prt_gpu::bake::{bake, Backend, BakeOptions, BakeReport, BakedMesh, Mode, NoProgress};
+use prt_gpu::bake::{
+    bake, Backend, BakeOptions, BakeReport, BakedMesh, CpuBackend, Mode, NoProgress,
+};
 use prt_gpu::glb::scene::{encode_scene_glb, read_scene_glb, write_scene_glb, Stored};
 use prt_gpu::precision::Precision;
 use prt_gpu::sampling::Sampling;
@@ -35,7 +37,7 @@ fn quick() -> BakeOptions {
 fn bake_gltf(
     path: &Path,
     options: &BakeOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
 ) -> (GltfScene, BakedMesh, BakeReport) {
     let (gltf, scene) = gltf_scene::load(path).unwrap_or_else(|e| panic!("{e}"));
     let (baked, report) = bake(scene, options, backend, &NoProgress).unwrap();
@@ -99,7 +101,7 @@ fn the_assimp_scenes_bake_and_pass_the_validator() {
         "Mesh_PrimitiveMode/Mesh_PrimitiveMode_15.gltf",
         "2CylinderEngine.glb",
     ] {
-        let (gltf, baked, report) = bake_gltf(&data(name), &quick(), &Backend::Cpu);
+        let (gltf, baked, report) = bake_gltf(&data(name), &quick(), &CpuBackend);
         let target = out
             .path()
             .join(name.replace('/', "_"))
@@ -295,7 +297,7 @@ fn two_placements_bake_like_the_mesh_transformed_by_hand() {
         albedo: Some(Vec3::splat(0.5)),
         ..BakeOptions::default()
     };
-    let (gltf, baked, report) = bake_gltf(&gltf_path, &options, &Backend::Cpu);
+    let (gltf, baked, report) = bake_gltf(&gltf_path, &options, &CpuBackend);
     assert_eq!(gltf.instances.len(), 3);
     let out = dir.path().join("placed.prt.glb");
     let written = write_scene_glb(
@@ -314,7 +316,7 @@ fn two_placements_bake_like_the_mesh_transformed_by_hand() {
     let (by_hand, _) = bake(
         scene::load(&obj_path).unwrap(),
         &options,
-        &Backend::Cpu,
+        &CpuBackend,
         &NoProgress,
     )
     .unwrap();
@@ -445,7 +447,7 @@ fn the_round_trip_keeps_nodes_meshes_materials_textures_names_and_indices() {
         "TextureTransformTest/TextureTransformTest.gltf",
     ] {
         let input = data(name);
-        let (gltf, baked, report) = bake_gltf(&input, &quick(), &Backend::Cpu);
+        let (gltf, baked, report) = bake_gltf(&input, &quick(), &CpuBackend);
         let (bytes, written) = encode_scene_glb(
             &gltf,
             Stored::per_vertex(&baked, Precision::F32),
@@ -517,7 +519,7 @@ fn the_round_trip_keeps_nodes_meshes_materials_textures_names_and_indices() {
 #[test]
 fn the_numpy_recipe_reads_a_scene_baked_in_place() {
     let dir = tempfile::tempdir().unwrap();
-    let (gltf, baked, report) = bake_gltf(&data("BoxTextured.glb"), &quick(), &Backend::Cpu);
+    let (gltf, baked, report) = bake_gltf(&data("BoxTextured.glb"), &quick(), &CpuBackend);
     let mut float32 = None;
     for precision in [Precision::F32, Precision::F16] {
         let target = dir.path().join(format!("box-{precision:?}.prt.glb"));
@@ -558,7 +560,7 @@ fn cpu_and_gpu_bake_a_scene_alike() {
         let (_, baked, _) = bake_gltf(
             &data("TextureTransformTest/TextureTransformTest.gltf"),
             &options,
-            &backend,
+            backend.as_ref(),
         );
         results.push(baked.transfer.coeffs);
     }
@@ -580,11 +582,8 @@ fn interreflected_scenes_bake_in_place_too() {
         ..quick()
     };
     let dir = tempfile::tempdir().unwrap();
-    let (gltf, baked, report) = bake_gltf(
-        &data("BoxTextured/BoxTextured.gltf"),
-        &options,
-        &Backend::Cpu,
-    );
+    let (gltf, baked, report) =
+        bake_gltf(&data("BoxTextured/BoxTextured.gltf"), &options, &CpuBackend);
     let target = dir.path().join("box.glb");
     write_scene_glb(
         &target,
@@ -680,7 +679,7 @@ fn quantized_interleaved_and_sparse_accessors_are_read_as_specified() {
     let albedo: Vec<[f32; 3]> = loaded.albedo.iter().map(|a| a.to_array()).collect();
     assert_eq!(albedo, [[0.0; 3], [0.0; 3], [0.25, 0.5, 0.75], [0.0; 3]]);
 
-    let (baked, report) = bake(loaded, &quick(), &Backend::Cpu, &NoProgress).unwrap();
+    let (baked, report) = bake(loaded, &quick(), &CpuBackend, &NoProgress).unwrap();
     let target = dir.path().join("quantized.prt.glb");
     write_scene_glb(
         &target,
@@ -731,7 +730,7 @@ fn skinned_and_morphing_meshes_bake_in_their_rest_pose_with_a_note() {
             "1 morphing mesh(es) (0) baked in their rest pose",
         ),
     ] {
-        let (gltf, baked, report) = bake_gltf(&data(name), &quick(), &Backend::Cpu);
+        let (gltf, baked, report) = bake_gltf(&data(name), &quick(), &CpuBackend);
         assert!(
             gltf.notes.iter().any(|n| n == expect),
             "{name}: {:?}",
@@ -1047,7 +1046,7 @@ fn non_finite_normals_and_morph_targets_are_written_repaired() {
         "meshes": [{ "primitives": [primitive], "weights": [0.0] }],
     });
     let path = builder.finish(doc, dir.path(), "nan.gltf");
-    let (gltf, baked, report) = bake_gltf(&path, &quick(), &Backend::Cpu);
+    let (gltf, baked, report) = bake_gltf(&path, &quick(), &CpuBackend);
     let (bytes, written) = encode_scene_glb(
         &gltf,
         Stored::per_vertex(&baked, Precision::F32),
@@ -1183,7 +1182,7 @@ fn a_gltf_scene_bakes_a_lightmap_on_its_own_texcoord_1() {
             &prepared,
             &receivers,
             &options,
-            &Backend::Cpu,
+            &CpuBackend,
             None,
             &NoProgress,
         )
@@ -1326,7 +1325,7 @@ fn a_gltf_lightmap_on_its_own_uv_set_bakes_alike_on_the_cpu_and_the_gpu() {
                 &spec,
                 scene.clone(),
                 Some(&gltf),
-                backend,
+                backend.as_ref(),
                 source,
                 &NoProgress,
             );

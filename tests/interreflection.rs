@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use prt_gpu::bake::BakedMesh;
-use prt_gpu::bake::{bake, Backend, BakeOptions, BakeReport, Mode, NoProgress};
+use prt_gpu::bake::{bake, Backend, BakeOptions, BakeReport, CpuBackend, Mode, NoProgress};
 use prt_gpu::scene::{self, builtin, Scene};
 
 fn data(name: &str) -> PathBuf {
@@ -26,7 +26,7 @@ fn run(
     bounces: u32,
     albedo: f32,
     samples: u32,
-    backend: &Backend,
+    backend: &dyn Backend,
 ) -> (BakedMesh, BakeReport) {
     let options = BakeOptions {
         bands: 2,
@@ -85,7 +85,7 @@ fn open_sphere_matches_the_geometric_series() {
                     bounces,
                     albedo,
                     1024,
-                    &backend,
+                    backend.as_ref(),
                 );
                 assert_eq!(report.bounces.len(), bounces as usize);
                 let expected: f64 = (0..=bounces)
@@ -149,8 +149,8 @@ fn no_bounces_is_shadowed_and_a_convex_shape_gains_nothing() {
     for backend in common::backends() {
         // Interreflected with zero bounces is the shadowed bake, bit for bit: the closest-hit
         // traversal blocks exactly the rays the any-hit traversal blocks.
-        let (shadowed, _) = run(&scene, Mode::Shadowed, 0, 0.8, 256, &backend);
-        let (zero, _) = run(&scene, Mode::Interreflected, 0, 0.8, 256, &backend);
+        let (shadowed, _) = run(&scene, Mode::Shadowed, 0, 0.8, 256, backend.as_ref());
+        let (zero, _) = run(&scene, Mode::Interreflected, 0, 0.8, 256, backend.as_ref());
         assert!(
             zero.transfer == shadowed.transfer,
             "{}: N = 0 differs from shadowed",
@@ -158,8 +158,8 @@ fn no_bounces_is_shadowed_and_a_convex_shape_gains_nothing() {
         );
 
         // No ray of a convex shape hits it: bounces add exactly nothing.
-        let (shadowed, _) = run(&sphere, Mode::Shadowed, 0, 1.0, 256, &backend);
-        let (bounced, report) = run(&sphere, Mode::Interreflected, 3, 1.0, 256, &backend);
+        let (shadowed, _) = run(&sphere, Mode::Shadowed, 0, 1.0, 256, backend.as_ref());
+        let (bounced, report) = run(&sphere, Mode::Interreflected, 3, 1.0, 256, backend.as_ref());
         assert_eq!(report.gather_entries, 0);
         assert!(report.bounces.iter().all(|b| b.relative_energy == 0.0));
         assert!(
@@ -215,7 +215,7 @@ fn bounce_tolerance_stops_early() {
         bounce_tolerance: 0.01,
         ..BakeOptions::default()
     };
-    let (baked, report) = bake(scene, &options, &Backend::Cpu, &NoProgress).unwrap();
+    let (baked, report) = bake(scene, &options, &CpuBackend, &NoProgress).unwrap();
     let n = report.bounces.len();
     assert!(n < 20, "never stopped");
     assert!(report.bounces[n - 1].relative_energy < 0.01);
@@ -233,7 +233,7 @@ fn run_with_scene_albedo(scene: &Scene, mode: Mode, bounces: u32) -> (BakedMesh,
         bounces,
         ..BakeOptions::default()
     };
-    bake(scene.clone(), &options, &Backend::Cpu, &NoProgress).unwrap()
+    bake(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap()
 }
 
 /// CPU and GPU interreflection on the same inputs. The GPU's hits may differ from the CPU's for

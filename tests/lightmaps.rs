@@ -10,7 +10,7 @@ use std::process::Output;
 use common::prt_gpu;
 use glam::Vec3;
 use prt_gpu::bake::texels::bake_texels;
-use prt_gpu::bake::{bake, Backend, BakeOptions, NoProgress};
+use prt_gpu::bake::{bake, BakeOptions, CpuBackend, NoProgress};
 use prt_gpu::glb::{lightmap_file_name, read_glb};
 use prt_gpu::lightmap::read_lightmap;
 use prt_gpu::scene::{builtin, Scene};
@@ -118,13 +118,13 @@ fn every_texel_a_bilinear_lookup_reaches_is_baked_or_filled() {
         samples: 64,
         ..BakeOptions::default()
     };
-    let (baked, _) = bake(scene.clone(), &options, &Backend::Cpu, &NoProgress).unwrap();
+    let (baked, _) = bake(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap();
     let (texels, report) = bake_texels(
         &baked.scene,
         &baked.transfer,
         &options,
         96,
-        &Backend::Cpu,
+        &CpuBackend,
         &NoProgress,
     )
     .unwrap();
@@ -176,7 +176,7 @@ fn a_lightmap_renders_like_the_vertices_where_transfer_is_smooth() {
             lightmap,
             ..options.clone()
         };
-        let (baked, _) = bake(plane.clone(), &options, &Backend::Cpu, &NoProgress).unwrap();
+        let (baked, _) = bake(plane.clone(), &options, &CpuBackend, &NoProgress).unwrap();
         prt_gpu::glb::write_glb(&dir.path().join(name), &baked).unwrap();
     }
     let out = prt_gpu(

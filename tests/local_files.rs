@@ -7,7 +7,7 @@ mod common;
 use std::path::Path;
 
 use glam::Vec3;
-use prt_gpu::bake::{Backend, Mode, NoProgress};
+use prt_gpu::bake::{Backend, CpuBackend, GpuBackend, Mode, NoProgress};
 use prt_gpu::glb;
 use prt_gpu::local::depth::{DepthLookup, DirectionGrid};
 use prt_gpu::local::lights::LocalLight;
@@ -45,7 +45,7 @@ fn small_options() -> LocalOptions {
 }
 
 fn small_bake() -> LocalBake {
-    local::bake_local(small_room(), &small_options(), &Backend::Cpu, &NoProgress)
+    local::bake_local(small_room(), &small_options(), &CpuBackend, &NoProgress)
         .unwrap()
         .0
 }
@@ -400,7 +400,7 @@ fn cpu_and_gpu_agree() {
     let Some(baker) = common::gpu_baker() else {
         return;
     };
-    let gpu = Backend::Gpu {
+    let gpu = GpuBackend {
         baker,
         chunking: Default::default(),
     };
@@ -408,7 +408,7 @@ fn cpu_and_gpu_agree() {
     let options = small_options();
     let mut inputs = LocalInputs::new(&scene, &options);
     let grid = DirectionGrid { side: 12 };
-    let cpu_maps = local::depth_maps(&scene, &mut inputs, grid, &Backend::Cpu).unwrap();
+    let cpu_maps = local::depth_maps(&scene, &mut inputs, grid, &CpuBackend).unwrap();
     let gpu_maps = local::depth_maps(&scene, &mut inputs, grid, &gpu).unwrap();
     let cells = cpu_maps.depths.len();
     let differing = cpu_maps
@@ -424,10 +424,10 @@ fn cpu_and_gpu_agree() {
         "{differing} of {cells}"
     );
     // The gather matrix and the bounces on either device.
-    let cpu_pass = Backend::Cpu
+    let cpu_pass = CpuBackend
         .direct_pass(&inputs.bake.view(), Mode::Interreflected, &NoProgress)
         .unwrap();
-    let bake = local::bake_prepared(scene.clone(), &options, &Backend::Cpu, &NoProgress)
+    let bake = local::bake_prepared(scene.clone(), &options, &CpuBackend, &NoProgress)
         .unwrap()
         .0;
     assert_eq!(Some(&bake.matrix), cpu_pass.matrix.as_ref());
@@ -507,7 +507,7 @@ fn zero_bounces_is_direct_light_alone_shadowed_either_way() {
         bounces: 0,
         ..small_options()
     };
-    let bake = local::bake_local(small_room(), &options, &Backend::Cpu, &NoProgress)
+    let bake = local::bake_local(small_room(), &options, &CpuBackend, &NoProgress)
         .unwrap()
         .0;
     let lights = [LocalLight::point(Vec3::new(0.3, 1.1, -0.4), 2.0)];

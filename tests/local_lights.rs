@@ -8,12 +8,11 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 use prt_gpu::bake::bounce::GatherMatrix;
-use prt_gpu::bake::{Backend, Mode, NoProgress};
+use prt_gpu::bake::{Backend, CpuBackend, Mode, NoProgress};
 use prt_gpu::bvh::Bvh;
 use prt_gpu::local::build::{build_compressed, OperatorShape, SparseOperator};
 use prt_gpu::local::depth::{
-    depth_maps_cpu, to_tangent, to_world, visibility, world_directions, DepthLookup, DepthMaps,
-    DirectionGrid,
+    to_tangent, to_world, visibility, world_directions, DepthLookup, DepthMaps, DirectionGrid,
 };
 use prt_gpu::local::lights::{
     direct_radiance, irradiance_by_shadow_rays, irradiance_from_depth, shadow_ray_blocked,
@@ -45,7 +44,7 @@ fn interior() -> &'static Interior {
         let grid = DirectionGrid {
             side: options.grid_side,
         };
-        let maps = local::depth_maps(&scene, &mut inputs, grid, &Backend::Cpu).unwrap();
+        let maps = local::depth_maps(&scene, &mut inputs, grid, &CpuBackend).unwrap();
         Interior {
             scene,
             inputs,
@@ -133,12 +132,8 @@ fn with_every_component_the_compressed_maps_are_the_maps() {
     let inputs = &interior.inputs;
     // An 8 x 8 grid: 64 components are every direction, and the PCA stays quick.
     let grid = DirectionGrid { side: 8 };
-    let maps = &depth_maps_cpu(
-        &inputs.bake.bvh,
-        &inputs.bake.origins,
-        &inputs.bake.normals,
-        grid,
-    );
+    let mut own_inputs = LocalInputs::new(&interior.scene, &interior.options);
+    let maps = &local::depth_maps(&interior.scene, &mut own_inputs, grid, &CpuBackend).unwrap();
     let options = LocalOptions {
         grid_side: grid.side,
         depth_components: maps.grid.len() as u32,
@@ -231,7 +226,7 @@ fn gather_matrix(scene: &Scene, samples: u32, seed: u64) -> (GatherMatrix, Local
         ..LocalOptions::default()
     };
     let inputs = LocalInputs::new(scene, &options);
-    let pass = Backend::Cpu
+    let pass = CpuBackend
         .direct_pass(&inputs.bake.view(), Mode::Interreflected, &NoProgress)
         .unwrap();
     (pass.matrix.unwrap(), inputs)
@@ -430,7 +425,7 @@ fn at_the_defaults_the_compressed_operator_is_close_on_held_out_lights() {
         ..LocalOptions::default()
     };
     let (bake, report) =
-        local::bake_prepared(scene.clone(), &options, &Backend::Cpu, &NoProgress).unwrap();
+        local::bake_prepared(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap();
     let frames = receiver_frames(scene, &interior.inputs);
     let lights = test_lights(16, 77);
     let errors: Vec<f64> = lights

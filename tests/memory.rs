@@ -7,6 +7,7 @@ mod common;
 use std::path::Path;
 
 use common::prt_gpu;
+use prt_gpu::bake::adaptive::TargetError;
 use prt_gpu::bake::stream::MemoryNeed;
 use prt_gpu::bake::BakeOptions;
 
@@ -29,8 +30,16 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     const INTERREFLECTED: [&str; 2] = ["--mode", "interreflected"];
-    let cases: [&[&str]; 12] = [
+    const TARGET: [&str; 4] = ["--target-error", "0.05", "--max-samples", "1024"];
+    let cases: [&[&str]; 14] = [
         &["--device", "cpu"],
+        // An error target: the chunks wait until the mean samples the file records are known.
+        &[
+            "--device", "cpu", TARGET[0], TARGET[1], TARGET[2], TARGET[3],
+        ],
+        &[
+            "--device", "gpu", TARGET[0], TARGET[1], TARGET[2], TARGET[3],
+        ],
         // --bands auto: the chunks wait at the most bands until the bands are chosen.
         &["--device", "cpu", "--bands", "auto"],
         &[
@@ -108,6 +117,10 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
                 true => prt_gpu::bake::Mode::Interreflected,
                 false => prt_gpu::bake::Mode::Shadowed,
             },
+            target_error: extra.contains(&TARGET[0]).then_some(TargetError {
+                relative: 0.05,
+                max_samples: 1024,
+            }),
             ..BakeOptions::default()
         };
         let need = bunny_need(&options);
@@ -160,6 +173,16 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
         let chosen = bands_line(&String::from_utf8_lossy(&whole.stderr));
         assert_eq!(chosen.is_some(), extra.contains(&"auto"), "{extra:?}");
         assert_eq!(bands_line(&stderr), chosen, "{extra:?}");
+        // An error target's summary: samples per receiver and the errors reached.
+        let target_line = |stderr: &str| {
+            stderr
+                .lines()
+                .find(|line| line.starts_with("target error:"))
+                .map(str::to_string)
+        };
+        let reached = target_line(&String::from_utf8_lossy(&whole.stderr));
+        assert_eq!(reached.is_some(), extra.contains(&TARGET[0]), "{extra:?}");
+        assert_eq!(target_line(&stderr), reached, "{extra:?}");
     }
 }
 

@@ -22,7 +22,7 @@ use std::sync::OnceLock;
 
 use glam::{DVec3, Vec3};
 use prt_gpu::bake::texels::{bake_atlas, plan_atlas};
-use prt_gpu::bake::{bake, bake_at, Backend, BakeOptions, Fit, Mode, NoProgress, Transfer};
+use prt_gpu::bake::{bake, bake_at, BakeOptions, CpuBackend, Fit, Mode, NoProgress, Transfer};
 use prt_gpu::receivers::{self, Receivers};
 use prt_gpu::scene::{builtin, prepare::prepare, Scene};
 use prt_gpu::surface::texel_transfer_at;
@@ -113,7 +113,7 @@ fn scene() -> Scene {
 /// vertex for vertex (the bake prepares its input itself; preparing twice would reorder it).
 fn bake_with(scene: &Scene, options: &BakeOptions) -> Transfer {
     let input = builtin::default_scene();
-    let (baked, _) = bake(input, options, &Backend::Cpu, &NoProgress).unwrap();
+    let (baked, _) = bake(input, options, &CpuBackend, &NoProgress).unwrap();
     assert!(
         baked.scene == *scene,
         "the bake's prepared scene is not the oracle's"
@@ -435,7 +435,7 @@ fn shadowed_at_points(
         mode: Mode::Shadowed,
         ..BakeOptions::default()
     };
-    let backend = Backend::Cpu;
+    let backend = CpuBackend;
     let (transfer, _) = bake_at(scene, &receivers, &options, &backend, None, &NoProgress).unwrap();
     (0..held.len())
         .map(|r| relight(&transfer, r, sky))
@@ -624,7 +624,7 @@ fn lightmap_texels_match_the_path_tracer_at_surface_points() {
                 &vertices[seed as usize - 1],
                 &options,
                 &atlas,
-                &Backend::Cpu,
+                &CpuBackend,
                 &NoProgress,
             )
             .unwrap();

@@ -27,7 +27,7 @@ use std::sync::OnceLock;
 use std::f32::consts::PI;
 
 use glam::Vec3;
-use prt_gpu::bake::{Backend, NoProgress};
+use prt_gpu::bake::{CpuBackend, NoProgress};
 use prt_gpu::local::depth::{visibility, DepthLookup, DirectionGrid};
 use prt_gpu::local::lights::{direct_radiance, shadow_ray_blocked, LocalLight, Spot};
 use prt_gpu::local::operator::sparse_indirect;
@@ -84,7 +84,7 @@ fn bake_case(scene: Scene, depth_maps_read: bool) -> Case {
                 unread
             }
         };
-        local::bake_prepared(scene.clone(), &options, &Backend::Cpu, &NoProgress)
+        local::bake_prepared(scene.clone(), &options, &CpuBackend, &NoProgress)
             .unwrap()
             .0
     };
@@ -425,7 +425,7 @@ fn depth_map_shadows_converge_to_the_path_tracer_with_the_grid() {
     // The maps see the scene, not the light: one set per grid serves both lights.
     let grids = [8, 16, 32].map(|side| {
         let grid = DirectionGrid { side };
-        let maps = local::depth_maps(&bake.scene, &mut inputs, grid, &Backend::Cpu).unwrap();
+        let maps = local::depth_maps(&bake.scene, &mut inputs, grid, &CpuBackend).unwrap();
         (grid, maps)
     });
     for light in &lights {

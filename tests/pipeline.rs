@@ -7,7 +7,7 @@ mod common;
 use std::path::Path;
 
 use common::{backends, prt_gpu};
-use prt_gpu::bake::{Backend, DirectSource, NoProgress, Storage};
+use prt_gpu::bake::{Backend, CpuBackend, DirectSource, NoProgress, Storage};
 use prt_gpu::precision::Precision;
 use prt_gpu::spec::{BakeSpec, Bands, Compression, Layout};
 use prt_gpu::{pipeline, scene};
@@ -58,7 +58,7 @@ fn cases() -> Vec<(BakeSpec, Vec<&'static str>)> {
     ]
 }
 
-fn run_library(spec: &BakeSpec, backend: &Backend, path: &Path) -> pipeline::Baked {
+fn run_library(spec: &BakeSpec, backend: &dyn Backend, path: &Path) -> pipeline::Baked {
     let scene = scene::load(Path::new(TEAPOT)).unwrap();
     let baked = pipeline::run(
         spec,
@@ -80,9 +80,9 @@ fn a_spec_run_through_the_library_writes_the_command_lines_bytes() {
     for (k, (spec, flags)) in cases().into_iter().enumerate() {
         spec.validate().unwrap();
         for (b, backend) in backends().iter().enumerate() {
-            let device = match backend {
-                Backend::Cpu => "cpu",
-                Backend::Gpu { .. } => "gpu",
+            let device = match backend.gpu_context() {
+                None => "cpu",
+                Some(_) => "gpu",
             };
             let cli = format!("cli{k}-{device}.glb");
             let mut args = vec![
@@ -104,7 +104,7 @@ fn a_spec_run_through_the_library_writes_the_command_lines_bytes() {
             );
             let cli = std::fs::read(d.join(&cli)).unwrap();
             let path = d.join(format!("library{k}-{b}.glb"));
-            let baked = run_library(&spec, backend, &path);
+            let baked = run_library(&spec, backend.as_ref(), &path);
             assert_eq!(
                 std::fs::read(&path).unwrap(),
                 cli,
@@ -142,7 +142,7 @@ fn a_spec_the_file_formats_cannot_hold_is_refused_before_any_ray() {
         &spec,
         scene,
         None,
-        &Backend::Cpu,
+        &CpuBackend,
         DirectSource::Compute,
         &NoProgress,
     )

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use prt_gpu::bake::{bake, Backend, BakeOptions, Mode, NoProgress};
+use prt_gpu::bake::{bake, BakeOptions, CpuBackend, Mode, NoProgress};
 use prt_gpu::glb::encode_glb;
 use prt_gpu::sampling::Sampling;
 use prt_gpu::scene;
@@ -23,14 +23,14 @@ fn dc_terms(name: &str, samples: u32, sampling: Sampling) -> (Vec<f32>, Vec<f32>
         sampling,
         ..BakeOptions::default()
     };
-    let (shadowed, report) = bake(mesh.clone(), &options, &Backend::Cpu, &NoProgress).unwrap();
+    let (shadowed, report) = bake(mesh.clone(), &options, &CpuBackend, &NoProgress).unwrap();
     let (unshadowed, _) = bake(
         mesh,
         &BakeOptions {
             mode: Mode::Unshadowed,
             ..options
         },
-        &Backend::Cpu,
+        &CpuBackend,
         &NoProgress,
     )
     .unwrap();
@@ -99,7 +99,7 @@ fn same_seed_same_bytes_different_seed_different_bytes() {
         ..BakeOptions::default()
     };
     let encode = |o: &BakeOptions| {
-        encode_glb(&bake(mesh.clone(), o, &Backend::Cpu, &NoProgress).unwrap().0).unwrap()
+        encode_glb(&bake(mesh.clone(), o, &CpuBackend, &NoProgress).unwrap().0).unwrap()
     };
     let first = encode(&options);
     let second = encode(&options);

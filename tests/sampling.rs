@@ -435,9 +435,9 @@ fn every_strategy_interreflects_alike_on_both_backends() {
     // The bounce's gather weights follow the density (no cosine for the cosine set) and the
     // direct part follows the estimator: with 1024 samples every strategy's scene-mean DC
     // must land within 2% of the others, and the GPU within 0.1% of the CPU.
-    use prt_gpu::bake::{bake, Backend, BakeOptions};
+    use prt_gpu::bake::{bake, Backend, BakeOptions, CpuBackend, GpuBackend};
     let scene = occluded_scene();
-    let mean_dc_of = |sampling: Sampling, mode: Mode, backend: &Backend| {
+    let mean_dc_of = |sampling: Sampling, mode: Mode, backend: &dyn Backend| {
         let options = BakeOptions {
             bands: 2,
             samples: 1024,
@@ -454,16 +454,17 @@ fn every_strategy_interreflects_alike_on_both_backends() {
             .sum::<f64>()
             / t.vertex_count as f64
     };
-    let mean_dc = |sampling, backend: &Backend| mean_dc_of(sampling, Mode::Interreflected, backend);
-    let reference = mean_dc(Sampling::Stratified, &Backend::Cpu);
+    let mean_dc =
+        |sampling, backend: &dyn Backend| mean_dc_of(sampling, Mode::Interreflected, backend);
+    let reference = mean_dc(Sampling::Stratified, &CpuBackend);
     // The bounces must add far more than the tolerance, or a wrong gather weight would hide.
-    let direct = mean_dc_of(Sampling::Stratified, Mode::Shadowed, &Backend::Cpu);
+    let direct = mean_dc_of(Sampling::Stratified, Mode::Shadowed, &CpuBackend);
     assert!(
         reference > 1.1 * direct,
         "bounces add too little: {direct} -> {reference}"
     );
     for sampling in Sampling::ALL {
-        let cpu = mean_dc(sampling, &Backend::Cpu);
+        let cpu = mean_dc(sampling, &CpuBackend);
         eprintln!("{sampling:?}: mean DC {cpu:.5} vs stratified {reference:.5}");
         assert!(
             (cpu - reference).abs() <= 0.02 * reference,
@@ -472,7 +473,7 @@ fn every_strategy_interreflects_alike_on_both_backends() {
         if let Some(baker) = common::gpu_baker() {
             let gpu = mean_dc(
                 sampling,
-                &Backend::Gpu {
+                &GpuBackend {
                     baker,
                     chunking: Chunking::default(),
                 },

@@ -4,7 +4,7 @@
 mod common;
 
 use glam::Vec3;
-use prt_gpu::bake::{bake, Backend, BakeOptions, BakedMesh, Mode, NoProgress, Storage};
+use prt_gpu::bake::{bake, BakeOptions, BakedMesh, CpuBackend, Mode, NoProgress, Storage};
 use prt_gpu::glb::{read_glb, write_glb};
 use prt_gpu::light::preview_light;
 use prt_gpu::render::relight_baked;
@@ -19,14 +19,9 @@ fn baked(mode: Mode, storage: Storage, albedo: Option<Vec3>) -> BakedMesh {
         bounces: 2,
         ..BakeOptions::default()
     };
-    bake(
-        builtin::default_scene(),
-        &options,
-        &Backend::Cpu,
-        &NoProgress,
-    )
-    .unwrap()
-    .0
+    bake(builtin::default_scene(), &options, &CpuBackend, &NoProgress)
+        .unwrap()
+        .0
 }
 
 /// Radiance of both under the preview light agrees to float rounding (the albedo multiplies
@@ -402,7 +397,7 @@ fn gltf_scenes_baked_in_place_store_compressed_transfer() {
             &spec,
             scene.clone(),
             Some(&gltf),
-            &Backend::Cpu,
+            &CpuBackend,
             source,
             &NoProgress,
         )

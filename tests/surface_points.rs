@@ -4,7 +4,7 @@
 mod common;
 
 use glam::Vec3;
-use prt_gpu::bake::{bake, bake_at, Backend, BakeOptions, Fit, Mode, NoProgress};
+use prt_gpu::bake::{bake, bake_at, BakeOptions, CpuBackend, Fit, Mode, NoProgress};
 use prt_gpu::light::ShLight;
 use prt_gpu::receivers::{spread_points, PointDensity, Receivers, SurfacePoint};
 use prt_gpu::sampling::Sampling;
@@ -41,8 +41,15 @@ fn a_coarse_sphere_blocks_directions_below_the_face() {
     };
     let mut leaning = 0;
     for backend in common::backends() {
-        let (transfer, _) =
-            bake_at(&sphere, &receivers, &options, &backend, None, &NoProgress).unwrap();
+        let (transfer, _) = bake_at(
+            &sphere,
+            &receivers,
+            &options,
+            backend.as_ref(),
+            None,
+            &NoProgress,
+        )
+        .unwrap();
         for (i, point) in points.iter().enumerate() {
             let corners = sphere.triangles[point.triangle as usize];
             let face = prt_gpu::receivers::face_normal(&sphere.positions, corners).normalize();
@@ -101,7 +108,7 @@ fn the_least_squares_fit_beats_point_vertices_over_the_surface_at_equal_rays() {
         2000,
         77,
         &reference_options,
-        &Backend::Cpu,
+        &CpuBackend,
         &light,
         None,
     )
@@ -117,7 +124,7 @@ fn the_least_squares_fit_beats_point_vertices_over_the_surface_at_equal_rays() {
                     point_density: density,
                     ..base.clone()
                 };
-                let (baked, _) = bake(scene.clone(), &options, &Backend::Cpu, &NoProgress).unwrap();
+                let (baked, _) = bake(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap();
                 surface_rms(&reference, &baked.scene, &baked.transfer, &light).unwrap()
                     / reference.rms
             })
@@ -145,7 +152,7 @@ fn the_least_squares_fit_beats_point_vertices_over_the_surface_at_equal_rays() {
                 lightmap: Some(128),
                 ..base.clone()
             };
-            let (baked, _) = bake(scene.clone(), &options, &Backend::Cpu, &NoProgress).unwrap();
+            let (baked, _) = bake(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap();
             let lightmap = baked.lightmap.as_ref().unwrap();
             texel_surface_rms(&reference, lightmap, &light).unwrap() / reference.rms
         })
@@ -187,14 +194,14 @@ fn the_fit_gives_back_the_constant_transfer_of_an_open_plane() {
         let (points, _) = bake(
             plane.clone(),
             &options(Fit::Point),
-            &Backend::Cpu,
+            &CpuBackend,
             &NoProgress,
         )
         .unwrap();
         let (fitted, report) = bake(
             plane.clone(),
             &options(Fit::LeastSquares),
-            &Backend::Cpu,
+            &CpuBackend,
             &NoProgress,
         )
         .unwrap();
@@ -227,7 +234,7 @@ fn least_squares_interreflection_agrees_on_cpu_and_gpu() {
     let scene = plane_with_thin_box();
     let results: Vec<_> = common::backends()
         .iter()
-        .map(|backend| bake(scene.clone(), &options, backend, &NoProgress).unwrap())
+        .map(|backend| bake(scene.clone(), &options, backend.as_ref(), &NoProgress).unwrap())
         .collect();
     let (cpu, gpu) = (&results[0].0.transfer, &results[1].0.transfer);
     let (size, difference) = size_and_difference(&cpu.coeffs, &gpu.coeffs);
@@ -265,7 +272,7 @@ fn interreflected_texels_agree_on_cpu_and_gpu() {
     let maps: Vec<Vec<f32>> = common::backends()
         .iter()
         .map(|backend| {
-            let (baked, _) = bake(scene.clone(), &options, backend, &NoProgress).unwrap();
+            let (baked, _) = bake(scene.clone(), &options, backend.as_ref(), &NoProgress).unwrap();
             baked.lightmap.unwrap().transfer.coeffs
         })
         .collect();

@@ -3,8 +3,7 @@
 mod common;
 
 use glam::{DVec3, Vec3};
-use prt_gpu::bake::gpu::Chunking;
-use prt_gpu::bake::{bake, cpu, gpu, Backend, BakeOptions, DirectInputs, Mode, NoProgress};
+use prt_gpu::bake::{bake, Backend, BakeOptions, DirectInputs, Mode, NoProgress};
 use prt_gpu::bvh::Bvh;
 use prt_gpu::sampling::{stratified_sphere, Estimator};
 use prt_gpu::scene::builtin;
@@ -16,7 +15,7 @@ use prt_gpu::sh::{coeff_count, unshadowed_transfer, ShTable};
 /// The standard error is that of plain Monte Carlo with the same sample count, estimated from
 /// the samples themselves; stratification only lowers the true error, so this bound is safe.
 fn estimate_with_error(
-    backend: &Backend,
+    backend: &dyn Backend,
     bands: u32,
     normal: Vec3,
     samples: u32,
@@ -37,24 +36,10 @@ fn estimate_with_error(
         tangent_to_world: &EulerShRotation::new(bands),
     };
     let n = coeff_count(bands);
-    let estimate: Vec<f64> = match backend {
-        Backend::Cpu => {
-            let mut estimate = vec![0.0; n];
-            cpu::vertex_direct_transfer(&inputs, Mode::Unshadowed, 0, &mut estimate);
-            estimate
-        }
-        Backend::Gpu { baker, .. } => {
-            let (transfer, _) = gpu::direct_transfer(
-                baker,
-                &inputs,
-                Mode::Unshadowed,
-                Chunking::default(),
-                &NoProgress,
-            )
-            .unwrap();
-            transfer.iter().map(|&t| t as f64).collect()
-        }
-    };
+    let (transfer, _) = backend
+        .direct_transfer(&inputs, Mode::Unshadowed, &NoProgress)
+        .unwrap();
+    let estimate: Vec<f64> = transfer.iter().map(|&t| t as f64).collect();
 
     // Per-sample integrand values f = (4 pi / pi) max(0, n.w) y_k(w): the estimate is their mean.
     let mut sum_sq = vec![0.0; n];
@@ -85,7 +70,7 @@ fn unshadowed_transfer_matches_the_clamped_cosine_projection() {
         for (i, &normal) in normals.iter().enumerate() {
             let exact = unshadowed_transfer(bands, normal.as_dvec3());
             let (estimate, std_error) =
-                estimate_with_error(&backend, bands, normal, 1024, 10 + i as u64);
+                estimate_with_error(backend.as_ref(), bands, normal, 1024, 10 + i as u64);
             for k in 0..coeff_count(bands) {
                 let err = (estimate[k] - exact[k]).abs();
                 assert!(
@@ -129,7 +114,7 @@ fn white_furnace_gives_unit_exit_radiance_for_any_normal() {
         for i in 0..32 {
             let normal = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5)
                 .normalize_or(Vec3::X);
-            let (estimate, std_error) = estimate_with_error(&backend, 2, normal, 1024, i);
+            let (estimate, std_error) = estimate_with_error(backend.as_ref(), 2, normal, 1024, i);
             let radiance = estimate[0] * unit_light_dc;
             let tolerance = 3.0 * std_error[0] * unit_light_dc;
             assert!(
@@ -153,7 +138,7 @@ fn white_furnace_through_the_whole_pipeline() {
         ..BakeOptions::default()
     };
     for backend in common::backends() {
-        let (baked, _) = bake(sphere.clone(), &options, &backend, &NoProgress).unwrap();
+        let (baked, _) = bake(sphere.clone(), &options, backend.as_ref(), &NoProgress).unwrap();
         let unit_light_dc = (4.0 * std::f32::consts::PI).sqrt();
         for v in 0..baked.transfer.vertex_count {
             for c in 0..3 {

@@ -13,7 +13,7 @@ use prt_gpu::scene::{builtin, prepare::prepare, Scene};
 use prt_gpu::sh::rotation::EulerShRotation;
 use prt_gpu::sh::ShTable;
 
-fn bake_both(scene: Scene, backend: &Backend) -> (Vec<f32>, Vec<f32>, u64) {
+fn bake_both(scene: Scene, backend: &dyn Backend) -> (Vec<f32>, Vec<f32>, u64) {
     let options = BakeOptions {
         bands: 3,
         samples: 256,
@@ -39,7 +39,7 @@ fn bake_both(scene: Scene, backend: &Backend) -> (Vec<f32>, Vec<f32>, u64) {
 
 fn assert_no_ray_hits(scene: Scene, what: &str) {
     for backend in common::backends() {
-        let (shadowed, unshadowed, rays) = bake_both(scene.clone(), &backend);
+        let (shadowed, unshadowed, rays) = bake_both(scene.clone(), backend.as_ref());
         assert!(rays > 0);
         // Any blocked ray would drop a positive cosine term from the sum: exact equality means
         // not a single ray hit.

@@ -21,10 +21,12 @@
 
 use rayon::prelude::*;
 
-use super::cpu::{finish_transfer, project_visibility, trace_visibility_of, words_per_vertex};
-use super::{BakeInputs, DirectInputs, Mode, Progress};
+use glam::Vec3;
+
+use super::cpu::{finish_transfer, transfer_scale};
+use super::{Backend, BakeInputs, DirectInputs, Mode, NoProgress, Progress};
 use crate::error::{Error, Result};
-use crate::sampling::{Estimator, SampleSet, Sampling};
+use crate::sampling::{Estimator, Sampling};
 use crate::sh::{coeff_count, unshadowed_transfer, ShTable};
 
 /// Samples in one batch.
@@ -114,25 +116,19 @@ impl ReceiverErrors {
     }
 }
 
-/// One receiver's result: its transfer, samples cast and estimated relative error.
-struct ReceiverResult {
-    transfer: Vec<f64>,
-    samples: u32,
-    rays: u64,
-    error: f64,
-}
-
 /// The seed of batch `b` of a bake seeded `seed`: distinct streams, none equal to `seed`.
 pub fn batch_seed(seed: u64, batch: u32) -> u64 {
     seed ^ (batch as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)
 }
 
 /// Albedo-free direct transfer of the receivers `range` of `base` (`[receiver][k]`) to the
-/// target error, on the CPU; the rays cast; and each receiver's samples and error. `base`
-/// supplies the geometry and receivers; its own sample set is not used. A receiver's result
-/// depends only on the receiver and the seed, so any split of the receivers gives the same
-/// values for each.
+/// target error, on `backend`; the rays cast; and each receiver's samples and error. `base`
+/// supplies the geometry and receivers; its own sample set is not used. Batch by batch, the
+/// receivers still short of the target cast the batch's samples; a receiver's result depends
+/// only on the receiver, the seed and the backend, so any split of the receivers gives the
+/// same values for each.
 pub fn adaptive_direct_transfer(
+    backend: &dyn Backend,
     base: &BakeInputs,
     range: std::ops::Range<usize>,
     (sampling, seed, mode): (Sampling, u64, Mode),
@@ -148,89 +144,124 @@ pub fn adaptive_direct_transfer(
         ));
     }
     let bands = base.table.bands;
-    let batches: Vec<(SampleSet, ShTable)> = (0..target.max_batches())
-        .map(|b| {
-            let set = sampling.directions(BATCH_SAMPLES, batch_seed(seed, b));
-            let table = ShTable::new(bands, &set.directions);
-            (set, table)
-        })
-        .collect();
-    let views: Vec<DirectInputs> = batches
-        .iter()
-        .map(|(samples, table)| DirectInputs {
-            samples,
-            table,
-            // The control variate: what is open is exact, only what is blocked is estimated.
-            estimator: Estimator::Blocked,
-            ..base.view()
-        })
-        .collect();
+    let n = coeff_count(bands);
+    let view = base.view();
     // Every normal's unoccluded transfer has the same norm.
     let open_norm = norm(&unshadowed_transfer(bands, glam::DVec3::Z));
-    let results: Vec<ReceiverResult> = range
-        .into_par_iter()
-        .with_min_len(16)
-        .map(|r| {
-            let result = bake_receiver(&views, mode, r, target.relative * open_norm);
-            progress.advance(1);
-            ReceiverResult {
-                error: result.error / open_norm,
-                ..result
+    let mut receivers: Vec<ReceiverBatches> =
+        range.map(|index| ReceiverBatches::new(index, n)).collect();
+    let mut rays = 0;
+    let mut first_batch = None;
+    for b in 0..target.max_batches() {
+        let active: Vec<usize> = (0..receivers.len())
+            .filter(|&i| !receivers[i].done)
+            .collect();
+        if active.is_empty() {
+            break;
+        }
+        let samples = sampling.directions(BATCH_SAMPLES, batch_seed(seed, b));
+        let table = ShTable::new(bands, &samples.directions);
+        let origins: Vec<Vec3> = active
+            .iter()
+            .map(|&i| view.origins[receivers[i].index])
+            .collect();
+        let normals: Vec<Vec3> = active
+            .iter()
+            .map(|&i| view.normals[receivers[i].index])
+            .collect();
+        let batch = DirectInputs {
+            origins: &origins,
+            normals: &normals,
+            samples: &samples,
+            table: &table,
+            // The control variate: what is open is exact, only what is blocked is estimated.
+            estimator: Estimator::Blocked,
+            ..view
+        };
+        let (sums, batch_rays) = backend.projected_sums(&batch, mode, &NoProgress)?;
+        rays += batch_rays;
+        let scale = transfer_scale(&batch);
+        let last = b + 1 == target.max_batches();
+        for (estimate, &i) in sums.chunks_exact(n).zip(&active) {
+            let receiver = &mut receivers[i];
+            receiver.add(estimate, scale, target.relative * open_norm);
+            if receiver.done || last {
+                receiver.done = true;
+                progress.advance(1);
             }
-        })
-        .collect();
-    let n = coeff_count(bands);
-    let mut transfer = Vec::with_capacity(results.len() * n);
-    for result in &results {
-        transfer.extend(result.transfer.iter().map(|&t| t as f32));
+        }
+        first_batch.get_or_insert((samples, table));
     }
-    let rays = results.iter().map(|r| r.rays).sum();
+    let (samples, table) = first_batch.expect("a target has batches");
+    // Batches are summed as projected (for a tangent-frame set, in the receiver's own frame)
+    // and finished once, on their mean: finishing is affine (a scale, a rotation, for the
+    // control variate a closed form minus the sum), so the mean of finished batches is the
+    // finished mean, and the rotation keeps the L2 norm the error is measured in.
+    let finishing = DirectInputs {
+        samples: &samples,
+        table: &table,
+        estimator: Estimator::Blocked,
+        ..view
+    };
+    let mut transfer = vec![0.0f32; receivers.len() * n];
+    transfer
+        .par_chunks_mut(n)
+        .zip(&receivers)
+        .for_each(|(out, receiver)| {
+            let mut mean: Vec<f64> = receiver
+                .sum
+                .iter()
+                .map(|s| s / receiver.count as f64)
+                .collect();
+            finish_transfer(&finishing, receiver.index, &mut mean);
+            out.iter_mut().zip(&mean).for_each(|(o, m)| *o = *m as f32);
+        });
     let receivers = ReceiverErrors {
-        samples: results.iter().map(|r| r.samples).collect(),
-        errors: results.iter().map(|r| r.error).collect(),
+        samples: receivers.iter().map(|r| r.count * BATCH_SAMPLES).collect(),
+        errors: receivers.iter().map(|r| r.error / open_norm).collect(),
     };
     Ok((transfer, rays, receivers))
 }
 
-/// Batches for receiver `r` until its standard error is at most `target_norm` (after
-/// [`MIN_BATCHES`]) or the batches run out.
-///
-/// Batches are summed as projected (for a tangent-frame set, in the receiver's own frame) and
-/// finished once, on their mean: finishing is affine (a scale, a rotation, for the control
-/// variate a closed form minus the sum), so the mean of finished batches is the finished mean,
-/// and the rotation keeps the L2 norm the error is measured in.
-fn bake_receiver(views: &[DirectInputs], mode: Mode, r: usize, target_norm: f64) -> ReceiverResult {
-    let n = coeff_count(views[0].table.bands);
-    let scale = super::cpu::transfer_scale(&views[0]);
-    let mut bits = vec![0u32; words_per_vertex(BATCH_SAMPLES as usize)];
-    let (mut sum, mut sum_squares, mut estimate) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let (mut rays, mut error, mut count) = (0, f64::INFINITY, 0);
-    for view in views {
-        rays += trace_visibility_of(view, mode, r, &mut bits);
-        project_visibility(view, r, &bits, &mut estimate);
-        for ((s, q), &e) in sum.iter_mut().zip(&mut sum_squares).zip(&estimate) {
+/// One receiver's batches so far: the sums and sums of squares of its projected estimates.
+struct ReceiverBatches {
+    index: usize,
+    sum: Vec<f64>,
+    sum_squares: Vec<f64>,
+    count: u32,
+    /// The standard error of the transfer (not relative), infinite before [`MIN_BATCHES`].
+    error: f64,
+    done: bool,
+}
+
+impl ReceiverBatches {
+    fn new(index: usize, coeffs: usize) -> ReceiverBatches {
+        ReceiverBatches {
+            index,
+            sum: vec![0.0; coeffs],
+            sum_squares: vec![0.0; coeffs],
+            count: 0,
+            error: f64::INFINITY,
+            done: false,
+        }
+    }
+
+    /// Adds one batch's projected `estimate` (transfer `scale` times it), and is done when
+    /// nothing was blocked after [`OPEN_BATCHES`] or, after [`MIN_BATCHES`], when the standard
+    /// error is at most `target_norm`.
+    fn add(&mut self, estimate: &[f64], scale: f64, target_norm: f64) {
+        for ((s, q), &e) in self.sum.iter_mut().zip(&mut self.sum_squares).zip(estimate) {
             *s += e;
             *q += e * e;
         }
-        count += 1;
-        if count == OPEN_BATCHES && sum.iter().all(|&s| s == 0.0) {
-            error = 0.0;
-            break;
+        self.count += 1;
+        if self.count == OPEN_BATCHES && self.sum.iter().all(|&s| s == 0.0) {
+            self.error = 0.0;
+            self.done = true;
+        } else if self.count >= MIN_BATCHES {
+            self.error = scale * standard_error(&self.sum, &self.sum_squares, self.count);
+            self.done = self.error <= target_norm;
         }
-        if count >= MIN_BATCHES {
-            error = scale * standard_error(&sum, &sum_squares, count);
-            if error <= target_norm {
-                break;
-            }
-        }
-    }
-    let mut transfer: Vec<f64> = sum.iter().map(|s| s / count as f64).collect();
-    finish_transfer(&views[0], r, &mut transfer);
-    ReceiverResult {
-        transfer,
-        samples: count * BATCH_SAMPLES,
-        rays,
-        error,
     }
 }
 

@@ -1,68 +1,93 @@
-//! Where the transfer is computed: the CPU or the GPU, and the operations every stage asks of
-//! either — the direct pass (with the gather matrix where light bounces), and gathers through
-//! that matrix. Only this file tells the two apart; the stages call its operations.
+//! Where the transfer is computed: the operations every stage asks of a backend — visibility
+//! (the direct pass), closest hits (the gather matrix where light bounces, the distances of
+//! local lights' depth maps) and gathers through that matrix. The CPU and the GPU implement
+//! them; the stages call them and never ask which backend they have.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::bounce::{self, GatherMatrix};
 use super::{gpu, DirectInputs, DirectPass, Mode, Progress};
 use crate::device::GpuContext;
 use crate::error::Result;
+use crate::ray::{Ray, RAY_T_MAX};
+use crate::sampling::VertexDirections;
+use crate::scene::Scene;
 use crate::sh::coeff_count;
 
-/// Where the transfer is computed.
-pub enum Backend<'a> {
-    Cpu,
-    Gpu {
-        baker: &'a gpu::GpuBaker,
-        chunking: gpu::Chunking,
-    },
-}
-
-impl<'a> Backend<'a> {
+/// Where the transfer is computed: [`CpuBackend`] or [`GpuBackend`].
+pub trait Backend: Sync {
     /// "cpu", or "gpu: adapter (backend, type)".
-    pub fn describe(&self) -> String {
-        match self {
-            Backend::Cpu => "cpu".to_string(),
-            Backend::Gpu { baker, .. } => format!("gpu: {}", baker.context.adapter.label()),
-        }
-    }
+    fn describe(&self) -> String;
 
-    /// The device of a GPU backend, for stages that can use it.
-    pub fn gpu_context(&self) -> Option<&'a GpuContext> {
-        match self {
-            Backend::Gpu { baker, .. } => Some(&baker.context),
-            Backend::Cpu => None,
-        }
-    }
+    /// The device of a GPU backend, for stages that can use it (clustered PCA).
+    fn gpu_context(&self) -> Option<&GpuContext>;
+
+    /// Albedo-free transfer of the receivers of `inputs` in `mode` (not interreflected), and
+    /// the rays cast.
+    fn direct_transfer(
+        &self,
+        inputs: &DirectInputs,
+        mode: Mode,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f32>, u64)>;
+
+    /// The projected sums of the receivers of `inputs` in `mode` (not interreflected),
+    /// `[receiver][k]`, before they are finished into transfer (`cpu::finish_transfer`), and
+    /// the rays cast: what an error-targeted bake adds up batch by batch.
+    fn projected_sums(
+        &self,
+        inputs: &DirectInputs,
+        mode: Mode,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f64>, u64)>;
+
+    /// Albedo-free shadowed transfer of the receivers of `inputs`, the gather matrix of their
+    /// rays' closest hits, and the rays cast.
+    fn direct_transfer_and_gather_matrix(
+        &self,
+        inputs: &DirectInputs,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f32>, GatherMatrix, u64)>;
+
+    /// `matrix` (rows: receivers of `albedo`) made ready to gather `bands`-band RGB transfer:
+    /// uploaded once to a GPU, however many bounces then read it.
+    fn gatherer<'m>(
+        &'m self,
+        matrix: &'m GatherMatrix,
+        albedo: &'m [Vec3],
+        bands: u32,
+    ) -> Result<Box<dyn Gatherer + 'm>>;
+
+    /// The distance from each receiver's ray origin to the closest surface of `scene` along
+    /// each sample direction of `inputs` above its horizon, `[receiver][sample]`, at most
+    /// `cap`, and `cap` where the ray leaves the scene.
+    fn closest_hit_distances(
+        &self,
+        inputs: &DirectInputs,
+        scene: &Scene,
+        cap: f32,
+        progress: &dyn Progress,
+    ) -> Result<Vec<f32>>;
 
     /// The direct pass over the receivers of `inputs`: albedo-free transfer, and in
     /// interreflected mode the gather matrix of the rays' closest hits.
-    pub fn direct_pass(
+    fn direct_pass(
         &self,
         inputs: &DirectInputs,
         mode: Mode,
         progress: &dyn Progress,
     ) -> Result<DirectPass> {
         progress.stage("transfer", inputs.origins.len() as u64);
-        let (scalar, matrix, rays_cast) = match (self, mode) {
-            (Backend::Cpu, Mode::Interreflected) => {
+        let (scalar, matrix, rays_cast) = match mode {
+            Mode::Interreflected => {
                 let (scalar, matrix, rays) =
-                    bounce::direct_transfer_and_gather_matrix_cpu(inputs, progress);
+                    self.direct_transfer_and_gather_matrix(inputs, progress)?;
                 (scalar, Some(matrix), rays)
             }
-            (Backend::Cpu, mode) => {
-                let (scalar, rays) = super::cpu::direct_transfer(inputs, mode, progress);
+            mode => {
+                let (scalar, rays) = self.direct_transfer(inputs, mode, progress)?;
                 (scalar, None, rays)
-            }
-            (Backend::Gpu { baker, chunking }, Mode::Interreflected) => {
-                let (scalar, matrix, run) =
-                    gpu::direct_transfer_and_gather_matrix(baker, inputs, *chunking, progress)?;
-                (scalar, Some(matrix), run.rays_cast)
-            }
-            (Backend::Gpu { baker, chunking }, mode) => {
-                let (scalar, run) = gpu::direct_transfer(baker, inputs, mode, *chunking, progress)?;
-                (scalar, None, run.rays_cast)
             }
         };
         Ok(DirectPass {
@@ -72,55 +97,231 @@ impl<'a> Backend<'a> {
             adaptive: None,
         })
     }
+}
 
-    /// `matrix` (rows: receivers of `albedo`) made ready to gather `bands`-band RGB transfer
-    /// on this backend: uploaded once to the GPU, however many bounces then read it.
-    pub fn gatherer<'m>(
+/// One gather through a matrix a backend holds ([`Backend::gatherer`]):
+/// `next[p][c][k] = albedo[p][c] sum_j weight_pj values[j][c][k]`.
+pub trait Gatherer {
+    fn gather(&self, values: &[f32]) -> Result<Vec<f32>>;
+}
+
+/// The CPU reference: the BVH traversed by rayon tasks, sums in f64.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CpuBackend;
+
+impl Backend for CpuBackend {
+    fn describe(&self) -> String {
+        "cpu".to_string()
+    }
+
+    fn gpu_context(&self) -> Option<&GpuContext> {
+        None
+    }
+
+    fn direct_transfer(
         &self,
+        inputs: &DirectInputs,
+        mode: Mode,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f32>, u64)> {
+        Ok(super::cpu::direct_transfer(inputs, mode, progress))
+    }
+
+    fn projected_sums(
+        &self,
+        inputs: &DirectInputs,
+        mode: Mode,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f64>, u64)> {
+        Ok(super::cpu::projected_sums(inputs, mode, progress))
+    }
+
+    fn direct_transfer_and_gather_matrix(
+        &self,
+        inputs: &DirectInputs,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f32>, GatherMatrix, u64)> {
+        Ok(bounce::direct_transfer_and_gather_matrix_cpu(
+            inputs, progress,
+        ))
+    }
+
+    fn gatherer<'m>(
+        &'m self,
         matrix: &'m GatherMatrix,
         albedo: &'m [Vec3],
         bands: u32,
-    ) -> Result<Gatherer<'m>>
-    where
-        'a: 'm,
-    {
-        Ok(match self {
-            Backend::Cpu => Gatherer::Cpu {
-                matrix,
-                albedo,
-                coeffs: coeff_count(bands),
-            },
-            Backend::Gpu { baker, .. } => Gatherer::Gpu {
-                baker,
-                uploaded: baker.upload_gather_matrix(matrix, albedo, bands)?,
-            },
-        })
+    ) -> Result<Box<dyn Gatherer + 'm>> {
+        Ok(Box::new(CpuGather {
+            matrix,
+            albedo,
+            coeffs: coeff_count(bands),
+        }))
+    }
+
+    /// The ray's own hit distance.
+    fn closest_hit_distances(
+        &self,
+        inputs: &DirectInputs,
+        _scene: &Scene,
+        cap: f32,
+        _progress: &dyn Progress,
+    ) -> Result<Vec<f32>> {
+        let samples = &inputs.samples;
+        let mut distances = vec![cap; inputs.origins.len() * samples.len()];
+        distances
+            .par_chunks_mut(samples.len().max(1))
+            .zip(inputs.origins.par_iter().zip(inputs.normals))
+            .for_each(|(row, (&origin, &normal))| {
+                let to_world = VertexDirections::new(samples.frame, normal);
+                for (distance, &sample) in row.iter_mut().zip(&samples.directions) {
+                    let direction = to_world.world(sample);
+                    if normal.dot(direction) <= 0.0 {
+                        continue;
+                    }
+                    let ray = Ray::new(origin, direction);
+                    if let Some((_, hit)) = inputs.bvh.closest_hit(&ray, RAY_T_MAX) {
+                        *distance = hit.t.min(cap);
+                    }
+                }
+            });
+        Ok(distances)
     }
 }
 
-/// A gather matrix where its backend reads it ([`Backend::gatherer`]).
-pub enum Gatherer<'m> {
-    Cpu {
-        matrix: &'m GatherMatrix,
-        albedo: &'m [Vec3],
-        coeffs: usize,
-    },
-    Gpu {
-        baker: &'m gpu::GpuBaker,
-        uploaded: gpu::GpuGatherMatrix,
-    },
+struct CpuGather<'m> {
+    matrix: &'m GatherMatrix,
+    albedo: &'m [Vec3],
+    coeffs: usize,
 }
 
-impl Gatherer<'_> {
-    /// One gather: `next[p][c][k] = albedo[p][c] sum_j weight_pj values[j][c][k]`.
-    pub fn gather(&self, values: &[f32]) -> Result<Vec<f32>> {
-        match self {
-            Gatherer::Cpu {
-                matrix,
-                albedo,
-                coeffs,
-            } => Ok(bounce::apply_cpu(matrix, values, albedo, *coeffs)),
-            Gatherer::Gpu { baker, uploaded } => baker.bounce(uploaded, values),
+impl Gatherer for CpuGather<'_> {
+    fn gather(&self, values: &[f32]) -> Result<Vec<f32>> {
+        Ok(bounce::apply_cpu(
+            self.matrix,
+            values,
+            self.albedo,
+            self.coeffs,
+        ))
+    }
+}
+
+/// The WGSL kernels on a wgpu device, in dispatches of `chunking`'s size.
+#[derive(Clone, Copy)]
+pub struct GpuBackend<'a> {
+    pub baker: &'a gpu::GpuBaker,
+    pub chunking: gpu::Chunking,
+}
+
+impl<'a> GpuBackend<'a> {
+    /// `baker` in dispatches of the default size.
+    pub fn new(baker: &'a gpu::GpuBaker) -> GpuBackend<'a> {
+        GpuBackend {
+            baker,
+            chunking: gpu::Chunking::default(),
         }
+    }
+}
+
+impl Backend for GpuBackend<'_> {
+    fn describe(&self) -> String {
+        format!("gpu: {}", self.baker.context.adapter.label())
+    }
+
+    fn gpu_context(&self) -> Option<&GpuContext> {
+        Some(&self.baker.context)
+    }
+
+    fn direct_transfer(
+        &self,
+        inputs: &DirectInputs,
+        mode: Mode,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f32>, u64)> {
+        let (scalar, run) =
+            gpu::direct_transfer(self.baker, inputs, mode, self.chunking, progress)?;
+        Ok((scalar, run.rays_cast))
+    }
+
+    fn projected_sums(
+        &self,
+        inputs: &DirectInputs,
+        mode: Mode,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f64>, u64)> {
+        let (sums, run) = gpu::projected_sums(self.baker, inputs, mode, self.chunking, progress)?;
+        Ok((sums.iter().map(|&s| s as f64).collect(), run.rays_cast))
+    }
+
+    fn direct_transfer_and_gather_matrix(
+        &self,
+        inputs: &DirectInputs,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f32>, GatherMatrix, u64)> {
+        let (scalar, matrix, run) =
+            gpu::direct_transfer_and_gather_matrix(self.baker, inputs, self.chunking, progress)?;
+        Ok((scalar, matrix, run.rays_cast))
+    }
+
+    fn gatherer<'m>(
+        &'m self,
+        matrix: &'m GatherMatrix,
+        albedo: &'m [Vec3],
+        bands: u32,
+    ) -> Result<Box<dyn Gatherer + 'm>> {
+        Ok(Box::new(GpuGather {
+            baker: self.baker,
+            uploaded: self.baker.upload_gather_matrix(matrix, albedo, bands)?,
+        }))
+    }
+
+    /// The distance to the hit point, interpolated from the hit triangle's corners by the
+    /// kernel's barycentrics (the kernel does not return the ray's own distance).
+    fn closest_hit_distances(
+        &self,
+        inputs: &DirectInputs,
+        scene: &Scene,
+        cap: f32,
+        progress: &dyn Progress,
+    ) -> Result<Vec<f32>> {
+        let hits = gpu::closest_hits(self.baker, inputs, self.chunking, progress)?;
+        let samples = inputs.samples.len();
+        let mut distances = vec![cap; inputs.origins.len() * samples];
+        distances
+            .par_chunks_mut(samples.max(1))
+            .zip(hits.par_iter().zip(inputs.origins))
+            .for_each(|(row, (own, &origin))| {
+                for &(sample, hit) in own {
+                    let corners =
+                        scene.triangles[hit.triangle as usize].map(|i| scene.positions[i as usize]);
+                    let point = corners[0] * (1.0 - hit.u - hit.v)
+                        + corners[1] * hit.u
+                        + corners[2] * hit.v;
+                    row[sample as usize] = (point - origin).length().min(cap);
+                }
+            });
+        Ok(distances)
+    }
+}
+
+struct GpuGather<'m> {
+    baker: &'m gpu::GpuBaker,
+    uploaded: gpu::GpuGatherMatrix,
+}
+
+impl Gatherer for GpuGather<'_> {
+    fn gather(&self, values: &[f32]) -> Result<Vec<f32>> {
+        self.baker.bounce(&self.uploaded, values)
+    }
+}
+
+/// The backend of `baker` in `chunking`'s dispatches, or the CPU's without one.
+pub fn backend_for(
+    baker: Option<&gpu::GpuBaker>,
+    chunking: gpu::Chunking,
+) -> Box<dyn Backend + '_> {
+    match baker {
+        Some(baker) => Box::new(GpuBackend { baker, chunking }),
+        None => Box::new(CpuBackend),
     }
 }

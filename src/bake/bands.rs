@@ -126,7 +126,7 @@ mod band_tests {
                 samples: 256,
                 ..BakeOptions::default()
             };
-            bake(scene.clone(), &options, &Backend::Cpu, &NoProgress)
+            bake(scene.clone(), &options, &CpuBackend, &NoProgress)
                 .unwrap()
                 .0
         };

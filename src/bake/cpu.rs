@@ -269,10 +269,49 @@ pub fn direct_transfer(
     progress: &dyn Progress,
 ) -> (Vec<f32>, u64) {
     let n = coeff_count(inputs.table.bands);
-    let words = words_per_vertex(inputs.samples.len());
     let mut transfer = vec![0.0f32; inputs.origins.len() * n];
-    let rays: u64 = transfer
-        .par_chunks_mut(n * VERTICES_PER_TASK)
+    let rays = project_each(
+        inputs,
+        mode,
+        progress,
+        &mut transfer,
+        |vertex, sums, out| {
+            finish_transfer(inputs, vertex, sums);
+            for (o, s) in out.iter_mut().zip(sums.iter()) {
+                *o = *s as f32;
+            }
+        },
+    );
+    (transfer, rays)
+}
+
+/// The projected sums of every vertex, `[vertex][k]`, before [`finish_transfer`]: what an
+/// error-targeted bake adds up batch by batch. Returns (sums, rays cast).
+pub fn projected_sums(
+    inputs: &DirectInputs,
+    mode: Mode,
+    progress: &dyn Progress,
+) -> (Vec<f64>, u64) {
+    let n = coeff_count(inputs.table.bands);
+    let mut sums = vec![0.0f64; inputs.origins.len() * n];
+    let rays = project_each(inputs, mode, progress, &mut sums, |_, projected, out| {
+        out.copy_from_slice(projected);
+    });
+    (sums, rays)
+}
+
+/// Traces and projects every vertex in packets, handing each vertex's projected sums to
+/// `write` with its row of `out` (`[vertex][k]`). Returns the rays cast.
+fn project_each<T: Send>(
+    inputs: &DirectInputs,
+    mode: Mode,
+    progress: &dyn Progress,
+    out: &mut [T],
+    write: impl Fn(usize, &mut [f64], &mut [T]) + Sync,
+) -> u64 {
+    let n = coeff_count(inputs.table.bands);
+    let words = words_per_vertex(inputs.samples.len());
+    out.par_chunks_mut(n * VERTICES_PER_TASK)
         .enumerate()
         .map(|(task, chunk)| {
             let first = task * VERTICES_PER_TASK;
@@ -280,22 +319,18 @@ pub fn direct_transfer(
             let mut bits = vec![0u32; count * words];
             let rays = trace_visibility_of(inputs, mode, first, &mut bits);
             let mut acc = vec![0.0f64; n];
-            for (i, (out, row)) in chunk
+            for (i, (row_out, row)) in chunk
                 .chunks_exact_mut(n)
                 .zip(bits.chunks(words))
                 .enumerate()
             {
                 project_visibility(inputs, first + i, row, &mut acc);
-                finish_transfer(inputs, first + i, &mut acc);
-                for (o, a) in out.iter_mut().zip(&acc) {
-                    *o = *a as f32;
-                }
+                write(first + i, &mut acc, row_out);
             }
             progress.advance(count as u64);
             rays
         })
-        .sum();
-    (transfer, rays)
+        .sum()
 }
 
 /// [`direct_transfer`] in the vertex-major, one-ray-at-a-time order of [`trace_visibility`]:

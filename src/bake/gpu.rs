@@ -744,6 +744,19 @@ fn closest_hit_run(
     run(baker, inputs, mode, chunking, false, progress)
 }
 
+/// The projected sums of every vertex, `[vertex][k]`, before `cpu::finish_transfer`,
+/// computed on the GPU: what an error-targeted bake adds up batch by batch.
+pub fn projected_sums(
+    baker: &GpuBaker,
+    inputs: &DirectInputs,
+    mode: Mode,
+    chunking: Chunking,
+    progress: &dyn Progress,
+) -> Result<(Vec<f32>, GpuRun)> {
+    let out = run(baker, inputs, mode, chunking, false, progress)?;
+    Ok((out.sums, out.stats))
+}
+
 /// Albedo-free direct transfer of every vertex, `[vertex][k]`, computed on the GPU.
 pub fn direct_transfer(
     baker: &GpuBaker,

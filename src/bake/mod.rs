@@ -68,7 +68,7 @@ fn add_bounces(
     transfer: &mut Transfer,
     gather: Gather,
     options: &BakeOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<Vec<BounceStat>> {
     let coeffs = coeff_count(transfer.bands);
@@ -105,7 +105,7 @@ fn add_bounces(
 pub fn bake(
     scene: Scene,
     options: &BakeOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<(BakedMesh, BakeReport)> {
     bake_from(
@@ -125,15 +125,6 @@ pub enum DirectSource {
     /// Already computed (by the shards of a sharded bake, merged), on the backend `ran_on`
     /// describes: the rest of the bake (fit, bounces, lightmap) runs here.
     Given { direct: DirectPass, ran_on: String },
-}
-
-/// The backend a direct pass with `options` runs on: error-targeted passes run on the CPU
-/// whatever the backend.
-fn direct_pass_ran_on(options: &BakeOptions, backend: &Backend) -> String {
-    match options.target_error {
-        Some(_) => Backend::Cpu.describe(),
-        None => backend.describe(),
-    }
 }
 
 /// What every bake does before its direct pass: the prepared scene, its receivers, and what
@@ -170,7 +161,7 @@ fn plan(scene: Scene, options: &BakeOptions) -> Result<Planned> {
 pub fn bake_from(
     scene: Scene,
     options: &BakeOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     source: DirectSource,
     uv_set: Option<&UvSet>,
     progress: &dyn Progress,
@@ -202,7 +193,7 @@ pub fn bake_from(
         DirectSource::Compute => {
             let all = 0..planned.receivers.len();
             let direct = direct_or_adaptive(&planned.inputs, all, options, backend, progress)?;
-            (direct, direct_pass_ran_on(options, backend))
+            (direct, backend.describe())
         }
         DirectSource::Given { direct, ran_on } => {
             check_given(&direct, &planned.receivers, options)?;
@@ -358,7 +349,7 @@ fn add_lightmap(
     atlas: &receivers::atlas::Atlas,
     set: Option<u32>,
     options: &BakeOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<(
     Scene,
@@ -384,7 +375,7 @@ fn vertex_transfer(
     points: &[SurfacePoint],
     direct: &DirectPass,
     options: &BakeOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<(Transfer, Vec<BounceStat>, Option<FitReport>, f64)> {
     let started = Instant::now();
@@ -439,12 +430,12 @@ fn prepare_with_albedo(
 }
 
 /// The direct pass of the receivers `range` of `owned`: a fixed sample count on the backend,
-/// or to the options' error target on the CPU (with each receiver's samples and error).
-fn direct_or_adaptive(
+/// or to the options' error target (with each receiver's samples and error).
+pub(super) fn direct_or_adaptive(
     owned: &BakeInputs,
     range: std::ops::Range<usize>,
     options: &BakeOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<DirectPass> {
     let Some(target) = &options.target_error else {
@@ -458,6 +449,7 @@ fn direct_or_adaptive(
     };
     progress.stage("transfer", range.len() as u64);
     let (scalar, rays_cast, receivers) = adaptive::adaptive_direct_transfer(
+        backend,
         owned,
         range,
         (options.sampling, options.seed, options.mode),
@@ -506,7 +498,7 @@ pub fn bake_at(
     scene: &Scene,
     receivers: &Receivers,
     options: &BakeOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     vertex_transfer: Option<&Transfer>,
     progress: &dyn Progress,
 ) -> Result<(Transfer, u64)> {
@@ -520,7 +512,7 @@ pub fn bake_at_in(
     scene: &Scene,
     (receivers, bvh): (&Receivers, Bvh),
     options: &BakeOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     vertex_transfer: Option<&Transfer>,
     progress: &dyn Progress,
 ) -> Result<(Transfer, u64)> {

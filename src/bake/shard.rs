@@ -44,7 +44,7 @@ pub struct ShardPass {
 pub fn bake_shard(
     scene: Scene,
     options: &BakeOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     shard: Shard,
     progress: &dyn Progress,
 ) -> Result<ShardPass> {
@@ -56,6 +56,6 @@ pub fn bake_shard(
         receivers: range,
         receivers_total: planned.receivers.len(),
         direct,
-        ran_on: direct_pass_ran_on(options, backend),
+        ran_on: backend.describe(),
     })
 }

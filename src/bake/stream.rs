@@ -4,7 +4,8 @@
 //! its receivers, so a chunked bake writes the bytes of the whole one.
 //!
 //! Only bakes whose vertex values are their own receivers' can stream: transfer at the
-//! vertices, no fit, lightmap or error target (a fit solves for all vertices at once).
+//! vertices, no fit or lightmap (a fit solves for all vertices at once). An error target
+//! streams too: each receiver's batches depend on it alone.
 //! Interreflection streams its direct pass; each bounce then reads every vertex's previous
 //! bounce, so the bake holds one transfer of every vertex (the previous bounce) and keeps the
 //! gather rows, the sum so far and the next bounce in a scratch file ([`super::spill`]), a
@@ -13,11 +14,12 @@
 
 use std::ops::Range;
 
+use super::adaptive::ReceiverErrors;
 use super::bounce::{self, GatherMatrix};
 use super::spill::Spill;
 use super::{
-    metadata_for, plan, tint_by_albedo, Backend, BakeMetadata, BakeOptions, BounceStat,
-    DirectInputs, Fit, Mode, Progress, Storage, Transfer,
+    direct_or_adaptive, metadata_for, plan, tint_by_albedo, Backend, BakeMetadata, BakeOptions,
+    BounceStat, DirectInputs, Fit, Mode, Progress, Storage, Transfer,
 };
 use crate::error::{Error, Result};
 use crate::scene::Scene;
@@ -25,7 +27,7 @@ use crate::sh::coeff_count;
 
 /// Whether a bake with `options` can be computed in chunks ([module docs](self)).
 pub fn streams(options: &BakeOptions) -> bool {
-    options.fit == Fit::Point && options.lightmap.is_none() && options.target_error.is_none()
+    options.fit == Fit::Point && options.lightmap.is_none()
 }
 
 /// Bytes a bake needs, estimated from the mesh's size before it starts: what it holds
@@ -71,14 +73,31 @@ impl MemoryNeed {
             Mode::Interreflected => (2 * 8 * samples, 2 * transfer, transfer),
             _ => (0, 0, 0),
         };
+        // An error target: each receiver's sums and sums of squares (f64) while it bakes,
+        // and its samples and error, which a streamed bake keeps for all receivers.
+        let (batches, errors) = match options.target_error {
+            Some(_) => (2 * 8 * coeffs + 64, 12),
+            None => (0, 0),
+        };
         MemoryNeed {
             fixed,
-            held_streamed: v * bounces_held,
+            held_streamed: v * (bounces_held + errors),
             // The direct pass, its RGB transfer, and the file's bytes twice (encoded BIN,
             // then the whole container).
-            per_receiver_whole: 4 * coeffs + transfer + 2 * file_transfer + gather + bounces_whole,
+            per_receiver_whole: 4 * coeffs
+                + transfer
+                + 2 * file_transfer
+                + gather
+                + bounces_whole
+                + batches
+                + errors,
             // The same for one chunk, and its file blocks.
-            per_receiver_streamed: 4 * coeffs + transfer + file_transfer + gather + bounces_whole,
+            per_receiver_streamed: 4 * coeffs
+                + transfer
+                + file_transfer
+                + gather
+                + bounces_whole
+                + batches,
             receivers: v,
         }
     }
@@ -176,8 +195,8 @@ impl StreamedBake {
         options.validate()?;
         if !streams(options) {
             return Err(Error::Options(
-                "only bakes at the vertices stream in chunks (no least-squares fit, lightmap \
-                 or error target)"
+                "only bakes at the vertices stream in chunks (no least-squares fit or \
+                 lightmap)"
                     .into(),
             ));
         }
@@ -223,8 +242,13 @@ impl StreamedBake {
         self.options.mode
     }
 
+    /// The error target each receiver bakes to, if any.
+    pub fn target_error(&self) -> Option<super::adaptive::TargetError> {
+        self.options.target_error
+    }
+
     /// What the baked file records, as the whole bake on `backend` would, after `bounces`.
-    pub fn metadata(&self, backend: &Backend, bounces: usize) -> BakeMetadata {
+    pub fn metadata(&self, backend: &dyn Backend, bounces: usize) -> BakeMetadata {
         let samples = self.planned.inputs.samples.len();
         BakeMetadata {
             channels: self.channels(),
@@ -235,21 +259,22 @@ impl StreamedBake {
         }
     }
 
-    /// The transfer of the receivers `range` (`[vertex][channel][k]`), and the rays cast.
-    /// Progress advances per receiver, without starting a stage of its own.
+    /// The transfer of the receivers `range` (`[vertex][channel][k]`), the rays cast, and
+    /// with an error target each receiver's samples and error. Progress advances per
+    /// receiver, without starting a stage of its own.
     pub fn chunk(
         &self,
         range: Range<usize>,
-        backend: &Backend,
+        backend: &dyn Backend,
         progress: &dyn Progress,
-    ) -> Result<(Transfer, u64)> {
-        let view = self.planned.inputs.view();
-        let part = DirectInputs {
-            origins: &view.origins[range.clone()],
-            normals: &view.normals[range.clone()],
-            ..view
-        };
-        let direct = backend.direct_pass(&part, self.options.mode, &Advancing(progress))?;
+    ) -> Result<(Transfer, u64, Option<ReceiverErrors>)> {
+        let direct = direct_or_adaptive(
+            &self.planned.inputs,
+            range.clone(),
+            &self.options,
+            backend,
+            &Advancing(progress),
+        )?;
         let bands = self.options.bands;
         let transfer = match self.options.storage {
             Storage::Lean => Transfer {
@@ -263,7 +288,7 @@ impl StreamedBake {
                 tint_by_albedo(&direct.scalar, albedo, bands)
             }
         };
-        Ok((transfer, direct.rays_cast))
+        Ok((transfer, direct.rays_cast, direct.adaptive))
     }
 
     /// Interreflected transfer in bounded memory ([module docs](self)): the direct pass
@@ -272,7 +297,7 @@ impl StreamedBake {
     pub fn interreflected(
         &self,
         chunk: usize,
-        backend: &Backend,
+        backend: &dyn Backend,
         progress: &dyn Progress,
     ) -> Result<Interreflected> {
         let receivers = self.receivers();

@@ -68,7 +68,7 @@ pub fn bake_texels(
     vertex_transfer: &Transfer,
     options: &BakeOptions,
     size: u32,
-    backend: &Backend,
+    backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<(TexelBake, TexelReport)> {
     let started = Instant::now();
@@ -85,7 +85,7 @@ pub fn bake_atlas(
     vertex_transfer: &Transfer,
     options: &BakeOptions,
     atlas: &Atlas,
-    backend: &Backend,
+    backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<(TexelBake, TexelReport)> {
     let started = Instant::now();

@@ -7,8 +7,7 @@ use super::bake::{load_scene, naming_the_mesh, open_backend};
 use super::light::load_light;
 use super::progress::BarProgress;
 use prt_gpu::bake::adaptive::TargetError;
-use prt_gpu::bake::gpu::Chunking;
-use prt_gpu::bake::{self, Backend, BakeOptions, Fit, Mode};
+use prt_gpu::bake::{self, Backend, BakeOptions, CpuBackend, Fit, GpuBackend, Mode};
 use prt_gpu::device::DeviceChoice;
 use prt_gpu::light;
 use prt_gpu::sampling::{Sampling, MAX_SAMPLES};
@@ -116,16 +115,11 @@ pub(crate) fn run_chart(args: ChartArgs) -> Result<()> {
     };
     let (scene, name) = load_scene(&args.mesh)?;
     let baker = open_backend(args.device, args.adapter.as_deref())?;
-    let mut backends = vec![("cpu".to_string(), Backend::Cpu)];
+    let mut backends: Vec<(String, Box<dyn Backend>)> =
+        vec![("cpu".to_string(), Box::new(CpuBackend))];
     if let Some(baker) = &baker {
         eprintln!("gpu: {}", baker.context.adapter.label());
-        backends.push((
-            "gpu".to_string(),
-            Backend::Gpu {
-                baker,
-                chunking: Chunking::default(),
-            },
-        ));
+        backends.push(("gpu".to_string(), Box::new(GpuBackend::new(baker))));
     }
     let started = std::time::Instant::now();
     let progress = BarProgress::default();

@@ -3,10 +3,10 @@
 use std::path::{Path, PathBuf};
 
 use super::args::Bands;
-use super::bake::{bake_backend, check_bake_outputs, load_mesh, stem, BakeArgs};
+use super::bake::{check_bake_outputs, load_mesh, open_backend, stem, BakeArgs};
 use super::progress::BarProgress;
 use prt_gpu::bake::gpu::Chunking;
-use prt_gpu::bake::{Backend, Fit, Storage};
+use prt_gpu::bake::{backend_for, Fit, Storage};
 use prt_gpu::glb::Precision;
 use prt_gpu::local::build::OperatorShape;
 use prt_gpu::local::{self, LocalOptions};
@@ -36,16 +36,10 @@ pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
     if let Some(albedo) = args.albedo {
         scene.albedo.iter_mut().for_each(|a| *a = albedo);
     }
-    let baker = bake_backend(&spec, args.device, args.adapter.as_deref())?;
-    let backend = match &baker {
-        Some(baker) => Backend::Gpu {
-            baker,
-            chunking: Chunking::default(),
-        },
-        None => Backend::Cpu,
-    };
+    let baker = open_backend(args.device, args.adapter.as_deref())?;
+    let backend = backend_for(baker.as_ref(), Chunking::default());
     let progress = BarProgress::default();
-    let (baked, report) = local::bake_local(scene, &options, &backend, &progress)?;
+    let (baked, report) = local::bake_local(scene, &options, backend.as_ref(), &progress)?;
     progress.finish();
     glb::local::write_local_glb(&output, &baked)?;
     print_local_report(&name, &report, &output);

@@ -3,16 +3,15 @@
 use std::path::{Path, PathBuf};
 
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
-use prt_gpu::bake::{self, Backend, BakeOptions, Mode};
+use prt_gpu::bake::{self, backend_for, Backend, BakeOptions, CpuBackend, Mode};
 use prt_gpu::device::{self, DeviceChoice};
 use prt_gpu::shard::{self, Part};
 use prt_gpu::spec::BakeSpec;
 use prt_gpu::{fs, scene, Error, Result};
 
 use super::bake::{
-    backend_of, bake_backend, bake_name, bake_one, bake_spec, check_chunking, check_preview,
-    load_bake_input, mesh_shown, naming_the_mesh, note_samples_rounded, BakeArgs, Device,
-    Execution,
+    bake_name, bake_one, bake_spec, check_chunking, check_preview, load_bake_input, mesh_shown,
+    naming_the_mesh, note_samples_rounded, open_backend, BakeArgs, Device, Execution,
 };
 use super::progress::BarProgress;
 
@@ -53,11 +52,11 @@ pub(crate) fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Sh
     note_samples_rounded(&options);
     check_chunking(args)?;
     let fingerprint = shard::fingerprint(&scene, &spec.fingerprint_text());
-    let baker = bake_backend(&spec, args.device, args.adapter.as_deref())?;
-    let backend = backend_of(&baker, &Execution::of(args).chunking);
+    let baker = open_backend(args.device, args.adapter.as_deref())?;
+    let backend = backend_for(baker.as_ref(), Execution::of(args).chunking);
     let progress = BarProgress::default();
     let started = std::time::Instant::now();
-    let pass = bake::bake_shard(scene, &options, &backend, shard, &progress)
+    let pass = bake::bake_shard(scene, &options, backend.as_ref(), shard, &progress)
         .map_err(|e| naming_the_mesh(e, &mesh_shown(mesh)))?;
     progress.finish();
     let (range, total, rays) = (
@@ -230,7 +229,7 @@ fn check_shard_memory(
 /// parts baked on one, where bounces or texels run on it (so that the bytes match).
 fn merge_backend(options: &BakeOptions, parts_backend: &str) -> Result<Option<GpuBaker>> {
     let needs_device = options.mode == Mode::Interreflected || options.lightmap.is_some();
-    if parts_backend == Backend::Cpu.describe() || !needs_device {
+    if parts_backend == CpuBackend.describe() || !needs_device {
         return Ok(None);
     }
     match GpuBaker::open(DeviceChoice::Gpu, None)? {

@@ -197,7 +197,7 @@ impl Assigner for GpuAssigner<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bake::{bake, Backend, BakeOptions, NoProgress, Transfer};
+    use crate::bake::{bake, BakeOptions, CpuBackend, NoProgress, Transfer};
     use crate::compress::{compress, compress_with, relative_error, CpcaOptions, CpuAssigner};
     use crate::scene::builtin::default_scene;
 
@@ -206,7 +206,7 @@ mod tests {
             samples: 64,
             ..BakeOptions::default()
         };
-        bake(default_scene(), &options, &Backend::Cpu, &NoProgress)
+        bake(default_scene(), &options, &CpuBackend, &NoProgress)
             .unwrap()
             .0
             .transfer

@@ -4,7 +4,7 @@
 use std::sync::OnceLock;
 
 use super::*;
-use crate::bake::{bake, Backend, BakeOptions, NoProgress};
+use crate::bake::{bake, BakeOptions, CpuBackend, NoProgress};
 use crate::sampling::Pcg32;
 use crate::scene::builtin::default_scene;
 
@@ -15,7 +15,7 @@ fn baked() -> &'static Transfer {
             samples: 64,
             ..Default::default()
         };
-        bake(default_scene(), &options, &Backend::Cpu, &NoProgress)
+        bake(default_scene(), &options, &CpuBackend, &NoProgress)
             .unwrap()
             .0
             .transfer
@@ -417,7 +417,7 @@ fn dragon_compression_time_size_and_error() {
         samples: 64,
         ..Default::default()
     };
-    let transfer = bake(scene, &options, &Backend::Cpu, &NoProgress)
+    let transfer = bake(scene, &options, &CpuBackend, &NoProgress)
         .unwrap()
         .0
         .transfer;

@@ -4,6 +4,7 @@
 //! and each chunk's coefficients go to their places in the planar transfer view. The bytes are
 //! those [`super::write_glb`] writes for the same bake.
 
+use std::cell::RefCell;
 use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
@@ -14,6 +15,7 @@ use super::{
     check_finite_coeffs, encode_json, encode_mesh_views, glb_head, groups, planar_bytes,
     planar_view, put_planar_block, validate_shape, Precision, Shape,
 };
+use crate::bake::adaptive::{AdaptiveReport, ReceiverErrors};
 use crate::bake::spill::Spill;
 use crate::bake::stream::{Interreflected, StreamedBake};
 use crate::bake::{
@@ -170,7 +172,7 @@ impl<'m> Streaming<'m> {
 /// place says what it wrote, and the seconds writing it took.
 pub fn bake_streamed(
     bake: &StreamedBake,
-    backend: &Backend,
+    backend: &dyn Backend,
     chunk: usize,
     sink: StreamSink,
     progress: &dyn Progress,
@@ -200,29 +202,37 @@ pub fn bake_streamed(
         .map(|first| first..(first + chunk).min(receivers))
         .collect();
     let mut rays_cast = 0;
+    let target = bake.target_error();
+    let adaptive = RefCell::new(ReceiverErrors::default());
     let mut next_chunk = |range: Range<usize>| -> Result<Transfer> {
         match &mut interreflected {
             Some(baked) => baked.chunk(range, metadata.channels),
             None => {
-                let (transfer, rays) = bake.chunk(range, backend, progress)?;
+                let (transfer, rays, receivers) = bake.chunk(range, backend, progress)?;
                 rays_cast += rays;
+                adaptive.borrow_mut().extend(receivers.unwrap_or_default());
                 Ok(transfer)
             }
         }
     };
     // --bands auto: the bands are known once every chunk is baked, and the file's layout
-    // depends on them, so the chunks wait in a scratch file at the most bands.
-    let mut held = match sink.bands_auto {
-        Some(threshold) => Some(HeldChunks::bake(
+    // depends on them; an error target: the file records the mean samples of all receivers.
+    // The chunks then wait in a scratch file (at the most bands).
+    let mut held = match sink.bands_auto.is_some() || target.is_some() {
+        true => Some(HeldChunks::bake(
             &ranges,
             &mut next_chunk,
             &metadata,
-            threshold,
+            sink.bands_auto,
         )?),
-        None => None,
+        false => None,
     };
     if let Some(held) = &held {
         metadata.bands = held.bands;
+    }
+    let adaptive = target.map(|target| AdaptiveReport::of(&adaptive.borrow(), &target));
+    if let Some(adaptive) = &adaptive {
+        metadata.samples = adaptive.samples_mean.round() as u32;
     }
     let (_, vertex_map, _) = bake.prepared();
     let mut file = Streaming::create(bake, &metadata, &sink, vertex_map, chunk)?;
@@ -238,9 +248,14 @@ pub fn bake_streamed(
     let written = file.commit()?;
     let seconds = started.elapsed().as_secs_f64();
     Ok(StreamedWrite {
-        report: streamed_report(bake, backend, (rays_cast, seconds), interreflected),
+        report: BakeReport {
+            adaptive,
+            ..streamed_report(bake, backend, (rays_cast, seconds), interreflected)
+        },
         scene_write: written,
-        bands_chosen: held.map(|held| (held.bands, held.beyond)),
+        bands_chosen: held
+            .filter(|_| sink.bands_auto.is_some())
+            .map(|held| (held.bands, held.beyond)),
     })
 }
 
@@ -248,7 +263,7 @@ pub fn bake_streamed(
 /// where it is `interreflected`) in `seconds`.
 fn streamed_report(
     bake: &StreamedBake,
-    backend: &Backend,
+    backend: &dyn Backend,
     (mut rays_cast, seconds): (u64, f64),
     interreflected: Option<Interreflected>,
 ) -> BakeReport {
@@ -291,12 +306,12 @@ struct HeldChunks {
 
 impl HeldChunks {
     /// Bakes the chunks `ranges` with `next_chunk`, summing each band's energy in vertex order
-    /// as the whole bake does, and chooses the bands by `threshold`.
+    /// as the whole bake does, and chooses the bands by `threshold` (keeps them all without).
     fn bake(
         ranges: &[Range<usize>],
         next_chunk: &mut dyn FnMut(Range<usize>) -> Result<Transfer>,
         metadata: &BakeMetadata,
-        threshold: f64,
+        threshold: Option<f64>,
     ) -> Result<HeldChunks> {
         let mut spill = Spill::new()?;
         let mut energy = BandEnergy::new(metadata.bands);
@@ -305,7 +320,10 @@ impl HeldChunks {
             energy.add(&transfer);
             spill.append(&transfer.coeffs)?;
         }
-        let (bands, beyond) = energy.choose(threshold);
+        let (bands, beyond) = match threshold {
+            Some(threshold) => energy.choose(threshold),
+            None => (metadata.bands, 0.0),
+        };
         Ok(HeldChunks {
             spill,
             baked_bands: metadata.bands,

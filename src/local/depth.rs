@@ -14,11 +14,9 @@
 //! with no search.
 
 use glam::{Vec2, Vec3};
-use rayon::prelude::*;
 
 use crate::bvh::Bvh;
 use crate::compress::Cpca;
-use crate::ray::{Ray, RAY_T_MAX};
 use crate::sampling::tangent_frame;
 
 /// The grid of stored directions over a receiver's hemisphere.
@@ -123,34 +121,6 @@ pub fn world_directions(grid: &DirectionGrid, normal: Vec3) -> Vec<Vec3> {
         .into_iter()
         .map(|d| to_world(&frame, d))
         .collect()
-}
-
-/// Depth maps on the CPU: one closest-hit ray per receiver and cell, from the receivers' ray
-/// origins. GPU twin: `local::gpu_depth_maps` (the bake's closest-hit kernel).
-pub fn depth_maps_cpu(
-    bvh: &Bvh,
-    origins: &[Vec3],
-    normals: &[Vec3],
-    grid: DirectionGrid,
-) -> DepthMaps {
-    let open = open_depth(bvh);
-    let cells = grid.len();
-    let mut depths = vec![open; origins.len() * cells];
-    depths
-        .par_chunks_mut(cells)
-        .zip(origins.par_iter().zip(normals))
-        .for_each(|(row, (&origin, &normal))| {
-            for (depth, direction) in row.iter_mut().zip(world_directions(&grid, normal)) {
-                if let Some((_, hit)) = bvh.closest_hit(&Ray::new(origin, direction), RAY_T_MAX) {
-                    *depth = hit.t.min(open);
-                }
-            }
-        });
-    DepthMaps {
-        grid,
-        open_depth: open,
-        depths,
-    }
 }
 
 /// Where a depth map is read: the exact maps, or their compressed form.

@@ -36,7 +36,7 @@ use crate::scene::prepare::prepare;
 use crate::scene::Scene;
 use crate::sh::ShTable;
 use build::{build_compressed, OperatorShape, SparseOperator};
-use depth::{depth_maps_cpu, DepthLookup, DepthMaps, DirectionGrid};
+use depth::{DepthLookup, DepthMaps, DirectionGrid};
 use lights::{
     direct_radiance, irradiance_by_shadow_rays, irradiance_from_depth, LocalLight, ReceiverFrames,
 };
@@ -206,7 +206,7 @@ impl LocalInputs {
 pub fn bake_local(
     scene: Scene,
     options: &LocalOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<(LocalBake, LocalReport)> {
     bake_prepared(prepare(scene)?.0, options, backend, progress)
@@ -217,7 +217,7 @@ pub fn bake_local(
 pub fn bake_prepared(
     scene: Scene,
     options: &LocalOptions,
-    backend: &Backend,
+    backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<(LocalBake, LocalReport)> {
     options.validate()?;
@@ -288,75 +288,33 @@ pub fn bake_prepared(
     ))
 }
 
-/// Depth maps of the receivers of `inputs` on the backend (the GPU's closest-hit kernel, or
-/// the CPU BVH).
+/// Depth maps of the receivers of `inputs` on the backend: the closest hits along the grid's
+/// directions in each receiver's tangent frame.
 pub fn depth_maps(
     scene: &Scene,
     inputs: &mut LocalInputs,
     grid: DirectionGrid,
-    backend: &Backend,
+    backend: &dyn Backend,
 ) -> Result<DepthMaps> {
     let owned = &mut inputs.bake;
-    match backend {
-        Backend::Cpu => Ok(depth_maps_cpu(
-            &owned.bvh,
-            &owned.origins,
-            &owned.normals,
-            grid,
-        )),
-        Backend::Gpu { baker, chunking } => {
-            // The gather bake's inputs with the grid's directions as a tangent-frame set.
-            let grid_set = SampleSet {
-                directions: grid.directions(),
-                weight: 1.0,
-                frame: DirectionFrame::Tangent,
-            };
-            let table = ShTable::new(1, &grid_set.directions);
-            let samples = std::mem::replace(&mut owned.samples, grid_set);
-            let table = std::mem::replace(&mut owned.table, table);
-            let hits = bake::gpu::closest_hits(baker, &owned.view(), *chunking, &bake::NoProgress);
-            owned.samples = samples;
-            owned.table = table;
-            Ok(depth_maps_from_hits(
-                scene,
-                &owned.origins,
-                grid,
-                &owned.bvh,
-                &hits?,
-            ))
-        }
-    }
-}
-
-/// Depth maps from closest hits `(cell, hit)` per receiver: the distance from the ray origin
-/// to the hit point (barycentric interpolation of the hit triangle's corners).
-pub fn depth_maps_from_hits(
-    scene: &Scene,
-    origins: &[Vec3],
-    grid: DirectionGrid,
-    bvh: &Bvh,
-    hits: &[Vec<(u32, bake::bounce::Hit)>],
-) -> DepthMaps {
-    let open = depth::open_depth(bvh);
-    let cells = grid.len();
-    let mut depths = vec![open; origins.len() * cells];
-    depths
-        .par_chunks_mut(cells)
-        .zip(hits.par_iter().zip(origins))
-        .for_each(|(row, (own, &origin))| {
-            for &(cell, hit) in own {
-                let corners =
-                    scene.triangles[hit.triangle as usize].map(|i| scene.positions[i as usize]);
-                let point =
-                    corners[0] * (1.0 - hit.u - hit.v) + corners[1] * hit.u + corners[2] * hit.v;
-                row[cell as usize] = (point - origin).length().min(open);
-            }
-        });
-    DepthMaps {
+    let open_depth = depth::open_depth(&owned.bvh);
+    // The gather bake's inputs with the grid's directions as a tangent-frame set.
+    let grid_set = SampleSet {
+        directions: grid.directions(),
+        weight: 1.0,
+        frame: DirectionFrame::Tangent,
+    };
+    let table = ShTable::new(1, &grid_set.directions);
+    let samples = std::mem::replace(&mut owned.samples, grid_set);
+    let table = std::mem::replace(&mut owned.table, table);
+    let depths = backend.closest_hit_distances(&owned.view(), scene, open_depth, &bake::NoProgress);
+    owned.samples = samples;
+    owned.table = table;
+    Ok(DepthMaps {
         grid,
-        open_depth: open,
-        depths,
-    }
+        open_depth,
+        depths: depths?,
+    })
 }
 
 /// The depth maps compressed by clustered PCA.

@@ -101,7 +101,7 @@ fn check_light(light: &ShLight) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bake::{bake, Backend, BakeOptions, Mode, NoProgress};
+    use crate::bake::{bake, BakeOptions, CpuBackend, Mode, NoProgress};
     use crate::render::test_support::transfer;
     use crate::scene::builtin::icosphere;
     use glam::Vec3;
@@ -196,7 +196,7 @@ mod tests {
         let (baked, _) = bake(
             icosphere(Vec3::ZERO, 1.0, 2),
             &options,
-            &Backend::Cpu,
+            &CpuBackend,
             &NoProgress,
         )
         .unwrap();

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
-use crate::bake::{self, Backend, BakeOptions, BakedMesh, Mode, NoProgress};
+use crate::bake::{self, BakeOptions, BakedMesh, CpuBackend, Mode, NoProgress};
 use crate::error::Result;
 use crate::testing::mutate::Mutator;
 use crate::{glb, light, scene, shard};
@@ -215,7 +215,7 @@ pub(crate) fn quick_bake(scene: scene::Scene) -> Result<(BakedMesh, bake::BakeRe
         mode: Mode::Unshadowed,
         ..BakeOptions::default()
     };
-    bake::bake(scene, &options, &Backend::Cpu, &NoProgress)
+    bake::bake(scene, &options, &CpuBackend, &NoProgress)
 }
 
 fn non_finite<'a>(what: &str, values: impl IntoIterator<Item = &'a f32>) -> Option<String> {

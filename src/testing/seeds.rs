@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use super::hostile::{Reader, COMPANION_MTL};
 use crate::bake::adaptive::ReceiverErrors;
 use crate::bake::bounce::GatherMatrix;
-use crate::bake::{self, Backend, BakeOptions, DirectPass, Mode, NoProgress, ShardPass};
+use crate::bake::{self, BakeOptions, CpuBackend, DirectPass, Mode, NoProgress, ShardPass};
 use crate::error::{Error, Result};
 use crate::precision::Precision;
 use crate::scene::Scene;
@@ -232,7 +232,7 @@ fn baked(data: &Path, scratch: &Path) -> Result<Vec<(String, Vec<u8>)>> {
         mode: Mode::Shadowed,
         ..BakeOptions::default()
     };
-    let (baked, _) = bake::bake(scene, &options, &Backend::Cpu, &NoProgress)?;
+    let (baked, _) = bake::bake(scene, &options, &CpuBackend, &NoProgress)?;
     let cpca_options = compress::CpcaOptions {
         clusters: 2,
         components: 2,

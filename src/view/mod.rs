@@ -348,7 +348,7 @@ fn escape_html(text: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bake::{bake, Backend, BakeOptions, Mode, NoProgress};
+    use crate::bake::{bake, BakeOptions, CpuBackend, Mode, NoProgress};
     use crate::scene::builtin::icosphere;
 
     fn sphere(bands: u32) -> BakedMesh {
@@ -361,7 +361,7 @@ mod tests {
         bake(
             icosphere(Vec3::ZERO, 1.0, 1),
             &options,
-            &Backend::Cpu,
+            &CpuBackend,
             &NoProgress,
         )
         .unwrap()

@@ -14,8 +14,8 @@ pub mod gltf_builder;
 use std::path::Path;
 use std::sync::OnceLock;
 
-use prt_gpu::bake::gpu::{Chunking, GpuBaker};
-use prt_gpu::bake::Backend;
+use prt_gpu::bake::gpu::GpuBaker;
+use prt_gpu::bake::{Backend, CpuBackend, GpuBackend};
 use prt_gpu::device;
 use prt_gpu::gltf_validator::{self, ValidatorReport};
 
@@ -31,13 +31,10 @@ pub fn gpu_baker() -> Option<&'static GpuBaker> {
 }
 
 /// The CPU backend, and the GPU backend where an adapter exists.
-pub fn backends() -> Vec<Backend<'static>> {
-    let mut all = vec![Backend::Cpu];
+pub fn backends() -> Vec<Box<dyn Backend>> {
+    let mut all: Vec<Box<dyn Backend>> = vec![Box::new(CpuBackend)];
     if let Some(baker) = gpu_baker() {
-        all.push(Backend::Gpu {
-            baker,
-            chunking: Chunking::default(),
-        });
+        all.push(Box::new(GpuBackend::new(baker)));
     }
     all
 }

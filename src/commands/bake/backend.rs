@@ -28,33 +28,6 @@ impl<'a> Device<'a> {
     }
 }
 
-/// The backend of `baker` (the CPU's without one), in `chunking`'s chunks.
-pub(crate) fn backend_of<'a>(baker: &'a Option<GpuBaker>, chunking: &Chunking) -> Backend<'a> {
-    match baker {
-        Some(baker) => Backend::Gpu {
-            baker,
-            chunking: *chunking,
-        },
-        None => Backend::Cpu,
-    }
-}
-
-/// The GPU baker a bake of `spec` uses, or `None` for the CPU backend (error-targeted bakes
-/// always run there).
-pub(crate) fn bake_backend(
-    spec: &BakeSpec,
-    device: DeviceChoice,
-    adapter: Option<&str>,
-) -> Result<Option<GpuBaker>> {
-    if spec.transfer.target_error.is_some() {
-        if device == DeviceChoice::Gpu {
-            eprintln!("note: error-targeted bakes run on the CPU backend");
-        }
-        return Ok(None);
-    }
-    open_backend(device, adapter)
-}
-
 /// The GPU baker for `choice`, or `None` for the CPU backend (saying why when it was not asked
 /// for). `bake`, `chart` and `bench` all open their backend here.
 pub(crate) fn open_backend(

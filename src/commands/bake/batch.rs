@@ -40,7 +40,7 @@ pub(crate) fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
     spec.validate()?;
     check_chunking(args)?;
     std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
-    let device = Device::new(|| bake_backend(&spec, args.device, args.adapter.as_deref()));
+    let device = Device::new(|| open_backend(args.device, args.adapter.as_deref()));
     let execution = Execution::of(args);
     let started = std::time::Instant::now();
     let mut failed = Vec::new();

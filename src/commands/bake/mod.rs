@@ -13,7 +13,7 @@ use super::args::{
 use super::progress::{batch_bar, BarProgress};
 use prt_gpu::bake::adaptive::TargetError;
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
-use prt_gpu::bake::{self, Backend, BakeOptions, BakeReport, Fit, Storage};
+use prt_gpu::bake::{self, backend_for, BakeOptions, BakeReport, Fit, Storage};
 use prt_gpu::device::{self, DeviceChoice, GpuContext};
 use prt_gpu::local::LocalOptions;
 use prt_gpu::precision::Precision;
@@ -43,7 +43,7 @@ pub(crate) fn run_one(args: &BakeArgs, mesh: Option<PathBuf>) -> Result<()> {
     let spec = bake_spec(args, &mesh)?;
     spec.validate()?;
     check_chunking(args)?;
-    let device = Device::new(|| bake_backend(&spec, args.device, args.adapter.as_deref()));
+    let device = Device::new(|| open_backend(args.device, args.adapter.as_deref()));
     let progress = BarProgress::default();
     let execution = Execution::of(args);
     bake_one(
@@ -147,7 +147,7 @@ pub(crate) fn bake_one(
     let options = spec.options();
     note_samples_rounded(&options);
     let baker = device.get()?;
-    let backend = backend_of(baker, &execution.chunking);
+    let backend = backend_for(baker.as_ref(), execution.chunking);
     if merged.is_none() {
         let available = device::available_memory();
         let limit = execution.memory_limit;
@@ -159,7 +159,7 @@ pub(crate) fn bake_one(
             let preview = execution.preview.is_some();
             let streamed = planned
                 .run_streamed(
-                    &backend,
+                    backend.as_ref(),
                     chunk,
                     (&output_path, gltf.as_ref()),
                     preview,
@@ -182,7 +182,9 @@ pub(crate) fn bake_one(
         .as_ref()
         .map(|(header, _)| (header.shard_count, header.backend.clone()));
     let source = direct_source(spec, planned.scene(), mesh, merged)?;
-    let baked = planned.run(&backend, source, progress).map_err(naming)?;
+    let baked = planned
+        .run(backend.as_ref(), source, progress)
+        .map_err(naming)?;
     progress.finish();
     print_shaping_lines(&baked);
     // Rendered before the .glb is written, so that a preview that cannot be made leaves no bake.

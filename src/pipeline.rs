@@ -7,11 +7,14 @@ use std::fmt;
 use std::path::Path;
 use std::time::Instant;
 
+use glam::Vec3;
+
 use crate::bake::stream::{format_bytes, MemoryNeed};
 use crate::bake::{self, Backend, BakeReport, BakedMesh, DirectSource, Progress};
 use crate::compress::{self, Cpca, CpcaOptions};
 use crate::device::GpuContext;
 use crate::error::Error;
+use crate::local::{self, LocalBake, LocalReport};
 use crate::precision::Precision;
 use crate::receivers::uv_set::{self, UvSet};
 use crate::scene::gltf::GltfScene;
@@ -48,6 +51,32 @@ pub fn run(
     plan(spec, scene, gltf)?.run(backend, source, progress)
 }
 
+/// Bakes `scene` for local lights as `spec` asks (its mode local): the gather matrix, depth
+/// maps and the compressed direct-to-indirect operator of `local::bake_local`, on `backend`,
+/// the spec's albedo replacing the materials' where it gives one. What it computes is not SH
+/// transfer, so it has a run of its own and its own file (`glb::local`).
+pub fn run_local(
+    spec: &BakeSpec,
+    mut scene: Scene,
+    backend: &dyn Backend,
+    progress: &dyn Progress,
+) -> Result<(LocalBake, LocalReport)> {
+    spec.validate()?;
+    let Some(options) = &spec.local else {
+        return Err(Error::Options(format!(
+            "the spec's mode is {}; local lights bake a spec whose mode is local",
+            spec.transfer.mode.name()
+        )));
+    };
+    if let Some(albedo) = spec.transfer.albedo {
+        scene
+            .albedo
+            .iter_mut()
+            .for_each(|a| *a = Vec3::from(albedo));
+    }
+    local::bake_local(scene, options, backend, progress)
+}
+
 /// A bake checked before any device is opened or ray cast: its spec valid and fit for its
 /// container, its lightmap's UV set chosen.
 pub struct Planned<'s> {
@@ -61,6 +90,13 @@ pub struct Planned<'s> {
 /// ray: a glTF scene's lightmap UV set.
 pub fn plan<'s>(spec: &'s BakeSpec, scene: Scene, gltf: Option<&GltfScene>) -> Result<Planned<'s>> {
     spec.validate()?;
+    if spec.local.is_some() {
+        return Err(Error::Options(
+            "a local-lights spec bakes through pipeline::run_local (depth maps and an operator, \
+             not SH transfer)"
+                .into(),
+        ));
+    }
     check_container(spec, gltf)?;
     let mut notes = Vec::new();
     let uv_set = match (spec.receivers.lightmap, gltf) {
@@ -307,24 +343,16 @@ pub fn write(
     path: &Path,
 ) -> Result<Option<glb::scene::SceneWrite>> {
     check_container(spec, gltf)?;
+    let stored = glb::Stored::new(&baked.mesh, baked.cpca.as_ref(), spec.storage.precision)?;
     match gltf {
         Some(gltf) => Ok(Some(glb::scene::write_scene_glb(
             path,
             gltf,
-            glb::scene::Stored {
-                baked: &baked.mesh,
-                cpca: baked.cpca.as_ref(),
-                precision: spec.storage.precision,
-            },
+            stored,
             &baked.report.vertex_map,
         )?)),
         None => {
-            glb::write_glb_as(
-                path,
-                &baked.mesh,
-                baked.cpca.as_ref(),
-                spec.storage.precision,
-            )?;
+            glb::write_glb(path, stored)?;
             Ok(None)
         }
     }

@@ -19,6 +19,9 @@ pub const SPEC_VERSION: u32 = 1;
 /// The most bands `--bands auto` bakes and chooses among.
 pub const AUTO_MAX_BANDS: u32 = 8;
 
+/// The most cells per side of a local-lights depth map (65,536 directions per receiver).
+pub const MAX_GRID_SIDE: u32 = 256;
+
 /// Everything that decides a bake's output besides the mesh.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -28,6 +31,11 @@ pub struct BakeSpec {
     pub transfer: TransferSpec,
     pub storage: StorageSpec,
     pub container: Container,
+    /// What a local-lights bake (`transfer.mode` local) computes: depth maps and a
+    /// direct-to-indirect operator instead of SH transfer. Left out of the JSON otherwise, so
+    /// specs written before it hash as they did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub local: Option<LocalOptions>,
 }
 
 /// Where transfer is computed: at the vertices or at surface points fitted back to them, and
@@ -148,6 +156,7 @@ impl Default for BakeSpec {
                 layout: Layout::PerVertex,
             },
             container: Container::Mesh,
+            local: None,
         }
     }
 }
@@ -198,6 +207,9 @@ impl BakeSpec {
                 self.version
             )));
         }
+        if self.transfer.mode == Mode::Local || self.local.is_some() {
+            return self.check_local();
+        }
         if let Bands::Auto { threshold } = self.transfer.bands {
             check_bands_threshold(threshold)?;
         }
@@ -210,6 +222,44 @@ impl BakeSpec {
             }
         }
         self.check_storage_fits_container()
+    }
+
+    /// A local-lights bake: its section, valid, and nothing of what SH transfer is stored as
+    /// or computed at, which it has none of.
+    fn check_local(&self) -> Result<()> {
+        let Some(local) = &self.local else {
+            return Err(Error::Options(
+                "the spec's mode is local and it has no local section".into(),
+            ));
+        };
+        if self.transfer.mode != Mode::Local {
+            return Err(Error::Options(format!(
+                "the spec has a local-lights section and its mode is {}, not local",
+                self.transfer.mode.name()
+            )));
+        }
+        let sh_only = BakeSpec::default();
+        let asked = [
+            (self.storage.layout != Layout::PerVertex, "--compress"),
+            (self.receivers.lightmap.is_some(), "--lightmap"),
+            (self.receivers.fit != Fit::Point, "--fit"),
+            (self.transfer.target_error.is_some(), "--target-error"),
+            (self.storage.channels != Storage::Rgb, "--storage"),
+            (self.transfer.bands != sh_only.transfer.bands, "--bands"),
+            (self.storage.precision != Precision::F32, "--precision"),
+            (
+                self.container != Container::Mesh,
+                "a glTF scene baked in place",
+            ),
+        ];
+        if let Some((_, what)) = asked.iter().find(|(given, _)| *given) {
+            return Err(Error::Options(format!(
+                "{what} is for SH transfer; --mode local bakes depth maps and a \
+                 direct-to-indirect operator (see --depth-grid, --depth-compress, \
+                 --operator-compress)"
+            )));
+        }
+        local.validate()
     }
 
     /// Refuses storage a container cannot hold: lean glTF scenes whose albedo the materials do
@@ -263,6 +313,104 @@ pub fn check_bands_threshold(threshold: f64) -> Result<()> {
         )));
     }
     Ok(())
+}
+
+/// The compressed operator's shape.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OperatorShape {
+    /// Clusters of receivers (senders and receivers alike).
+    pub clusters: u32,
+    /// Basis vectors of example irradiance per cluster.
+    pub components: u32,
+    /// In each receiver cluster, the least terms are dropped while their expected energy
+    /// together stays within `sparsity^2` of the cluster's total (0 keeps every term).
+    pub sparsity: f32,
+    /// Seed of the clustering.
+    pub seed: u64,
+}
+
+/// What a local-lights bake is asked for.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LocalOptions {
+    /// Cosine-distributed gather rays per receiver (the gather matrix's samples).
+    pub samples: u32,
+    pub seed: u64,
+    /// Bounces of the direct-to-indirect operator (indirect light after 1 to B bounces; 0:
+    /// direct light alone).
+    pub bounces: u32,
+    /// Depth-map directions per side: `side^2` per receiver.
+    pub grid_side: u32,
+    /// Clusters and PCA components of the compressed depth maps.
+    pub depth_clusters: u32,
+    pub depth_components: u32,
+    /// The compressed operator's shape.
+    pub operator: OperatorShape,
+    /// Example lights for the operator's PCA bases.
+    pub example_lights: u32,
+}
+
+impl Default for LocalOptions {
+    fn default() -> Self {
+        LocalOptions {
+            samples: 256,
+            seed: 1,
+            bounces: 3,
+            grid_side: 16,
+            depth_clusters: 128,
+            depth_components: 24,
+            operator: OperatorShape {
+                clusters: 64,
+                components: 16,
+                sparsity: 0.03,
+                seed: 1,
+            },
+            example_lights: 256,
+        }
+    }
+}
+
+impl LocalOptions {
+    pub fn validate(&self) -> Result<()> {
+        let refuse = |message: String| Err(Error::Options(message));
+        if !(1..=crate::sampling::MAX_SAMPLES).contains(&self.samples) {
+            return refuse(format!("--samples {} is out of range", self.samples));
+        }
+        if self.bounces > crate::bake::MAX_BOUNCES {
+            return refuse(format!(
+                "--bounces {} is out of range for local lights (0 to {})",
+                self.bounces,
+                crate::bake::MAX_BOUNCES
+            ));
+        }
+        if !(2..=MAX_GRID_SIDE).contains(&self.grid_side) {
+            return refuse(format!(
+                "--depth-grid {} is out of range (2 to {})",
+                self.grid_side, MAX_GRID_SIDE
+            ));
+        }
+        let directions = self.grid_side * self.grid_side;
+        if self.depth_clusters == 0 || self.depth_components > directions {
+            return refuse(format!(
+                "--depth-compress {}x{}: need at least one cluster and at most {directions} \
+                 components (the directions per map)",
+                self.depth_clusters, self.depth_components
+            ));
+        }
+        let op = &self.operator;
+        if op.clusters == 0 || op.components == 0 || op.components > self.example_lights {
+            return refuse(format!(
+                "--operator-compress {}x{}: need at least one cluster and 1 to --example-lights \
+                 ({}) components",
+                op.clusters, op.components, self.example_lights
+            ));
+        }
+        if !(0.0..1.0).contains(&op.sparsity) {
+            return refuse(format!("--sparsity {} must lie in [0, 1)", op.sparsity));
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -376,5 +524,43 @@ mod tests {
         lightmapped
             .validate()
             .expect("a glTF scene bakes a lightmap on its own UV set");
+    }
+
+    /// A local-lights spec: its section round-trips through JSON, and a spec without one
+    /// writes no `local` key (so the fingerprints of specs written before it hold).
+    #[test]
+    fn local_lights_are_a_mode_of_the_spec() {
+        assert!(!BakeSpec::default().fingerprint_text().contains("local"));
+        let local = BakeSpec {
+            transfer: TransferSpec {
+                mode: Mode::Local,
+                ..BakeSpec::default().transfer
+            },
+            local: Some(LocalOptions {
+                grid_side: 8,
+                ..LocalOptions::default()
+            }),
+            ..BakeSpec::default()
+        };
+        local.validate().expect("the default local bake");
+        let json = local.fingerprint_text();
+        assert!(json.contains("\"local\":{\"samples\":256"), "{json}");
+        let back: BakeSpec = serde_json::from_str(&json).expect("reads back");
+        assert_eq!(back, local);
+
+        let edits: [fn(&mut BakeSpec); 6] = [
+            |s| s.local = None,
+            |s| s.transfer.mode = Mode::Shadowed,
+            |s| s.storage.precision = Precision::F16,
+            |s| s.receivers.lightmap = Some(64),
+            |s| s.container = Container::GltfInPlace,
+            |s| s.local.as_mut().unwrap().grid_side = 1,
+        ];
+        for edit in edits {
+            let mut spec = local.clone();
+            edit(&mut spec);
+            let error = spec.validate().expect_err("refused").to_string();
+            assert!(!error.contains('\n'), "{error}");
+        }
     }
 }

@@ -8,7 +8,7 @@ use std::path::Path;
 use common::prt_gpu;
 use prt_gpu::bake::{bake, BakeOptions, CpuBackend, NoProgress};
 use prt_gpu::compress::{compress, CpcaOptions};
-use prt_gpu::glb::{read_glb, read_glb_compressed, write_glb, write_glb_as, write_glb_with};
+use prt_gpu::glb::{read_glb, read_glb_compressed, write_glb, Stored};
 use prt_gpu::precision::Precision;
 use prt_gpu::testing::entries;
 
@@ -38,8 +38,14 @@ fn compressed_files_round_trip_and_validate() {
     .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let (small, full) = (dir.path().join("small.glb"), dir.path().join("full.glb"));
-    write_glb_with(&small, &baked, Some(&cpca)).unwrap();
-    write_glb(&full, &baked).unwrap();
+    write_glb(
+        &small,
+        Stored::new(&baked, Some(&cpca), Precision::F32).unwrap(),
+    )
+    .unwrap();
+    Stored::plain(&baked)
+        .and_then(|stored| write_glb(&full, stored))
+        .unwrap();
     let size = |p: &Path| std::fs::metadata(p).unwrap().len();
     // The mesh itself (positions, normals, albedo, indices) is the same in both.
     assert!(
@@ -116,8 +122,16 @@ fn half_float_compressed_files_round_trip_validate_and_shrink() {
         )
         .unwrap();
         let (half, full) = (dir.path().join("half.glb"), dir.path().join("full.glb"));
-        write_glb_as(&half, &baked, Some(&cpca), Precision::F16).unwrap();
-        write_glb_with(&full, &baked, Some(&cpca)).unwrap();
+        write_glb(
+            &half,
+            Stored::new(&baked, Some(&cpca), Precision::F16).unwrap(),
+        )
+        .unwrap();
+        write_glb(
+            &full,
+            Stored::new(&baked, Some(&cpca), Precision::F32).unwrap(),
+        )
+        .unwrap();
 
         let (read, read_cpca) = read_glb_compressed(&half).unwrap();
         let stored = cpca.rounded(Precision::F16);

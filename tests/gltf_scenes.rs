@@ -14,7 +14,8 @@ use glam::{Mat3, Mat4, Quat, Vec3};
 use prt_gpu::bake::{
     bake, Backend, BakeOptions, BakeReport, BakedMesh, CpuBackend, Mode, NoProgress,
 };
-use prt_gpu::glb::scene::{encode_scene_glb, read_scene_glb, write_scene_glb, Stored};
+use prt_gpu::glb::scene::{encode_scene_glb, read_scene_glb, write_scene_glb};
+use prt_gpu::glb::Stored;
 use prt_gpu::precision::Precision;
 use prt_gpu::sampling::Sampling;
 use prt_gpu::scene::gltf::{self as gltf_scene, GltfScene};
@@ -109,7 +110,7 @@ fn the_assimp_scenes_bake_and_pass_the_validator() {
         let written = write_scene_glb(
             &target,
             &gltf,
-            Stored::per_vertex(&baked, Precision::F32),
+            Stored::plain(&baked).unwrap(),
             &report.vertex_map,
         )
         .unwrap();
@@ -303,7 +304,7 @@ fn two_placements_bake_like_the_mesh_transformed_by_hand() {
     let written = write_scene_glb(
         &out,
         &gltf,
-        Stored::per_vertex(&baked, Precision::F32),
+        Stored::plain(&baked).unwrap(),
         &report.vertex_map,
     )
     .unwrap();
@@ -450,7 +451,7 @@ fn the_round_trip_keeps_nodes_meshes_materials_textures_names_and_indices() {
         let (gltf, baked, report) = bake_gltf(&input, &quick(), &CpuBackend);
         let (bytes, written) = encode_scene_glb(
             &gltf,
-            Stored::per_vertex(&baked, Precision::F32),
+            Stored::plain(&baked).unwrap(),
             &report.vertex_map,
             None,
         )
@@ -526,7 +527,7 @@ fn the_numpy_recipe_reads_a_scene_baked_in_place() {
         write_scene_glb(
             &target,
             &gltf,
-            Stored::per_vertex(&baked, precision),
+            Stored::new(&baked, None, precision).unwrap(),
             &report.vertex_map,
         )
         .unwrap();
@@ -588,7 +589,7 @@ fn interreflected_scenes_bake_in_place_too() {
     write_scene_glb(
         &target,
         &gltf,
-        Stored::per_vertex(&baked, Precision::F32),
+        Stored::plain(&baked).unwrap(),
         &report.vertex_map,
     )
     .unwrap();
@@ -684,7 +685,7 @@ fn quantized_interleaved_and_sparse_accessors_are_read_as_specified() {
     write_scene_glb(
         &target,
         &gltf,
-        Stored::per_vertex(&baked, Precision::F32),
+        Stored::plain(&baked).unwrap(),
         &report.vertex_map,
     )
     .unwrap();
@@ -740,7 +741,7 @@ fn skinned_and_morphing_meshes_bake_in_their_rest_pose_with_a_note() {
         write_scene_glb(
             &target,
             &gltf,
-            Stored::per_vertex(&baked, Precision::F32),
+            Stored::plain(&baked).unwrap(),
             &report.vertex_map,
         )
         .unwrap();
@@ -1049,7 +1050,7 @@ fn non_finite_normals_and_morph_targets_are_written_repaired() {
     let (gltf, baked, report) = bake_gltf(&path, &quick(), &CpuBackend);
     let (bytes, written) = encode_scene_glb(
         &gltf,
-        Stored::per_vertex(&baked, Precision::F32),
+        Stored::plain(&baked).unwrap(),
         &report.vertex_map,
         None,
     )

@@ -11,7 +11,7 @@ use common::prt_gpu;
 use glam::Vec3;
 use prt_gpu::bake::texels::bake_texels;
 use prt_gpu::bake::{bake, BakeOptions, CpuBackend, NoProgress};
-use prt_gpu::glb::{lightmap_file_name, read_glb};
+use prt_gpu::glb::{lightmap_file_name, read_glb, Stored};
 use prt_gpu::lightmap::read_lightmap;
 use prt_gpu::scene::{builtin, Scene};
 use prt_gpu::testing::{entries, lightmap_reader_output};
@@ -177,7 +177,7 @@ fn a_lightmap_renders_like_the_vertices_where_transfer_is_smooth() {
             ..options.clone()
         };
         let (baked, _) = bake(plane.clone(), &options, &CpuBackend, &NoProgress).unwrap();
-        prt_gpu::glb::write_glb(&dir.path().join(name), &baked).unwrap();
+        prt_gpu::glb::write_glb(&dir.path().join(name), Stored::plain(&baked).unwrap()).unwrap();
     }
     let out = prt_gpu(
         &[

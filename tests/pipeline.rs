@@ -7,7 +7,9 @@ mod common;
 use std::path::Path;
 
 use common::{backends, prt_gpu};
-use prt_gpu::bake::{Backend, CpuBackend, DirectSource, NoProgress, Storage};
+use prt_gpu::bake::{Backend, CpuBackend, DirectSource, Mode, NoProgress, Storage};
+use prt_gpu::local::build::OperatorShape;
+use prt_gpu::local::LocalOptions;
 use prt_gpu::precision::Precision;
 use prt_gpu::spec::{BakeSpec, Bands, Compression, Layout};
 use prt_gpu::{pipeline, scene};
@@ -149,4 +151,77 @@ fn a_spec_the_file_formats_cannot_hold_is_refused_before_any_ray() {
     .err()
     .expect("refused");
     assert!(error.to_string().contains("--compress"), "{error}");
+}
+
+/// Local lights are a mode of the spec: a spec whose mode is local, run through the library
+/// (`pipeline::run_local`, then `glb::local::write_local_glb`), writes what `bake --mode local`
+/// writes for the same options, byte for byte; the SH transfer's run refuses it.
+#[test]
+fn a_local_lights_spec_run_through_the_library_writes_the_command_lines_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = prt_gpu(
+        &[
+            "bake",
+            "--mode",
+            "local",
+            "--samples",
+            "64",
+            "--depth-grid",
+            "8",
+            "--depth-compress",
+            "8x8",
+            "--operator-compress",
+            "8x4",
+            "--example-lights",
+            "32",
+            "--device",
+            "cpu",
+            "-o",
+            "cli.glb",
+        ],
+        d,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let defaults = LocalOptions::default();
+    let mut spec = BakeSpec {
+        local: Some(LocalOptions {
+            samples: 64,
+            grid_side: 8,
+            depth_clusters: 8,
+            depth_components: 8,
+            operator: OperatorShape {
+                clusters: 8,
+                components: 4,
+                ..defaults.operator
+            },
+            example_lights: 32,
+            ..defaults
+        }),
+        ..BakeSpec::default()
+    };
+    spec.transfer.mode = Mode::Local;
+    let scene = scene::builtin::interior_scene();
+    let (baked, _) = pipeline::run_local(&spec, scene.clone(), &CpuBackend, &NoProgress).unwrap();
+    let library = d.join("library.glb");
+    prt_gpu::glb::local::write_local_glb(&library, &baked).unwrap();
+    assert!(
+        std::fs::read(&library).unwrap() == std::fs::read(d.join("cli.glb")).unwrap(),
+        "the library's local-lights file differs from the command line's"
+    );
+    let error = pipeline::run(
+        &spec,
+        scene,
+        None,
+        &CpuBackend,
+        DirectSource::Compute,
+        &NoProgress,
+    )
+    .err()
+    .expect("refused");
+    assert!(error.to_string().contains("run_local"), "{error}");
 }

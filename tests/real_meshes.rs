@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use prt_gpu::bake::{bake, BakeOptions, CpuBackend, Mode, NoProgress};
-use prt_gpu::glb::encode_glb;
+use prt_gpu::glb::{encode_glb, Stored};
 use prt_gpu::sampling::Sampling;
 use prt_gpu::scene;
 
@@ -99,7 +99,8 @@ fn same_seed_same_bytes_different_seed_different_bytes() {
         ..BakeOptions::default()
     };
     let encode = |o: &BakeOptions| {
-        encode_glb(&bake(mesh.clone(), o, &CpuBackend, &NoProgress).unwrap().0).unwrap()
+        let (baked, _) = bake(mesh.clone(), o, &CpuBackend, &NoProgress).unwrap();
+        encode_glb(Stored::plain(&baked).unwrap()).unwrap()
     };
     let first = encode(&options);
     let second = encode(&options);

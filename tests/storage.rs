@@ -5,7 +5,7 @@ mod common;
 
 use glam::Vec3;
 use prt_gpu::bake::{bake, BakeOptions, BakedMesh, CpuBackend, Mode, NoProgress, Storage};
-use prt_gpu::glb::{read_glb, write_glb};
+use prt_gpu::glb::{read_glb, write_glb, Stored};
 use prt_gpu::light::preview_light;
 use prt_gpu::render::relight_baked;
 use prt_gpu::scene::builtin;
@@ -84,7 +84,9 @@ fn lean_files_round_trip_and_validate() {
     let lean = baked(Mode::Shadowed, Storage::Lean, None);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("lean.glb");
-    write_glb(&path, &lean).unwrap();
+    Stored::plain(&lean)
+        .and_then(|stored| write_glb(&path, stored))
+        .unwrap();
     let read = read_glb(&path).unwrap();
     assert_eq!(read, lean);
     if let Some(report) = common::validate_gltf(&path) {
@@ -221,7 +223,7 @@ fn gltf_scenes_baked_in_place_store_lean_and_half_float_transfer() {
 /// bound that implies; the Khronos validator passes the file; half the transfer's bytes.
 #[test]
 fn half_float_files_hold_the_rounded_transfer_within_its_bound() {
-    use prt_gpu::glb::{rounded_to_f16, write_glb_as, Precision};
+    use prt_gpu::glb::{rounded_to_f16, write_glb, Precision, Stored};
     let dir = tempfile::tempdir().unwrap();
     for (storage, mode) in [
         (Storage::Rgb, Mode::Interreflected),
@@ -229,8 +231,10 @@ fn half_float_files_hold_the_rounded_transfer_within_its_bound() {
     ] {
         let baked = baked(mode, storage, None);
         let (full, half) = (dir.path().join("f32.glb"), dir.path().join("f16.glb"));
-        write_glb(&full, &baked).unwrap();
-        write_glb_as(&half, &baked, None, Precision::F16).unwrap();
+        Stored::plain(&baked)
+            .and_then(|stored| write_glb(&full, stored))
+            .unwrap();
+        write_glb(&half, Stored::new(&baked, None, Precision::F16).unwrap()).unwrap();
         let read = read_glb(&half).unwrap();
         let rounded = rounded_to_f16(&baked.transfer);
         assert_eq!(

@@ -2,22 +2,26 @@
 
 use std::path::{Path, PathBuf};
 
-use super::args::Bands;
-use super::bake::{check_bake_outputs, load_mesh, open_backend, stem, BakeArgs};
+use super::bake::{bake_spec, check_bake_outputs, load_mesh, open_backend, stem, BakeArgs};
 use super::progress::BarProgress;
+use prt_gpu::bake::backend_for;
 use prt_gpu::bake::gpu::Chunking;
-use prt_gpu::bake::{backend_for, Fit, Storage};
-use prt_gpu::glb::Precision;
 use prt_gpu::local::build::OperatorShape;
 use prt_gpu::local::{self, LocalOptions};
-use prt_gpu::spec::BakeSpec;
-use prt_gpu::{glb, scene, Error, Result};
+use prt_gpu::spec::{BakeSpec, Container};
+use prt_gpu::{glb, pipeline, scene, Error, Result};
 
 pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
     check_local_flags(&args)?;
-    let options = local_options(&args);
-    options.validate()?;
-    let name = match args.meshes.first() {
+    let mesh = args.meshes.first().cloned();
+    // Any mesh, a glTF scene's too, bakes for local lights into a local-lights file.
+    let spec = BakeSpec {
+        container: Container::Mesh,
+        local: Some(local_options(&args)),
+        ..bake_spec(&args, &mesh)?
+    };
+    spec.validate()?;
+    let name = match &mesh {
         Some(path) => stem(path),
         None => "interior".to_string(),
     };
@@ -26,37 +30,25 @@ pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
     // --lightmap and --preview are refused above, so this checks the .glb alone.
-    let spec = BakeSpec::default();
-    check_bake_outputs(&spec, None, &args.meshes.first().cloned(), &output, &[])?;
-    let scene = match args.meshes.first() {
+    check_bake_outputs(&spec, None, &mesh, &output, &[])?;
+    let scene = match &mesh {
         Some(path) => load_mesh(path)?,
         None => scene::builtin::interior_scene(),
     };
-    let mut scene = scene;
-    if let Some(albedo) = args.albedo {
-        scene.albedo.iter_mut().for_each(|a| *a = albedo);
-    }
     let baker = open_backend(args.device, args.adapter.as_deref())?;
     let backend = backend_for(baker.as_ref(), Chunking::default());
     let progress = BarProgress::default();
-    let (baked, report) = local::bake_local(scene, &options, backend.as_ref(), &progress)?;
+    let (baked, report) = pipeline::run_local(&spec, scene, backend.as_ref(), &progress)?;
     progress.finish();
     glb::local::write_local_glb(&output, &baked)?;
     print_local_report(&name, &report, &output);
     Ok(())
 }
 
-/// Refuses the transfer bake's options that mean nothing for local lights.
+/// Refuses what a local-lights bake cannot run as (the spec refuses what it cannot compute).
 fn check_local_flags(args: &BakeArgs) -> Result<()> {
     let refused = [
-        (args.compress.is_some(), "--compress"),
-        (args.lightmap.is_some(), "--lightmap"),
-        (args.fit != Fit::Point, "--fit"),
-        (args.target_error.is_some(), "--target-error"),
-        (args.storage != Storage::Rgb, "--storage"),
         (args.preview.is_some(), "--preview"),
-        (args.transfer.bands != Bands::Fixed(4), "--bands"),
-        (args.precision != Precision::F32, "--precision"),
         (args.shard.is_some(), "--shard"),
         (
             args.out_dir.is_some() || args.meshes.len() > 1,

@@ -7,7 +7,19 @@ use super::*;
 /// Checks everything `encode_valid` relies on, so encoding itself cannot fail halfway.
 pub(super) fn validate(baked: &BakedMesh) -> Result<()> {
     validate_shape(Shape::of(baked))?;
-    let (v, transfer) = (baked.scene.positions.len(), &baked.transfer);
+    if baked.transfer.vertex_count != baked.scene.positions.len() {
+        return Err(Error::Geometry(format!(
+            "the transfer is of {} vertices, the mesh has {}",
+            baked.transfer.vertex_count,
+            baked.scene.positions.len()
+        )));
+    }
+    validate_transfer(&baked.transfer)
+}
+
+/// Checks that `transfer` holds its vertices' coefficients, every one finite.
+pub(super) fn validate_transfer(transfer: &Transfer) -> Result<()> {
+    let v = transfer.vertex_count;
     let expected = transfer_len(v, transfer.channels, transfer.bands);
     if expected != Some(transfer.coeffs.len()) {
         return Err(Error::Geometry(format!(

@@ -42,6 +42,7 @@ mod json;
 pub mod local;
 pub mod relit;
 pub mod scene;
+mod stored;
 pub mod stream;
 
 // The steps of the file, each in its own module; their items are the whole module's.
@@ -54,6 +55,7 @@ use encode::*;
 pub(crate) use encode::{glb_container, glb_head};
 pub use json::LightmapExtras;
 use json::*;
+pub use stored::Stored;
 
 /// `extras.prt.transfer_precision` of a half-float transfer view.
 const FLOAT16: &str = "float16";
@@ -111,47 +113,19 @@ pub fn transfer_attribute_name(channels: u32, channel: u32, group: usize) -> Str
     }
 }
 
-/// Writes `baked` to `path` atomically: a temporary file in the same directory, synced, then
+/// Writes `stored` to `path` atomically: a temporary file in the same directory, synced, then
 /// renamed over the target, so readers never see a half-written file.
 ///
 /// With a lightmap, its OpenEXR file ([`lightmap_file_name`]) is written beside, first; should
 /// the .glb then fail, the lightmap is removed again, so that no half of a bake is left.
-pub fn write_glb(path: &Path, baked: &BakedMesh) -> Result<()> {
-    write_glb_with(path, baked, None)
-}
-
-/// [`write_glb`], with the transfer stored compressed ([`compressed`]) when `cpca` is given
-/// (which must be the compression of `baked.transfer`).
-pub fn write_glb_with(path: &Path, baked: &BakedMesh, cpca: Option<&Cpca>) -> Result<()> {
-    write_glb_as(path, baked, cpca, Precision::F32)
-}
-
-/// [`write_glb_with`], the transfer (per vertex, or compressed) stored at `precision` (float16
-/// refuses lightmaps, which have their own storage).
-pub fn write_glb_as(
-    path: &Path,
-    baked: &BakedMesh,
-    cpca: Option<&Cpca>,
-    precision: Precision,
-) -> Result<()> {
-    validate(baked)?;
-    if precision == Precision::F16 && baked.lightmap.is_some() {
-        return Err(Error::Options(
-            "--precision f16 stores per-vertex or compressed transfer; lightmaps have their own \
-             storage"
-                .into(),
-        ));
-    }
-    if let Some(cpca) = cpca {
-        validate_cpca(baked, cpca).map_err(Error::Geometry)?;
-    }
+pub fn write_glb(path: &Path, stored: Stored) -> Result<()> {
     // Fails before encoding, so a typo in the directory costs no work.
     check_destination(path)?;
-    let Some(texels) = &baked.lightmap else {
-        return write_atomically(path, &encode_valid(baked, None, cpca, precision)?);
+    let Some(texels) = &stored.baked().lightmap else {
+        return write_atomically(path, &encode_valid(stored, None)?);
     };
     let name = lightmap_file_name(path);
-    let bytes = encode_valid(baked, Some(&name), cpca, precision)?;
+    let bytes = encode_valid(stored, Some(&name))?;
     let exr_path = path.with_file_name(&name);
     check_destination(&exr_path)?;
     crate::lightmap::write_lightmap(&exr_path, &lightmap_of(texels))?;
@@ -356,11 +330,10 @@ fn mesh_prt_extras(bytes: &[u8], path: &Path) -> Result<PrtExtrasIn> {
     prt_extras(mesh).map_err(|m| Error::baked(path, m))
 }
 
-/// Encodes `baked` as a `.glb` in memory, after checking that its parts agree. A lightmap is
-/// referred to as [`DEFAULT_LIGHTMAP_URI`] (it is [`write_glb`] that names and writes it).
-pub fn encode_glb(baked: &BakedMesh) -> Result<Vec<u8>> {
-    validate(baked)?;
-    encode_valid(baked, None, None, Precision::F32)
+/// Encodes `stored` as a `.glb` in memory. A lightmap is referred to as
+/// [`DEFAULT_LIGHTMAP_URI`] (it is [`write_glb`] that names and writes it).
+pub fn encode_glb(stored: Stored) -> Result<Vec<u8>> {
+    encode_valid(stored, None)
 }
 
 /// The lightmap reference of a file encoded without a name for it.
@@ -436,7 +409,7 @@ mod tests {
     fn round_trip_is_exact() {
         for channels in [1, 3] {
             let baked = sample(channels);
-            let bytes = encode_glb(&baked).unwrap();
+            let bytes = Stored::plain(&baked).and_then(encode_glb).unwrap();
             let decoded = decode_glb(&bytes, Path::new("mem.glb")).unwrap();
             assert_eq!(decoded, baked);
         }
@@ -446,15 +419,15 @@ mod tests {
     fn encoding_is_deterministic() {
         let baked = sample(3);
         assert_eq!(
-            encode_glb(&baked).unwrap(),
-            encode_glb(&baked.clone()).unwrap()
+            Stored::plain(&baked).and_then(encode_glb).unwrap(),
+            Stored::plain(&baked.clone()).and_then(encode_glb).unwrap()
         );
     }
 
     #[test]
     fn layout_follows_the_spec() {
         let baked = sample(3);
-        let bytes = encode_glb(&baked).unwrap();
+        let bytes = Stored::plain(&baked).and_then(encode_glb).unwrap();
         assert_eq!(&bytes[..4], b"glTF");
         assert_eq!(u32_at(&bytes, 8) as usize, bytes.len());
         let json_len = u32_at(&bytes, 12) as usize;
@@ -508,14 +481,17 @@ mod tests {
         let mut meta = sample(3);
         meta.metadata.bands = 4;
         for baked in [no_normals, short, count, index, nan, meta] {
-            let err = encode_glb(&baked).unwrap_err().to_string();
+            let err = Stored::plain(&baked)
+                .and_then(encode_glb)
+                .unwrap_err()
+                .to_string();
             assert!(!err.contains('\n'), "{err}");
         }
     }
 
     #[test]
     fn damaged_files_are_errors_not_panics() {
-        let bytes = encode_glb(&sample(3)).unwrap();
+        let bytes = Stored::plain(&sample(3)).and_then(encode_glb).unwrap();
         let path = Path::new("damaged.glb");
         for len in 0..bytes.len() {
             assert!(
@@ -547,7 +523,7 @@ mod tests {
 
     #[test]
     fn foreign_gltf_is_refused() {
-        let bytes = encode_glb(&sample(3)).unwrap();
+        let bytes = Stored::plain(&sample(3)).and_then(encode_glb).unwrap();
         let mut doc = json_of(&bytes);
         doc["meshes"][0].as_object_mut().unwrap().remove("extras");
         let mut json = serde_json::to_vec(&doc).unwrap();
@@ -571,7 +547,10 @@ mod tests {
     fn write_into_missing_directory_fails_cleanly() {
         let tmp = tempfile::tempdir().unwrap();
         let target = tmp.path().join("nope").join("out.glb");
-        let err = write_glb(&target, &sample(3)).unwrap_err().to_string();
+        let err = Stored::plain(&sample(3))
+            .and_then(|stored| write_glb(&target, stored))
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("does not exist"), "{err}");
         assert!(!target.exists());
         assert!(entries(tmp.path()).is_empty());
@@ -582,12 +561,19 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let target = tmp.path().join("mesh.glb");
         let baked = sample(3);
-        write_glb(&target, &baked).unwrap();
+        Stored::plain(&baked)
+            .and_then(|stored| write_glb(&target, stored))
+            .unwrap();
         // Overwriting an existing file goes through the same rename.
-        write_glb(&target, &baked).unwrap();
+        Stored::plain(&baked)
+            .and_then(|stored| write_glb(&target, stored))
+            .unwrap();
         assert_eq!(entries(tmp.path()), ["mesh.glb"]);
         assert_eq!(read_glb(&target).unwrap(), baked);
-        assert_eq!(fs::read(&target).unwrap(), encode_glb(&baked).unwrap());
+        assert_eq!(
+            fs::read(&target).unwrap(),
+            Stored::plain(&baked).and_then(encode_glb).unwrap()
+        );
         let (metadata, vertices, triangles) = read_metadata(&target).unwrap();
         assert_eq!((metadata, vertices, triangles), (baked.metadata, 3, 1));
     }
@@ -598,7 +584,9 @@ mod tests {
         // Renaming a file over a directory fails after the temporary file is complete.
         let target = tmp.path().join("taken.glb");
         fs::create_dir(&target).unwrap();
-        let err = write_glb(&target, &sample(3)).unwrap_err();
+        let err = Stored::plain(&sample(3))
+            .and_then(|stored| write_glb(&target, stored))
+            .unwrap_err();
         assert!(
             matches!(err, Error::Io { ref path, .. } if path == &target),
             "{err}"
@@ -609,7 +597,7 @@ mod tests {
         // Invalid input fails before anything is created.
         let mut bad = sample(3);
         bad.transfer.coeffs.clear();
-        assert!(write_glb(&tmp.path().join("bad.glb"), &bad).is_err());
+        assert!(Stored::plain(&bad).is_err());
         assert_eq!(entries(tmp.path()), ["taken.glb"]);
     }
 
@@ -619,7 +607,9 @@ mod tests {
         // One channel and three: the attribute names differ; bands 3 pads the last group.
         for channels in [1, 3] {
             let target = tmp.path().join(format!("mesh-{channels}.glb"));
-            write_glb(&target, &sample(channels)).unwrap();
+            Stored::plain(&sample(channels))
+                .and_then(|stored| write_glb(&target, stored))
+                .unwrap();
             let Some(report) = crate::gltf_validator::validate_or_skip(&target) else {
                 return;
             };
@@ -632,7 +622,7 @@ mod tests {
     fn read_metadata_rejects_truncated_files() {
         let tmp = tempfile::tempdir().unwrap();
         let target = tmp.path().join("cut.glb");
-        let bytes = encode_glb(&sample(1)).unwrap();
+        let bytes = Stored::plain(&sample(1)).and_then(encode_glb).unwrap();
         for len in [0, 10, 30, bytes.len() - 4] {
             fs::write(&target, &bytes[..len]).unwrap();
             assert!(read_metadata(&target).is_err(), "truncated to {len}");
@@ -661,7 +651,9 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let target = tmp.path().join("mesh.glb");
         let baked = sample(3);
-        write_glb(&target, &baked).unwrap();
+        Stored::plain(&baked)
+            .and_then(|stored| write_glb(&target, stored))
+            .unwrap();
         let Some(printed) = crate::testing::numpy_reader_output(&target) else {
             return;
         };

@@ -396,7 +396,10 @@ mod tests {
             scene,
             lightmap: None,
         };
-        (super::super::encode_glb(&baked).unwrap(), v)
+        (
+            super::super::encode_glb(super::super::Stored::plain(&baked).unwrap()).unwrap(),
+            v,
+        )
     }
 
     #[test]

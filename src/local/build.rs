@@ -13,19 +13,7 @@ use crate::compress::eigen::top_eigenvectors;
 use crate::compress::{compress_rows, CpcaOptions};
 use crate::error::Result;
 
-/// The compressed operator's shape.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct OperatorShape {
-    /// Clusters of receivers (senders and receivers alike).
-    pub clusters: u32,
-    /// Basis vectors of example irradiance per cluster.
-    pub components: u32,
-    /// In each receiver cluster, the least terms are dropped while their expected energy
-    /// together stays within `sparsity^2` of the cluster's total (0 keeps every term).
-    pub sparsity: f32,
-    /// Seed of the clustering.
-    pub seed: u64,
-}
+pub use crate::spec::OperatorShape;
 
 /// Columns sent through the bounces together (bounds the bake's memory).
 const COLUMNS_PER_BATCH: usize = 64;

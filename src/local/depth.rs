@@ -26,8 +26,7 @@ pub struct DirectionGrid {
     pub side: u32,
 }
 
-/// The most cells per side (65,536 directions per receiver).
-pub const MAX_GRID_SIDE: u32 = 256;
+pub use crate::spec::MAX_GRID_SIDE;
 
 impl DirectionGrid {
     pub fn len(&self) -> usize {

@@ -28,14 +28,14 @@ use crate::bake::bounce::GatherMatrix;
 use crate::bake::{self, Backend, BakeInputs, BakeOptions, Mode, Progress};
 use crate::bvh::Bvh;
 use crate::compress::{compress_rows, Cpca, CpcaOptions};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::ray::{Ray, RAY_T_MAX};
 use crate::receivers::vertex_ray_starts;
 use crate::sampling::{tangent_frame, DirectionFrame, Pcg32, SampleSet, Sampling};
 use crate::scene::prepare::prepare;
 use crate::scene::Scene;
 use crate::sh::ShTable;
-use build::{build_compressed, OperatorShape, SparseOperator};
+use build::{build_compressed, SparseOperator};
 use depth::{DepthLookup, DepthMaps, DirectionGrid};
 use lights::{
     direct_radiance, irradiance_by_shadow_rays, irradiance_from_depth, LocalLight, ReceiverFrames,
@@ -45,88 +45,7 @@ use operator::{sparse_indirect, CompressedOperator};
 mod relight;
 pub use relight::*;
 
-/// What a local-lights bake is asked for.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LocalOptions {
-    /// Cosine-distributed gather rays per receiver (the gather matrix's samples).
-    pub samples: u32,
-    pub seed: u64,
-    /// Bounces of the direct-to-indirect operator (indirect light after 1 to B bounces; 0:
-    /// direct light alone).
-    pub bounces: u32,
-    /// Depth-map directions per side: `side^2` per receiver.
-    pub grid_side: u32,
-    /// Clusters and PCA components of the compressed depth maps.
-    pub depth_clusters: u32,
-    pub depth_components: u32,
-    /// The compressed operator's shape.
-    pub operator: OperatorShape,
-    /// Example lights for the operator's PCA bases.
-    pub example_lights: u32,
-}
-
-impl Default for LocalOptions {
-    fn default() -> Self {
-        LocalOptions {
-            samples: 256,
-            seed: 1,
-            bounces: 3,
-            grid_side: 16,
-            depth_clusters: 128,
-            depth_components: 24,
-            operator: OperatorShape {
-                clusters: 64,
-                components: 16,
-                sparsity: 0.03,
-                seed: 1,
-            },
-            example_lights: 256,
-        }
-    }
-}
-
-impl LocalOptions {
-    pub fn validate(&self) -> Result<()> {
-        let refuse = |message: String| Err(Error::Options(message));
-        if !(1..=crate::sampling::MAX_SAMPLES).contains(&self.samples) {
-            return refuse(format!("--samples {} is out of range", self.samples));
-        }
-        if self.bounces > bake::MAX_BOUNCES {
-            return refuse(format!(
-                "--bounces {} is out of range for local lights (0 to {})",
-                self.bounces,
-                bake::MAX_BOUNCES
-            ));
-        }
-        if !(2..=depth::MAX_GRID_SIDE).contains(&self.grid_side) {
-            return refuse(format!(
-                "--depth-grid {} is out of range (2 to {})",
-                self.grid_side,
-                depth::MAX_GRID_SIDE
-            ));
-        }
-        let directions = self.grid_side * self.grid_side;
-        if self.depth_clusters == 0 || self.depth_components > directions {
-            return refuse(format!(
-                "--depth-compress {}x{}: need at least one cluster and at most {directions} \
-                 components (the directions per map)",
-                self.depth_clusters, self.depth_components
-            ));
-        }
-        let op = &self.operator;
-        if op.clusters == 0 || op.components == 0 || op.components > self.example_lights {
-            return refuse(format!(
-                "--operator-compress {}x{}: need at least one cluster and 1 to --example-lights \
-                 ({}) components",
-                op.clusters, op.components, self.example_lights
-            ));
-        }
-        if !(0.0..1.0).contains(&op.sparsity) {
-            return refuse(format!("--sparsity {} must lie in [0, 1)", op.sparsity));
-        }
-        Ok(())
-    }
-}
+pub use crate::spec::LocalOptions;
 
 /// A local-lights bake: the prepared scene and everything a run time needs.
 #[derive(Clone, Debug, PartialEq)]

@@ -166,13 +166,13 @@ fn read(reader: Reader, path: &Path) -> Result<Option<String>> {
         Reader::Obj | Reader::Mtl | Reader::Ply => {
             let (scene, _) = scene::load_with_warnings(path)?;
             let (baked, _) = quick_bake(scene)?;
-            let written = glb::encode_glb(&baked)?;
+            let written = glb::encode_glb(glb::Stored::plain(&baked)?)?;
             Ok(non_finite_baked(&baked).or_else(|| non_finite_glb(&written)))
         }
         Reader::Gltf | Reader::Glb => {
             let (gltf, scene) = scene::gltf::load(path)?;
             let (baked, report) = quick_bake(scene)?;
-            let stored = glb::scene::Stored::per_vertex(&baked, crate::precision::Precision::F32);
+            let stored = glb::Stored::plain(&baked)?;
             let (written, _) =
                 glb::scene::encode_scene_glb(&gltf, stored, &report.vertex_map, None)?;
             Ok(non_finite_baked(&baked).or_else(|| non_finite_glb(&written)))

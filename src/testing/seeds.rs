@@ -240,9 +240,15 @@ fn baked(data: &Path, scratch: &Path) -> Result<Vec<(String, Vec<u8>)>> {
     };
     let cpca = compress::compress(&baked.transfer, &cpca_options)?;
     let path = scratch.join("compressed.glb");
-    glb::write_glb_as(&path, &baked, Some(&cpca), Precision::F16)?;
+    glb::write_glb(
+        &path,
+        glb::Stored::new(&baked, Some(&cpca), Precision::F16)?,
+    )?;
     Ok(vec![
-        ("tetrahedron.glb".into(), glb::encode_glb(&baked)?),
+        (
+            "tetrahedron.glb".into(),
+            glb::encode_glb(glb::Stored::plain(&baked)?)?,
+        ),
         (
             "compressed.glb".into(),
             std::fs::read(&path).map_err(io(&path))?,
@@ -261,7 +267,7 @@ fn baked_in_place(data: &Path, precision: Precision) -> Result<Vec<u8>> {
     let (baked, report) = super::hostile::quick_bake(scene)?;
     let (bytes, _) = glb::scene::encode_scene_glb(
         &gltf,
-        glb::scene::Stored::per_vertex(&baked, precision),
+        glb::Stored::new(&baked, None, precision)?,
         &report.vertex_map,
         None,
     )?;

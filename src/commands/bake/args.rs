@@ -36,8 +36,8 @@ pub(crate) struct BakeArgs {
     #[arg(long, default_value_t = PointDensity::default().per_vertex)]
     pub(crate) fit_points: f32,
     /// Bake to an error target instead of a fixed sample count: each receiver casts batches of
-    /// 32 samples (at least 8) until the standard error of its transfer, relative to unoccluded
-    /// transfer's norm, is below E. Shadowed and unshadowed modes; runs on the CPU backend.
+    /// 128 samples (at least 4) until the standard error of its transfer, relative to
+    /// unoccluded transfer's norm, is below E. Shadowed and unshadowed modes, either backend.
     #[arg(long, value_name = "E")]
     pub(crate) target_error: Option<f64>,
     /// With --target-error: the most samples one receiver casts.

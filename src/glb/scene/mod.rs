@@ -39,10 +39,10 @@ pub use read::{is_baked_in_place, read_scene_glb, read_scene_vertices};
 
 use super::compressed::{self, CpcaExtras};
 use super::{
-    glb_container, groups, transfer_attribute_name, LightmapExtras, FLOAT16, TRANSFER_LAYOUT,
-    TRANSFER_LAYOUT_F16,
+    glb_container, groups, transfer_attribute_name, LightmapExtras, Stored, FLOAT16,
+    TRANSFER_LAYOUT, TRANSFER_LAYOUT_F16,
 };
-use crate::bake::{BakeMetadata, BakedMesh, Transfer};
+use crate::bake::{BakeMetadata, Transfer};
 use crate::compress::{index_bytes, Cpca};
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
@@ -50,26 +50,6 @@ use crate::precision::Precision;
 use crate::scene::gltf::accessor::{component_size, dense, Dense};
 use crate::scene::gltf::{self, GltfScene};
 use crate::scene::prepare::DROPPED;
-
-/// A bake as a scene file stores it: its transfer at a precision, compressed or not (the
-/// compressed form then replaces the per-vertex one).
-#[derive(Clone, Copy)]
-pub struct Stored<'a> {
-    pub baked: &'a BakedMesh,
-    pub cpca: Option<&'a Cpca>,
-    pub precision: Precision,
-}
-
-impl<'a> Stored<'a> {
-    /// `baked`'s transfer per vertex at `precision`.
-    pub fn per_vertex(baked: &'a BakedMesh, precision: Precision) -> Stored<'a> {
-        Stored {
-            baked,
-            cpca: None,
-            precision,
-        }
-    }
-}
 
 /// What writing a scene did, for the report line.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -91,7 +71,7 @@ pub fn write_scene_glb(
     vertex_map: &[u32],
 ) -> Result<SceneWrite> {
     check_destination(path)?;
-    let baked = stored.baked;
+    let baked = stored.baked();
     let Some(texels) = &baked.lightmap else {
         let (bytes, report) = encode_scene_glb(gltf, stored, vertex_map, None)?;
         write_atomically(path, &bytes)?;
@@ -129,7 +109,7 @@ fn encode_scene(
     lightmap_uri: Option<&str>,
     mut bin: Bin,
 ) -> Result<(Vec<u8>, Bin, SceneWrite)> {
-    let baked = stored.baked;
+    let baked = stored.baked();
     let bad = |message: String| Error::Geometry(format!("cannot write the scene: {message}"));
     let mut root = gltf.root.clone();
     let repaired = embed_accessors(&mut root, &gltf.buffers, &mut bin).map_err(bad)?;
@@ -529,10 +509,10 @@ fn add_transfer(
     vertex_map: &[u32],
     bin: &mut Bin,
 ) -> std::result::Result<SceneWrite, String> {
-    let (baked, precision) = (stored.baked, stored.precision);
+    let (baked, precision) = (stored.baked(), stored.precision());
     // The clusters' means and bases, once for the scene; each primitive's vertices get their
     // clusters and weights.
-    let shared = stored.cpca.map(|cpca| {
+    let shared = stored.cpca().map(|cpca| {
         let mut encoded = |values: &[f32]| {
             let mut bytes = Vec::new();
             precision.encode(values, &mut bytes);

@@ -8,12 +8,12 @@ use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
 
-use super::{encode_scene, put_plane, Bin, SceneWrite, Stored};
+use super::{encode_scene, put_plane, Bin, SceneWrite};
 use crate::bake::spill::Spill;
 use crate::bake::{BakeMetadata, BakedMesh, Transfer};
 use crate::error::Result;
 use crate::fs::{check_destination, AtomicFile};
-use crate::glb::{check_finite_coeffs, glb_head, groups};
+use crate::glb::{check_finite_coeffs, glb_head, groups, Stored};
 use crate::precision::Precision;
 use crate::scene::gltf::GltfScene;
 use crate::scene::prepare::DROPPED;
@@ -62,7 +62,7 @@ impl<'m> SceneStream<'m> {
             streaming: true,
             ..Bin::default()
         };
-        let stored = Stored::per_vertex(&baked, precision);
+        let stored = Stored::streamed(&baked, precision);
         let (json, bin, report) = encode_scene(gltf, stored, vertex_map, None, streaming)?;
         let bin_len = bin.len().next_multiple_of(4);
         let head = glb_head(json, bin_len)?;

@@ -1,0 +1,73 @@
+//! How a bake's transfer is stored: per vertex or as clusters (clustered PCA), float32 or
+//! float16, with or without a lightmap. One value, checked where it is made, that every writer
+//! (the baked mesh, the glTF scene in place) takes, so no writer re-checks a flag.
+
+use super::*;
+
+/// A bake as a file stores it: its transfer at a precision, compressed or not (the compressed
+/// form then replaces the per-vertex one), its lightmap beside.
+#[derive(Clone, Copy)]
+pub struct Stored<'a> {
+    baked: &'a BakedMesh,
+    cpca: Option<&'a Cpca>,
+    precision: Precision,
+}
+
+impl<'a> Stored<'a> {
+    /// `baked` stored at `precision`, compressed as `cpca` (which must be the compression of
+    /// its transfer) when given. Refuses what no file holds: transfer that does not hold its
+    /// vertices' coefficients or is not finite, a lightmap stored in half floats (its texels
+    /// are half floats of their own) or compressed (its texels are stored whole). What the
+    /// container asks of the mesh is the writer's to check (a baked mesh's vertices carry the
+    /// transfer; a scene maps its own vertices onto it).
+    pub fn new(
+        baked: &'a BakedMesh,
+        cpca: Option<&'a Cpca>,
+        precision: Precision,
+    ) -> Result<Stored<'a>> {
+        validate_transfer(&baked.transfer)?;
+        if baked.lightmap.is_some() && precision == Precision::F16 {
+            return Err(Error::Options(
+                "--precision f16 stores per-vertex or compressed transfer; lightmaps have their \
+                 own storage"
+                    .into(),
+            ));
+        }
+        if let Some(cpca) = cpca {
+            validate_cpca(baked, cpca).map_err(Error::Geometry)?;
+        }
+        Ok(Stored {
+            baked,
+            cpca,
+            precision,
+        })
+    }
+
+    /// `baked` per vertex in float32, as `bake` writes it by default.
+    pub fn plain(baked: &'a BakedMesh) -> Result<Stored<'a>> {
+        Stored::new(baked, None, Precision::F32)
+    }
+
+    /// A file whose coefficients come later, chunk by chunk (a streamed bake): `shape` has the
+    /// transfer's bands, channels and vertex count, and no coefficients, which are checked as
+    /// each chunk comes.
+    pub(super) fn streamed(shape: &'a BakedMesh, precision: Precision) -> Stored<'a> {
+        Stored {
+            baked: shape,
+            cpca: None,
+            precision,
+        }
+    }
+
+    pub fn baked(&self) -> &'a BakedMesh {
+        self.baked
+    }
+
+    pub fn cpca(&self) -> Option<&'a Cpca> {
+        self.cpca
+    }
+
+    pub fn precision(&self) -> Precision {
+        self.precision
+    }
+}

@@ -13,6 +13,14 @@ use prt_gpu::bake::BakeOptions;
 
 const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj");
 
+/// The first line of `stderr` that starts with `prefix`.
+fn line_starting(stderr: &str, prefix: &str) -> Option<String> {
+    stderr
+        .lines()
+        .find(|line| line.starts_with(prefix))
+        .map(str::to_string)
+}
+
 /// The need of the bunny's bake with `options`, as the CLI estimates it.
 fn bunny_need(options: &BakeOptions) -> MemoryNeed {
     let scene = prt_gpu::scene::load(Path::new(BUNNY)).unwrap();
@@ -150,39 +158,19 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             same,
             "{extra:?}: the streamed file differs from the whole bake's"
         );
-        // What half floats cost, as the whole bake states it.
-        let half_float_line = |stderr: &str| {
-            stderr
-                .lines()
-                .find(|line| line.starts_with("precision f16:"))
-                .map(str::to_string)
-        };
-        let stated = half_float_line(&String::from_utf8_lossy(&whole.stderr));
-        assert_eq!(
-            stated.is_some(),
-            extra.contains(&"f16"),
-            "{extra:?}: {stderr}"
-        );
-        assert_eq!(half_float_line(&stderr), stated, "{extra:?}");
-        let bands_line = |stderr: &str| {
-            stderr
-                .lines()
-                .find(|line| line.starts_with("bands auto:"))
-                .map(str::to_string)
-        };
-        let chosen = bands_line(&String::from_utf8_lossy(&whole.stderr));
-        assert_eq!(chosen.is_some(), extra.contains(&"auto"), "{extra:?}");
-        assert_eq!(bands_line(&stderr), chosen, "{extra:?}");
-        // An error target's summary: samples per receiver and the errors reached.
-        let target_line = |stderr: &str| {
-            stderr
-                .lines()
-                .find(|line| line.starts_with("target error:"))
-                .map(str::to_string)
-        };
-        let reached = target_line(&String::from_utf8_lossy(&whole.stderr));
-        assert_eq!(reached.is_some(), extra.contains(&TARGET[0]), "{extra:?}");
-        assert_eq!(target_line(&stderr), reached, "{extra:?}");
+        // The lines the whole bake states — what half floats cost, the bands chosen, an
+        // error target's samples and errors — and whether the case asks for each; the
+        // streamed bake states the same.
+        let whole_stderr = String::from_utf8_lossy(&whole.stderr);
+        for (prefix, asked) in [
+            ("precision f16:", extra.contains(&"f16")),
+            ("bands auto:", extra.contains(&"auto")),
+            ("target error:", extra.contains(&TARGET[0])),
+        ] {
+            let stated = line_starting(&whole_stderr, prefix);
+            assert_eq!(stated.is_some(), asked, "{extra:?} {prefix} {whole_stderr}");
+            assert_eq!(line_starting(&stderr, prefix), stated, "{extra:?}");
+        }
     }
 }
 

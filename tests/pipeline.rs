@@ -16,6 +16,21 @@ use prt_gpu::{pipeline, scene};
 
 const TEAPOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
 
+/// What `pipeline::run` says in refusing `spec` for `scene`.
+fn refusal_of_run(spec: &BakeSpec, scene: scene::Scene) -> String {
+    pipeline::run(
+        spec,
+        scene,
+        None,
+        &CpuBackend,
+        DirectSource::Compute,
+        &NoProgress,
+    )
+    .err()
+    .expect("refused")
+    .to_string()
+}
+
 /// The spec of `bake TEAPOT --samples 64` with `edit` applied, and the flags that say it.
 fn cases() -> Vec<(BakeSpec, Vec<&'static str>)> {
     let spec = |edit: fn(&mut BakeSpec)| {
@@ -140,17 +155,8 @@ fn a_spec_the_file_formats_cannot_hold_is_refused_before_any_ray() {
     spec.receivers.lightmap = Some(256);
     spec.storage.layout = Layout::Cpca(Compression::Target { error: 0.05 });
     let scene = scene::builtin::default_scene();
-    let error = pipeline::run(
-        &spec,
-        scene,
-        None,
-        &CpuBackend,
-        DirectSource::Compute,
-        &NoProgress,
-    )
-    .err()
-    .expect("refused");
-    assert!(error.to_string().contains("--compress"), "{error}");
+    let error = refusal_of_run(&spec, scene);
+    assert!(error.contains("--compress"), "{error}");
 }
 
 /// Local lights are a mode of the spec: a spec whose mode is local, run through the library
@@ -213,15 +219,6 @@ fn a_local_lights_spec_run_through_the_library_writes_the_command_lines_bytes() 
         std::fs::read(&library).unwrap() == std::fs::read(d.join("cli.glb")).unwrap(),
         "the library's local-lights file differs from the command line's"
     );
-    let error = pipeline::run(
-        &spec,
-        scene,
-        None,
-        &CpuBackend,
-        DirectSource::Compute,
-        &NoProgress,
-    )
-    .err()
-    .expect("refused");
-    assert!(error.to_string().contains("run_local"), "{error}");
+    let error = refusal_of_run(&spec, scene);
+    assert!(error.contains("run_local"), "{error}");
 }

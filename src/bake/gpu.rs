@@ -765,8 +765,8 @@ pub fn direct_transfer(
     chunking: Chunking,
     progress: &dyn Progress,
 ) -> Result<(Vec<f32>, GpuRun)> {
-    let out = run(baker, inputs, mode, chunking, false, progress)?;
-    Ok((scaled(out.sums, inputs), out.stats))
+    let (sums, stats) = projected_sums(baker, inputs, mode, chunking, progress)?;
+    Ok((scaled(sums, inputs), stats))
 }
 
 /// The GPU's visibility bits `[vertex][word]` and its transfer, for comparison with

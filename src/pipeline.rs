@@ -261,13 +261,14 @@ pub struct MemoryPlan {
     pub message: Option<String>,
 }
 
-/// How the bake of `scene` as `spec` asks fits `limit` (the user's `--memory-limit`) or, without
-/// one, the machine's `available` memory: whole, or streamed to the file in chunks that fit.
-/// A bake that cannot fit an explicit limit fails before it starts, saying what it needs; over
-/// the available memory, a warning.
+/// How the bake of `scene` (`gltf` its document where the scene is a glTF one) as `spec` asks
+/// fits `limit` (the user's `--memory-limit`) or, without one, the machine's `available`
+/// memory: whole, or streamed to the file in chunks that fit. A bake that cannot fit an
+/// explicit limit fails before it starts, saying what it needs; over the available memory, a
+/// warning.
 pub fn plan_memory(
     spec: &BakeSpec,
-    scene: &Scene,
+    (scene, gltf): (&Scene, Option<&GltfScene>),
     limit: Option<u64>,
     available: Option<u64>,
 ) -> Result<MemoryPlan> {
@@ -276,7 +277,8 @@ pub fn plan_memory(
         message: None,
     };
     let options = spec.options();
-    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options);
+    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
+        .with_document(gltf.map_or(0, GltfScene::byte_size));
     let Some(budget) = limit.or(available) else {
         return Ok(whole);
     };

@@ -299,11 +299,20 @@ fn check_sinks(dir: &Path, input: &str, scene: &prt_gpu::scene::Scene, cell: Cel
         );
     }
 
+    // A glTF scene's buffers and images count too: the file written carries them.
+    let document = match cell.input {
+        Input::Gltf => prt_gpu::scene::gltf::load(Path::new(input))
+            .unwrap()
+            .0
+            .byte_size(),
+        Input::Obj => 0,
+    };
     let need = MemoryNeed::estimate(
         scene.vertex_count(),
         scene.triangle_count(),
         &cell.options(),
-    );
+    )
+    .with_document(document);
     // Chunks of 300 receivers where the cell streams (the glTF scene, of fewer vertices,
     // streams in one chunk of all of them; tests/memory.rs streams a larger one in many);
     // half its need where it cannot.

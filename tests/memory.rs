@@ -186,7 +186,7 @@ fn a_gltf_scene_streamed_in_chunks_writes_the_whole_bakes_bytes() {
     );
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let scene = prt_gpu::scene::load(Path::new(ENGINE)).unwrap();
+    let (gltf, scene) = prt_gpu::scene::gltf::load(Path::new(ENGINE)).unwrap();
     let cases: [&[&str]; 5] = [
         &["--device", "cpu"],
         &["--device", "cpu", "--storage", "lean", "--precision", "f16"],
@@ -222,7 +222,8 @@ fn a_gltf_scene_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             },
             ..BakeOptions::default()
         };
-        let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options);
+        let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
+            .with_document(gltf.byte_size());
         let limit = need.streamed(4096);
         assert!(limit < need.whole());
         let run = |output: &str, limit: &str| {

@@ -36,6 +36,9 @@ pub fn streams(options: &BakeOptions) -> bool {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MemoryNeed {
     pub fixed: u64,
+    /// A glTF scene's buffers and images (0 for a mesh): held as read, and copied into the
+    /// written file's BIN chunk.
+    pub document: u64,
     /// What a streamed bake holds for every vertex whatever the chunk: an interreflected
     /// bake's previous bounce.
     pub held_streamed: u64,
@@ -81,6 +84,7 @@ impl MemoryNeed {
         };
         MemoryNeed {
             fixed,
+            document: 0,
             held_streamed: v * (bounces_held + errors),
             // The direct pass, its RGB transfer, and the file's bytes twice (encoded BIN,
             // then the whole container).
@@ -102,14 +106,29 @@ impl MemoryNeed {
         }
     }
 
+    /// The need with a glTF scene's document of `bytes` (its buffers and images).
+    pub fn with_document(self, bytes: usize) -> MemoryNeed {
+        MemoryNeed {
+            document: bytes as u64,
+            ..self
+        }
+    }
+
+    /// What a streamed bake holds whatever its chunk: the mesh, its BVH, the document as read
+    /// and in the file's BIN chunk (written in place, not wrapped again), the previous bounce.
+    fn held(&self) -> u64 {
+        self.fixed + 2 * self.document + self.held_streamed
+    }
+
     /// The whole bake's need, every receiver at once.
     pub fn whole(&self) -> u64 {
-        self.fixed + self.receivers * self.per_receiver_whole
+        // The document as read, in the BIN chunk, and in the container around it.
+        self.fixed + 3 * self.document + self.receivers * self.per_receiver_whole
     }
 
     /// The need of a bake streamed `chunk` receivers at a time.
     pub fn streamed(&self, chunk: usize) -> u64 {
-        self.fixed + self.held_streamed + chunk as u64 * self.per_receiver_streamed
+        self.held() + chunk as u64 * self.per_receiver_streamed
     }
 
     /// The need of one of `shards` shards of the bake: the mesh and its BVH, and
@@ -142,7 +161,7 @@ impl MemoryNeed {
     /// The largest chunk that keeps a streamed bake within `limit` bytes, or the error that
     /// says how much the smallest chunk needs.
     pub fn chunk_within(&self, limit: u64) -> Result<usize> {
-        let held = self.fixed + self.held_streamed;
+        let held = self.held();
         let room = limit.saturating_sub(held) / self.per_receiver_streamed.max(1);
         let chunk = (room as usize).min(self.receivers as usize);
         if chunk < MIN_CHUNK.min(self.receivers as usize) {
@@ -150,9 +169,16 @@ impl MemoryNeed {
                 0 => String::new(),
                 held => format!(", the previous bounce {}", format_bytes(held)),
             };
+            let document = match self.document {
+                0 => String::new(),
+                bytes => format!(
+                    ", the scene's buffers and images {}",
+                    format_bytes(2 * bytes)
+                ),
+            };
             return Err(Error::Options(format!(
-                "--memory-limit {}: this bake needs at least {} (the mesh and its BVH {}{bounce}, \
-                 one chunk of {MIN_CHUNK} receivers {})",
+                "--memory-limit {}: this bake needs at least {} (the mesh and its BVH \
+                 {}{document}{bounce}, one chunk of {MIN_CHUNK} receivers {})",
                 format_bytes(limit),
                 format_bytes(self.streamed(MIN_CHUNK)),
                 format_bytes(self.fixed),

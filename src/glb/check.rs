@@ -4,8 +4,15 @@
 
 use super::*;
 
-/// Checks everything `encode_valid` relies on, so encoding itself cannot fail halfway.
+/// Checks a baked mesh whole: the mesh, and the transfer it carries.
 pub(super) fn validate(baked: &BakedMesh) -> Result<()> {
+    validate_mesh(baked)?;
+    validate_transfer(&baked.transfer)
+}
+
+/// Checks what `encode_valid` relies on besides the transfer (which [`Stored::new`] checked),
+/// so encoding itself cannot fail halfway: the mesh, and that it carries the transfer.
+pub(super) fn validate_mesh(baked: &BakedMesh) -> Result<()> {
     validate_shape(Shape::of(baked))?;
     if baked.transfer.vertex_count != baked.scene.positions.len() {
         return Err(Error::Geometry(format!(
@@ -14,7 +21,7 @@ pub(super) fn validate(baked: &BakedMesh) -> Result<()> {
             baked.scene.positions.len()
         )));
     }
-    validate_transfer(&baked.transfer)
+    Ok(())
 }
 
 /// Checks that `transfer` holds its vertices' coefficients, every one finite.

@@ -12,7 +12,7 @@ pub(super) fn put_f32s(bin: &mut Vec<u8>, values: impl IntoIterator<Item = f32>)
 /// the mesh carries the transfer.
 pub(super) fn encode_valid(stored: Stored, lightmap_uri: Option<&str>) -> Result<Vec<u8>> {
     let (baked, cpca, precision) = (stored.baked(), stored.cpca(), stored.precision());
-    validate(baked)?;
+    validate_mesh(baked)?;
     let (mut bin, mut views) = encode_bin(baked, cpca.is_none(), precision);
     let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, precision, &mut bin, &mut views));
     let shape = Shape::of(baked);

@@ -151,7 +151,8 @@ pub(crate) fn bake_one(
     if merged.is_none() {
         let available = device::available_memory();
         let limit = execution.memory_limit;
-        let plan = pipeline::plan_memory(spec, planned.scene(), limit, available)?;
+        let scene_and_document = (planned.scene(), gltf.as_ref());
+        let plan = pipeline::plan_memory(spec, scene_and_document, limit, available)?;
         if let Some(message) = plan.message {
             eprintln!("{message}");
         }

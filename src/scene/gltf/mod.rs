@@ -52,6 +52,15 @@ pub struct GltfScene {
     pub notes: Vec<String>,
 }
 
+impl GltfScene {
+    /// The bytes of its buffers and images, which a scene baked in place writes back.
+    pub fn byte_size(&self) -> usize {
+        let buffers: usize = self.buffers.iter().map(Vec::len).sum();
+        let images: usize = self.images.iter().map(|image| image.bytes.len()).sum();
+        buffers + images
+    }
+}
+
 /// An image's encoded bytes (PNG, JPEG, ...) and MIME type.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EncodedImage {

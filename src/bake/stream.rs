@@ -77,15 +77,16 @@ impl MemoryNeed {
             _ => (0, 0, 0),
         };
         // An error target: each receiver's sums and sums of squares (f64) while it bakes,
-        // and its samples and error, which a streamed bake keeps for all receivers.
+        // and its samples and error, which every bake keeps for all receivers (counted with
+        // the mesh).
         let (batches, errors) = match options.target_error {
             Some(_) => (2 * 8 * coeffs + 64, 12),
             None => (0, 0),
         };
         MemoryNeed {
-            fixed,
+            fixed: fixed + v * errors,
             document: 0,
-            held_streamed: v * (bounces_held + errors),
+            held_streamed: v * bounces_held,
             // The direct pass, its RGB transfer, and the file's bytes twice (encoded BIN,
             // then the whole container).
             per_receiver_whole: 4 * coeffs
@@ -93,8 +94,7 @@ impl MemoryNeed {
                 + 2 * file_transfer
                 + gather
                 + bounces_whole
-                + batches
-                + errors,
+                + batches,
             // The same for one chunk, and its file blocks.
             per_receiver_streamed: 4 * coeffs
                 + transfer

@@ -39,7 +39,7 @@ fn main() -> prt_gpu::Result<()> {
     let maps = ["studio.exr", "sunrise.exr"];
     let lights = maps
         .iter()
-        .map(|m| prt_gpu::light::load(&data.join(m), rgb.bands, None, false).map(|l| l.light))
+        .map(|m| prt_gpu::light::load(&data.join(m), rgb.bands(), None, false).map(|l| l.light))
         .collect::<prt_gpu::Result<Vec<_>>>()?;
     let full = uncompressed_bytes(rgb);
     let references = lights
@@ -50,8 +50,8 @@ fn main() -> prt_gpu::Result<()> {
         "{}: {} vertices, {} bands, {full} bytes as float32 RGB",
         mesh.file_name()
             .map_or("mesh".into(), |n| n.to_string_lossy()),
-        rgb.vertex_count,
-        rgb.bands,
+        rgb.vertex_count(),
+        rgb.bands(),
     );
     println!(
         "| storage | clusters x components | bytes | smaller | seconds | coefficient error | {} |",
@@ -113,7 +113,7 @@ fn row(
             ))
         })
         .collect::<prt_gpu::Result<_>>()?;
-    let storage = match (transfer.channels, precision) {
+    let storage = match (transfer.channels(), precision) {
         (1, Precision::F16) => "lean, f16",
         (1, Precision::F32) => "lean, f32",
         (_, Precision::F16) => "RGB, f16",

@@ -192,13 +192,13 @@ impl Planned<'_> {
         let mut each_chunk = |transfer: &bake::Transfer| {
             if precision == Precision::F16 {
                 if half_float.is_none() {
-                    half_float = Some(HalfFloatTally::new(transfer.bands)?);
+                    half_float = Some(HalfFloatTally::new(transfer.bands())?);
                 }
                 half_float.as_mut().expect("built above").add(transfer)?;
             }
             if preview {
                 if preview_light.is_none() {
-                    preview_light = Some(light::preview_light(transfer.bands)?);
+                    preview_light = Some(light::preview_light(transfer.bands())?);
                 }
                 let first = radiance.len();
                 let light = preview_light.as_ref().expect("built above");
@@ -450,8 +450,8 @@ fn compress_transfer(
     let started = Instant::now();
     let transfer = &baked.transfer;
     let points = compress::Points {
-        data: &transfer.coeffs,
-        dimension: transfer.channels as usize * transfer.coeffs_per_channel(),
+        data: transfer.coeffs(),
+        dimension: transfer.channels() as usize * transfer.coeffs_per_channel(),
     };
     let most_components = match compression {
         Compression::Shape { components, .. } => components as usize,
@@ -493,7 +493,7 @@ fn compress_transfer(
     };
     let cpca = cpca.rounded(precision);
     let seconds = started.elapsed().as_secs_f64();
-    let light = light::preview_light(transfer.bands)?;
+    let light = light::preview_light(transfer.bands())?;
     let compressed = Compressed {
         clusters: options.clusters,
         components: options.components,
@@ -531,7 +531,7 @@ impl fmt::Display for HalfFloatCost {
 }
 
 fn half_float_cost(baked: &BakedMesh) -> Result<HalfFloatCost> {
-    let mut tally = HalfFloatTally::new(baked.transfer.bands)?;
+    let mut tally = HalfFloatTally::new(baked.transfer.bands())?;
     tally.add(&baked.transfer)?;
     Ok(tally.cost())
 }
@@ -561,13 +561,13 @@ impl HalfFloatTally {
         let stored = render::relight(&rounded, &self.light)?;
         self.relit.add_radiance(&exact, &stored);
         self.worst_coefficient = transfer
-            .coeffs
+            .coeffs()
             .iter()
-            .zip(&rounded.coeffs)
+            .zip(rounded.coeffs())
             .filter(|(x, _)| x.abs() >= 1e-4)
             .map(|(x, r)| ((r - x) / x).abs())
             .fold(self.worst_coefficient, f32::max);
-        self.values += transfer.coeffs.len();
+        self.values += transfer.coeffs().len();
         Ok(())
     }
 

@@ -72,7 +72,7 @@ pub fn surface_reference(
 /// Vertex transfer interpolated at surface points with their barycentrics, as a renderer
 /// interpolates vertex attributes.
 pub fn interpolate(transfer: &Transfer, scene: &Scene, points: &[SurfacePoint]) -> Transfer {
-    let stride = transfer.channels as usize * transfer.coeffs_per_channel();
+    let stride = transfer.channels() as usize * transfer.coeffs_per_channel();
     let mut coeffs = Vec::with_capacity(points.len() * stride);
     for p in points {
         let corners = scene.triangles[p.triangle as usize];
@@ -80,17 +80,13 @@ pub fn interpolate(transfer: &Transfer, scene: &Scene, points: &[SurfacePoint]) 
             let value: f32 = corners
                 .iter()
                 .zip(p.barycentrics)
-                .map(|(&v, b)| b * transfer.coeffs[v as usize * stride + i])
+                .map(|(&v, b)| b * transfer.coeffs()[v as usize * stride + i])
                 .sum();
             coeffs.push(value);
         }
     }
-    Transfer {
-        bands: transfer.bands,
-        channels: transfer.channels,
-        vertex_count: points.len(),
-        coeffs,
-    }
+    Transfer::new(transfer.bands(), transfer.channels(), points.len(), coeffs)
+        .expect("one interpolated row for each point")
 }
 
 /// Per-texel transfer looked up bilinearly at surface points, as a renderer samples a lightmap:
@@ -99,25 +95,21 @@ pub fn interpolate(transfer: &Transfer, scene: &Scene, points: &[SurfacePoint]) 
 /// `3t..3t + 3`).
 pub fn texel_transfer_at(texels: &TexelBake, points: &[SurfacePoint]) -> Transfer {
     let map = &texels.transfer;
-    let stride = map.channels as usize * map.coeffs_per_channel();
+    let stride = map.channels() as usize * map.coeffs_per_channel();
     let mut coeffs = Vec::with_capacity(points.len() * stride);
     for p in points {
         let corner = |i: usize| texels.texcoords[3 * p.triangle as usize + i];
         let uv = [0, 1].map(|axis| (0..3).map(|i| p.barycentrics[i] * corner(i)[axis]).sum());
         coeffs.extend(sample_bilinear(
-            &map.coeffs,
+            map.coeffs(),
             stride,
             texels.width,
             texels.height,
             uv,
         ));
     }
-    Transfer {
-        bands: map.bands,
-        channels: map.channels,
-        vertex_count: points.len(),
-        coeffs,
-    }
+    Transfer::new(map.bands(), map.channels(), points.len(), coeffs)
+        .expect("one looked-up row for each point")
 }
 
 /// RMS over the reference's points and channels of the radiance error of a lightmap looked up
@@ -177,19 +169,15 @@ mod tests {
             triangles: vec![[0, 1, 2]],
         };
         // One band, one channel: the vertices hold 1, 2 and 4.
-        let transfer = Transfer {
-            bands: 1,
-            channels: 1,
-            vertex_count: 3,
-            coeffs: vec![1.0, 2.0, 4.0],
-        };
+        let transfer = Transfer::new(1, 1, 3, vec![1.0, 2.0, 4.0])
+            .expect("one value for each of three vertices");
         let points = [SurfacePoint {
             triangle: 0,
             barycentrics: [0.5, 0.25, 0.25],
         }];
-        assert_eq!(interpolate(&transfer, &scene, &points).coeffs, vec![2.0]);
+        assert_eq!(interpolate(&transfer, &scene, &points).coeffs(), vec![2.0]);
         let spread = spread_points(&scene, Default::default(), 1);
         let at = interpolate(&transfer, &scene, &spread);
-        assert!(at.coeffs.iter().all(|&x| (1.0..=4.0).contains(&x)));
+        assert!(at.coeffs().iter().all(|&x| (1.0..=4.0).contains(&x)));
     }
 }

@@ -295,7 +295,7 @@ fn measure(
             .map_or(report.samples_used, |a| a.samples_mean.round() as u32),
         seconds,
         rays: report.rays_cast,
-        transfer_rms: rms_difference(&baked.transfer.coeffs, &references.transfer.coeffs),
+        transfer_rms: rms_difference(baked.transfer.coeffs(), references.transfer.coeffs()),
         radiance_rms: rms_difference(&radiance(&baked.transfer, light)?, references.radiance),
         surface_rms: surface_rms(references.surface, &baked.scene, &baked.transfer, light)?,
     };

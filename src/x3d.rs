@@ -43,7 +43,7 @@ pub fn write_x3d(
 /// The transfer attributes a bake needs: its floats per vertex, four to an attribute.
 pub fn transfer_attributes(baked: &BakedMesh) -> usize {
     let transfer = &baked.transfer;
-    (transfer.channels as usize * transfer.coeffs_per_channel()).div_ceil(4)
+    (transfer.channels() as usize * transfer.coeffs_per_channel()).div_ceil(4)
 }
 
 /// The X3D document, checked: per-vertex transfer within the attribute budget, a light with
@@ -92,11 +92,14 @@ pub fn x3d_scene(baked: &BakedMesh, light: &ShLight, options: &X3dOptions) -> Re
         );
         let _ = writeln!(out, "        <Color color='{colors}'/>");
     }
-    let per_vertex = transfer.channels as usize * coeffs;
+    let per_vertex = transfer.channels() as usize * coeffs;
     for a in 0..attributes {
-        let values = transfer.coeffs.chunks_exact(per_vertex).flat_map(|vertex| {
-            (4 * a..4 * a + 4).map(move |i| vertex.get(i).copied().unwrap_or(0.0))
-        });
+        let values = transfer
+            .coeffs()
+            .chunks_exact(per_vertex)
+            .flat_map(|vertex| {
+                (4 * a..4 * a + 4).map(move |i| vertex.get(i).copied().unwrap_or(0.0))
+            });
         let _ = writeln!(
             out,
             "        <FloatVertexAttribute name='transfer{a}' numComponents='4' value='{}'/>",
@@ -115,24 +118,26 @@ fn check(baked: &BakedMesh, light: &ShLight) -> Result<()> {
             "per-texel transfer (a lightmap) has no X3D form here; bake per vertex".into(),
         );
     }
-    if transfer.bands == 0 || transfer.coeffs.is_empty() || baked.scene.triangles.is_empty() {
+    if transfer.vertex_count() == 0 || baked.scene.triangles.is_empty() {
         return refuse("the file holds no transfer or no triangles".into());
     }
     if transfer_attributes(baked) > MAX_TRANSFER_ATTRIBUTES {
         return refuse(format!(
             "{} bands x {} channels need {} vertex attributes, more than WebGL's {MAX_TRANSFER_ATTRIBUTES} left for transfer: bake fewer bands or --storage lean",
-            transfer.bands,
-            transfer.channels,
+            transfer.bands(),
+            transfer.channels(),
             transfer_attributes(baked)
         ));
     }
-    if light.bands < transfer.bands {
+    if light.bands < transfer.bands() {
         return refuse(format!(
             "the light has {} bands, the bake {}: project the light at {} bands or more",
-            light.bands, transfer.bands, transfer.bands
+            light.bands,
+            transfer.bands(),
+            transfer.bands()
         ));
     }
-    let finite = transfer.coeffs.iter().all(|c| c.is_finite())
+    let finite = transfer.coeffs().iter().all(|c| c.is_finite())
         && baked.scene.positions.iter().all(|p| p.is_finite())
         && light.coeffs.iter().flatten().all(|c| c.is_finite());
     if !finite {
@@ -223,7 +228,7 @@ fn shader(baked: &BakedMesh, light: &ShLight, options: &X3dOptions, attributes: 
     let prelude = "#version 300 es\nprecision highp float;\nprecision highp int;\n";
     let vertex = format!(
         "{prelude}#define COEFFS {coeffs}\n#define CHANNELS {}\n#define ATTRIBUTES {attributes}\n#define ALBEDO {albedo}\n#define TRANSFER_ARRAY {array}\n{}",
-        transfer.channels,
+        transfer.channels(),
         VERTEX_SHADER.replace("TRANSFER_ATTRIBUTES\n", &declarations)
     );
     let fragment = format!("{prelude}{TONE_MAP}\n{FRAGMENT_SHADER}");

@@ -121,11 +121,11 @@ fn the_assimp_scenes_bake_and_pass_the_validator() {
         let back = prt_gpu::glb::read_glb(&target).unwrap();
         assert_eq!(back.metadata, baked.metadata, "{name}");
         assert_eq!(
-            back.transfer.vertex_count,
+            back.transfer.vertex_count(),
             report.vertex_map.len(),
             "{name}"
         );
-        assert!(back.transfer.coeffs.iter().any(|&c| c != 0.0), "{name}");
+        assert!(back.transfer.coeffs().iter().any(|&c| c != 0.0), "{name}");
     }
 }
 
@@ -563,7 +563,7 @@ fn cpu_and_gpu_bake_a_scene_alike() {
             &options,
             backend.as_ref(),
         );
-        results.push(baked.transfer.coeffs);
+        results.push(baked.transfer.into_coeffs());
     }
     if let [cpu, gpu] = &results[..] {
         let worst = cpu

@@ -177,7 +177,7 @@ fn bounces_add_non_negative_energy_and_converge() {
     let scene = builtin::default_scene();
     let (shadowed, _) = run_with_scene_albedo(&scene, Mode::Shadowed, 0);
     let (bounced, report) = run_with_scene_albedo(&scene, Mode::Interreflected, 6);
-    for v in 0..shadowed.transfer.vertex_count {
+    for v in 0..shadowed.transfer.vertex_count() {
         for c in 0..3 {
             let (before, after) = (
                 shadowed.transfer.vertex_channel(v, c)[0],
@@ -295,8 +295,8 @@ fn check_interreflection_agreement(scene: Scene, samples: u32, what: &str) {
     );
 
     let albedo = &scene.albedo;
-    let mut cpu_t = tint_by_albedo(&cpu_direct, albedo, bands).coeffs;
-    let mut gpu_t = tint_by_albedo(&gpu_direct, albedo, bands).coeffs;
+    let mut cpu_t = tint_by_albedo(&cpu_direct, albedo, bands).into_coeffs();
+    let mut gpu_t = tint_by_albedo(&gpu_direct, albedo, bands).into_coeffs();
     let mut bound: Vec<f64> = cpu_t
         .iter()
         .zip(&gpu_t)

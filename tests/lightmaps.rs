@@ -136,7 +136,7 @@ fn every_texel_a_bilinear_lookup_reaches_is_baked_or_filled() {
     let stride = 3 * 16;
     // Every texel within the 2x2 footprint of any point of any triangle: the four texels
     // around each corner and around points along its edges.
-    let dc = |x: i64, y: i64| texels.transfer.coeffs[((y * w + x) as usize) * stride];
+    let dc = |x: i64, y: i64| texels.transfer.coeffs()[((y * w + x) as usize) * stride];
     let mut checked = 0;
     for corners in texels.texcoords.chunks(3) {
         for i in 0..3 {

@@ -94,7 +94,7 @@ fn sky() -> (Vec<Vec3>, OracleLight) {
 /// RGB with the albedo in it (`bake::tint_by_albedo`; the default `Storage::Rgb`), and has more
 /// bands than the sky, whose coefficients past its own bands are zero.
 fn relight(transfer: &Transfer, r: usize, sky: &[Vec3]) -> Vec3 {
-    assert_eq!(transfer.channels, 3, "RGB transfer, albedo included");
+    assert_eq!(transfer.channels(), 3, "RGB transfer, albedo included");
     assert!(transfer.coeffs_per_channel() >= sky.len());
     let channel = |c: usize| -> f32 {
         let t = transfer.vertex_channel(r, c);

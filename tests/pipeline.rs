@@ -131,7 +131,7 @@ fn a_spec_run_through_the_library_writes_the_command_lines_bytes() {
             // What each stage reports is what the file holds.
             if let Bands::Auto { .. } = spec.transfer.bands {
                 let chosen = baked.bands_chosen.expect("bands chosen");
-                assert_eq!(chosen.bands, baked.mesh.transfer.bands);
+                assert_eq!(chosen.bands, baked.mesh.transfer.bands());
                 assert!(chosen.beyond < 0.02);
             }
             match (&baked.cpca, &baked.compressed, &baked.half_float) {

@@ -35,7 +35,7 @@ fn dc_terms(name: &str, samples: u32, sampling: Sampling) -> (Vec<f32>, Vec<f32>
     )
     .unwrap();
     let dc = |t: &prt_gpu::bake::Transfer| {
-        (0..t.vertex_count)
+        (0..t.vertex_count())
             .map(|v| t.vertex_channel(v, 0)[0])
             .collect()
     };

@@ -449,10 +449,10 @@ fn every_strategy_interreflects_alike_on_both_backends() {
         };
         let (baked, _) = bake(scene.clone(), &options, backend, &NoProgress).unwrap();
         let t = &baked.transfer;
-        (0..t.vertex_count)
+        (0..t.vertex_count())
             .map(|v| t.vertex_channel(v, 0)[0] as f64)
             .sum::<f64>()
-            / t.vertex_count as f64
+            / t.vertex_count() as f64
     };
     let mean_dc =
         |sampling, backend: &dyn Backend| mean_dc_of(sampling, Mode::Interreflected, backend);

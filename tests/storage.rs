@@ -54,9 +54,12 @@ fn direct_transfer_stored_once_relights_as_rgb_does() {
             baked(mode, Storage::Rgb, None),
             baked(mode, Storage::Lean, None),
         );
-        assert_eq!((lean.transfer.channels, lean.metadata.channels), (1, 1));
+        assert_eq!((lean.transfer.channels(), lean.metadata.channels), (1, 1));
         assert!(lean.metadata.albedo_free && !rgb.metadata.albedo_free);
-        assert_eq!(3 * lean.transfer.coeffs.len(), rgb.transfer.coeffs.len());
+        assert_eq!(
+            3 * lean.transfer.coeffs().len(),
+            rgb.transfer.coeffs().len()
+        );
         assert_same_radiance(&rgb, &lean, mode.name());
     }
 }
@@ -68,7 +71,7 @@ fn interreflected_transfer_drops_to_one_channel_only_when_every_albedo_is_grey()
         baked(Mode::Interreflected, Storage::Rgb, grey),
         baked(Mode::Interreflected, Storage::Lean, grey),
     );
-    assert_eq!(lean.transfer.channels, 1);
+    assert_eq!(lean.transfer.channels(), 1);
     assert!(
         !lean.metadata.albedo_free,
         "bounced light is not one albedo times anything"
@@ -76,7 +79,7 @@ fn interreflected_transfer_drops_to_one_channel_only_when_every_albedo_is_grey()
     assert_same_radiance(&rgb, &lean, "interreflected, grey");
     // Colours bleed between surfaces: RGB stays.
     let coloured = baked(Mode::Interreflected, Storage::Lean, None);
-    assert_eq!(coloured.transfer.channels, 3);
+    assert_eq!(coloured.transfer.channels(), 3);
 }
 
 #[test]
@@ -193,7 +196,7 @@ fn gltf_scenes_baked_in_place_store_lean_and_half_float_transfer() {
         let (lean, lean_bytes) = bake("lean", "f32");
         let (half, half_bytes) = bake("rgb", "f16");
         let (lean_half, lean_half_bytes) = bake("lean", "f16");
-        assert_eq!((lean.transfer.channels, rgb.transfer.channels), (1, 3));
+        assert_eq!((lean.transfer.channels(), rgb.transfer.channels()), (1, 3));
         assert!(lean.metadata.albedo_free);
         assert!(
             lean.scene.albedo.iter().any(|a| a.x != a.z),
@@ -242,7 +245,7 @@ fn half_float_files_hold_the_rounded_transfer_within_its_bound() {
             "{storage:?}: not the rounded transfer"
         );
         assert_eq!(read.scene, baked.scene);
-        for (x, r) in baked.transfer.coeffs.iter().zip(&rounded.coeffs) {
+        for (x, r) in baked.transfer.coeffs().iter().zip(rounded.coeffs()) {
             // 2^-11 relative above the smallest normal half (2^-14); 2^-25 absolute below it.
             let bound = (x.abs() * 2f32.powi(-11)).max(2f32.powi(-25));
             assert!((r - x).abs() <= bound, "{x} stored as {r}");
@@ -254,7 +257,7 @@ fn half_float_files_hold_the_rounded_transfer_within_its_bound() {
         let n = 16;
         for (v, (e, s)) in exact.iter().zip(&stored).enumerate() {
             for c in 0..3 {
-                let channel = if baked.transfer.channels == 1 { 0 } else { c };
+                let channel = if baked.transfer.channels() == 1 { 0 } else { c };
                 let t = baked.transfer.vertex_channel(v, channel);
                 let albedo = if storage == Storage::Lean {
                     baked.scene.albedo[v][c]
@@ -272,7 +275,8 @@ fn half_float_files_hold_the_rounded_transfer_within_its_bound() {
             }
         }
         let bytes = |p: &std::path::Path| std::fs::metadata(p).unwrap().len() as usize;
-        let transfer_bytes = baked.transfer.vertex_count * baked.transfer.channels as usize * 64;
+        let transfer_bytes =
+            baked.transfer.vertex_count() * baked.transfer.channels() as usize * 64;
         assert_eq!(
             bytes(&full) - bytes(&half),
             transfer_bytes / 2 + json_difference(&full, &half)
@@ -287,10 +291,10 @@ fn half_float_files_hold_the_rounded_transfer_within_its_bound() {
                 .iter()
                 .flat_map(|c| c.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()))
                 .collect();
-            let expected: Vec<f64> = (0..read.transfer.channels as usize)
+            let expected: Vec<f64> = (0..read.transfer.channels() as usize)
                 .flat_map(|c| {
                     read.transfer
-                        .vertex_channel(read.transfer.vertex_count - 1, c)
+                        .vertex_channel(read.transfer.vertex_count() - 1, c)
                 })
                 .map(|&x| x as f64)
                 .collect();
@@ -425,7 +429,7 @@ fn gltf_scenes_baked_in_place_store_compressed_transfer() {
             if prepared == prt_gpu::scene::prepare::DROPPED {
                 continue;
             }
-            for c in 0..back.transfer.channels as usize {
+            for c in 0..back.transfer.channels() as usize {
                 assert_eq!(
                     back.transfer.vertex_channel(v, c),
                     reconstructed.vertex_channel(prepared as usize, c),
@@ -438,7 +442,7 @@ fn gltf_scenes_baked_in_place_store_compressed_transfer() {
             // Mesh 0's extras describe its first placement's first primitive.
             let shown = gltf.instances.iter().find(|i| i.mesh == 0).unwrap();
             let first = shown.primitives[0];
-            let channels = back.transfer.channels as usize;
+            let channels = back.transfer.channels() as usize;
             assert_eq!(
                 read["transfer"],
                 serde_json::json!([first.count, channels, 16])

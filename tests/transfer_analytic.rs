@@ -140,7 +140,7 @@ fn white_furnace_through_the_whole_pipeline() {
     for backend in common::backends() {
         let (baked, _) = bake(sphere.clone(), &options, backend.as_ref(), &NoProgress).unwrap();
         let unit_light_dc = (4.0 * std::f32::consts::PI).sqrt();
-        for v in 0..baked.transfer.vertex_count {
+        for v in 0..baked.transfer.vertex_count() {
             for c in 0..3 {
                 let radiance = baked.transfer.vertex_channel(v, c)[0] * unit_light_dc;
                 // 4096 stratified samples: plain-MC standard error of the furnace is ~0.015.

@@ -31,8 +31,8 @@ fn bake_both(scene: Scene, backend: &dyn Backend) -> (Vec<f32>, Vec<f32>, u64) {
     )
     .unwrap();
     (
-        shadowed.0.transfer.coeffs,
-        unshadowed.0.transfer.coeffs,
+        shadowed.0.transfer.coeffs().to_vec(),
+        unshadowed.0.transfer.coeffs().to_vec(),
         shadowed.1.rays_cast,
     )
 }

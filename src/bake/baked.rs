@@ -3,22 +3,145 @@
 
 use super::*;
 
-/// Per-vertex transfer vectors, RGB.
+/// Per-vertex transfer vectors: `channels` (3 for RGB, 1 for lean storage) of `bands^2`
+/// coefficients for each of `vertex_count` receivers.
 ///
 /// Layout: `coeffs[(vertex * channels + channel) * bands^2 + k]`, `k = l(l+1) + m`.
 /// Exit radiance of vertex v in channel c under lighting coefficients `light[c][k]` is
 /// `sum_k light[c][k] * coeffs[(v * channels + c) * bands^2 + k]`.
+///
+/// The fields are private so that the shape holds wherever a transfer exists: every
+/// construction goes through [`Transfer::new`] (checked) or [`Transfer::zeros`], and
+/// [`Transfer::coeffs_mut`] can change values, not their number.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Transfer {
-    pub bands: u32,
-    pub channels: u32,
-    pub vertex_count: usize,
-    pub coeffs: Vec<f32>,
+    bands: u32,
+    channels: u32,
+    vertex_count: usize,
+    coeffs: Vec<f32>,
 }
 
-impl Transfer {
+/// A transfer's bands, channels and receivers, without its coefficients: what a file's layout
+/// is decided by before they are baked (a streamed bake).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TransferShape {
+    bands: u32,
+    channels: u32,
+    vertex_count: usize,
+}
+
+impl TransferShape {
+    pub fn new(bands: u32, channels: u32, vertex_count: usize) -> TransferShape {
+        TransferShape {
+            bands,
+            channels,
+            vertex_count,
+        }
+    }
+
+    pub fn bands(&self) -> u32 {
+        self.bands
+    }
+
+    pub fn channels(&self) -> u32 {
+        self.channels
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.vertex_count
+    }
+
     pub fn coeffs_per_channel(&self) -> usize {
         (self.bands * self.bands) as usize
+    }
+}
+
+/// Coefficients that are not `vertex_count × channels × bands²` values, or a shape no transfer has.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct ShapeError(String);
+
+impl Transfer {
+    /// The transfer of `vertex_count` receivers, `channels` each of `bands^2` coefficients, as
+    /// laid out in `coeffs`; refused where the number of values is not that, or the shape is
+    /// empty of bands or channels.
+    pub fn new(
+        bands: u32,
+        channels: u32,
+        vertex_count: usize,
+        coeffs: Vec<f32>,
+    ) -> std::result::Result<Transfer, ShapeError> {
+        if bands == 0 || channels == 0 {
+            return Err(ShapeError(format!(
+                "a transfer needs at least one band and one channel, not {bands} bands of {channels} channels"
+            )));
+        }
+        let expected = (bands as usize)
+            .checked_mul(bands as usize)
+            .and_then(|n| n.checked_mul(channels as usize))
+            .and_then(|n| n.checked_mul(vertex_count));
+        if expected != Some(coeffs.len()) {
+            return Err(ShapeError(format!(
+                "{vertex_count} receivers of {channels} channels at {bands} bands need {} \
+                 coefficients, not {}",
+                expected.map_or_else(|| "more".to_string(), |n| n.to_string()),
+                coeffs.len()
+            )));
+        }
+        Ok(Transfer {
+            bands,
+            channels,
+            vertex_count,
+            coeffs,
+        })
+    }
+
+    /// Zero transfer of the given shape (to be filled through [`Transfer::coeffs_mut`]).
+    pub fn zeros(bands: u32, channels: u32, vertex_count: usize) -> Transfer {
+        let n = (bands * bands * channels) as usize * vertex_count;
+        Transfer::new(bands, channels, vertex_count, vec![0.0; n])
+            .expect("a zero transfer has its own shape")
+    }
+
+    pub fn bands(&self) -> u32 {
+        self.bands
+    }
+
+    pub fn channels(&self) -> u32 {
+        self.channels
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.vertex_count
+    }
+
+    pub fn shape(&self) -> TransferShape {
+        TransferShape::new(self.bands, self.channels, self.vertex_count)
+    }
+
+    /// Every coefficient, in the layout above.
+    pub fn coeffs(&self) -> &[f32] {
+        &self.coeffs
+    }
+
+    /// Every coefficient, to change in place (the shape stays).
+    pub fn coeffs_mut(&mut self) -> &mut [f32] {
+        &mut self.coeffs
+    }
+
+    /// The coefficients, giving up the shape.
+    pub fn into_coeffs(self) -> Vec<f32> {
+        self.coeffs
+    }
+
+    pub fn coeffs_per_channel(&self) -> usize {
+        (self.bands * self.bands) as usize
+    }
+
+    /// The `channels × bands^2` coefficients of one receiver.
+    pub fn vertex(&self, vertex: usize) -> &[f32] {
+        let n = self.coeffs_per_channel() * self.channels as usize;
+        &self.coeffs[vertex * n..(vertex + 1) * n]
     }
 
     /// The bands^2 coefficients of one vertex and channel.
@@ -159,4 +282,33 @@ pub struct BounceStat {
     /// DC energy the bounce added over the DC energy of all transfer before it.
     pub relative_energy: f64,
     pub seconds: f64,
+}
+
+#[cfg(test)]
+mod transfer_tests {
+    use super::*;
+
+    #[test]
+    fn a_transfer_holds_exactly_its_shapes_coefficients() {
+        let two_vertices = Transfer::new(2, 3, 2, vec![0.5; 24]).unwrap();
+        assert_eq!(two_vertices.vertex(1), &[0.5; 12]);
+        assert_eq!(two_vertices.vertex_channel(1, 2), &[0.5; 4]);
+        assert_eq!(two_vertices.shape(), TransferShape::new(2, 3, 2));
+        let short = Transfer::new(2, 3, 2, vec![0.5; 23])
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            short,
+            "2 receivers of 3 channels at 2 bands need 24 coefficients, not 23"
+        );
+        assert!(Transfer::new(0, 3, 0, Vec::new()).is_err());
+        assert!(Transfer::new(2, 0, 0, Vec::new()).is_err());
+        let overflowing = Transfer::new(u32::MAX, 3, usize::MAX, Vec::new()).unwrap_err();
+        assert!(overflowing.to_string().contains("need more coefficients"));
+        assert_eq!(Transfer::zeros(3, 1, 4).coeffs(), &[0.0; 36]);
+        assert_eq!(
+            Transfer::new(1, 1, 0, Vec::new()).unwrap().vertex_count(),
+            0
+        );
+    }
 }

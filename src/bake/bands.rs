@@ -6,7 +6,7 @@ use super::*;
 /// The fraction of a transfer's energy (sum of squared coefficients over vertices and channels)
 /// in each band `l`.
 pub fn band_energy_fractions(transfer: &Transfer) -> Vec<f64> {
-    let mut energy = BandEnergy::new(transfer.bands);
+    let mut energy = BandEnergy::new(transfer.bands());
     energy.add(transfer);
     energy.fractions()
 }
@@ -14,7 +14,7 @@ pub fn band_energy_fractions(transfer: &Transfer) -> Vec<f64> {
 /// The fewest bands whose transfer leaves less than `threshold` of the energy in the bands
 /// above them, and the fraction it leaves.
 pub fn choose_bands(transfer: &Transfer, threshold: f64) -> (u32, f64) {
-    let mut energy = BandEnergy::new(transfer.bands);
+    let mut energy = BandEnergy::new(transfer.bands());
     energy.add(transfer);
     energy.choose(threshold)
 }
@@ -33,9 +33,9 @@ impl BandEnergy {
     }
 
     pub fn add(&mut self, transfer: &Transfer) {
-        assert_eq!(transfer.bands as usize, self.energy.len());
+        assert_eq!(transfer.bands() as usize, self.energy.len());
         let n = transfer.coeffs_per_channel();
-        for row in transfer.coeffs.chunks_exact(n) {
+        for row in transfer.coeffs().chunks_exact(n) {
             for (k, &t) in row.iter().enumerate() {
                 self.energy[(k as f64).sqrt() as usize] += (t as f64) * (t as f64);
             }
@@ -66,16 +66,17 @@ impl BandEnergy {
 /// the higher ones, so this is the transfer a bake of `bands` bands computes.
 pub fn truncate_bands(transfer: &Transfer, bands: u32) -> Transfer {
     let (n, kept) = (transfer.coeffs_per_channel(), coeff_count(bands));
-    Transfer {
+    Transfer::new(
         bands,
-        channels: transfer.channels,
-        vertex_count: transfer.vertex_count,
-        coeffs: transfer
-            .coeffs
+        transfer.channels(),
+        transfer.vertex_count(),
+        transfer
+            .coeffs()
             .chunks_exact(n)
             .flat_map(|row| row[..kept].iter().copied())
             .collect(),
-    }
+    )
+    .expect("the kept coefficients of every row")
 }
 
 /// A baked mesh cut to `bands` bands (its lightmap too), its metadata saying so.
@@ -94,19 +95,15 @@ mod band_tests {
     #[test]
     fn bands_are_chosen_by_the_energy_above_them() {
         // One vertex, one channel, 3 bands: energies 1 (l = 0), 0.09 (l = 1), 0.01 (l = 2).
-        let transfer = Transfer {
-            bands: 3,
-            channels: 1,
-            vertex_count: 1,
-            coeffs: vec![1.0, 0.3, 0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0],
-        };
+        let transfer = Transfer::new(3, 1, 1, vec![1.0, 0.3, 0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 0.0])
+            .expect("one vertex of 3 bands");
         let fractions = band_energy_fractions(&transfer);
         assert!((fractions[2] - 0.01 / 1.1).abs() < 1e-9, "{fractions:?}");
         assert_eq!(choose_bands(&transfer, 0.05).0, 2);
         assert_eq!(choose_bands(&transfer, 0.2).0, 1);
         assert_eq!(choose_bands(&transfer, 0.001).0, 3);
         let cut = truncate_bands(&transfer, 2);
-        assert_eq!(cut.coeffs, vec![1.0, 0.3, 0.0, 0.0]);
+        assert_eq!(cut.coeffs(), vec![1.0, 0.3, 0.0, 0.0]);
     }
 
     #[test]
@@ -132,7 +129,7 @@ mod band_tests {
         };
         let (eight, four) = (bake_with(8), bake_with(4));
         let cut = truncate_bands(&eight.transfer, 4);
-        for (a, b) in cut.coeffs.iter().zip(&four.transfer.coeffs) {
+        for (a, b) in cut.coeffs().iter().zip(four.transfer.coeffs()) {
             // The same sums; only the rotation's rounding differs with the band count.
             assert!((a - b).abs() <= 1e-5 * b.abs().max(1e-2), "{a} vs {b}");
         }

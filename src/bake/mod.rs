@@ -71,18 +71,18 @@ fn add_bounces(
     backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<Vec<BounceStat>> {
-    let coeffs = coeff_count(transfer.bands);
-    let gatherer = backend.gatherer(gather.matrix, gather.albedo, transfer.bands)?;
+    let coeffs = coeff_count(transfer.bands());
+    let gatherer = backend.gatherer(gather.matrix, gather.albedo, transfer.bands())?;
     progress.stage("bounces", options.bounces as u64);
-    let mut previous = transfer.coeffs.clone();
+    let mut previous = transfer.coeffs().to_vec();
     let mut stats = Vec::new();
     for _ in 0..options.bounces {
         let started = Instant::now();
         let at_receivers = gatherer.gather(&previous)?;
         let next = (gather.to_vertices)(at_receivers)?;
-        let relative_energy = bounce::relative_energy(&next, &transfer.coeffs, coeffs);
+        let relative_energy = bounce::relative_energy(&next, transfer.coeffs(), coeffs);
         transfer
-            .coeffs
+            .coeffs_mut()
             .iter_mut()
             .zip(&next)
             .for_each(|(t, n)| *t += n);
@@ -224,7 +224,7 @@ pub fn bake_from(
         .as_ref()
         .map_or(samples_used, |r| r.samples_mean.round() as usize);
     let metadata = BakeMetadata {
-        channels: transfer.channels,
+        channels: transfer.channels(),
         albedo_free,
         backend: ran_on,
         ..metadata_for(options, samples, bounces.len(), fit_points)
@@ -312,32 +312,26 @@ fn stored(
     if options.storage == Storage::Rgb {
         return Ok((rgb, false));
     }
-    let n = coeff_count(rgb.bands);
+    let n = coeff_count(rgb.bands());
     if options.mode != Mode::Interreflected {
         let coeffs = match options.fit {
             Fit::Point => scalar.to_vec(),
             Fit::LeastSquares => fit_vertices(scene, points, scalar, n, &FitOptions::default())?.0,
         };
-        let transfer = Transfer {
-            channels: 1,
-            coeffs,
-            ..rgb
-        };
+        let transfer = Transfer::new(rgb.bands(), 1, rgb.vertex_count(), coeffs)
+            .expect("one channel of the vertices' coefficients");
         return Ok((transfer, true));
     }
     if scene.albedo.iter().any(|a| a.x != a.y || a.y != a.z) {
         return Ok((rgb, false));
     }
     let coeffs = rgb
-        .coeffs
+        .coeffs()
         .chunks_exact(3 * n)
         .flat_map(|v| v[..n].iter().copied())
         .collect();
-    let transfer = Transfer {
-        channels: 1,
-        coeffs,
-        ..rgb
-    };
+    let transfer = Transfer::new(rgb.bands(), 1, rgb.vertex_count(), coeffs)
+        .expect("one channel of the vertices' coefficients");
     Ok((transfer, false))
 }
 
@@ -392,12 +386,13 @@ fn vertex_transfer(
         Ok(fitted)
     };
     let at_receivers = tint_by_albedo(&direct.scalar, &receivers.albedo, options.bands);
-    let mut transfer = Transfer {
-        bands: options.bands,
-        channels: 3,
-        vertex_count: scene.vertex_count(),
-        coeffs: to_vertices(at_receivers.coeffs)?,
-    };
+    let mut transfer = Transfer::new(
+        options.bands,
+        3,
+        scene.vertex_count(),
+        to_vertices(at_receivers.into_coeffs())?,
+    )
+    .expect("the vertex values hold every vertex's coefficients");
     let seconds_fit = match options.fit {
         Fit::Point => 0.0,
         Fit::LeastSquares => started.elapsed().as_secs_f64(),
@@ -526,7 +521,7 @@ pub fn bake_at_in(
     let mut transfer = tint_by_albedo(&direct.scalar, &albedo, options.bands);
     if let Some(matrix) = &direct.matrix {
         let vertices = vertex_transfer
-            .filter(|t| t.vertex_count == scene.vertex_count() && t.bands == options.bands)
+            .filter(|t| t.vertex_count() == scene.vertex_count() && t.bands() == options.bands)
             .ok_or_else(|| {
                 Error::Options(
                     "interreflected transfer at surface points gathers from the vertices' \
@@ -536,9 +531,9 @@ pub fn bake_at_in(
             })?;
         let gathered = backend
             .gatherer(matrix, &receivers.albedo, options.bands)?
-            .gather(&vertices.coeffs)?;
+            .gather(vertices.coeffs())?;
         transfer
-            .coeffs
+            .coeffs_mut()
             .iter_mut()
             .zip(gathered)
             .for_each(|(t, g)| *t += g);
@@ -565,10 +560,6 @@ pub fn tint_by_albedo(scalar: &[f32], albedo: &[Vec3], bands: u32) -> Transfer {
             coeffs.extend(t.iter().map(|x| x * a[c]));
         }
     }
-    Transfer {
-        bands,
-        channels: 3,
-        vertex_count: albedo.len(),
-        coeffs,
-    }
+    Transfer::new(bands, 3, albedo.len(), coeffs)
+        .expect("one albedo for each receiver's bands^2 coefficients")
 }

@@ -303,12 +303,8 @@ impl StreamedBake {
         )?;
         let bands = self.options.bands;
         let transfer = match self.options.storage {
-            Storage::Lean => Transfer {
-                bands,
-                channels: 1,
-                vertex_count: range.len(),
-                coeffs: direct.scalar,
-            },
+            Storage::Lean => Transfer::new(bands, 1, range.len(), direct.scalar)
+                .expect("the direct pass's row for every receiver"),
             Storage::Rgb => {
                 let albedo = &self.planned.receivers.albedo[range];
                 tint_by_albedo(&direct.scalar, albedo, bands)
@@ -354,7 +350,7 @@ impl StreamedBake {
             let direct = backend.direct_pass(&part, Mode::Interreflected, &Advancing(progress))?;
             let matrix = direct.matrix.expect("an interreflected pass gathers");
             let tinted = tint_by_albedo(&direct.scalar, &albedo[range.clone()], bands);
-            previous[range.start * stride..range.end * stride].copy_from_slice(&tinted.coeffs);
+            previous[range.start * stride..range.end * stride].copy_from_slice(tinted.coeffs());
             rows.push(SpilledRows::put(&mut spill, &matrix)?);
             rays_cast += direct.rays_cast;
             gather_entries += matrix.columns.len();
@@ -452,12 +448,8 @@ impl Interreflected {
                 .collect(),
             _ => rgb,
         };
-        Ok(Transfer {
-            bands: self.bands,
-            channels,
-            vertex_count: range.len(),
-            coeffs,
-        })
+        Ok(Transfer::new(self.bands, channels, range.len(), coeffs)
+            .expect("the spilled chunk's rows"))
     }
 }
 

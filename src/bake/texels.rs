@@ -98,8 +98,8 @@ pub fn bake_atlas(
     let at = (&receivers, bvh);
     let (at_texels, rays_cast) =
         bake_at_in(scene, at, options, backend, Some(vertex_transfer), progress)?;
-    let stride = at_texels.channels as usize * at_texels.coeffs_per_channel();
-    let mut image = texels.scatter(&at_texels.coeffs, stride)?;
+    let stride = at_texels.channels() as usize * at_texels.coeffs_per_channel();
+    let mut image = texels.scatter(at_texels.coeffs(), stride)?;
     let mut valid = texels.valid_mask(&leaking)?;
     let (width, height) = (atlas.width, atlas.height);
     dilate(
@@ -114,7 +114,7 @@ pub fn bake_atlas(
     for ((&(x, y), values), _) in texels
         .texels
         .iter()
-        .zip(at_texels.coeffs.chunks_exact(stride))
+        .zip(at_texels.coeffs().chunks_exact(stride))
         .zip(&leaking)
         .filter(|(_, &leak)| leak)
     {
@@ -143,12 +143,13 @@ pub fn bake_atlas(
         height,
         texcoords,
         set: 0,
-        transfer: Transfer {
-            bands: at_texels.bands,
-            channels: at_texels.channels,
-            vertex_count: (width * height) as usize,
-            coeffs: image,
-        },
+        transfer: Transfer::new(
+            at_texels.bands(),
+            at_texels.channels(),
+            (width * height) as usize,
+            image,
+        )
+        .expect("one row of coefficients for every texel"),
     };
     Ok((bake, report))
 }
@@ -240,19 +241,17 @@ pub fn leaking_or_covered_in(
 /// per-corner coordinates belong to.
 pub fn split_corners(scene: &Scene, transfer: &Transfer) -> (Scene, Transfer) {
     let corners = scene.triangles.iter().flatten().map(|&i| i as usize);
-    let stride = transfer.channels as usize * transfer.coeffs_per_channel();
+    let stride = transfer.channels() as usize * transfer.coeffs_per_channel();
     let coeffs: Vec<f32> = corners
         .flat_map(|i| {
-            transfer.coeffs[i * stride..(i + 1) * stride]
+            transfer.coeffs()[i * stride..(i + 1) * stride]
                 .iter()
                 .copied()
         })
         .collect();
-    let transfer = Transfer {
-        vertex_count: 3 * scene.triangles.len(),
-        coeffs,
-        ..transfer.clone()
-    };
+    let (bands, channels) = (transfer.bands(), transfer.channels());
+    let transfer = Transfer::new(bands, channels, 3 * scene.triangles.len(), coeffs)
+        .expect("a copy of a vertex's coefficients at every corner");
     (split_scene_corners(scene), transfer)
 }
 
@@ -326,19 +325,20 @@ mod tests {
     #[test]
     fn split_corners_keep_every_triangle_and_its_values() {
         let (scene, _) = prepare(builtin::icosphere(Vec3::ZERO, 1.0, 1)).unwrap();
-        let transfer = Transfer {
-            bands: 1,
-            channels: 1,
-            vertex_count: scene.vertex_count(),
-            coeffs: (0..scene.vertex_count()).map(|v| v as f32).collect(),
-        };
+        let transfer = Transfer::new(
+            1,
+            1,
+            scene.vertex_count(),
+            (0..scene.vertex_count()).map(|v| v as f32).collect(),
+        )
+        .expect("a value for each vertex");
         let (split, split_transfer) = split_corners(&scene, &transfer);
         assert_eq!(split.vertex_count(), 3 * scene.triangle_count());
         for (t, corners) in scene.triangles.iter().enumerate() {
             for (i, &v) in corners.iter().enumerate() {
                 let s = split.triangles[t][i] as usize;
                 assert_eq!(split.positions[s], scene.positions[v as usize]);
-                assert_eq!(split_transfer.coeffs[s], v as f32);
+                assert_eq!(split_transfer.coeffs()[s], v as f32);
             }
         }
     }

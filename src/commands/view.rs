@@ -156,7 +156,7 @@ pub(crate) fn run_export_x3d(args: X3dArgs) -> Result<()> {
         "exported {} vertices, {} bands x {} channel(s) in {} vertex attributes -> {}",
         baked.scene.vertex_count(),
         bands,
-        baked.transfer.channels,
+        baked.transfer.channels(),
         x3d::transfer_attributes(&baked),
         args.output.display()
     );

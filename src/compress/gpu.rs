@@ -214,8 +214,8 @@ mod tests {
 
     fn points(transfer: &Transfer) -> Points<'_> {
         Points {
-            data: &transfer.coeffs,
-            dimension: transfer.channels as usize * transfer.coeffs_per_channel(),
+            data: transfer.coeffs(),
+            dimension: transfer.channels() as usize * transfer.coeffs_per_channel(),
         }
     }
 
@@ -311,15 +311,17 @@ mod tests {
         );
         // Other points than were uploaded are refused, not misread.
         let half = Points {
-            data: &transfer.coeffs[..transfer.coeffs.len() / 2],
+            data: &transfer.coeffs()[..transfer.coeffs().len() / 2],
             dimension: points(&transfer).dimension,
         };
         assert!(compress_with(
-            &Transfer {
-                coeffs: half.data.to_vec(),
-                vertex_count: transfer.vertex_count / 2,
-                ..transfer.clone()
-            },
+            &Transfer::new(
+                transfer.bands(),
+                transfer.channels(),
+                transfer.vertex_count() / 2,
+                half.data.to_vec()
+            )
+            .expect("the first half of the vertices"),
             &options,
             &gpu
         )

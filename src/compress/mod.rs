@@ -91,7 +91,7 @@ pub fn compress_with(
     let points = checked_points(transfer, options)?;
     let (model, assignment) = compress_points(points, options, assigner)?;
     Ok(finish(
-        (transfer.bands, transfer.channels),
+        (transfer.bands(), transfer.channels()),
         points,
         &model,
         assignment,
@@ -175,7 +175,7 @@ pub fn refine(transfer: &Transfer, start: &Cpca, options: &CpcaOptions) -> Resul
         &CpuAssigner,
     )?;
     Ok(finish(
-        (transfer.bands, transfer.channels),
+        (transfer.bands(), transfer.channels()),
         points,
         &model,
         assignment,
@@ -230,36 +230,23 @@ fn narrow(values: &[f64]) -> Vec<f32> {
 /// The transfer as points, after checking it and the options.
 fn checked_points<'t>(transfer: &'t Transfer, options: &CpcaOptions) -> Result<Points<'t>> {
     check_transfer(transfer)?;
-    let dimension = transfer.channels as usize * transfer.coeffs_per_channel();
-    check_options(options, dimension, transfer.vertex_count)?;
+    let dimension = transfer.channels() as usize * transfer.coeffs_per_channel();
+    check_options(options, dimension, transfer.vertex_count())?;
     Ok(Points {
-        data: &transfer.coeffs,
+        data: transfer.coeffs(),
         dimension,
     })
 }
 
+/// Refuses a non-finite coefficient (the shape holds by construction).
 fn check_transfer(transfer: &Transfer) -> Result<()> {
-    if transfer.bands == 0 || transfer.channels == 0 {
-        return Err(Error::Options(format!(
-            "compress: transfer with {} bands and {} channels (need at least 1 of each)",
-            transfer.bands, transfer.channels
-        )));
-    }
-    let per_vertex = transfer.channels as usize * transfer.coeffs_per_channel();
-    if transfer.vertex_count.checked_mul(per_vertex) != Some(transfer.coeffs.len()) {
-        return Err(Error::Options(format!(
-            "compress: transfer holds {} coefficients, not vertices x channels x bands^2 = {} x {}",
-            transfer.coeffs.len(),
-            transfer.vertex_count,
-            per_vertex
-        )));
-    }
-    if let Some(i) = transfer.coeffs.iter().position(|c| !c.is_finite()) {
+    let per_vertex = transfer.channels() as usize * transfer.coeffs_per_channel();
+    if let Some(i) = transfer.coeffs().iter().position(|c| !c.is_finite()) {
         return Err(Error::Options(format!(
             "compress: transfer coefficient {} of vertex {} is {}",
             i % per_vertex,
             i / per_vertex,
-            transfer.coeffs[i]
+            transfer.coeffs()[i]
         )));
     }
     Ok(())
@@ -287,18 +274,18 @@ fn check_options(options: &CpcaOptions, dimension: usize, vertices: usize) -> Re
 }
 
 fn check_start(transfer: &Transfer, start: &Cpca, options: &CpcaOptions) -> Result<()> {
-    let same_layout = start.bands == transfer.bands
-        && start.channels == transfer.channels
-        && start.vertex_count() == transfer.vertex_count;
+    let same_layout = start.bands == transfer.bands()
+        && start.channels == transfer.channels()
+        && start.vertex_count() == transfer.vertex_count();
     if !same_layout {
         return Err(Error::Options(format!(
             "refine: a start of {} bands, {} channels, {} vertices for a transfer of {}, {}, {}",
             start.bands,
             start.channels,
             start.vertex_count(),
-            transfer.bands,
-            transfer.channels,
-            transfer.vertex_count
+            transfer.bands(),
+            transfer.channels(),
+            transfer.vertex_count()
         )));
     }
     start.check_shape()?;
@@ -380,12 +367,8 @@ impl Cpca {
                 }
                 out.iter_mut().zip(&sum).for_each(|(o, s)| *o = *s as f32);
             });
-        Transfer {
-            bands: self.bands,
-            channels: self.channels,
-            vertex_count: self.vertex_count(),
-            coeffs,
-        }
+        Transfer::new(self.bands, self.channels, self.vertex_count(), coeffs)
+            .expect("one reconstructed row for each vertex")
     }
 
     /// Per-vertex exit radiance as a run-time computes it: the light dotted into each
@@ -482,7 +465,7 @@ pub fn index_bytes(clusters: usize, precision: Precision) -> usize {
 
 /// Bytes of the transfer as float32: 4 per coefficient.
 pub fn uncompressed_bytes(transfer: &Transfer) -> usize {
-    4 * transfer.coeffs.len()
+    4 * transfer.coeffs().len()
 }
 
 /// `L_c = sum_k light[k][c] * t[c][k]` over the bands both have; channel `c` of a
@@ -516,8 +499,8 @@ fn check_light(light: &ShLight) -> Result<()> {
 pub fn relative_error(original: &Transfer, cpca: &Cpca) -> f64 {
     let reconstructed = cpca.reconstruct();
     relative_rms(
-        original.coeffs.iter().map(|&x| x as f64),
-        reconstructed.coeffs.iter().map(|&x| x as f64),
+        original.coeffs().iter().map(|&x| x as f64),
+        reconstructed.coeffs().iter().map(|&x| x as f64),
     )
 }
 
@@ -527,18 +510,18 @@ pub fn relative_error(original: &Transfer, cpca: &Cpca) -> f64 {
 pub fn relit_error(original: &Transfer, cpca: &Cpca, light: &ShLight) -> Result<f64> {
     check_transfer(original)?;
     let approximate = cpca.relight(light)?;
-    if approximate.len() != original.vertex_count {
+    if approximate.len() != original.vertex_count() {
         return Err(Error::Options(format!(
             "relit error: {} compressed vertices for {} original ones",
             approximate.len(),
-            original.vertex_count
+            original.vertex_count()
         )));
     }
-    let per_vertex = original.channels as usize * original.coeffs_per_channel();
+    let per_vertex = original.channels() as usize * original.coeffs_per_channel();
     let exact: Vec<[f32; 3]> = original
-        .coeffs
+        .coeffs()
         .par_chunks_exact(per_vertex.max(1))
-        .map(|t| vector_radiance(t, original.channels as usize, light))
+        .map(|t| vector_radiance(t, original.channels() as usize, light))
         .collect();
     Ok(radiance_error(&exact, &approximate))
 }
@@ -620,8 +603,8 @@ pub fn choose_with(
         )));
     }
     check_transfer(transfer)?;
-    let dimension = transfer.channels as usize * transfer.coeffs_per_channel();
-    let vertices = transfer.vertex_count;
+    let dimension = transfer.channels() as usize * transfer.coeffs_per_channel();
+    let vertices = transfer.vertex_count();
     let mut missed: Vec<(u32, u32)> = Vec::new();
     let mut best_missed = f64::INFINITY;
     for (clusters, components) in grid(dimension, vertices) {

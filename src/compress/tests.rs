@@ -133,12 +133,8 @@ fn affine_subspaces(clusters: usize, d: usize, per_cluster: usize, bands: u32) -
         }
         coeffs.extend(x.iter().map(|&x| x as f32));
     }
-    Transfer {
-        bands,
-        channels: 3,
-        vertex_count: clusters * per_cluster,
-        coeffs,
-    }
+    Transfer::new(bands, 3, clusters * per_cluster, coeffs)
+        .expect("a test transfer of its own shape")
 }
 
 #[test]
@@ -206,12 +202,7 @@ fn duplicate_points_fill_every_cluster() {
     // seeds, and the emptied clusters are re-seeded.
     let mut coeffs = vec![1.0f32; 10 * 3];
     coeffs.extend([2.0, 0.0, 0.0, 0.0, 5.0, 0.0]);
-    let transfer = Transfer {
-        bands: 1,
-        channels: 3,
-        vertex_count: 12,
-        coeffs,
-    };
+    let transfer = Transfer::new(1, 3, 12, coeffs).expect("a test transfer of its own shape");
     let cpca = compress(&transfer, &options(5, 1)).unwrap();
     let mut used = [false; 5];
     cpca.assignment
@@ -251,12 +242,13 @@ fn relight_equals_relighting_the_reconstruction() {
 #[test]
 fn one_channel_transfer_relights_all_three_channels() {
     let mut rng = Pcg32::new(8);
-    let transfer = Transfer {
-        bands: 3,
-        channels: 1,
-        vertex_count: 200,
-        coeffs: (0..200 * 9).map(|_| uniform(&mut rng, 1.0)).collect(),
-    };
+    let transfer = Transfer::new(
+        3,
+        1,
+        200,
+        (0..200 * 9).map(|_| uniform(&mut rng, 1.0)).collect(),
+    )
+    .expect("a test transfer of its own shape");
     let cpca = compress(&transfer, &options(5, 3)).unwrap();
     let light = busy_light(3);
     let got = cpca.relight(&light).unwrap();
@@ -268,7 +260,7 @@ fn one_channel_transfer_relights_all_three_channels() {
 fn sizes_follow_the_stated_formula() {
     let transfer = baked();
     let cpca = compress(transfer, &options(16, 4)).unwrap();
-    let vertices = transfer.vertex_count;
+    let vertices = transfer.vertex_count();
     assert_eq!(cpca.vertex_count(), vertices);
     assert_eq!(
         cpca.byte_size(Precision::F32),
@@ -314,7 +306,7 @@ fn rounding_to_half_floats_stays_within_its_bound() {
                 + (2f64.powi(-10) + 2f64.powi(-22)) * products
                 + (m + 1) as f64 * 2f64.powi(-25)
                 + 4.0 * f32::EPSILON as f64 * (mean.abs() + products);
-            let moved = (rounded.coeffs[v * n + k] - exact.coeffs[v * n + k]).abs() as f64;
+            let moved = (rounded.coeffs()[v * n + k] - exact.coeffs()[v * n + k]).abs() as f64;
             assert!(
                 moved <= bound,
                 "vertex {v}, value {k}: moved {moved:e} > {bound:e}"
@@ -369,17 +361,11 @@ fn bad_inputs_are_one_line_errors() {
     );
 
     let mut nan = transfer.clone();
-    nan.coeffs[7] = f32::NAN;
+    nan.coeffs_mut()[7] = f32::NAN;
     assert_one_line_error(
         compress(&nan, &options(2, 1)),
         "coefficient 1 of vertex 2 is NaN",
     );
-    let mut short = transfer.clone();
-    short.coeffs.pop();
-    assert_one_line_error(compress(&short, &options(2, 1)), "holds 29 coefficients");
-    let mut no_channels = transfer.clone();
-    no_channels.channels = 0;
-    assert_one_line_error(compress(&no_channels, &options(2, 1)), "0 channels");
 
     let start = compress(&transfer, &options(3, 1)).unwrap();
     assert_one_line_error(
@@ -436,7 +422,7 @@ fn dragon_compression_time_size_and_error() {
         let seconds = started.elapsed().as_secs_f64();
         println!(
             "dragon {} vertices, {clusters} x {components}: {seconds:.2} s, {} of {} bytes ({:.1}x), coefficient error {:.4}, relit error {:.4}",
-            transfer.vertex_count,
+            transfer.vertex_count(),
             cpca.byte_size(Precision::F32),
             uncompressed_bytes(&transfer),
             uncompressed_bytes(&transfer) as f64 / cpca.byte_size(Precision::F32) as f64,
@@ -462,12 +448,8 @@ fn wide_transfer_compression_time() {
             x.iter_mut().zip(d).for_each(|(x, d)| *x += w * d);
         }
     }
-    let transfer = Transfer {
-        bands: 16,
-        channels: 3,
-        vertex_count: vertices,
-        coeffs,
-    };
+    let transfer =
+        Transfer::new(16, 3, vertices, coeffs).expect("a test transfer of its own shape");
     let started = std::time::Instant::now();
     let cpca = compress(
         &transfer,
@@ -487,22 +469,22 @@ fn wide_transfer_compression_time() {
 #[test]
 fn rows_compress_as_transfer_does_and_entries_are_the_reconstruction() {
     let transfer = baked();
-    let dimension = transfer.channels as usize * transfer.coeffs_per_channel();
+    let dimension = transfer.channels() as usize * transfer.coeffs_per_channel();
     let shape = CpcaOptions {
         iterations: 3,
         ..options(5, 6)
     };
     let as_transfer = compress(transfer, &shape).unwrap();
-    let as_rows = compress_rows(&transfer.coeffs, dimension, &shape).unwrap();
+    let as_rows = compress_rows(transfer.coeffs(), dimension, &shape).unwrap();
     assert_eq!(as_rows.weights, as_transfer.weights);
     assert_eq!(as_rows.assignment, as_transfer.assignment);
     assert_eq!((as_rows.bands, as_rows.channels), (0, 0));
     // A row form is not SH transfer: relighting refuses it.
     assert!(as_rows.relight(&busy_light(2)).is_err());
     let reconstructed = as_transfer.reconstruct();
-    for v in (0..transfer.vertex_count).step_by(97) {
+    for v in (0..transfer.vertex_count()).step_by(97) {
         for i in 0..dimension {
-            let full = reconstructed.coeffs[v * dimension + i];
+            let full = reconstructed.coeffs()[v * dimension + i];
             let one = as_rows.entry(v, i);
             assert!(
                 (full - one).abs() <= 1e-5 * (1.0 + full.abs()),

@@ -10,40 +10,22 @@ pub(super) fn validate(baked: &BakedMesh) -> Result<()> {
     validate_transfer(&baked.transfer)
 }
 
-/// Checks what `encode_valid` relies on besides the transfer (which [`Stored::new`] checked),
-/// so encoding itself cannot fail halfway: the mesh, and that it carries the transfer.
+/// Checks what `encode_valid` relies on besides the transfer's values (which [`Stored::new`]
+/// checked), so encoding itself cannot fail halfway: the mesh, and that it carries the
+/// transfer's shape.
 pub(super) fn validate_mesh(baked: &BakedMesh) -> Result<()> {
-    validate_shape(Shape::of(baked))?;
-    if baked.transfer.vertex_count != baked.scene.positions.len() {
-        return Err(Error::Geometry(format!(
-            "the transfer is of {} vertices, the mesh has {}",
-            baked.transfer.vertex_count,
-            baked.scene.positions.len()
-        )));
-    }
-    Ok(())
+    validate_shape(Shape::of(baked))
 }
 
-/// Checks that `transfer` holds its vertices' coefficients, every one finite.
+/// Checks that every coefficient of `transfer` is finite (its shape holds by construction).
 pub(super) fn validate_transfer(transfer: &Transfer) -> Result<()> {
-    let v = transfer.vertex_count;
-    let expected = transfer_len(v, transfer.channels, transfer.bands);
-    if expected != Some(transfer.coeffs.len()) {
-        return Err(Error::Geometry(format!(
-            "the transfer holds {} coefficients, expected {v} vertices x {} channels x {} = {}",
-            transfer.coeffs.len(),
-            transfer.channels,
-            transfer.bands * transfer.bands,
-            expected.map_or_else(|| "too many".to_string(), |n| n.to_string())
-        )));
-    }
     check_finite_coeffs(transfer, 0)
 }
 
 /// Refuses a non-finite coefficient, naming its vertex (`first` is the first vertex's index).
 pub(super) fn check_finite_coeffs(transfer: &Transfer, first: usize) -> Result<()> {
-    if let Some(i) = transfer.coeffs.iter().position(|x| !x.is_finite()) {
-        let per_vertex = (transfer.channels * transfer.bands * transfer.bands) as usize;
+    if let Some(i) = transfer.coeffs().iter().position(|x| !x.is_finite()) {
+        let per_vertex = (transfer.channels() * transfer.bands() * transfer.bands()) as usize;
         return Err(Error::Geometry(format!(
             "non-finite transfer coefficient at vertex {}",
             first + i / per_vertex
@@ -57,8 +39,7 @@ pub(super) fn check_finite_coeffs(transfer: &Transfer, first: usize) -> Result<(
 #[derive(Clone, Copy)]
 pub(super) struct Shape<'a> {
     pub scene: &'a Scene,
-    /// Bands, channels and vertex count; the coefficients are not read.
-    pub transfer: &'a Transfer,
+    pub transfer: TransferShape,
     pub metadata: &'a BakeMetadata,
     pub lightmap: Option<&'a TexelBake>,
 }
@@ -67,7 +48,7 @@ impl<'a> Shape<'a> {
     pub fn of(baked: &'a BakedMesh) -> Shape<'a> {
         Shape {
             scene: &baked.scene,
-            transfer: &baked.transfer,
+            transfer: baked.transfer.shape(),
             metadata: &baked.metadata,
             lightmap: baked.lightmap.as_ref(),
         }
@@ -115,40 +96,49 @@ pub(super) fn validate_shape(shape: Shape) -> Result<()> {
             ));
         }
     }
-    if transfer.vertex_count != v {
+    if transfer.vertex_count() != v {
         return bad(format!(
             "the transfer covers {} vertices but the mesh has {v}",
-            transfer.vertex_count
+            transfer.vertex_count()
         ));
     }
-    if transfer.bands == 0 || transfer.bands > crate::sh::MAX_BANDS {
+    if transfer.bands() == 0 || transfer.bands() > crate::sh::MAX_BANDS {
         return bad(format!(
             "transfer has {} bands (1 to {} supported)",
-            transfer.bands,
+            transfer.bands(),
             crate::sh::MAX_BANDS
         ));
     }
-    if transfer.channels != 1 && transfer.channels != 3 {
+    if transfer.channels() != 1 && transfer.channels() != 3 {
         return bad(format!(
             "transfer has {} channels (1 or 3 supported)",
-            transfer.channels
+            transfer.channels()
         ));
     }
-    if meta.bands != transfer.bands || meta.channels != transfer.channels {
+    if meta.bands != transfer.bands() || meta.channels != transfer.channels() {
         return bad(format!(
             "metadata says {} bands and {} channels but the transfer has {} and {}",
-            meta.bands, meta.channels, transfer.bands, transfer.channels
+            meta.bands,
+            meta.channels,
+            transfer.bands(),
+            transfer.channels()
         ));
     }
     if let Some(texels) = shape.lightmap {
         validate_lightmap(texels, transfer, v).map_err(Error::Geometry)?;
     }
-    let bin = bin_len(v, scene.triangles.len(), transfer.channels, transfer.bands);
+    let bin = bin_len(
+        v,
+        scene.triangles.len(),
+        transfer.channels(),
+        transfer.bands(),
+    );
     // A GLB records its total length in 32 bits; keep a margin for the header and the JSON.
     if bin.is_none_or(|b| b > u32::MAX as usize - (64 << 20)) {
         return bad(format!(
             "{v} vertices with {} bands and {} channels exceed the 4 GiB limit of a .glb file",
-            transfer.bands, transfer.channels
+            transfer.bands(),
+            transfer.channels()
         ));
     }
     Ok(())
@@ -160,16 +150,18 @@ pub(super) fn validate_cpca(baked: &BakedMesh, cpca: &Cpca) -> std::result::Resu
     if baked.lightmap.is_some() {
         return Err("a lightmapped bake cannot be stored compressed".into());
     }
-    if (cpca.bands, cpca.channels, cpca.vertex_count()) != (t.bands, t.channels, t.vertex_count) {
+    if (cpca.bands, cpca.channels, cpca.vertex_count())
+        != (t.bands(), t.channels(), t.vertex_count())
+    {
         return Err(format!(
             "the compressed transfer has {} vertices of {} bands and {} channels, the mesh {} \
              of {} and {}",
             cpca.vertex_count(),
             cpca.bands,
             cpca.channels,
-            t.vertex_count,
-            t.bands,
-            t.channels
+            t.vertex_count(),
+            t.bands(),
+            t.channels()
         ));
     }
     Ok(())
@@ -179,7 +171,7 @@ pub(super) fn validate_cpca(baked: &BakedMesh, cpca: &Cpca) -> std::result::Resu
 /// texels of the vertex transfer's bands and channels.
 pub(super) fn validate_lightmap(
     texels: &TexelBake,
-    transfer: &Transfer,
+    transfer: TransferShape,
     v: usize,
 ) -> std::result::Result<(), String> {
     let map = &texels.transfer;
@@ -192,26 +184,21 @@ pub(super) fn validate_lightmap(
     if texels.texcoords.iter().flatten().any(|x| !x.is_finite()) {
         return Err("non-finite lightmap coordinates".into());
     }
-    if (map.bands, map.channels) != (transfer.bands, transfer.channels)
-        || map.vertex_count != texels.width as usize * texels.height as usize
+    if (map.bands(), map.channels()) != (transfer.bands(), transfer.channels())
+        || map.vertex_count() != texels.width as usize * texels.height as usize
     {
         return Err(format!(
             "the lightmap holds {} texels of {} bands and {} channels for a {}x{} map of {} and {}",
-            map.vertex_count,
-            map.bands,
-            map.channels,
+            map.vertex_count(),
+            map.bands(),
+            map.channels(),
             texels.width,
             texels.height,
-            transfer.bands,
-            transfer.channels
+            transfer.bands(),
+            transfer.channels()
         ));
     }
     Ok(())
-}
-
-pub(super) fn transfer_len(v: usize, channels: u32, bands: u32) -> Option<usize> {
-    v.checked_mul(channels as usize)?
-        .checked_mul((bands as usize).checked_mul(bands as usize)?)
 }
 
 pub(crate) fn groups(bands: u32) -> usize {

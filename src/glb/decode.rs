@@ -82,11 +82,16 @@ pub(super) fn decode_parts(
         }
         None => None,
     };
-    let mut coeffs = match &cpca {
-        Some(cpca) => cpca.reconstruct().coeffs,
-        None => vec![0f32; v * channels * n],
+    let mut transfer = match &cpca {
+        Some(cpca) => cpca.reconstruct(),
+        None => {
+            let zeros = vec![0f32; v * channels * n];
+            let shape = (plan.metadata.bands, plan.metadata.channels);
+            Transfer::new(shape.0, shape.1, v, zeros)
+                .map_err(|e| Error::baked(path, e.to_string()))?
+        }
     };
-    read_planar_transfer(bin, &plan, path, &mut coeffs)?;
+    read_planar_transfer(bin, &plan, path, transfer.coeffs_mut())?;
 
     let lightmap = match (plan.lightmap, &plan.texcoords) {
         (Some(extras), Some(span)) => Some((extras, read_texcoords(bin, span, path)?)),
@@ -99,12 +104,7 @@ pub(super) fn decode_parts(
             albedo,
             triangles,
         },
-        transfer: Transfer {
-            bands: plan.metadata.bands,
-            channels: plan.metadata.channels,
-            vertex_count: v,
-            coeffs,
-        },
+        transfer,
         metadata: plan.metadata,
         lightmap: None,
     };

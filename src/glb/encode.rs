@@ -118,8 +118,8 @@ pub(super) fn encode_bin(
     let capacity = bin_len(
         scene.positions.len(),
         scene.triangles.len(),
-        transfer.channels,
-        transfer.bands,
+        transfer.channels(),
+        transfer.bands(),
     );
     let mut bin = Vec::with_capacity(capacity.unwrap_or(0));
     let mut views = encode_mesh_views(scene, &mut bin);
@@ -206,8 +206,8 @@ pub(super) fn array_view(
 /// Appends `transfer` in the planar layout at `precision` ([`TRANSFER_LAYOUT`],
 /// [`TRANSFER_LAYOUT_F16`]).
 pub(super) fn put_planar_transfer(bin: &mut Vec<u8>, transfer: &Transfer, precision: Precision) {
-    for channel in 0..transfer.channels as usize {
-        for group in 0..groups(transfer.bands) {
+    for channel in 0..transfer.channels() as usize {
+        for group in 0..groups(transfer.bands()) {
             put_planar_block(bin, transfer, channel, group, precision);
         }
     }
@@ -222,7 +222,7 @@ pub(super) fn put_planar_block(
     group: usize,
     precision: Precision,
 ) {
-    for vertex in 0..transfer.vertex_count {
+    for vertex in 0..transfer.vertex_count() {
         let coeffs = transfer.vertex_channel(vertex, channel);
         let lanes = std::array::from_fn::<f32, 4, _>(|lane| {
             coeffs.get(4 * group + lane).copied().unwrap_or(0.0)
@@ -238,17 +238,17 @@ pub(super) fn accessors_and_attributes(
 ) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
     let (scene, transfer) = (shape.scene, shape.transfer);
     let v = scene.positions.len();
-    let groups = groups(transfer.bands);
+    let groups = groups(transfer.bands());
     let (mut accessors, mut attributes) = mesh_accessors(scene);
     let planar_channels = if planar {
-        transfer.channels as usize
+        transfer.channels() as usize
     } else {
         0
     };
     for channel in 0..planar_channels {
         for group in 0..groups {
             let block = channel * groups + group;
-            let name = transfer_attribute_name(transfer.channels, channel as u32, group);
+            let name = transfer_attribute_name(transfer.channels(), channel as u32, group);
             attributes.insert(name, accessors.len());
             accessors.push(accessor(TRANSFER_VIEW, block * v * 16, FLOAT, v, "VEC4"));
         }

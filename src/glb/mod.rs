@@ -28,7 +28,7 @@ use std::path::Path;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use crate::bake::{BakeMetadata, BakedMesh, TexelBake, Transfer};
+use crate::bake::{BakeMetadata, BakedMesh, TexelBake, Transfer, TransferShape};
 use crate::compress::Cpca;
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
@@ -75,10 +75,10 @@ pub use crate::precision::Precision;
 
 /// `transfer` as a half-float file stores it: every coefficient rounded to the nearest f16.
 pub fn rounded_to_f16(transfer: &Transfer) -> Transfer {
-    Transfer {
-        coeffs: Precision::F16.round_all(&transfer.coeffs),
-        ..transfer.clone()
-    }
+    let rounded = Precision::F16.round_all(transfer.coeffs());
+    let (bands, channels) = (transfer.bands(), transfer.channels());
+    Transfer::new(bands, channels, transfer.vertex_count(), rounded)
+        .expect("one rounded value for each coefficient")
 }
 
 /// Reads a baked file with Python and numpy alone: `python3 reader.py file.glb`.
@@ -152,9 +152,9 @@ fn lightmap_of(texels: &TexelBake) -> crate::lightmap::Lightmap {
     crate::lightmap::Lightmap {
         width: texels.width,
         height: texels.height,
-        bands: texels.transfer.bands,
-        channels: texels.transfer.channels,
-        coefficients: texels.transfer.coeffs.clone(),
+        bands: texels.transfer.bands(),
+        channels: texels.transfer.channels(),
+        coefficients: texels.transfer.coeffs().to_vec(),
     }
 }
 
@@ -211,8 +211,8 @@ fn read_texels(
     let expected = (
         extras.width,
         extras.height,
-        baked.transfer.bands,
-        baked.transfer.channels,
+        baked.transfer.bands(),
+        baked.transfer.channels(),
     );
     if (map.width, map.height, map.bands, map.channels) != expected {
         return Err(Error::baked(
@@ -236,12 +236,13 @@ fn read_texels(
         height: map.height,
         texcoords,
         set: extras.texcoord,
-        transfer: Transfer {
-            bands: map.bands,
-            channels: map.channels,
-            vertex_count: (map.width * map.height) as usize,
-            coeffs: map.coefficients,
-        },
+        transfer: Transfer::new(
+            map.bands,
+            map.channels,
+            (map.width * map.height) as usize,
+            map.coefficients,
+        )
+        .map_err(|e| Error::baked(&exr_path, e.to_string()))?,
     })
 }
 
@@ -372,12 +373,8 @@ mod tests {
                 albedo: vec![Vec3::splat(0.8), Vec3::new(0.1, 0.2, 0.3), Vec3::ONE],
                 triangles: vec![[0, 1, 2]],
             },
-            transfer: Transfer {
-                bands,
-                channels,
-                vertex_count: v,
-                coeffs,
-            },
+            transfer: Transfer::new(bands, channels, v, coeffs)
+                .expect("a test mesh of its own shape"),
             metadata: BakeMetadata {
                 tool: "prt-gpu".into(),
                 tool_version: env!("CARGO_PKG_VERSION").into(),
@@ -470,17 +467,16 @@ mod tests {
     fn invalid_meshes_are_refused() {
         let mut no_normals = sample(3);
         no_normals.scene.normals = None;
-        let mut short = sample(3);
-        short.transfer.coeffs.pop();
         let mut count = sample(3);
-        count.transfer.vertex_count = 4;
+        let shape = (count.transfer.bands(), count.transfer.channels());
+        count.transfer = Transfer::zeros(shape.0, shape.1, 4);
         let mut index = sample(3);
         index.scene.triangles[0][2] = 3;
         let mut nan = sample(3);
-        nan.transfer.coeffs[5] = f32::NAN;
+        nan.transfer.coeffs_mut()[5] = f32::NAN;
         let mut meta = sample(3);
         meta.metadata.bands = 4;
-        for baked in [no_normals, short, count, index, nan, meta] {
+        for baked in [no_normals, count, index, nan, meta] {
             let err = Stored::plain(&baked)
                 .and_then(encode_glb)
                 .unwrap_err()
@@ -596,7 +592,7 @@ mod tests {
 
         // Invalid input fails before anything is created.
         let mut bad = sample(3);
-        bad.transfer.coeffs.clear();
+        bad.transfer.coeffs_mut()[0] = f32::INFINITY;
         assert!(Stored::plain(&bad).is_err());
         assert_eq!(entries(tmp.path()), ["taken.glb"]);
     }

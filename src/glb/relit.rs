@@ -369,12 +369,8 @@ mod tests {
         let (scene, _) = crate::scene::prepare::prepare(scene).unwrap();
         let v = scene.positions.len();
         let baked = BakedMesh {
-            transfer: Transfer {
-                bands: 1,
-                channels: 1,
-                vertex_count: v,
-                coeffs: vec![0.5; v],
-            },
+            transfer: Transfer::new(1, 1, v, vec![0.5; v])
+                .expect("a test transfer of its own shape"),
             metadata: BakeMetadata {
                 tool: "prt-gpu".into(),
                 tool_version: "test".into(),

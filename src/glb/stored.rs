@@ -49,8 +49,8 @@ impl<'a> Stored<'a> {
     }
 
     /// A file whose coefficients come later, chunk by chunk (a streamed bake): `shape` has the
-    /// transfer's bands, channels and vertex count, and no coefficients, which are checked as
-    /// each chunk comes.
+    /// transfer's bands and channels and no coefficients, which are checked as each chunk
+    /// comes.
     pub(super) fn streamed(shape: &'a BakedMesh, precision: Precision) -> Stored<'a> {
         Stored {
             baked: shape,

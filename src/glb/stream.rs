@@ -20,6 +20,7 @@ use crate::bake::spill::Spill;
 use crate::bake::stream::{Interreflected, StreamedBake};
 use crate::bake::{
     truncate_bands, Backend, BakeMetadata, BakeReport, BandEnergy, Mode, Progress, Transfer,
+    TransferShape,
 };
 use crate::error::{Error, Result};
 use crate::fs::AtomicFile;
@@ -47,7 +48,7 @@ impl GlbStream {
         let v = shape.scene.positions.len();
         let mut bin = Vec::new();
         let mut views = encode_mesh_views(shape.scene, &mut bin);
-        let transfer_len = planar_bytes(v, transfer.channels, transfer.bands, precision)
+        let transfer_len = planar_bytes(v, transfer.channels(), transfer.bands(), precision)
             .expect("validate_shape bounds the file's size");
         views.push(planar_view(bin.len(), transfer_len, precision));
         let bin_len = bin.len() + transfer_len;
@@ -63,20 +64,23 @@ impl GlbStream {
             file,
             transfer_start: (head.len() + bin.len()) as u64,
             vertices: v,
-            channels: transfer.channels,
-            bands: transfer.bands,
+            channels: transfer.channels(),
+            bands: transfer.bands(),
             precision,
         })
     }
 
     /// Writes the transfer of the vertices `first..first + chunk.vertex_count`.
     fn put(&mut self, first: usize, chunk: &Transfer) -> Result<()> {
-        assert_eq!((chunk.bands, chunk.channels), (self.bands, self.channels));
-        assert!(first + chunk.vertex_count <= self.vertices);
+        assert_eq!(
+            (chunk.bands(), chunk.channels()),
+            (self.bands, self.channels)
+        );
+        assert!(first + chunk.vertex_count() <= self.vertices);
         check_finite_coeffs(chunk, first)?;
         // One vertex's four lanes of a block.
         let lanes = 4 * self.precision.bytes();
-        let mut block = Vec::with_capacity(lanes * chunk.vertex_count);
+        let mut block = Vec::with_capacity(lanes * chunk.vertex_count());
         for channel in 0..self.channels as usize {
             for group in 0..groups(self.bands) {
                 block.clear();
@@ -125,17 +129,13 @@ impl<'m> Streaming<'m> {
         vertex_map: &'m [u32],
         chunk: usize,
     ) -> Result<Streaming<'m>> {
-        let shape_transfer = Transfer {
-            bands: metadata.bands,
-            channels: metadata.channels,
-            vertex_count: bake.scene().vertex_count(),
-            coeffs: Vec::new(),
-        };
+        let (bands, channels) = (metadata.bands, metadata.channels);
+        let shape_transfer = TransferShape::new(bands, channels, bake.scene().vertex_count());
         Ok(match sink.scene {
             None => {
                 let shape = Shape {
                     scene: bake.scene(),
-                    transfer: &shape_transfer,
+                    transfer: shape_transfer,
                     metadata,
                     lightmap: None,
                 };
@@ -318,7 +318,7 @@ impl HeldChunks {
         for range in ranges {
             let transfer = next_chunk(range.clone())?;
             energy.add(&transfer);
-            spill.append(&transfer.coeffs)?;
+            spill.append(transfer.coeffs())?;
         }
         let (bands, beyond) = match threshold {
             Some(threshold) => energy.choose(threshold),
@@ -336,12 +336,13 @@ impl HeldChunks {
     fn read(&mut self, range: Range<usize>, channels: u32) -> Result<Transfer> {
         let per_vertex = channels as usize * coeff_count(self.baked_bands);
         let at = (range.start * per_vertex * 4) as u64;
-        let baked = Transfer {
-            bands: self.baked_bands,
+        let baked = Transfer::new(
+            self.baked_bands,
             channels,
-            vertex_count: range.len(),
-            coeffs: self.spill.read_vec(at, range.len() * per_vertex)?,
-        };
+            range.len(),
+            self.spill.read_vec(at, range.len() * per_vertex)?,
+        )
+        .expect("the spilled chunk's rows");
         Ok(truncate_bands(&baked, self.bands))
     }
 }

@@ -18,10 +18,10 @@ pub fn relight(transfer: &Transfer, light: &ShLight) -> Result<Vec<[f32; 3]>> {
     check_transfer(transfer)?;
     check_light(light)?;
     let per_channel = transfer.coeffs_per_channel();
-    let channels = transfer.channels as usize;
+    let channels = transfer.channels() as usize;
     let light = &light.coeffs[..per_channel.min(light.coeffs.len())];
     Ok(transfer
-        .coeffs
+        .coeffs()
         .par_chunks_exact(per_channel * channels)
         // Vertices are tiny work items; batching keeps rayon's bookkeeping below the work.
         .with_min_len(1024)
@@ -64,23 +64,12 @@ fn vertex_radiance(vertex: &[f32], per_channel: usize, light: &[[f32; 3]]) -> [f
     })
 }
 
+/// Refuses channels other than RGB and lean (the shape itself holds by construction).
 fn check_transfer(transfer: &Transfer) -> Result<()> {
-    if transfer.bands == 0 || !matches!(transfer.channels, 1 | 3) {
+    if !matches!(transfer.channels(), 1 | 3) {
         return Err(Error::Options(format!(
-            "relight: transfer with {} bands and {} channels (need at least 1 band, 1 or 3 channels)",
-            transfer.bands, transfer.channels
-        )));
-    }
-    let expected = transfer
-        .vertex_count
-        .checked_mul(transfer.channels as usize * transfer.coeffs_per_channel());
-    if expected != Some(transfer.coeffs.len()) {
-        return Err(Error::Options(format!(
-            "relight: transfer holds {} coefficients, not vertices x channels x bands^2 = {} x {} x {}",
-            transfer.coeffs.len(),
-            transfer.vertex_count,
-            transfer.channels,
-            transfer.coeffs_per_channel()
+            "relight: transfer with {} channels (1 or 3)",
+            transfer.channels()
         )));
     }
     Ok(())
@@ -168,13 +157,7 @@ mod tests {
     #[test]
     fn relight_rejects_inconsistent_inputs() {
         let light = ShLight::constant(2, [1.0; 3]);
-        let mut short = transfer(2, 3, vec![0.0; 24]);
-        short.coeffs.pop();
-        assert!(relight(&short, &light).is_err());
         assert!(relight(&transfer(2, 2, vec![0.0; 16]), &light).is_err());
-        let mut no_bands = transfer(2, 3, vec![0.0; 24]);
-        no_bands.bands = 0;
-        assert!(relight(&no_bands, &light).is_err());
         let bad_light = ShLight {
             bands: 2,
             coeffs: vec![[1.0; 3]; 3],

@@ -235,7 +235,7 @@ fn non_finite_baked(baked: &BakedMesh) -> Option<String> {
     non_finite("position", vectors(&scene.positions))
         .or_else(|| non_finite("normal", vectors(scene.normals.as_deref().unwrap_or(&[]))))
         .or_else(|| non_finite("albedo", vectors(&scene.albedo)))
-        .or_else(|| non_finite("transfer", &baked.transfer.coeffs))
+        .or_else(|| non_finite("transfer", baked.transfer.coeffs()))
 }
 
 /// The first non-finite float in any float accessor of a `.glb` the tool wrote.

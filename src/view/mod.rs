@@ -243,26 +243,24 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
     let baked = bake.baked;
     let transfer = &baked.transfer;
     let refuse = |why: String| Err(Error::Options(format!("view: {}: {why}", bake.name)));
-    if transfer.bands == 0 || transfer.vertex_count == 0 || transfer.coeffs.is_empty() {
+    if transfer.vertex_count() == 0 {
         return refuse("holds no transfer".into());
     }
-    if transfer.bands > light_bands {
+    if transfer.bands() > light_bands {
         return refuse(format!(
             "baked with {} bands, but the light has only {light_bands}: project the light at {} bands or more",
-            transfer.bands, transfer.bands
+            transfer.bands(), transfer.bands()
         ));
     }
-    if !matches!(transfer.channels, 1 | 3)
-        || transfer.vertex_count != baked.scene.vertex_count()
-        || transfer.coeffs.len()
-            != transfer.vertex_count * transfer.channels as usize * transfer.coeffs_per_channel()
+    if !matches!(transfer.channels(), 1 | 3)
+        || transfer.vertex_count() != baked.scene.vertex_count()
     {
         return refuse("its transfer does not match its vertices".into());
     }
     if baked.scene.triangles.is_empty() {
         return refuse("has no triangles".into());
     }
-    if !transfer.coeffs.iter().all(|c| c.is_finite())
+    if !transfer.coeffs().iter().all(|c| c.is_finite())
         || !baked.scene.positions.iter().all(|p| p.is_finite())
     {
         return refuse("holds non-finite positions or transfer".into());
@@ -280,15 +278,15 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
     Ok(PageBake {
         name: bake.name.clone(),
         mode: baked.metadata.mode.name(),
-        bands: transfer.bands,
-        channels: transfer.channels,
-        vertices: transfer.vertex_count,
+        bands: transfer.bands(),
+        channels: transfer.channels(),
+        vertices: transfer.vertex_count(),
         triangles: baked.scene.triangles.len(),
         bounds_min: min.to_array(),
         bounds_max: max.to_array(),
         positions: base64_f32(baked.scene.positions.iter().flat_map(Vec3::to_array)),
         indices: base64_u32(baked.scene.triangles.iter().flatten().copied()),
-        transfer: base64_f32(transfer.coeffs.iter().copied()),
+        transfer: base64_f32(transfer.coeffs().iter().copied()),
         albedo,
         lightmap,
     })
@@ -297,19 +295,18 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
 /// A lightmap's texels for the page, refused where they do not match the mesh.
 fn page_lightmap(texels: &TexelBake) -> std::result::Result<PageLightmap, String> {
     let transfer = &texels.transfer;
-    let per_texel = transfer.channels as usize * transfer.coeffs_per_channel();
-    let expected = texels.width as usize * texels.height as usize * per_texel;
-    if texels.width == 0 || texels.height == 0 || transfer.coeffs.len() != expected {
+    let texel_count = texels.width as usize * texels.height as usize;
+    if texel_count == 0 || transfer.vertex_count() != texel_count {
         return Err("its lightmap's texels do not match its size".into());
     }
-    if !transfer.coeffs.iter().all(|c| c.is_finite()) {
+    if !transfer.coeffs().iter().all(|c| c.is_finite()) {
         return Err("its lightmap holds non-finite transfer".into());
     }
     Ok(PageLightmap {
         width: texels.width,
         height: texels.height,
         texcoords: base64_f32(texels.texcoords.iter().flatten().copied()),
-        transfer: base64_f32(transfer.coeffs.iter().copied()),
+        transfer: base64_f32(transfer.coeffs().iter().copied()),
     })
 }
 
@@ -396,7 +393,7 @@ mod tests {
             None,
         )
         .unwrap();
-        assert_eq!(embedded_floats(&html, "transfer"), baked.transfer.coeffs);
+        assert_eq!(embedded_floats(&html, "transfer"), baked.transfer.coeffs());
         let positions: Vec<f32> = baked
             .scene
             .positions
@@ -439,17 +436,10 @@ mod tests {
         });
         let refused = viewer(&texels, &ShLight::constant(3, [1.0; 3])).unwrap_err();
         assert!(refused.to_string().contains("lightmap"), "{refused}");
-        texels
-            .lightmap
-            .as_mut()
-            .unwrap()
-            .transfer
-            .coeffs
-            .truncate(9 * 3);
+        texels.lightmap.as_mut().unwrap().transfer = crate::bake::Transfer::zeros(3, 3, 1);
         assert!(viewer(&texels, &ShLight::constant(3, [1.0; 3])).is_ok());
         let mut empty = baked.clone();
-        empty.transfer.coeffs.clear();
-        empty.transfer.vertex_count = 0;
+        empty.transfer = crate::bake::Transfer::zeros(3, 3, 0);
         assert!(viewer(&empty, &ShLight::constant(3, [1.0; 3])).is_err());
         assert!(viewer_html(&[], &ShLight::constant(3, [1.0; 3]), None).is_err());
     }

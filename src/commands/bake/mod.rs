@@ -211,7 +211,7 @@ pub(crate) fn bake_one(
     if let Some(written) = written {
         print_in_place_report(&written, seconds_load, seconds_write);
     }
-    let bands = baked.mesh.transfer.bands;
+    let bands = baked.mesh.transfer.bands();
     print_bake_report(&name, spec, bands, &baked.report, &output_path, merged_from);
     Ok(())
 }

@@ -669,18 +669,18 @@ fn push_transfer(
     (vertex_map, vertices): (&[u32], Range<usize>),
     precision: Precision,
 ) -> u32 {
-    let groups = groups(transfer.bands);
+    let groups = groups(transfer.bands());
     let (stride, target) = match precision {
         Precision::F32 => (Some(16), Some(Target::ArrayBuffer)),
         Precision::F16 => (None, None),
     };
-    let len = transfer.channels as usize * groups * vertices.len() * 4 * precision.bytes();
+    let len = transfer.channels() as usize * groups * vertices.len() * 4 * precision.bytes();
     if bin.streaming {
         return bin.reserve(len, vertices, stride, target);
     }
     let map = &vertex_map[vertices];
     let mut bytes = Vec::with_capacity(len);
-    for channel in 0..transfer.channels as usize {
+    for channel in 0..transfer.channels() as usize {
         for group in 0..groups {
             put_plane(&mut bytes, transfer, map, (channel, group), precision);
         }
@@ -717,8 +717,8 @@ fn add_attributes(
     view: u32,
     vertices: usize,
 ) {
-    let groups = groups(transfer.bands);
-    for channel in 0..transfer.channels {
+    let groups = groups(transfer.bands());
+    for channel in 0..transfer.channels() {
         for group in 0..groups {
             let block = channel as usize * groups + group;
             accessors.push(gltf_json::Accessor {
@@ -735,7 +735,7 @@ fn add_attributes(
                 normalized: false,
                 sparse: None,
             });
-            let name = transfer_attribute_name(transfer.channels, channel, group);
+            let name = transfer_attribute_name(transfer.channels(), channel, group);
             let semantic = Semantic::Extras(name.trim_start_matches('_').to_string());
             primitive.attributes.insert(
                 Checked::Valid(semantic),

@@ -188,7 +188,7 @@ fn gather_transfer(
                     compressed::decode_with(&view, &extras, shape, precision).map_err(in_mesh)?;
                 let stride = channels as usize * per_channel;
                 coeffs[span.first * stride..(span.first + span.count) * stride]
-                    .copy_from_slice(&cpca.reconstruct().coeffs);
+                    .copy_from_slice(cpca.reconstruct().coeffs());
                 continue;
             }
             let shape = (channels as usize, groups, span.count);
@@ -212,12 +212,10 @@ fn gather_transfer(
             }
         }
     }
-    Ok(Transfer {
-        bands,
-        channels,
-        vertex_count: scene.positions.len(),
-        coeffs,
-    })
+    Ok(
+        Transfer::new(bands, channels, scene.positions.len(), coeffs)
+            .expect("one row of coefficients for every scene vertex"),
+    )
 }
 
 /// The compressed transfer a primitive's `extras.prt.cpca` describes, if any, and its precision.

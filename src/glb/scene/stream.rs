@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use super::{encode_scene, put_plane, Bin, SceneWrite};
 use crate::bake::spill::Spill;
-use crate::bake::{BakeMetadata, BakedMesh, Transfer};
+use crate::bake::{BakeMetadata, BakedMesh, Transfer, TransferShape};
 use crate::error::Result;
 use crate::fs::{check_destination, AtomicFile};
 use crate::glb::{check_finite_coeffs, glb_head, groups, Stored};
@@ -29,7 +29,7 @@ pub struct SceneStream<'m> {
     spill: Spill,
     /// Baked vertices put so far.
     put: usize,
-    shape: Transfer,
+    shape: TransferShape,
     precision: Precision,
     /// Scene vertices per block when the views are filled.
     block: usize,
@@ -45,16 +45,19 @@ impl<'m> SceneStream<'m> {
     pub fn create(
         path: &Path,
         gltf: &GltfScene,
-        (shape, metadata): (Transfer, &BakeMetadata),
+        (shape, metadata): (TransferShape, &BakeMetadata),
         precision: Precision,
         vertex_map: &'m [u32],
         block: usize,
     ) -> Result<SceneStream<'m>> {
         let started = Instant::now();
         check_destination(path)?;
+        // The document names the transfer's attributes and reserves its views; it reads no
+        // coefficient, so its mesh holds a transfer of the shape's bands and channels for no
+        // receiver.
         let baked = BakedMesh {
             scene: Scene::default(),
-            transfer: shape,
+            transfer: Transfer::zeros(shape.bands(), shape.channels(), 0),
             metadata: metadata.clone(),
             lightmap: None,
         };
@@ -81,7 +84,7 @@ impl<'m> SceneStream<'m> {
             vertex_map,
             spill: Spill::new()?,
             put: 0,
-            shape: baked.transfer,
+            shape,
             precision,
             block: block.max(1),
             report,
@@ -94,12 +97,12 @@ impl<'m> SceneStream<'m> {
     pub fn put(&mut self, first: usize, chunk: &Transfer) -> Result<()> {
         assert_eq!(first, self.put, "chunks come in order");
         assert_eq!(
-            (chunk.bands, chunk.channels),
-            (self.shape.bands, self.shape.channels)
+            (chunk.bands(), chunk.channels()),
+            (self.shape.bands(), self.shape.channels())
         );
         check_finite_coeffs(chunk, first)?;
-        self.spill.append(&chunk.coeffs)?;
-        self.put += chunk.vertex_count;
+        self.spill.append(chunk.coeffs())?;
+        self.put += chunk.vertex_count();
         Ok(())
     }
 
@@ -107,7 +110,7 @@ impl<'m> SceneStream<'m> {
     /// wrote, and the seconds writing took.
     pub fn commit(mut self) -> Result<(SceneWrite, f64)> {
         let started = Instant::now();
-        let (channels, groups) = (self.shape.channels as usize, groups(self.shape.bands));
+        let (channels, groups) = (self.shape.channels() as usize, groups(self.shape.bands()));
         let per_vertex = channels * self.shape.coeffs_per_channel();
         let lanes = 4 * self.precision.bytes();
         for (at, vertices) in std::mem::take(&mut self.views) {
@@ -148,11 +151,9 @@ impl<'m> SceneStream<'m> {
             self.spill.read_at(at, row)?;
             map.push(k as u32);
         }
-        let block = Transfer {
-            vertex_count: map.len(),
-            coeffs,
-            ..self.shape.clone()
-        };
+        let (bands, channels) = (self.shape.bands(), self.shape.channels());
+        let block = Transfer::new(bands, channels, map.len(), coeffs)
+            .expect("a row of coefficients for every vertex of the block");
         Ok((block, map))
     }
 }

@@ -25,32 +25,12 @@ pub struct Transfer {
 /// is decided by before they are baked (a streamed bake).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TransferShape {
-    bands: u32,
-    channels: u32,
-    vertex_count: usize,
+    pub bands: u32,
+    pub channels: u32,
+    pub vertex_count: usize,
 }
 
 impl TransferShape {
-    pub fn new(bands: u32, channels: u32, vertex_count: usize) -> TransferShape {
-        TransferShape {
-            bands,
-            channels,
-            vertex_count,
-        }
-    }
-
-    pub fn bands(&self) -> u32 {
-        self.bands
-    }
-
-    pub fn channels(&self) -> u32 {
-        self.channels
-    }
-
-    pub fn vertex_count(&self) -> usize {
-        self.vertex_count
-    }
-
     pub fn coeffs_per_channel(&self) -> usize {
         (self.bands * self.bands) as usize
     }
@@ -116,7 +96,11 @@ impl Transfer {
     }
 
     pub fn shape(&self) -> TransferShape {
-        TransferShape::new(self.bands, self.channels, self.vertex_count)
+        TransferShape {
+            bands: self.bands,
+            channels: self.channels,
+            vertex_count: self.vertex_count,
+        }
     }
 
     /// Every coefficient, in the layout above.
@@ -293,7 +277,8 @@ mod transfer_tests {
         let two_vertices = Transfer::new(2, 3, 2, vec![0.5; 24]).unwrap();
         assert_eq!(two_vertices.vertex(1), &[0.5; 12]);
         assert_eq!(two_vertices.vertex_channel(1, 2), &[0.5; 4]);
-        assert_eq!(two_vertices.shape(), TransferShape::new(2, 3, 2));
+        let shape = two_vertices.shape();
+        assert_eq!((shape.bands, shape.channels, shape.vertex_count), (2, 3, 2));
         let short = Transfer::new(2, 3, 2, vec![0.5; 23])
             .unwrap_err()
             .to_string();

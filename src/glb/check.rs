@@ -96,49 +96,40 @@ pub(super) fn validate_shape(shape: Shape) -> Result<()> {
             ));
         }
     }
-    if transfer.vertex_count() != v {
+    if transfer.vertex_count != v {
         return bad(format!(
             "the transfer covers {} vertices but the mesh has {v}",
-            transfer.vertex_count()
+            transfer.vertex_count
         ));
     }
-    if transfer.bands() == 0 || transfer.bands() > crate::sh::MAX_BANDS {
+    if transfer.bands == 0 || transfer.bands > crate::sh::MAX_BANDS {
         return bad(format!(
             "transfer has {} bands (1 to {} supported)",
-            transfer.bands(),
+            transfer.bands,
             crate::sh::MAX_BANDS
         ));
     }
-    if transfer.channels() != 1 && transfer.channels() != 3 {
+    if transfer.channels != 1 && transfer.channels != 3 {
         return bad(format!(
             "transfer has {} channels (1 or 3 supported)",
-            transfer.channels()
+            transfer.channels
         ));
     }
-    if meta.bands != transfer.bands() || meta.channels != transfer.channels() {
+    if meta.bands != transfer.bands || meta.channels != transfer.channels {
         return bad(format!(
             "metadata says {} bands and {} channels but the transfer has {} and {}",
-            meta.bands,
-            meta.channels,
-            transfer.bands(),
-            transfer.channels()
+            meta.bands, meta.channels, transfer.bands, transfer.channels
         ));
     }
     if let Some(texels) = shape.lightmap {
         validate_lightmap(texels, transfer, v).map_err(Error::Geometry)?;
     }
-    let bin = bin_len(
-        v,
-        scene.triangles.len(),
-        transfer.channels(),
-        transfer.bands(),
-    );
+    let bin = bin_len(v, scene.triangles.len(), transfer.channels, transfer.bands);
     // A GLB records its total length in 32 bits; keep a margin for the header and the JSON.
     if bin.is_none_or(|b| b > u32::MAX as usize - (64 << 20)) {
         return bad(format!(
             "{v} vertices with {} bands and {} channels exceed the 4 GiB limit of a .glb file",
-            transfer.bands(),
-            transfer.channels()
+            transfer.bands, transfer.channels
         ));
     }
     Ok(())
@@ -184,7 +175,7 @@ pub(super) fn validate_lightmap(
     if texels.texcoords.iter().flatten().any(|x| !x.is_finite()) {
         return Err("non-finite lightmap coordinates".into());
     }
-    if (map.bands(), map.channels()) != (transfer.bands(), transfer.channels())
+    if (map.bands(), map.channels()) != (transfer.bands, transfer.channels)
         || map.vertex_count() != texels.width as usize * texels.height as usize
     {
         return Err(format!(
@@ -194,8 +185,8 @@ pub(super) fn validate_lightmap(
             map.channels(),
             texels.width,
             texels.height,
-            transfer.bands(),
-            transfer.channels()
+            transfer.bands,
+            transfer.channels
         ));
     }
     Ok(())

@@ -238,17 +238,17 @@ pub(super) fn accessors_and_attributes(
 ) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
     let (scene, transfer) = (shape.scene, shape.transfer);
     let v = scene.positions.len();
-    let groups = groups(transfer.bands());
+    let groups = groups(transfer.bands);
     let (mut accessors, mut attributes) = mesh_accessors(scene);
     let planar_channels = if planar {
-        transfer.channels() as usize
+        transfer.channels as usize
     } else {
         0
     };
     for channel in 0..planar_channels {
         for group in 0..groups {
             let block = channel * groups + group;
-            let name = transfer_attribute_name(transfer.channels(), channel as u32, group);
+            let name = transfer_attribute_name(transfer.channels, channel as u32, group);
             attributes.insert(name, accessors.len());
             accessors.push(accessor(TRANSFER_VIEW, block * v * 16, FLOAT, v, "VEC4"));
         }

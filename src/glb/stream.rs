@@ -48,7 +48,7 @@ impl GlbStream {
         let v = shape.scene.positions.len();
         let mut bin = Vec::new();
         let mut views = encode_mesh_views(shape.scene, &mut bin);
-        let transfer_len = planar_bytes(v, transfer.channels(), transfer.bands(), precision)
+        let transfer_len = planar_bytes(v, transfer.channels, transfer.bands, precision)
             .expect("validate_shape bounds the file's size");
         views.push(planar_view(bin.len(), transfer_len, precision));
         let bin_len = bin.len() + transfer_len;
@@ -64,8 +64,8 @@ impl GlbStream {
             file,
             transfer_start: (head.len() + bin.len()) as u64,
             vertices: v,
-            channels: transfer.channels(),
-            bands: transfer.bands(),
+            channels: transfer.channels,
+            bands: transfer.bands,
             precision,
         })
     }
@@ -130,7 +130,11 @@ impl<'m> Streaming<'m> {
         chunk: usize,
     ) -> Result<Streaming<'m>> {
         let (bands, channels) = (metadata.bands, metadata.channels);
-        let shape_transfer = TransferShape::new(bands, channels, bake.scene().vertex_count());
+        let shape_transfer = TransferShape {
+            bands,
+            channels,
+            vertex_count: bake.scene().vertex_count(),
+        };
         Ok(match sink.scene {
             None => {
                 let shape = Shape {

@@ -57,7 +57,7 @@ impl<'m> SceneStream<'m> {
         // receiver.
         let baked = BakedMesh {
             scene: Scene::default(),
-            transfer: Transfer::zeros(shape.bands(), shape.channels(), 0),
+            transfer: Transfer::zeros(shape.bands, shape.channels, 0),
             metadata: metadata.clone(),
             lightmap: None,
         };
@@ -98,7 +98,7 @@ impl<'m> SceneStream<'m> {
         assert_eq!(first, self.put, "chunks come in order");
         assert_eq!(
             (chunk.bands(), chunk.channels()),
-            (self.shape.bands(), self.shape.channels())
+            (self.shape.bands, self.shape.channels)
         );
         check_finite_coeffs(chunk, first)?;
         self.spill.append(chunk.coeffs())?;
@@ -110,7 +110,7 @@ impl<'m> SceneStream<'m> {
     /// wrote, and the seconds writing took.
     pub fn commit(mut self) -> Result<(SceneWrite, f64)> {
         let started = Instant::now();
-        let (channels, groups) = (self.shape.channels() as usize, groups(self.shape.bands()));
+        let (channels, groups) = (self.shape.channels as usize, groups(self.shape.bands));
         let per_vertex = channels * self.shape.coeffs_per_channel();
         let lanes = 4 * self.precision.bytes();
         for (at, vertices) in std::mem::take(&mut self.views) {
@@ -151,7 +151,7 @@ impl<'m> SceneStream<'m> {
             self.spill.read_at(at, row)?;
             map.push(k as u32);
         }
-        let (bands, channels) = (self.shape.bands(), self.shape.channels());
+        let (bands, channels) = (self.shape.bands, self.shape.channels);
         let block = Transfer::new(bands, channels, map.len(), coeffs)
             .expect("a row of coefficients for every vertex of the block");
         Ok((block, map))

@@ -12,8 +12,8 @@ pub enum Mode {
     Shadowed,
     /// Shadowed transfer plus light reflected between surfaces (`--bounces`).
     Interreflected,
-    /// Point and spot lights inside the scene (`crate::local`): depth maps and the
-    /// direct-to-indirect operator, not SH transfer; baked by `local::bake_local`.
+    /// Point and spot lights inside the scene: depth maps and the direct-to-indirect operator,
+    /// not SH transfer (README, "Local lights").
     Local,
 }
 
@@ -129,7 +129,7 @@ impl BakeOptions {
         if self.mode == Mode::Local {
             return Err(Error::Options(
                 "--mode local bakes depth maps and a direct-to-indirect operator, not SH \
-                 transfer (local::bake_local)"
+                 transfer: its spec runs through pipeline::run_local"
                     .into(),
             ));
         }

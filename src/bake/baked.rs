@@ -122,12 +122,6 @@ impl Transfer {
         (self.bands * self.bands) as usize
     }
 
-    /// The `channels × bands^2` coefficients of one receiver.
-    pub fn vertex(&self, vertex: usize) -> &[f32] {
-        let n = self.coeffs_per_channel() * self.channels as usize;
-        &self.coeffs[vertex * n..(vertex + 1) * n]
-    }
-
     /// The bands^2 coefficients of one vertex and channel.
     pub fn vertex_channel(&self, vertex: usize, channel: usize) -> &[f32] {
         let n = self.coeffs_per_channel();
@@ -275,7 +269,6 @@ mod transfer_tests {
     #[test]
     fn a_transfer_holds_exactly_its_shapes_coefficients() {
         let two_vertices = Transfer::new(2, 3, 2, vec![0.5; 24]).unwrap();
-        assert_eq!(two_vertices.vertex(1), &[0.5; 12]);
         assert_eq!(two_vertices.vertex_channel(1, 2), &[0.5; 4]);
         let shape = two_vertices.shape();
         assert_eq!((shape.bands, shape.channels, shape.vertex_count), (2, 3, 2));

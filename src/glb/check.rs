@@ -7,7 +7,7 @@ use super::*;
 /// Checks a baked mesh whole: the mesh, and the transfer it carries.
 pub(super) fn validate(baked: &BakedMesh) -> Result<()> {
     validate_mesh(baked)?;
-    validate_transfer(&baked.transfer)
+    check_finite_coeffs(&baked.transfer, 0)
 }
 
 /// Checks what `encode_valid` relies on besides the transfer's values (which [`Stored::new`]
@@ -15,11 +15,6 @@ pub(super) fn validate(baked: &BakedMesh) -> Result<()> {
 /// transfer's shape.
 pub(super) fn validate_mesh(baked: &BakedMesh) -> Result<()> {
     validate_shape(Shape::of(baked))
-}
-
-/// Checks that every coefficient of `transfer` is finite (its shape holds by construction).
-pub(super) fn validate_transfer(transfer: &Transfer) -> Result<()> {
-    check_finite_coeffs(transfer, 0)
 }
 
 /// Refuses a non-finite coefficient, naming its vertex (`first` is the first vertex's index).

@@ -25,7 +25,7 @@ impl<'a> Stored<'a> {
         cpca: Option<&'a Cpca>,
         precision: Precision,
     ) -> Result<Stored<'a>> {
-        validate_transfer(&baked.transfer)?;
+        check_finite_coeffs(&baked.transfer, 0)?;
         if baked.lightmap.is_some() && precision == Precision::F16 {
             return Err(Error::Options(
                 "--precision f16 stores per-vertex or compressed transfer; lightmaps have their \

@@ -6,10 +6,15 @@
 # and compresses the dragon (CPCA) with the clustering on the CPU and on the GPU.
 # Record its output in docs/performance.md ("On a hardware GPU").
 #
-#   ci/device-bench.sh [OUT_DIR]      (default: target/device-bench; the log goes there too)
+#   ci/device-bench.sh [OUT_DIR] [MESH...]
+#
+# OUT_DIR defaults to target/device-bench (the log goes there too); MESHes are benched after the
+# repository's two. A machine with no Rust toolchain or no network (the usual GPU box) takes a
+# binary built elsewhere for the same architecture: PRT_GPU_BIN=path/to/prt-gpu skips the build.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-target/device-bench}
+shift $(( $# > 0 ? 1 : 0 ))
 mkdir -p "$out"
 exec > >(tee "$out/device-bench.log") 2>&1
 
@@ -39,14 +44,23 @@ if command -v nvidia-smi >/dev/null && ! grep -qil nvidia $icds /dev/null 2>/dev
     echo "  installed beside it (install the driver's Vulkan ICD, e.g. libnvidia-gl-<version>, or"
     echo "  point VK_ICD_FILENAMES at the driver's nvidia_icd.json)"
     for candidate in /usr/share/vulkan/icd.d/nvidia_icd.json /etc/vulkan/icd.d/nvidia_icd.json \
-        /usr/lib/x86_64-linux-gnu/nvidia/nvidia_icd.json; do
-        [ -e "$candidate" ] && export VK_ICD_FILENAMES=$candidate && echo "  using $candidate"
+        /usr/lib/x86_64-linux-gnu/nvidia/nvidia_icd.json \
+        /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json; do
+        # The loader reads VK_DRIVER_FILES since 1.3.234 and VK_ICD_FILENAMES before it.
+        [ -e "$candidate" ] && export VK_DRIVER_FILES=$candidate VK_ICD_FILENAMES=$candidate \
+            && echo "  using $candidate"
     done
 fi
 
-say "build (release)"
-cargo build --release --locked --quiet || { echo "FAILED: cargo build --release"; exit 1; }
-bin=target/release/prt-gpu
+if [ -n "${PRT_GPU_BIN:-}" ]; then
+    bin=$PRT_GPU_BIN
+    say "prebuilt binary $bin"
+    "$bin" --version || { echo "FAILED: $bin does not run here"; exit 1; }
+else
+    say "build (release)"
+    cargo build --release --locked --quiet || { echo "FAILED: cargo build --release"; exit 1; }
+    bin=target/release/prt-gpu
+fi
 
 say "adapters"
 $bin devices
@@ -56,7 +70,7 @@ fi
 
 dragon=tests/data/dragon_vrip_res3.ply.gz
 largest=$(ls -S tests/data/*.obj tests/data/*.ply.gz tests/data/gltf/*.glb 2>/dev/null | head -1)
-for mesh in "$dragon" "$largest"; do
+for mesh in "$dragon" "$largest" "$@"; do
     say "bench $mesh (CPU and GPU side by side, 1024 samples, shadowed)"
     $bin bench "$mesh" --device gpu --repeats 3
     say "bench $mesh (interreflected)"

@@ -309,4 +309,97 @@ mod tests {
         }
         assert_eq!(checked, 11, "expected eleven generated constants");
     }
+
+    /// The visibility kernel's division (`divide_rounded`, wgsl/bvh.wgsl) against the CPU's,
+    /// bit for bit, on the adapter at hand: on operands of every significand and a wide range
+    /// of exponents, and on the edges (equal significands, the largest significand, quotients
+    /// at the ends of the normal range, zeros and subnormals that take the hardware's `/`).
+    /// `rounded` must leave a product's bits as they are.
+    #[test]
+    fn the_kernels_divide_and_round_as_the_cpu() {
+        let Some(ctx) = crate::device::any_adapter_or_skip() else {
+            return;
+        };
+        let mut rng = crate::sampling::Pcg32::new(29);
+        let mut random = |exponents: u32| {
+            let exponent = 127 - exponents / 2 + rng.next_u32() % exponents;
+            let sign = rng.next_u32() & 0x8000_0000;
+            f32::from_bits(sign | exponent << 23 | (rng.next_u32() & 0x7f_ffff))
+        };
+        let mut operands: Vec<[f32; 2]> = (0..20_000).map(|_| [random(60), random(60)]).collect();
+        let largest = f32::from_bits(0x3fff_ffff);
+        let edges = [
+            1.0,
+            -1.0,
+            3.0,
+            0.1,
+            largest,
+            1e-20,
+            -1e-20,
+            1e20,
+            f32::MAX,
+            f32::MIN_POSITIVE,
+            1e-40,
+            0.0,
+            -0.0,
+            0.577_350_3,
+        ];
+        for a in edges {
+            for b in edges.into_iter().filter(|&b| b != 0.0) {
+                operands.push([a, b]);
+            }
+        }
+        const KERNEL: &str = "
+            @group(0) @binding(0) var<storage, read> triangles: array<vec4<u32>>;
+            @group(0) @binding(1) var<storage, read> operands: array<vec2<f32>>;
+            @group(0) @binding(2) var<storage, read_write> results: array<vec2<f32>>;
+            @group(0) @binding(3) var<storage, read> nodes: array<vec4<u32>>;
+            @compute @workgroup_size(WORKGROUP_SIZE, 1, 1)
+            fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+                if (id.x < arrayLength(&operands)) {
+                    let o = operands[id.x];
+                    results[id.x] = vec2<f32>(divide_rounded(o.x, o.y), rounded(o.x * o.y));
+                }
+            }";
+        let source = format!("{}{BVH_WGSL}\n{KERNEL}", prelude());
+        let pipeline = crate::bake::gpu::pipeline(&ctx, "arithmetic", source);
+        // One triangle of the tree layout: three vec4 words, the last one's pad word 0.
+        let triangles = ctx.storage("triangles", &[[0u32; 4]; 3]);
+        let inputs = ctx.storage("operands", &operands);
+        let bytes = (operands.len() * 8) as u64;
+        let results = ctx.output("results", bytes);
+        let group = ctx.bind_buffers(
+            "arithmetic",
+            &pipeline.get_bind_group_layout(0),
+            &[&triangles, &inputs, &results],
+        );
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        crate::bake::gpu::encode_pass(
+            &mut encoder,
+            "arithmetic",
+            &pipeline,
+            &group,
+            [(operands.len() as u32).div_ceil(WORKGROUP_SIZE), 1, 1],
+        );
+        ctx.queue.submit([encoder.finish()]);
+        let results: Vec<[f32; 2]> = ctx.read_back(&results, bytes).unwrap();
+        let mut exact_path = 0;
+        for (&[a, b], &[quotient, product]) in operands.iter().zip(&results) {
+            let expected = a / b;
+            // Below the normal range the hardware's `/` answers, and may flush to zero.
+            if expected.abs() < f32::MIN_POSITIVE || !a.is_normal() || !b.is_normal() {
+                continue;
+            }
+            exact_path += 1;
+            assert_eq!(
+                quotient.to_bits(),
+                expected.to_bits(),
+                "{a:e} / {b:e}: gpu {quotient:e}, cpu {expected:e}"
+            );
+            if (a * b).is_normal() {
+                assert_eq!(product.to_bits(), (a * b).to_bits(), "{a:e} * {b:e}");
+            }
+        }
+        assert!(exact_path > 20_000, "only {exact_path} quotients checked");
+    }
 }

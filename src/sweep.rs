@@ -6,7 +6,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::bake::adaptive::TargetError;
-use crate::bake::gpu::{Chunking, GpuBaker};
+use crate::bake::gpu::{Chunking, GpuBaker, GpuRun};
 use crate::bake::texels::bake_texels;
 use crate::bake::Transfer;
 use crate::bake::{
@@ -421,6 +421,8 @@ pub struct BackendTimes {
     pub cpu_seconds: f64,
     /// `None` without a GPU.
     pub gpu_seconds: Option<f64>,
+    /// What the GPU run of median time said of itself (its host's share); `None` without a GPU.
+    pub gpu_run: Option<GpuRun>,
 }
 
 /// Times the direct-transfer pass `repeats` times on the CPU and, given a baker, the GPU,
@@ -434,7 +436,7 @@ pub fn time_backends(
     on_round: impl Fn(u32),
 ) -> Result<BackendTimes> {
     let mut cpu_times = Vec::new();
-    let mut gpu_times = Vec::new();
+    let mut gpu_runs = Vec::new();
     let mut rays = 0;
     for round in 0..repeats.max(1) {
         on_round(round);
@@ -443,14 +445,18 @@ pub fn time_backends(
         cpu_times.push(started.elapsed().as_secs_f64());
         if let Some(baker) = baker {
             let started = Instant::now();
-            gpu::direct_transfer(baker, inputs, mode, Chunking::default(), &NoProgress)?;
-            gpu_times.push(started.elapsed().as_secs_f64());
+            let (_, run) =
+                gpu::direct_transfer(baker, inputs, mode, Chunking::default(), &NoProgress)?;
+            gpu_runs.push((started.elapsed().as_secs_f64(), run));
         }
     }
+    gpu_runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let median_gpu = (!gpu_runs.is_empty()).then(|| gpu_runs.swap_remove(gpu_runs.len() / 2));
     Ok(BackendTimes {
         rays,
         cpu_seconds: median(&mut cpu_times),
-        gpu_seconds: (!gpu_times.is_empty()).then(|| median(&mut gpu_times)),
+        gpu_seconds: median_gpu.as_ref().map(|(seconds, _)| *seconds),
+        gpu_run: median_gpu.map(|(_, run)| run),
     })
 }
 

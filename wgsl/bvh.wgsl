@@ -15,6 +15,72 @@ struct Ray {
     shear: vec3<f32>,
 }
 
+// The arithmetic below must round as the CPU's does, step for step, or the GPU's visibility
+// differs from the CPU reference on the rays that graze an edge, and the watertight test's
+// shared edges (whose two edge functions are exact negatives only when every product is
+// rounded) let rays through. Vulkan allows two liberties that an NVIDIA H200 takes and llvmpipe
+// does not: fusing `a * b + c` into one fma, rounded once (SPIR-V's NoContraction would forbid
+// it, but naga does not emit it), and a division up to 2.5 ulps off. On the H200, 470 of the
+// built-in scene's 3.3 M rays differed before these two functions (docs/performance.md).
+
+// `p` as computed, rounded: its bits pass through an OR with a word the compiler cannot know
+// is zero (the pad word of the first triangle's last vec4, `pad2` of bvh::BvhTriangle, 0 in
+// every tree), so a product wrapped in it cannot be fused into the sum it feeds.
+fn rounded(p: f32) -> f32 {
+    return bitcast<f32>(bitcast<u32>(p) | triangles[2u].w);
+}
+
+fn rounded3(p: vec3<f32>) -> vec3<f32> {
+    return bitcast<vec3<f32>>(bitcast<vec3<u32>>(p) | vec3<u32>(triangles[2u].w));
+}
+
+// One step of the significands' long division: 8 more quotient bits. `q_r` is (quotient so
+// far, remainder), the remainder below `d` < 2^24, so that it shifted by 8 still fits 32 bits.
+fn quotient_step(q_r: vec2<u32>, d: u32) -> vec2<u32> {
+    let shifted = q_r.y << 8u;
+    let digit = shifted / d;
+    return vec2<u32>((q_r.x << 8u) | digit, shifted - digit * d);
+}
+
+// `a / b` rounded to nearest, ties to even, as IEEE 754 (and the CPU) divides: the significands
+// divided as integers to 24 bits past the leading one, plus a rounding bit and whether anything
+// remains. Zero, subnormal, infinite or NaN operands, and quotients outside the normal range,
+// take the hardware's `/`: the callers divide by direction components no smaller than
+// MIN_DIRECTION_COMPONENT and by edge-function sums, and their quotients of zero are exact
+// either way. Written without loops: llvmpipe's loop cap counts every iteration.
+fn divide_rounded(a: f32, b: f32) -> f32 {
+    let bits_a = bitcast<u32>(a);
+    let bits_b = bitcast<u32>(b);
+    let exponent_a = (bits_a >> 23u) & 0xffu;
+    let exponent_b = (bits_b >> 23u) & 0xffu;
+    if (exponent_a == 0u || exponent_a == 255u || exponent_b == 0u || exponent_b == 255u) {
+        return a / b;
+    }
+    var n = (bits_a & 0x7fffffu) | 0x800000u;
+    let d = (bits_b & 0x7fffffu) | 0x800000u;
+    var exponent = i32(exponent_a) - i32(exponent_b) + 127;
+    if (n < d) {
+        n = n << 1u;
+        exponent -= 1;
+    }
+    // n / d is in [1, 2): the leading quotient bit is 1, the remainder n - d.
+    let q_r = quotient_step(quotient_step(quotient_step(vec2<u32>(1u, n - d), d), d), d);
+    // q_r.x: the leading one, 23 significand bits and the rounding bit.
+    var significand = q_r.x >> 1u;
+    if ((q_r.x & 1u) == 1u && (q_r.y != 0u || (significand & 1u) == 1u)) {
+        significand += 1u;
+        if (significand == 0x1000000u) {
+            significand = 0x800000u;
+            exponent += 1;
+        }
+    }
+    if (exponent <= 0 || exponent >= 255) {
+        return a / b;
+    }
+    let sign = (bits_a ^ bits_b) & 0x80000000u;
+    return bitcast<f32>(sign | (u32(exponent) << 23u) | (significand & 0x7fffffu));
+}
+
 fn safe_component(d: f32) -> f32 {
     return select(d, select(MIN_DIRECTION_COMPONENT, -MIN_DIRECTION_COMPONENT, d < 0.0), abs(d) < MIN_DIRECTION_COMPONENT);
 }
@@ -23,7 +89,7 @@ fn make_ray(origin: vec3<f32>, direction: vec3<f32>) -> Ray {
     var ray: Ray;
     ray.origin = origin;
     ray.direction = direction;
-    ray.inv_direction = vec3<f32>(1.0) / vec3<f32>(safe_component(direction.x), safe_component(direction.y), safe_component(direction.z));
+    ray.inv_direction = vec3<f32>(divide_rounded(1.0, safe_component(direction.x)), divide_rounded(1.0, safe_component(direction.y)), divide_rounded(1.0, safe_component(direction.z)));
     let a = abs(direction);
     var kz = 2u;
     if (a.x > a.y) {
@@ -42,7 +108,7 @@ fn make_ray(origin: vec3<f32>, direction: vec3<f32>) -> Ray {
     ray.axis_y = ky;
     ray.axis_z = kz;
     let dz = direction[kz];
-    ray.shear = vec3<f32>(direction[kx] / dz, direction[ky] / dz, 1.0 / dz);
+    ray.shear = vec3<f32>(divide_rounded(direction[kx], dz), divide_rounded(direction[ky], dz), divide_rounded(1.0, dz));
     return ray;
 }
 
@@ -62,15 +128,15 @@ fn intersect_triangle(ray: Ray, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, t_m
     let a = v0 - ray.origin;
     let b = v1 - ray.origin;
     let c = v2 - ray.origin;
-    let ax = a[kx] - ray.shear.x * a[kz];
-    let ay = a[ky] - ray.shear.y * a[kz];
-    let bx = b[kx] - ray.shear.x * b[kz];
-    let by = b[ky] - ray.shear.y * b[kz];
-    let cx = c[kx] - ray.shear.x * c[kz];
-    let cy = c[ky] - ray.shear.y * c[kz];
-    let u = cx * by - cy * bx;
-    let v = ax * cy - ay * cx;
-    let w = bx * ay - by * ax;
+    let ax = a[kx] - rounded(ray.shear.x * a[kz]);
+    let ay = a[ky] - rounded(ray.shear.y * a[kz]);
+    let bx = b[kx] - rounded(ray.shear.x * b[kz]);
+    let by = b[ky] - rounded(ray.shear.y * b[kz]);
+    let cx = c[kx] - rounded(ray.shear.x * c[kz]);
+    let cy = c[ky] - rounded(ray.shear.y * c[kz]);
+    let u = rounded(cx * by) - rounded(cy * bx);
+    let v = rounded(ax * cy) - rounded(ay * cx);
+    let w = rounded(bx * ay) - rounded(by * ax);
     if ((u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0)) {
         return miss;
     }
@@ -81,11 +147,11 @@ fn intersect_triangle(ray: Ray, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, t_m
     let az = ray.shear.z * a[kz];
     let bz = ray.shear.z * b[kz];
     let cz = ray.shear.z * c[kz];
-    let t = (u * az + v * bz + w * cz) / det;
+    let t = divide_rounded(rounded(u * az) + rounded(v * bz) + rounded(w * cz), det);
     if (!(t > t_min && t < t_max)) {
         return miss;
     }
-    return TriangleHit(t, v / det, w / det);
+    return TriangleHit(t, divide_rounded(v, det), divide_rounded(w, det));
 }
 
 // Result of a traversal: whether and where the ray hit, and whether the step budget ran out.

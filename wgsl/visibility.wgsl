@@ -51,14 +51,20 @@ struct VisibilityParams {
 @group(0) @binding(9) var<storage, read> sample_lists: array<u32>;
 
 
-// Rust twin: sampling::tangent_frame (Duff et al. 2017), step for step.
+// Rust twin: sampling::tangent_frame (Duff et al. 2017), step for step, rounded as the CPU
+// rounds (`rounded`, `divide_rounded`: wgsl/bvh.wgsl).
 fn tangent_frame(n: vec3<f32>) -> mat3x3<f32> {
     let sign = select(-1.0, 1.0, n.z >= 0.0);
-    let a = -1.0 / (sign + n.z);
+    let a = divide_rounded(-1.0, sign + n.z);
     let b = n.x * n.y * a;
-    let tangent = vec3<f32>(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-    let bitangent = vec3<f32>(b, sign + n.y * n.y * a, -n.y);
+    let tangent = vec3<f32>(1.0 + rounded(sign * n.x * n.x * a), sign * b, -sign * n.x);
+    let bitangent = vec3<f32>(b, sign + rounded(n.y * n.y * a), -n.y);
     return mat3x3<f32>(tangent, bitangent, n);
+}
+
+// Rust twin: sampling::VertexDirections::world.
+fn to_world(frame: mat3x3<f32>, d: vec3<f32>) -> vec3<f32> {
+    return rounded3(frame[0] * d.x) + rounded3(frame[1] * d.y) + rounded3(frame[2] * d.z);
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE, 1, 1)
@@ -79,7 +85,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var direction = directions[params.sample_offset + local_sample].xyz;
     if (params.tangent_frames != 0u) {
         let frame = tangent_frame(normal);
-        direction = frame[0] * direction.x + frame[1] * direction.y + frame[2] * direction.z;
+        direction = to_world(frame, direction);
     }
     var visible = true;
     if (params.shadowed != 0u) {

@@ -11,6 +11,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
+use std::time::Instant;
 
 use super::bounce::{GatherMatrix, Hit};
 use super::{DirectInputs, Mode, Progress};
@@ -118,12 +119,19 @@ pub struct Chunking {
 }
 
 /// What a GPU bake returns besides the transfer.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct GpuRun {
     pub rays_cast: u64,
     pub submissions: u32,
     pub vertex_chunks: u32,
     pub sample_chunks: u32,
+    /// Seconds the host spent listing each chunk's samples above the horizon: per-ray work on
+    /// the host, which a fast GPU waits for.
+    pub sample_list_seconds: f64,
+    /// Seconds the host waited for the kernels of its chunks to finish.
+    pub kernel_wait_seconds: f64,
+    /// Seconds of the whole run, uploads, read-backs and the rest of the host's work included.
+    pub run_seconds: f64,
 }
 
 /// An open device with the bake's kernels compiled (once; compiling is slow on lavapipe).
@@ -334,6 +342,7 @@ fn run(
         spec.record_hits(),
         chunking,
     );
+    let started = Instant::now();
     let gpu_bvh = GpuBvh::new(inputs.bvh);
     check_bindings(ctx, inputs, &gpu_bvh)?;
     let buffers = RunBuffers::new(baker, &spec, &gpu_bvh, vertex_chunk, sample_chunk)?;
@@ -360,6 +369,7 @@ fn run(
         progress.advance(vertices as u64);
     }
     buffers.check_no_ray_exhausted(ctx, spec.max_steps)?;
+    out.stats.run_seconds = started.elapsed().as_secs_f64();
     Ok(out)
 }
 
@@ -505,11 +515,13 @@ impl RunBuffers {
     ) -> Result<Vec<u32>> {
         let ctx = &baker.context;
         let inputs = spec.inputs;
+        let listing = Instant::now();
         let (lists, longest, listed) = sample_lists_above_horizon(
             inputs,
             chunk.vertex_offset as usize..(chunk.vertex_offset + chunk.vertices) as usize,
             chunk.sample_offset as usize..(chunk.sample_offset + chunk.samples) as usize,
         );
+        stats.sample_list_seconds += listing.elapsed().as_secs_f64();
         if spec.mode != Mode::Unshadowed {
             stats.rays_cast += listed;
         }
@@ -571,7 +583,9 @@ impl RunBuffers {
             );
             ctx.queue.submit([encoder.finish()]);
         })?;
+        let waiting = Instant::now();
         ctx.wait()?;
+        stats.kernel_wait_seconds += waiting.elapsed().as_secs_f64();
         stats.submissions += 1;
         Ok(lists)
     }

@@ -277,5 +277,10 @@ mod tests {
         );
         let g = GpuBvh::new(&one);
         assert_eq!(gpu_closest_hit(&g, &ray, false).map(|h| h.0), Some(0));
+        // The kernels read the first triangle's pad word as their unseen zero (`rounded`).
+        for tree in [&empty, &g, &GpuBvh::new(&default_bvh())] {
+            assert!(!tree.triangles.is_empty());
+            assert!(tree.triangles.iter().all(|t| t.pad2 == 0));
+        }
     }
 }

@@ -56,6 +56,8 @@ pub struct BvhTriangle {
     /// 0 in the CPU tree, whose nodes count their triangles.
     pub last_in_leaf: u32,
     pub v2: [f32; 3],
+    /// Always 0: the kernels OR products with it, a zero the shader compiler cannot see, so
+    /// that no driver fuses them into the sums they feed (wgsl/bvh.wgsl `rounded`).
     pub pad2: u32,
 }
 const _: () = assert!(std::mem::size_of::<BvhTriangle>() == 48);

@@ -245,3 +245,42 @@ fn surface_points_agree() {
         );
     }
 }
+
+/// The kernels with the emulated division (`divide_rounded`), which an adapter whose own `/`
+/// is not IEEE's bakes with (an NVIDIA H200's is not; lavapipe's is, so the shared baker divides
+/// with `/` here): the same rays and transfer as the CPU, shadowed and interreflected hits.
+#[test]
+fn the_emulated_division_bakes_the_cpus_rays() {
+    use prt_gpu::bake::gpu::Division;
+    let Some(context) = prt_gpu::device::any_adapter_or_skip() else {
+        return;
+    };
+    let baker = GpuBaker::dividing(context, Division::Emulated).unwrap();
+    assert_eq!(baker.division(), Division::Emulated);
+    let prepared = prepared(builtin::default_scene(), 4, 256);
+    let (rays, differing) = compare(
+        &baker,
+        &prepared,
+        Mode::Shadowed,
+        Chunking::default(),
+        "emulated division",
+    );
+    assert!(rays > 0);
+    assert_eq!(differing, 0, "{differing} of {rays} rays differ");
+    // Closest hits (distances compared, barycentrics divided): the gather matrix, entry for
+    // entry.
+    let inputs = prepared.view();
+    let (_, cpu_matrix, _) = prt_gpu::bake::bounce::direct_transfer_and_gather_matrix_cpu(
+        &inputs,
+        &prt_gpu::bake::NoProgress,
+    );
+    let (_, gpu_matrix, _) = prt_gpu::bake::gpu::direct_transfer_and_gather_matrix(
+        &baker,
+        &inputs,
+        Chunking::default(),
+        &prt_gpu::bake::NoProgress,
+    )
+    .unwrap();
+    assert!(!cpu_matrix.weights.is_empty());
+    assert!(gpu_matrix == cpu_matrix, "the gather matrices differ");
+}

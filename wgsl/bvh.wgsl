@@ -27,19 +27,41 @@ struct Ray {
 // is zero (the pad word of the first triangle's last vec4, `pad2` of bvh::BvhTriangle, 0 in
 // every tree), so a product wrapped in it cannot be fused into the sum it feeds.
 fn rounded(p: f32) -> f32 {
-    return bitcast<f32>(bitcast<u32>(p) | triangles[2u].w);
+    return bitcast<f32>(bitcast<u32>(p) | unseen_zero);
 }
 
 fn rounded3(p: vec3<f32>) -> vec3<f32> {
-    return bitcast<vec3<f32>>(bitcast<vec3<u32>>(p) | vec3<u32>(triangles[2u].w));
+    return bitcast<vec3<f32>>(bitcast<vec3<u32>>(p) | vec3<u32>(unseen_zero));
+}
+
+// The zero `rounded` ORs with, read once per invocation: every kernel that rounds calls
+// `read_unseen_zero()` first (a test checks), since a private variable never written is a
+// zero the compiler sees. (On llvmpipe a storage load in every product cost 1.7x the time.)
+var<private> unseen_zero: u32;
+
+fn read_unseen_zero() {
+    unseen_zero = triangles[2u].w;
 }
 
 // One step of the significands' long division: 8 more quotient bits. `q_r` is (quotient so
 // far, remainder), the remainder below `d` < 2^24, so that it shifted by 8 still fits 32 bits.
+// The digit is estimated by a float division (off by at most one: the exact digit is below 256
+// and the estimate within 2^-14 of it) and corrected with the exact integer remainder, because
+// llvmpipe has no vector integer division (an integer `/` here made a lavapipe bake 1.7x slower).
 fn quotient_step(q_r: vec2<u32>, d: u32) -> vec2<u32> {
     let shifted = q_r.y << 8u;
-    let digit = shifted / d;
-    return vec2<u32>((q_r.x << 8u) | digit, shifted - digit * d);
+    // Through i32: both values are below 2^24, and x86 converts signed integers in one
+    // instruction where an unsigned conversion takes a sequence.
+    var digit = u32(i32(f32(i32(q_r.y)) * 256.0 / f32(i32(d))));
+    var product = digit * d;
+    let over = product > shifted;
+    digit = select(digit, digit - 1u, over);
+    product = select(product, product - d, over);
+    var remainder = shifted - product;
+    let under = remainder >= d;
+    digit = select(digit, digit + 1u, under);
+    remainder = select(remainder, remainder - d, under);
+    return vec2<u32>((q_r.x << 8u) | digit, remainder);
 }
 
 // `a / b` rounded to nearest, ties to even, as IEEE 754 (and the CPU) divides: the significands
@@ -48,37 +70,39 @@ fn quotient_step(q_r: vec2<u32>, d: u32) -> vec2<u32> {
 // take the hardware's `/`: the callers divide by direction components no smaller than
 // MIN_DIRECTION_COMPONENT and by edge-function sums, and their quotients of zero are exact
 // either way. Written without loops: llvmpipe's loop cap counts every iteration.
+// Set by the host (bake::gpu::Division) where the adapter's own `/` was seen to round as IEEE
+// 754 does, as llvmpipe's does: `divide_rounded` is then `/`. The emulation costs llvmpipe 1.4x
+// the time of a bake.
+override DIVISION_IS_IEEE: bool = false;
+
 fn divide_rounded(a: f32, b: f32) -> f32 {
+    if (DIVISION_IS_IEEE) {
+        return a / b;
+    }
+    // Branch-free (both answers computed, one selected): llvmpipe runs every branch anyway,
+    // and a branch costs it a mask per lane.
     let bits_a = bitcast<u32>(a);
     let bits_b = bitcast<u32>(b);
     let exponent_a = (bits_a >> 23u) & 0xffu;
     let exponent_b = (bits_b >> 23u) & 0xffu;
-    if (exponent_a == 0u || exponent_a == 255u || exponent_b == 0u || exponent_b == 255u) {
-        return a / b;
-    }
-    var n = (bits_a & 0x7fffffu) | 0x800000u;
+    let ordinary = exponent_a != 0u && exponent_a != 255u && exponent_b != 0u && exponent_b != 255u;
+    let n_unshifted = (bits_a & 0x7fffffu) | 0x800000u;
     let d = (bits_b & 0x7fffffu) | 0x800000u;
-    var exponent = i32(exponent_a) - i32(exponent_b) + 127;
-    if (n < d) {
-        n = n << 1u;
-        exponent -= 1;
-    }
+    let below = n_unshifted < d;
+    let n = select(n_unshifted, n_unshifted << 1u, below);
+    var exponent = i32(exponent_a) - i32(exponent_b) + 127 - select(0, 1, below);
     // n / d is in [1, 2): the leading quotient bit is 1, the remainder n - d.
     let q_r = quotient_step(quotient_step(quotient_step(vec2<u32>(1u, n - d), d), d), d);
     // q_r.x: the leading one, 23 significand bits and the rounding bit.
-    var significand = q_r.x >> 1u;
-    if ((q_r.x & 1u) == 1u && (q_r.y != 0u || (significand & 1u) == 1u)) {
-        significand += 1u;
-        if (significand == 0x1000000u) {
-            significand = 0x800000u;
-            exponent += 1;
-        }
-    }
-    if (exponent <= 0 || exponent >= 255) {
-        return a / b;
-    }
+    let truncated = q_r.x >> 1u;
+    let round_up = (q_r.x & 1u) == 1u && (q_r.y != 0u || (truncated & 1u) == 1u);
+    var significand = truncated + select(0u, 1u, round_up);
+    let carried = significand == 0x1000000u;
+    significand = select(significand, 0x800000u, carried);
+    exponent += select(0, 1, carried);
     let sign = (bits_a ^ bits_b) & 0x80000000u;
-    return bitcast<f32>(sign | (u32(exponent) << 23u) | (significand & 0x7fffffu));
+    let rounded_quotient = bitcast<f32>(sign | (u32(max(exponent, 0)) << 23u) | (significand & 0x7fffffu));
+    return select(a / b, rounded_quotient, ordinary && exponent > 0 && exponent < 255);
 }
 
 fn safe_component(d: f32) -> f32 {
@@ -108,20 +132,28 @@ fn make_ray(origin: vec3<f32>, direction: vec3<f32>) -> Ray {
     ray.axis_y = ky;
     ray.axis_z = kz;
     let dz = direction[kz];
-    ray.shear = vec3<f32>(divide_rounded(direction[kx], dz), divide_rounded(direction[ky], dz), divide_rounded(1.0, dz));
+    // 1 / dz is inv_direction[kz] (|dz| >= 1/sqrt(3), never replaced by safe_component).
+    ray.shear = vec3<f32>(divide_rounded(direction[kx], dz), divide_rounded(direction[ky], dz), ray.inv_direction[kz]);
     return ray;
 }
 
-// A hit on a triangle: distance (negative on a miss) and barycentrics of v1 and v2.
+// A hit on a triangle: distance (negative on a miss), and the edge functions of v1 and v2 and
+// their sum, whose quotients are the barycentrics of v1 and v2 (divided by the traversal, once
+// for its closest hit rather than once for every candidate).
 struct TriangleHit {
     t: f32,
-    u: f32,
     v: f32,
+    w: f32,
+    det: f32,
 }
 
 // Watertight ray-triangle test (Woop, Benthin, Wald 2013); Rust twin: ray::intersect_triangle.
-fn intersect_triangle(ray: Ray, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, t_min: f32, t_max: f32) -> TriangleHit {
-    let miss = TriangleHit(-1.0, 0.0, 0.0);
+// `exact_t`: t rounded as the CPU rounds it, for a traversal that compares distances. Without
+// it the hardware's division serves: an any-hit traversal on (0, RAY_T_MAX) reads only t's
+// sign and finiteness, which any division keeps (and llvmpipe runs both sides of a branch, so
+// a division saved here is saved on every triangle test).
+fn intersect_triangle(ray: Ray, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, t_min: f32, t_max: f32, exact_t: bool) -> TriangleHit {
+    let miss = TriangleHit(-1.0, 0.0, 0.0, 1.0);
     let kx = ray.axis_x;
     let ky = ray.axis_y;
     let kz = ray.axis_z;
@@ -147,11 +179,17 @@ fn intersect_triangle(ray: Ray, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, t_m
     let az = ray.shear.z * a[kz];
     let bz = ray.shear.z * b[kz];
     let cz = ray.shear.z * c[kz];
-    let t = divide_rounded(rounded(u * az) + rounded(v * bz) + rounded(w * cz), det);
+    let distance_times_det = rounded(u * az) + rounded(v * bz) + rounded(w * cz);
+    var t: f32;
+    if (exact_t) {
+        t = divide_rounded(distance_times_det, det);
+    } else {
+        t = distance_times_det / det;
+    }
     if (!(t > t_min && t < t_max)) {
         return miss;
     }
-    return TriangleHit(t, divide_rounded(v, det), divide_rounded(w, det));
+    return TriangleHit(t, v, w, det);
 }
 
 // Result of a traversal: whether and where the ray hit, and whether the step budget ran out.
@@ -198,8 +236,9 @@ fn box_max(q: vec3<u32>, grid: BoxGrid) -> vec3<f32> {
     return grid_point(vec3<f32>(f32(q.y >> 16u), f32(q.z & 0xffffu), f32(q.z >> 16u)), grid);
 }
 
-// Closest-hit (any_hit false) or any-hit (any_hit true) traversal of `nodes`/`triangles`,
-// whose boxes lie on `grid`
+// Closest-hit (any_hit false) or any-hit (any_hit true, on (0, t_max_in) with t_max_in
+// RAY_T_MAX: see intersect_triangle's `exact_t`) traversal of `nodes`/`triangles`, whose boxes
+// lie on `grid`
 // (declared by the kernel that includes this file); Rust twin: Bvh::traverse, which visits the
 // same nodes in the same order (with exact instead of grid-rounded boxes).
 // Every loop iteration counts against `max_steps`: llvmpipe silently ends any invocation's loops
@@ -213,6 +252,8 @@ fn box_max(q: vec3<u32>, grid: BoxGrid) -> vec3<f32> {
 // leaf's triangles are read as three vec4 each.
 fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) -> Trace {
     var result = Trace(false, false, NO_HIT, 0.0, 0.0);
+    // The closest hit so far, its barycentrics divided out when the traversal ends.
+    var closest = TriangleHit(-1.0, 0.0, 0.0, 1.0);
     var t_max = t_max_in;
     var stack: array<u32, STACK_SIZE>;
     var stack_len = 0u;
@@ -238,12 +279,11 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) 
                 let w0 = triangles[3u * i];
                 let w1 = triangles[3u * i + 1u];
                 let w2 = triangles[3u * i + 2u];
-                let hit = intersect_triangle(ray, bitcast<vec3<f32>>(w0.xyz), bitcast<vec3<f32>>(w1.xyz), bitcast<vec3<f32>>(w2.xyz), 0.0, t_max);
+                let hit = intersect_triangle(ray, bitcast<vec3<f32>>(w0.xyz), bitcast<vec3<f32>>(w1.xyz), bitcast<vec3<f32>>(w2.xyz), 0.0, t_max, !any_hit);
                 if (hit.t >= 0.0) {
                     result.hit = true;
                     result.triangle = w0.w;
-                    result.u = hit.u;
-                    result.v = hit.v;
+                    closest = hit;
                     if (any_hit) {
                         return result;
                     }
@@ -282,6 +322,10 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) 
         }
         if (!descend) {
             if (stack_len == 0u) {
+                if (result.hit) {
+                    result.u = divide_rounded(closest.v, closest.det);
+                    result.v = divide_rounded(closest.w, closest.det);
+                }
                 return result;
             }
             stack_len -= 1u;

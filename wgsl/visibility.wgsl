@@ -6,13 +6,6 @@
 // workgroups of 64 Morton-adjacent vertices sharing one direction: 0.72x the CPU time
 // (docs/performance.md).
 
-// 12 bytes; Rust twin: bake::bounce::Hit.
-struct Hit {
-    triangle: u32,
-    u: f32,
-    v: f32,
-}
-
 struct VisibilityParams {
     vertex_offset: u32,
     vertex_count: u32,
@@ -43,39 +36,24 @@ struct VisibilityParams {
 @group(0) @binding(6) var<storage, read_write> visible_bits: array<atomic<u32>>;
 // [0]: rays whose traversal ran out of steps (must stay 0).
 @group(0) @binding(7) var<storage, read_write> exhausted_rays: array<atomic<u32>>;
-// [local_vertex * sample_count + local_sample]; written only when record_hits is 1, and only
-// for listed samples (the host reads no others).
+// [local_vertex * sample_count + local_sample]; written only when record_hits is 1: here for
+// the listed samples, by the horizon pass (NO_HIT) for the others.
 @group(0) @binding(8) var<storage, read_write> hits: array<Hit>;
 // [local_vertex * sample_count + slot]: the vertex's samples above its horizon (chunk-local
 // indices, ascending), then NO_SAMPLE.
 @group(0) @binding(9) var<storage, read> sample_lists: array<u32>;
 
 
-// Rust twin: sampling::tangent_frame (Duff et al. 2017), step for step, rounded as the CPU
-// rounds (`rounded`, `divide_rounded`: wgsl/bvh.wgsl).
-fn tangent_frame(n: vec3<f32>) -> mat3x3<f32> {
-    let sign = select(-1.0, 1.0, n.z >= 0.0);
-    let a = divide_rounded(-1.0, sign + n.z);
-    let b = n.x * n.y * a;
-    let tangent = vec3<f32>(1.0 + rounded(sign * n.x * n.x * a), sign * b, -sign * n.x);
-    let bitangent = vec3<f32>(b, sign + rounded(n.y * n.y * a), -n.y);
-    return mat3x3<f32>(tangent, bitangent, n);
-}
-
-// Rust twin: sampling::VertexDirections::world.
-fn to_world(frame: mat3x3<f32>, d: vec3<f32>) -> vec3<f32> {
-    return rounded3(frame[0] * d.x) + rounded3(frame[1] * d.y) + rounded3(frame[2] * d.z);
-}
-
 @compute @workgroup_size(WORKGROUP_SIZE, 1, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    read_unseen_zero();
     let slot = id.x;
     let local_vertex = id.y;
     if (local_vertex >= params.vertex_count || slot >= params.sample_count) {
         return;
     }
-    // Only the samples above the vertex's horizon are listed (by the host, with the CPU's
-    // test), packed to the front of the vertex's row: whole SIMD groups trace rays.
+    // Only the samples above the vertex's horizon are listed (by the horizon pass, with the
+    // CPU's test), packed to the front of the vertex's row: whole SIMD groups trace rays.
     let local_sample = sample_lists[local_vertex * params.sample_count + slot];
     if (local_sample == NO_SAMPLE) {
         return;

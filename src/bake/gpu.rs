@@ -9,7 +9,6 @@
 //! Work is cut into chunks of vertices and of samples so that every binding fits the adapter's
 //! limits and no submission runs long (real GPUs reset after about two seconds of one dispatch).
 
-use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -19,81 +18,18 @@ use crate::bvh::gpu::{GpuBvh, LEAF_FLAG};
 use crate::device::{self, DeviceChoice, GpuContext};
 use crate::error::{Error, Result};
 use crate::ray::NO_HIT;
-use crate::sampling::{DirectionFrame, Estimator, VertexDirections};
+use crate::sampling::DirectionFrame;
 use crate::sh::coeff_count;
-use crate::shaders::{self, ESTIMATOR_BLOCKED, ESTIMATOR_TANGENT, NO_SAMPLE, WORKGROUP_SIZE};
+use crate::shaders::{self, WORKGROUP_SIZE};
 
+mod division;
 mod gather;
+mod horizon;
+mod kernels;
+pub use division::Division;
 pub use gather::*;
-
-/// Uniforms of the visibility kernel, 64 bytes; WGSL twin in wgsl/visibility.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct VisibilityParams {
-    pub vertex_offset: u32,
-    pub vertex_count: u32,
-    pub sample_offset: u32,
-    pub sample_count: u32,
-    pub words_per_vertex: u32,
-    /// Traversal steps one ray may take before it reports itself exhausted.
-    pub max_steps: u32,
-    /// 1: trace rays; 0: every sample above the horizon is visible.
-    pub shadowed: u32,
-    /// 1: closest-hit traversal, hits written for interreflection.
-    pub record_hits: u32,
-    /// The grid of the node boxes ([`GpuBvh`]): world = grid_origin + q * grid_step.
-    pub grid_origin: [f32; 3],
-    pub grid_step: f32,
-    /// 1: sample directions are in each vertex's tangent frame (`sampling::tangent_frame`).
-    pub tangent_frames: u32,
-    pub pad0: u32,
-    pub pad1: u32,
-    pub pad2: u32,
-}
-
-/// Uniforms of the projection kernel, 32 bytes; WGSL twin in wgsl/project.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct ProjectParams {
-    pub vertex_offset: u32,
-    pub vertex_count: u32,
-    pub sample_offset: u32,
-    pub sample_count: u32,
-    pub words_per_vertex: u32,
-    pub coeff_count: u32,
-    pub accumulate: u32,
-    /// `shaders::ESTIMATOR_*` flags: which samples enter the sum, and their weight.
-    pub estimator: u32,
-}
-
-/// The project kernel's `estimator` flags for a strategy's estimator and direction frame.
-fn estimator_flags(estimator: Estimator, frame: DirectionFrame) -> u32 {
-    let blocked = if estimator == Estimator::Blocked {
-        ESTIMATOR_BLOCKED
-    } else {
-        0
-    };
-    let tangent = if frame == DirectionFrame::Tangent {
-        ESTIMATOR_TANGENT
-    } else {
-        0
-    };
-    blocked | tangent
-}
-
-/// Uniforms of the bounce (gather) kernel, 32 bytes; WGSL twin in wgsl/gather.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GatherParams {
-    pub row_offset: u32,
-    pub row_count: u32,
-    pub coeff_count: u32,
-    pub entry_begin: u32,
-    pub entry_limit: u32,
-    pub accumulate: u32,
-    pub pad0: u32,
-    pub pad1: u32,
-}
+pub use horizon::HorizonParams;
+pub use kernels::*;
 
 /// Traversal steps allowed per ray: under llvmpipe's silent cap of 65,535 loop iterations per
 /// invocation with room to spare. A real mesh needs a few hundred; a ray that needs more is
@@ -125,9 +61,6 @@ pub struct GpuRun {
     pub submissions: u32,
     pub vertex_chunks: u32,
     pub sample_chunks: u32,
-    /// Seconds the host spent listing each chunk's samples above the horizon: per-ray work on
-    /// the host, which a fast GPU waits for.
-    pub sample_list_seconds: f64,
     /// Seconds the host waited for the kernels of its chunks to finish.
     pub kernel_wait_seconds: f64,
     /// Seconds of the whole run, uploads, read-backs and the rest of the host's work included.
@@ -140,27 +73,46 @@ pub struct GpuRun {
 /// binding is declared once, in the shader; the host binds buffers in binding order.
 pub struct GpuBaker {
     pub context: GpuContext,
+    horizon: wgpu::ComputePipeline,
     visibility: wgpu::ComputePipeline,
     project: wgpu::ComputePipeline,
     gather: wgpu::ComputePipeline,
+    division: Division,
 }
 
 impl GpuBaker {
+    /// Compiles the kernels, dividing as [`Division::probe`] finds the adapter can.
     pub fn new(context: GpuContext) -> Result<Self> {
+        let division = Division::probe(&context)?;
+        GpuBaker::dividing(context, division)
+    }
+
+    /// Compiles the kernels to divide as `division` says (tests force the emulation).
+    pub fn dividing(context: GpuContext, division: Division) -> Result<Self> {
         let ctx = &context;
-        let (visibility, project, gather) = ctx.checked("compiling the kernels", || {
-            (
-                pipeline(ctx, "visibility", shaders::visibility_kernel()),
-                pipeline(ctx, "project", shaders::project_kernel()),
-                pipeline(ctx, "gather", shaders::gather_kernel()),
-            )
-        })?;
+        let traversal = division.constants();
+        let (horizon, visibility, project, gather) =
+            ctx.checked("compiling the kernels", || {
+                (
+                    pipeline_with(ctx, "horizon", shaders::horizon_kernel(), &traversal),
+                    pipeline_with(ctx, "visibility", shaders::visibility_kernel(), &traversal),
+                    pipeline(ctx, "project", shaders::project_kernel()),
+                    pipeline(ctx, "gather", shaders::gather_kernel()),
+                )
+            })?;
         Ok(GpuBaker {
             context,
+            horizon,
             visibility,
             project,
             gather,
+            division,
         })
+    }
+
+    /// How the traversal kernels divide.
+    pub fn division(&self) -> Division {
+        self.division
     }
 
     /// Opens the device for `choice` (see [`device::open`]) and compiles the kernels; `None`
@@ -181,25 +133,6 @@ impl GpuBaker {
         let layout = pipeline.get_bind_group_layout(0);
         self.context.bind_buffers(label, &layout, buffers)
     }
-}
-
-/// A compute pipeline for the kernel's `main`, its layout derived from the WGSL.
-pub(crate) fn pipeline(ctx: &GpuContext, label: &str, source: String) -> wgpu::ComputePipeline {
-    let module = ctx
-        .device
-        .create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(label),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
-    ctx.device
-        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(label),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: wgpu::PipelineCompilationOptions::default(),
-            cache: None,
-        })
 }
 
 /// Chunk sizes that respect the adapter's limits and the per-submission budget.
@@ -255,23 +188,6 @@ fn plan_chunks(
     .min(vertices as u64)
     .max(1) as u32;
     (vertex_chunk, sample_chunk.max(32))
-}
-
-/// Records one compute pass: `pipeline` over `workgroups` with `group` at binding set 0.
-pub(crate) fn encode_pass(
-    encoder: &mut wgpu::CommandEncoder,
-    label: &str,
-    pipeline: &wgpu::ComputePipeline,
-    group: &wgpu::BindGroup,
-    workgroups: [u32; 3],
-) {
-    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: Some(label),
-        timestamp_writes: None,
-    });
-    pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, group, &[]);
-    pass.dispatch_workgroups(workgroups[0], workgroups[1], workgroups[2]);
 }
 
 fn as_vec4(values: &[glam::Vec3]) -> Vec<[f32; 4]> {
@@ -359,8 +275,8 @@ fn run(
                 accumulate: index > 0,
             };
             out.stats.sample_chunks += (vertex_offset == 0) as u32;
-            let lists = buffers.dispatch(baker, &spec, chunk, &mut out.stats)?;
-            out.collect_chunk(ctx, &spec, &buffers, chunk, &lists)?;
+            buffers.dispatch(baker, &spec, chunk, &mut out.stats)?;
+            out.collect_chunk(ctx, &spec, &buffers, chunk)?;
         }
         let chunk_sums: Vec<f32> =
             ctx.read_back(&buffers.transfer, vertices as u64 * spec.coeffs as u64 * 4)?;
@@ -369,6 +285,9 @@ fn run(
         progress.advance(vertices as u64);
     }
     buffers.check_no_ray_exhausted(ctx, spec.max_steps)?;
+    if mode != Mode::Unshadowed {
+        out.stats.rays_cast = buffers.samples_listed(ctx)?;
+    }
     out.stats.run_seconds = started.elapsed().as_secs_f64();
     Ok(out)
 }
@@ -407,15 +326,45 @@ struct RunBuffers {
     transfer: wgpu::Buffer,
     exhausted: wgpu::Buffer,
     hits: wgpu::Buffer,
+    /// Held for the tests, which read the lists back (the bind groups hold it for the passes).
+    #[cfg_attr(not(test), allow(dead_code))]
     sample_lists: wgpu::Buffer,
+    /// (low, high) words of the samples the horizon pass listed in the run.
+    listed: wgpu::Buffer,
+    /// The visibility pass's workgroup counts, written by the horizon pass.
+    visibility_groups: wgpu::Buffer,
+    horizon_params: wgpu::Buffer,
     visibility_params: wgpu::Buffer,
     project_params: wgpu::Buffer,
+    horizon_group: wgpu::BindGroup,
     visibility_group: wgpu::BindGroup,
     project_group: wgpu::BindGroup,
     grid_origin: [f32; 3],
     grid_step: f32,
     /// Bit words per vertex row of a chunk.
     chunk_words: u32,
+}
+
+/// The horizon pass's own buffers: the sample lists of `pairs` vertex–sample pairs, its count
+/// of listed samples, the visibility pass's workgroup counts it writes (read by an indirect
+/// dispatch), and its parameters.
+fn horizon_buffers(
+    ctx: &GpuContext,
+    pairs: u64,
+) -> (wgpu::Buffer, wgpu::Buffer, wgpu::Buffer, wgpu::Buffer) {
+    let sample_lists = ctx.output("sample lists", pairs * 4);
+    let listed = ctx.output("samples listed", 8);
+    let visibility_groups = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("visibility workgroups"),
+        size: 12,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::INDIRECT
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let horizon_params = ctx.uniform("horizon params", &HorizonParams::default());
+    (sample_lists, listed, visibility_groups, horizon_params)
 }
 
 impl RunBuffers {
@@ -431,7 +380,6 @@ impl RunBuffers {
         let chunk_words = sample_chunk / 32;
         let pairs = vertex_chunk as u64 * sample_chunk as u64;
         let hit_size = std::mem::size_of::<Hit>() as u64;
-
         let nodes = ctx.storage("bvh nodes", &gpu_bvh.nodes);
         let triangles = ctx.storage("bvh triangles", &gpu_bvh.triangles);
         let origins = ctx.storage("origins", &as_vec4(inputs.origins));
@@ -444,58 +392,74 @@ impl RunBuffers {
         );
         let transfer = ctx.output("transfer", vertex_chunk as u64 * spec.coeffs as u64 * 4);
         let exhausted = ctx.output("exhausted rays", 4);
+        // Every pair's closest hit; one placeholder where no hit is recorded.
         let hits = ctx.output(
             "hits",
-            if spec.record_hits() {
-                pairs * hit_size
-            } else {
-                hit_size
-            },
+            hit_size * if spec.record_hits() { pairs } else { 1 },
         );
-        let sample_lists = ctx.output("sample lists", pairs * 4);
+        let (sample_lists, listed, visibility_groups, horizon_params) = horizon_buffers(ctx, pairs);
         let visibility_params = ctx.uniform("visibility params", &VisibilityParams::default());
         let project_params = ctx.uniform("project params", &ProjectParams::default());
 
-        let (visibility_group, project_group) = ctx.checked("binding the buffers", || {
-            (
-                baker.bind(
-                    "visibility",
-                    &baker.visibility,
-                    &[
-                        &visibility_params,
-                        &nodes,
-                        &triangles,
-                        &origins,
-                        &normals,
-                        &directions,
-                        &bits,
-                        &exhausted,
-                        &hits,
-                        &sample_lists,
-                    ],
-                ),
-                baker.bind(
-                    "project",
-                    &baker.project,
-                    &[
-                        &project_params,
-                        &normals,
-                        &directions,
-                        &sh_table,
-                        &bits,
-                        &transfer,
-                    ],
-                ),
-            )
-        })?;
+        let (horizon_group, visibility_group, project_group) =
+            ctx.checked("binding the buffers", || {
+                (
+                    baker.bind(
+                        "horizon",
+                        &baker.horizon,
+                        &[
+                            &horizon_params,
+                            &triangles,
+                            &normals,
+                            &directions,
+                            &sample_lists,
+                            &listed,
+                            &visibility_groups,
+                            &hits,
+                        ],
+                    ),
+                    baker.bind(
+                        "visibility",
+                        &baker.visibility,
+                        &[
+                            &visibility_params,
+                            &nodes,
+                            &triangles,
+                            &origins,
+                            &normals,
+                            &directions,
+                            &bits,
+                            &exhausted,
+                            &hits,
+                            &sample_lists,
+                        ],
+                    ),
+                    baker.bind(
+                        "project",
+                        &baker.project,
+                        &[
+                            &project_params,
+                            &normals,
+                            &directions,
+                            &sh_table,
+                            &bits,
+                            &transfer,
+                        ],
+                    ),
+                )
+            })?;
         Ok(RunBuffers {
             bits,
             transfer,
             exhausted,
             hits,
             sample_lists,
+            listed,
+            visibility_groups,
+            horizon_params,
             visibility_params,
             project_params,
+            horizon_group,
             visibility_group,
             project_group,
             grid_origin: gpu_bvh.grid_origin,
@@ -504,29 +468,35 @@ impl RunBuffers {
         })
     }
 
-    /// Uploads the chunk's sample lists and parameters, runs both passes on it and waits.
-    /// Returns the sample lists (the hits are read through them).
+    /// Sets the chunk's parameters, runs the horizon, visibility and projection passes on it
+    /// and waits.
     fn dispatch(
         &self,
         baker: &GpuBaker,
         spec: &RunSpec,
         chunk: Chunk,
         stats: &mut GpuRun,
-    ) -> Result<Vec<u32>> {
+    ) -> Result<()> {
         let ctx = &baker.context;
         let inputs = spec.inputs;
-        let listing = Instant::now();
-        let (lists, longest, listed) = sample_lists_above_horizon(
-            inputs,
-            chunk.vertex_offset as usize..(chunk.vertex_offset + chunk.vertices) as usize,
-            chunk.sample_offset as usize..(chunk.sample_offset + chunk.samples) as usize,
-        );
-        stats.sample_list_seconds += listing.elapsed().as_secs_f64();
-        if spec.mode != Mode::Unshadowed {
-            stats.rays_cast += listed;
-        }
+        let tangent_frames = (inputs.samples.frame == DirectionFrame::Tangent) as u32;
+        let horizon = HorizonParams {
+            vertex_offset: chunk.vertex_offset,
+            vertex_count: chunk.vertices,
+            sample_offset: chunk.sample_offset,
+            sample_count: chunk.samples,
+            tangent_frames,
+            record_hits: spec.record_hits() as u32,
+            ..Default::default()
+        };
         ctx.queue
-            .write_buffer(&self.sample_lists, 0, bytemuck::cast_slice(&lists));
+            .write_buffer(&self.horizon_params, 0, bytemuck::bytes_of(&horizon));
+        // The horizon pass raises x to the longest list's workgroups.
+        ctx.queue.write_buffer(
+            &self.visibility_groups,
+            0,
+            bytemuck::cast_slice(&[0, chunk.vertices, 1]),
+        );
         let visibility = VisibilityParams {
             vertex_offset: chunk.vertex_offset,
             vertex_count: chunk.vertices,
@@ -538,7 +508,7 @@ impl RunBuffers {
             record_hits: spec.record_hits() as u32,
             grid_origin: self.grid_origin,
             grid_step: self.grid_step,
-            tangent_frames: (inputs.samples.frame == DirectionFrame::Tangent) as u32,
+            tangent_frames,
             ..Default::default()
         };
         let project = ProjectParams {
@@ -565,10 +535,17 @@ impl RunBuffers {
             encoder.clear_buffer(&self.bits, 0, None);
             encode_pass(
                 &mut encoder,
+                "horizon",
+                &baker.horizon,
+                &self.horizon_group,
+                [1, chunk.vertices, 1],
+            );
+            encode_indirect_pass(
+                &mut encoder,
                 "visibility",
                 &baker.visibility,
                 &self.visibility_group,
-                [longest.div_ceil(WORKGROUP_SIZE), chunk.vertices, 1],
+                &self.visibility_groups,
             );
             encode_pass(
                 &mut encoder,
@@ -587,7 +564,13 @@ impl RunBuffers {
         ctx.wait()?;
         stats.kernel_wait_seconds += waiting.elapsed().as_secs_f64();
         stats.submissions += 1;
-        Ok(lists)
+        Ok(())
+    }
+
+    /// The samples the horizon pass listed over the run: the rays a shadowed run cast.
+    fn samples_listed(&self, ctx: &GpuContext) -> Result<u64> {
+        let words: Vec<u32> = ctx.read_back(&self.listed, 8)?;
+        Ok(words[0] as u64 | (words[1] as u64) << 32)
     }
 
     /// The error a run must end with when any ray ran out of traversal steps.
@@ -631,7 +614,6 @@ impl RunOutput {
         spec: &RunSpec,
         buffers: &RunBuffers,
         chunk: Chunk,
-        lists: &[u32],
     ) -> Result<()> {
         let samples = chunk.samples as usize;
         if spec.keep_bits {
@@ -655,17 +637,13 @@ impl RunOutput {
                 &buffers.hits,
                 chunk.vertices as u64 * chunk.samples as u64 * hit_size,
             )?;
-            // Only listed samples were written.
-            for (v, (row, list)) in chunk_hits
-                .chunks(samples)
-                .zip(lists.chunks(samples))
-                .enumerate()
-            {
+            // Every sample's hit was written: NO_HIT below the horizon (the horizon pass), the
+            // closest hit or NO_HIT above it (the visibility pass).
+            for (v, row) in chunk_hits.chunks(samples).enumerate() {
                 let own = &mut self.hits[chunk.vertex_offset as usize + v];
-                for &s in list.iter().take_while(|&&s| s != NO_SAMPLE) {
-                    let hit = row[s as usize];
+                for (s, &hit) in row.iter().enumerate() {
                     if hit.triangle != NO_HIT {
-                        own.push((chunk.sample_offset + s, hit));
+                        own.push((chunk.sample_offset + s as u32, hit));
                     }
                 }
             }
@@ -674,45 +652,6 @@ impl RunOutput {
     }
 }
 
-/// For each vertex of `vertices`, the samples of `samples` above its horizon (by the CPU
-/// backend's test, so both trace the same rays) as indices from `samples.start`, ascending,
-/// padded with NO_SAMPLE to rows of `samples.len()`; the longest list's length; and the
-/// lists' total length (the rays a shadowed pass casts for this chunk).
-///
-/// About half of all vertex–sample pairs are below the horizon. Listing the others first
-/// keeps llvmpipe's 8-wide SIMD groups full of rays (a group straddling the horizon would
-/// run masked lanes) and lets the dispatch skip groups with nothing to trace.
-fn sample_lists_above_horizon(
-    inputs: &DirectInputs,
-    vertices: std::ops::Range<usize>,
-    samples: std::ops::Range<usize>,
-) -> (Vec<u32>, u32, u64) {
-    let width = samples.len();
-    let mut lists = vec![NO_SAMPLE; vertices.len() * width];
-    let (longest, listed) = lists
-        .par_chunks_mut(width.max(1))
-        .zip(&inputs.normals[vertices])
-        .map(|(row, &normal)| {
-            let to_world = VertexDirections::new(inputs.samples.frame, normal);
-            let mut count = 0;
-            for (s, &sample) in inputs.samples.directions[samples.clone()]
-                .iter()
-                .enumerate()
-            {
-                let direction = to_world.world(sample);
-                if normal.dot(direction) > 0.0 {
-                    row[count] = s as u32;
-                    count += 1;
-                }
-            }
-            count as u32
-        })
-        .map(|count| (count, count as u64))
-        .reduce(|| (0, 0), |a, b| (a.0.max(b.0), a.1 + b.1));
-    (lists, longest, listed)
-}
-
-/// Transfer from the kernels' raw sums, finished per vertex as the CPU finishes its own.
 fn scaled(mut sums: Vec<f32>, inputs: &DirectInputs) -> Vec<f32> {
     let n = coeff_count(inputs.table.bands);
     sums.par_chunks_mut(n).enumerate().for_each(|(v, row)| {

@@ -7,7 +7,7 @@ use super::bake::{load_scene, naming_the_mesh, open_backend};
 use super::light::load_light;
 use super::progress::BarProgress;
 use prt_gpu::bake::adaptive::TargetError;
-use prt_gpu::bake::gpu::GpuRun;
+use prt_gpu::bake::gpu::{Division, GpuRun};
 use prt_gpu::bake::{self, Backend, BakeOptions, CpuBackend, Fit, GpuBackend, Mode};
 use prt_gpu::device::DeviceChoice;
 use prt_gpu::light;
@@ -249,18 +249,16 @@ fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
     Ok(options)
 }
 
-/// Where a GPU run's time went, as one line: the host's per-ray work (the sample lists), the
-/// wait for the kernels, and the rest (uploads, read-backs, setup), each a share of the run.
+/// Where a GPU run's time went, as one line: the wait for the kernels, and the rest (the
+/// host's setup, uploads and read-backs), each a share of the run.
 fn gpu_host_share(run: &GpuRun) -> String {
     let share = |seconds: f64| 100.0 * seconds / run.run_seconds.max(f64::MIN_POSITIVE);
-    let rest = run.run_seconds - run.sample_list_seconds - run.kernel_wait_seconds;
+    let rest = run.run_seconds - run.kernel_wait_seconds;
     format!(
-        "gpu run of median time: {:.3} s in {} submissions: sample lists on the host {:.3} s \
-         ({:.0}%), waiting for kernels {:.3} s ({:.0}%), the rest {:.3} s ({:.0}%)",
+        "gpu run of median time: {:.3} s in {} submissions: waiting for kernels {:.3} s \
+         ({:.0}%), the rest {:.3} s ({:.0}%)",
         run.run_seconds,
         run.submissions,
-        run.sample_list_seconds,
-        share(run.sample_list_seconds),
         run.kernel_wait_seconds,
         share(run.kernel_wait_seconds),
         rest,
@@ -327,6 +325,13 @@ pub(crate) fn run_bench(args: BenchArgs) -> Result<()> {
         if let Some(run) = &timing.gpu_run {
             println!("{}", gpu_host_share(run));
         }
+        println!(
+            "gpu division: {}",
+            match baker.division() {
+                Division::Ieee => "the adapter's own, which rounds as IEEE 754 on every probe",
+                Division::Emulated => "emulated (the adapter's own is not IEEE 754's)",
+            }
+        );
         println!("gpu / cpu throughput: {:.2}", cpu_seconds / gpu_seconds);
     }
     Ok(())

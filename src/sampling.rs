@@ -318,7 +318,7 @@ pub fn square_to_cosine_hemisphere(u: f64, v: f64) -> DVec3 {
 
 /// A right-handed orthonormal frame `(t, b, n)` around a unit normal, with no branch on the
 /// normal's direction except its z sign (Duff et al., "Building an orthonormal basis,
-/// revisited", 2017). wgsl/visibility.wgsl's `tangent_frame` is its twin, in the same f32 steps.
+/// revisited", 2017). wgsl/samples.wgsl's `tangent_frame` is its twin, in the same f32 steps.
 pub fn tangent_frame(n: Vec3) -> [Vec3; 3] {
     let sign = if n.z >= 0.0 { 1.0f32 } else { -1.0 };
     let a = -1.0 / (sign + n.z);

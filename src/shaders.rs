@@ -8,8 +8,8 @@ use crate::ray::{MIN_DIRECTION_COMPONENT, NO_HIT, RAY_T_MAX, SLAB_WIDENING};
 /// Invocations per workgroup of every kernel.
 pub const WORKGROUP_SIZE: u32 = 64;
 
-/// End of a vertex's list in the visibility kernel's `sample_lists` (the host writes the lists,
-/// `bake::gpu::sample_lists_above_horizon`).
+/// End of a vertex's list in the visibility kernel's `sample_lists` (the horizon pass writes
+/// the lists, wgsl/horizon.wgsl).
 pub const NO_SAMPLE: u32 = u32::MAX;
 
 /// `ProjectParams::estimator` flag: sum over the blocked samples above the horizon instead of

@@ -1,7 +1,7 @@
 //! Comments that name a twin must name something that exists.
 //!
 //! The WGSL kernels and their Rust counterparts point at each other in comments ("Rust twin:
-//! ray::intersect_triangle", "WGSL twin `Hit` in wgsl/visibility.wgsl"); after a rename such a
+//! ray::intersect_triangle", "WGSL twin `Hit` in wgsl/samples.wgsl"); after a rename such a
 //! pointer goes stale without any compiler noticing. This test resolves every one:
 //!
 //! - "Rust twin", "Rust twins", "CPU twin", "CPU twins" (in wgsl/*.wgsl, src/**/*.rs and
@@ -539,7 +539,7 @@ fn every_form_of_reference_resolves() {
 
     let rust = source(
         "src/example.rs",
-        "/// The closest hit; WGSL twin `Hit` in wgsl/visibility.wgsl.\n\
+        "/// The closest hit; WGSL twin `Hit` in wgsl/samples.wgsl.\n\
          pub struct Hit;\n\
          /// Uniforms of the gather kernel; WGSL twin in wgsl/gather.wgsl.\n\
          #[repr(C)]\n\

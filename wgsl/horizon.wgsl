@@ -4,8 +4,8 @@
 // It also counts the listed samples (the rays a shadowed pass casts), sizes the visibility
 // pass's indirect dispatch to the longest list, and, for a closest-hit pass, writes NO_HIT to
 // the hits of the samples it leaves out, so that the host reads a row's hits without its list.
-// Rust twin: the horizon test of bake::cpu::trace_visibility, listed by
-// bake::gpu::horizon::host_lists for the tests.
+// Rust twin: bake::cpu::trace_visibility (its horizon test); the tests hold the lists to the
+// host's, built as bake::gpu::horizon's tests build them.
 // Dispatch: one workgroup per vertex (y), WORKGROUP_SIZE samples at a time: each invocation
 // tests one sample, and a prefix sum over the workgroup places the ones above the horizon.
 

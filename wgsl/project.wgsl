@@ -15,7 +15,7 @@ struct ProjectParams {
     estimator: u32,
 }
 
-// Flags of `estimator`; Rust twin: bake::gpu::estimator_flags. Without flags: sum over
+// Flags of `estimator`; Rust twin: bake::gpu::kernels::estimator_flags. Without flags: sum over
 // visible samples of the cosine times y_k.
 // ESTIMATOR_BLOCKED: sum over samples above the horizon that are blocked
 // (sampling::Estimator::Blocked). ESTIMATOR_TANGENT: directions in the tangent frame with cosine

@@ -25,7 +25,7 @@ fn to_world(frame: mat3x3<f32>, d: vec3<f32>) -> vec3<f32> {
     return rounded3(frame[0] * d.x) + rounded3(frame[1] * d.y) + rounded3(frame[2] * d.z);
 }
 
-// Rust twin: the horizon test of bake::cpu::trace_visibility (`normal.dot(direction) > 0`,
+// Rust twin: bake::cpu::trace_visibility (its horizon test, `normal.dot(direction) > 0`, with
 // glam's dot: x, then y, then z).
 fn above_horizon(n: vec3<f32>, d: vec3<f32>) -> bool {
     return rounded(n.x * d.x) + rounded(n.y * d.y) + rounded(n.z * d.z) > 0.0;

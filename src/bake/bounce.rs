@@ -22,7 +22,7 @@ use crate::ray::{Ray, NO_HIT, RAY_T_MAX};
 use crate::sampling::{DirectionFrame, VertexDirections};
 use crate::sh::coeff_count;
 
-/// The closest hit of one ray, 12 bytes; WGSL twin `Hit` in wgsl/visibility.wgsl. `u`, `v`:
+/// The closest hit of one ray, 12 bytes; WGSL twin `Hit` in wgsl/samples.wgsl. `u`, `v`:
 /// barycentrics of the triangle's second and third vertices.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]

@@ -1,6 +1,7 @@
 //! The GPU backend: the CPU backend's two passes as wgpu compute kernels.
 //!
-//! Split: a visibility pass (wgsl/visibility.wgsl, one invocation per vertex–sample pair, so an
+//! Split: a horizon pass (wgsl/horizon.wgsl, `horizon.rs`) lists each vertex's samples above
+//! its horizon on the device; a visibility pass (wgsl/visibility.wgsl, one invocation per vertex–sample pair, so an
 //! invocation traces exactly one ray and stays far below llvmpipe's 65,535-iteration loop cap)
 //! writes one bit per ray; a projection pass (wgsl/project.wgsl, one invocation per
 //! vertex–coefficient pair) sums cosine-weighted SH over the set bits. The bits are also what

@@ -34,20 +34,25 @@ fn rounded3(p: vec3<f32>) -> vec3<f32> {
     return bitcast<vec3<f32>>(bitcast<vec3<u32>>(p) | vec3<u32>(unseen_zero));
 }
 
-// The zero `rounded` ORs with, read once per invocation: every kernel that rounds calls
-// `read_unseen_zero()` first (a test checks), since a private variable never written is a
-// zero the compiler sees. (On llvmpipe a storage load in every product cost 1.7x the time.)
+// The zero `rounded` ORs with, read from memory once per invocation rather than once per
+// product: every kernel that rounds calls `read_unseen_zero()` first (a test checks), since a
+// private variable never written is a zero the compiler sees.
 var<private> unseen_zero: u32;
 
 fn read_unseen_zero() {
     unseen_zero = triangles[2u].w;
 }
 
+// Set by the host (bake::gpu::Division) where the adapter's own `/` was seen to round as IEEE
+// 754 does, as llvmpipe's does: `divide_rounded` is then `/`. Forced on lavapipe, the emulation
+// took 1.4x the time of a bake before it (docs/performance.md).
+override DIVISION_IS_IEEE: bool = false;
+
 // One step of the significands' long division: 8 more quotient bits. `q_r` is (quotient so
 // far, remainder), the remainder below `d` < 2^24, so that it shifted by 8 still fits 32 bits.
 // The digit is estimated by a float division (off by at most one: the exact digit is below 256
-// and the estimate within 2^-14 of it) and corrected with the exact integer remainder, because
-// llvmpipe has no vector integer division (an integer `/` here made a lavapipe bake 1.7x slower).
+// and the estimate within 2^-14 of it) and corrected with the exact integer remainder: x86 has
+// no vector integer division, so llvmpipe would divide lane by lane.
 fn quotient_step(q_r: vec2<u32>, d: u32) -> vec2<u32> {
     let shifted = q_r.y << 8u;
     // Through i32: both values are below 2^24, and x86 converts signed integers in one
@@ -70,11 +75,6 @@ fn quotient_step(q_r: vec2<u32>, d: u32) -> vec2<u32> {
 // take the hardware's `/`: the callers divide by direction components no smaller than
 // MIN_DIRECTION_COMPONENT and by edge-function sums, and their quotients of zero are exact
 // either way. Written without loops: llvmpipe's loop cap counts every iteration.
-// Set by the host (bake::gpu::Division) where the adapter's own `/` was seen to round as IEEE
-// 754 does, as llvmpipe's does: `divide_rounded` is then `/`. The emulation costs llvmpipe 1.4x
-// the time of a bake.
-override DIVISION_IS_IEEE: bool = false;
-
 fn divide_rounded(a: f32, b: f32) -> f32 {
     if (DIVISION_IS_IEEE) {
         return a / b;

@@ -44,8 +44,11 @@ var<workgroup> prefix: array<u32, WORKGROUP_SIZE>;
 @compute @workgroup_size(WORKGROUP_SIZE, 1, 1)
 fn main(@builtin(local_invocation_index) lane: u32, @builtin(workgroup_id) group: vec3<u32>) {
     read_unseen_zero();
-    // One workgroup per vertex of the chunk, exactly: every branch on it is uniform.
+    // One workgroup per vertex: every branch on it is uniform, this return included.
     let local_vertex = group.y;
+    if (local_vertex >= params.vertex_count) {
+        return;
+    }
     let normal = normals[params.vertex_offset + local_vertex].xyz;
     let frame = tangent_frame(normal);
     let row = local_vertex * params.sample_count;

@@ -1,10 +1,10 @@
 //! The GPU backend: the CPU backend's two passes as wgpu compute kernels.
 //!
 //! Split: a horizon pass (wgsl/horizon.wgsl, `horizon.rs`) lists each vertex's samples above
-//! its horizon on the device; a visibility pass (wgsl/visibility.wgsl, one invocation per vertex–sample pair, so an
-//! invocation traces exactly one ray and stays far below llvmpipe's 65,535-iteration loop cap)
-//! writes one bit per ray; a projection pass (wgsl/project.wgsl, one invocation per
-//! vertex–coefficient pair) sums cosine-weighted SH over the set bits. The bits are also what
+//! its horizon on the device; a visibility pass (wgsl/visibility.wgsl, one invocation per
+//! vertex–sample pair, so an invocation traces exactly one ray and stays far below llvmpipe's
+//! 65,535-iteration loop cap) writes one bit per ray; a projection pass (wgsl/project.wgsl,
+//! one invocation per vertex–coefficient pair) sums cosine-weighted SH over the set bits. The bits are also what
 //! tests compare with the CPU ray for ray.
 //!
 //! Work is cut into chunks of vertices and of samples so that every binding fits the adapter's
@@ -653,6 +653,7 @@ impl RunOutput {
     }
 }
 
+/// Transfer from the kernels' raw sums, finished per vertex as the CPU finishes its own.
 fn scaled(mut sums: Vec<f32>, inputs: &DirectInputs) -> Vec<f32> {
     let n = coeff_count(inputs.table.bands);
     sums.par_chunks_mut(n).enumerate().for_each(|(v, row)| {

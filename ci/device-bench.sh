@@ -71,8 +71,8 @@ fi
 dragon=tests/data/dragon_vrip_res3.ply.gz
 largest=$(ls -S tests/data/*.obj tests/data/*.ply.gz tests/data/gltf/*.glb 2>/dev/null | head -1)
 for mesh in "$dragon" "$largest" "$@"; do
-    say "bench $mesh (CPU and GPU side by side, 1024 samples, shadowed)"
-    $bin bench "$mesh" --device gpu --repeats 3
+    say "bench $mesh (CPU and GPU side by side, 1024 samples, shadowed; shadow and diffuse ray sets)"
+    $bin bench "$mesh" --device gpu --repeats 3 --ray-sets
     say "bench $mesh (interreflected)"
     $bin bench "$mesh" --device gpu --repeats 3 --mode interreflected
     say "GPU bake of $mesh (interreflected, 3 bounces)"

@@ -2,10 +2,12 @@
 //! each timed and compared with a high-sample reference bake. `prt-gpu chart` draws the result
 //! (crate::chart) and writes it as CSV; `prt-gpu bench` times the backends side by side.
 
+use std::collections::HashMap;
 use std::path::Path;
 use std::time::Instant;
 
 use crate::bake::adaptive::TargetError;
+use crate::bake::bounce::Hit;
 use crate::bake::gpu::{Chunking, GpuBaker, GpuRun};
 use crate::bake::texels::bake_texels;
 use crate::bake::Transfer;
@@ -460,6 +462,114 @@ pub fn time_backends(
     })
 }
 
+/// The standard ray sets of `prt-gpu bench --ray-sets`, timed like [`time_backends`]: the
+/// direct pass's rays (every receiver's ray origin along each of its sample directions above
+/// the horizon) cast as shadow rays (any hit, the visibility bits) and as diffuse rays (closest
+/// hit, the triangle hit), with no projection, so that their rays/s compare with published
+/// ray-tracer figures. Each GPU answer is checked against the CPU's.
+#[derive(Clone, Debug)]
+pub struct RaySetTimes {
+    pub rays: u64,
+    pub shadow: SetTimes,
+    pub diffuse: SetTimes,
+}
+
+/// One ray set's median times.
+#[derive(Clone, Copy, Debug)]
+pub struct SetTimes {
+    pub cpu_seconds: f64,
+    /// `None` without a GPU.
+    pub gpu_seconds: Option<f64>,
+    /// Rays whose GPU answer differs from the CPU's (blocked or not; the triangle hit, or a hit
+    /// on one backend only), in the last round; `None` without a GPU.
+    pub differing_rays: Option<u64>,
+}
+
+/// Times both ray sets `repeats` times, CPU and GPU alternating; see [`RaySetTimes`].
+pub fn time_ray_sets(
+    inputs: &DirectInputs,
+    baker: Option<&GpuBaker>,
+    repeats: u32,
+    on_round: impl Fn(u32),
+) -> Result<RaySetTimes> {
+    let timed = |work: &mut dyn FnMut() -> Result<()>| -> Result<f64> {
+        let started = Instant::now();
+        work()?;
+        Ok(started.elapsed().as_secs_f64())
+    };
+    let [mut shadow_cpu, mut shadow_gpu, mut diffuse_cpu, mut diffuse_gpu] =
+        [(); 4].map(|_| Vec::new());
+    let (mut rays, mut shadow_differ, mut diffuse_differ) = (0, None, None);
+    for round in 0..repeats.max(1) {
+        on_round(round);
+        let mut cpu_bits = Vec::new();
+        shadow_cpu.push(timed(&mut || {
+            cpu_bits = cpu::visibility_bits(inputs, Mode::Shadowed);
+            Ok(())
+        })?);
+        let mut cpu_hits = Vec::new();
+        diffuse_cpu.push(timed(&mut || {
+            (cpu_hits, rays) = cpu::closest_hit_triangles(inputs);
+            Ok(())
+        })?);
+        let Some(baker) = baker else { continue };
+        let mut gpu_bits = Vec::new();
+        shadow_gpu.push(timed(&mut || {
+            gpu_bits = gpu::visibility_bits_and_transfer(
+                baker,
+                inputs,
+                Mode::Shadowed,
+                Chunking::default(),
+            )?
+            .0;
+            Ok(())
+        })?);
+        let mut gpu_hits = Vec::new();
+        diffuse_gpu.push(timed(&mut || {
+            gpu_hits = gpu::closest_hits(baker, inputs, Chunking::default(), &NoProgress)?;
+            Ok(())
+        })?);
+        let differing_bits = cpu_bits.iter().zip(&gpu_bits);
+        shadow_differ = Some(
+            differing_bits
+                .map(|(c, g)| (c ^ g).count_ones() as u64)
+                .sum(),
+        );
+        diffuse_differ = Some(differing_hits(&cpu_hits, &gpu_hits));
+    }
+    let median_of = |times: &mut Vec<f64>| (!times.is_empty()).then(|| median(times));
+    Ok(RaySetTimes {
+        rays,
+        shadow: SetTimes {
+            cpu_seconds: median(&mut shadow_cpu),
+            gpu_seconds: median_of(&mut shadow_gpu),
+            differing_rays: shadow_differ,
+        },
+        diffuse: SetTimes {
+            cpu_seconds: median(&mut diffuse_cpu),
+            gpu_seconds: median_of(&mut diffuse_gpu),
+            differing_rays: diffuse_differ,
+        },
+    })
+}
+
+/// Rays whose closest hit differs between `cpu` and `gpu` (`(sample, triangle)` per receiver):
+/// another triangle, or a hit on one side only.
+fn differing_hits(cpu: &[Vec<(u32, u32)>], gpu: &[Vec<(u32, Hit)>]) -> u64 {
+    cpu.iter()
+        .zip(gpu)
+        .map(|(c, g)| {
+            let on_cpu: HashMap<u32, u32> = c.iter().copied().collect();
+            let matching = g
+                .iter()
+                .filter(|(s, hit)| on_cpu.get(s) == Some(&hit.triangle))
+                .count();
+            let gpu_only = g.iter().filter(|(s, _)| !on_cpu.contains_key(s)).count();
+            (c.len() - matching + gpu_only) as u64
+        })
+        .sum()
+}
+
 fn median(times: &mut [f64]) -> f64 {
     times.sort_by(f64::total_cmp);
     times[times.len() / 2]
@@ -468,6 +578,29 @@ fn median(times: &mut [f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn hits_differ_by_triangle_or_by_presence() {
+        let hit = |triangle| Hit {
+            triangle,
+            u: 0.25,
+            v: 0.5,
+        };
+        let cpu = vec![vec![(0, 7), (3, 9), (5, 1)], vec![], vec![(2, 4)]];
+        let same: Vec<Vec<(u32, Hit)>> = cpu
+            .iter()
+            .map(|row| row.iter().map(|&(s, t)| (s, hit(t))).collect())
+            .collect();
+        assert_eq!(differing_hits(&cpu, &same), 0);
+        // Sample 3 hits another triangle, sample 5 misses, sample 1 of receiver 1 hits on the
+        // GPU only: three rays.
+        let gpu = vec![
+            vec![(0, hit(7)), (3, hit(8))],
+            vec![(1, hit(2))],
+            vec![(2, hit(4))],
+        ];
+        assert_eq!(differing_hits(&cpu, &gpu), 3);
+    }
 
     fn point(sampling: Sampling, backend: &str, samples: u32) -> SweepPoint {
         SweepPoint {

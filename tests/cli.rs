@@ -786,7 +786,10 @@ fn chart_runs_each_backend_and_draws_png() {
 #[test]
 fn bench_times_both_backends_and_names_the_adapter() {
     let dir = tempfile::tempdir().unwrap();
-    let out = prt_gpu(&["bench", "--samples", "64", "--repeats", "1"], dir.path());
+    let out = prt_gpu(
+        &["bench", "--samples", "64", "--repeats", "1", "--ray-sets"],
+        dir.path(),
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -797,11 +800,20 @@ fn bench_times_both_backends_and_names_the_adapter() {
         stdout.contains("cpu (") && stdout.contains("M rays/s"),
         "{stdout}"
     );
+    // Both ray sets, on every backend, and where a GPU ran, its answers are the CPU's.
+    let set_lines: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("shadow (any hit)") || l.starts_with("diffuse (closest hit)"))
+        .collect();
+    assert_eq!(set_lines.len(), 2, "{stdout}");
     if std::env::var_os("CI").is_some() {
         assert!(
             stdout.contains("gpu (") && stdout.contains("gpu / cpu"),
             "{stdout}"
         );
+        for line in set_lines {
+            assert!(line.ends_with("rays whose gpu answer differs: 0"), "{line}");
+        }
     }
     assert!(entries(dir.path()).is_empty(), "bench writes no files");
     dir.close().unwrap();

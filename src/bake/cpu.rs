@@ -375,6 +375,43 @@ pub fn visibility_bits(inputs: &DirectInputs, mode: Mode) -> Vec<u32> {
     bits
 }
 
+/// The closest hit of every ray of the direct pass, one closest-hit traversal per ray
+/// (`Bvh::closest_hit`): `(sample, triangle)` per receiver for the rays that hit something,
+/// and the rays cast. What `prt-gpu bench --ray-sets` times as its diffuse ray set; a bake
+/// casts closest-hit rays only where the packets found a ray blocked
+/// (`bounce::blocked_hits`).
+pub fn closest_hit_triangles(inputs: &DirectInputs) -> (Vec<Vec<(u32, u32)>>, u64) {
+    let per_receiver: Vec<(Vec<(u32, u32)>, u64)> = (0..inputs.origins.len())
+        .into_par_iter()
+        .map(|vertex| {
+            let normal = inputs.normals[vertex];
+            let origin = inputs.origins[vertex];
+            let to_world = VertexDirections::new(inputs.samples.frame, normal);
+            let mut hits = Vec::new();
+            let mut rays = 0;
+            for (s, &sample) in inputs.samples.directions.iter().enumerate() {
+                let direction = to_world.world(sample);
+                if normal.dot(direction) <= 0.0 {
+                    continue;
+                }
+                rays += 1;
+                if let Some((triangle, _)) = inputs
+                    .bvh
+                    .closest_hit(&Ray::new(origin, direction), RAY_T_MAX)
+                {
+                    hits.push((s as u32, triangle));
+                }
+            }
+            (hits, rays)
+        })
+        .collect();
+    let rays = per_receiver.iter().map(|(_, rays)| rays).sum();
+    (
+        per_receiver.into_iter().map(|(hits, _)| hits).collect(),
+        rays,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -431,6 +468,35 @@ mod tests {
             }
         }
         assert!(blocked > 0);
+    }
+
+    #[test]
+    fn closest_hits_are_found_on_exactly_the_blocked_rays() {
+        let owned = bunny(100);
+        let inputs = owned.view();
+        let bits = visibility_bits(&inputs, Mode::Shadowed);
+        let words = words_per_vertex(inputs.samples.len());
+        let (hits, rays) = closest_hit_triangles(&inputs);
+        let (_, shadowed_rays) = direct_transfer(&inputs, Mode::Shadowed, &NoProgress);
+        assert_eq!(rays, shadowed_rays);
+        let mut blocked = 0;
+        for (v, own) in hits.iter().enumerate() {
+            let normal = inputs.normals[v];
+            let to_world = VertexDirections::new(inputs.samples.frame, normal);
+            let expected: Vec<u32> = (0..inputs.samples.len() as u32)
+                .filter(|&s| {
+                    let above = normal.dot(to_world.world(inputs.samples.directions[s as usize]));
+                    above > 0.0 && bits[v * words + s as usize / 32] & (1 << (s % 32)) == 0
+                })
+                .collect();
+            let with_hits: Vec<u32> = own.iter().map(|&(s, _)| s).collect();
+            assert_eq!(with_hits, expected, "vertex {v}");
+            blocked += expected.len();
+        }
+        assert!(
+            blocked > 1000,
+            "too few blocked rays ({blocked}) to test anything"
+        );
     }
 
     #[test]

@@ -86,6 +86,11 @@ pub(crate) struct BenchArgs {
     /// Use the adapter whose name contains this text.
     #[arg(long)]
     adapter: Option<String>,
+    /// Also time the bake's rays as two standard ray sets, shadow rays (any hit) and diffuse
+    /// rays (closest hit), without the projection, and count the rays on which the GPU's answer
+    /// differs from the CPU's.
+    #[arg(long)]
+    ray_sets: bool,
 }
 
 pub(crate) fn run_chart(args: ChartArgs) -> Result<()> {
@@ -334,5 +339,39 @@ pub(crate) fn run_bench(args: BenchArgs) -> Result<()> {
         );
         println!("gpu / cpu throughput: {:.2}", cpu_seconds / gpu_seconds);
     }
+    if args.ray_sets {
+        let sets = sweep::time_ray_sets(&inputs, baker.as_ref(), args.repeats, |round| {
+            eprintln!("ray sets: round {} of {}", round + 1, args.repeats)
+        })?;
+        print_ray_sets(&sets);
+    }
     Ok(())
+}
+
+/// The ray sets' lines: rays/s per backend, per core on the CPU, and the rays that differ.
+fn print_ray_sets(sets: &sweep::RaySetTimes) {
+    let threads = rayon::current_num_threads();
+    println!(
+        "ray sets: the same {} rays, no projection; M rays/s, per core on the CPU ({threads} threads)",
+        sets.rays
+    );
+    let rate = |seconds: f64| sets.rays as f64 / seconds / 1e6;
+    for (name, set) in [
+        ("shadow (any hit)", &sets.shadow),
+        ("diffuse (closest hit)", &sets.diffuse),
+    ] {
+        let mut line = format!(
+            "{name:<22} cpu {:8.2} ({:6.2} per core)",
+            rate(set.cpu_seconds),
+            rate(set.cpu_seconds) / threads as f64
+        );
+        if let (Some(seconds), Some(differing)) = (set.gpu_seconds, set.differing_rays) {
+            line += &format!(
+                "   gpu {:9.2}   gpu / cpu {:.2}   rays whose gpu answer differs: {differing}",
+                rate(seconds),
+                set.cpu_seconds / seconds
+            );
+        }
+        println!("{line}");
+    }
 }

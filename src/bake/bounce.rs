@@ -18,7 +18,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{cpu, DirectInputs, Mode, Progress};
-use crate::ray::{Ray, NO_HIT, RAY_T_MAX};
+use crate::ray::NO_HIT;
 use crate::sampling::{DirectionFrame, VertexDirections};
 use crate::sh::coeff_count;
 
@@ -138,37 +138,19 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
 /// Closest hits of the blocked rays of one vertex, on the CPU: `(sample, hit)` for every
 /// sample above the horizon whose bit in `visible` (the vertex's visibility bits, from
 /// [`cpu::trace_visibility`] or its packets) is clear. The packets find which rays are blocked
-/// far faster than one closest-hit traversal per ray, and the open rays, most of them on a
-/// typical mesh and the ones that cross the whole tree, then need no closest hit at all.
+/// far faster than a closest-hit traversal, and the open rays, most of them on a typical mesh
+/// and the ones that cross the whole tree, then need no closest hit at all.
 pub fn blocked_hits(inputs: &DirectInputs, vertex: usize, visible: &[u32]) -> Vec<(u32, Hit)> {
     let normal = inputs.normals[vertex];
     let to_world = VertexDirections::new(inputs.samples.frame, normal);
-    let origin = inputs.origins[vertex];
-    let mut hits = Vec::new();
-    for (s, &sample) in inputs.samples.directions.iter().enumerate() {
-        if visible[s / 32] & (1 << (s % 32)) != 0 {
-            continue;
-        }
-        let direction = to_world.world(sample);
-        if normal.dot(direction) <= 0.0 {
-            continue;
-        }
-        // A blocked ray always has a closest hit: both queries run the same tests.
-        if let Some((triangle, hit)) = inputs
-            .bvh
-            .closest_hit(&Ray::new(origin, direction), RAY_T_MAX)
-        {
-            hits.push((
-                s as u32,
-                Hit {
-                    triangle,
-                    u: hit.u,
-                    v: hit.v,
-                },
-            ));
-        }
-    }
-    hits
+    let blocked: Vec<u32> = (0..inputs.samples.len() as u32)
+        .filter(|&s| {
+            visible[s as usize / 32] & (1 << (s % 32)) == 0
+                && normal.dot(to_world.world(inputs.samples.directions[s as usize])) > 0.0
+        })
+        .collect();
+    // A blocked ray always has a closest hit: both queries run the same tests.
+    cpu::closest_hits_of(inputs, vertex, &blocked)
 }
 
 /// Albedo-free direct transfer `[vertex][k]` and the gather matrix, on the CPU: visibility
@@ -293,6 +275,7 @@ pub fn energy_ratio(added: f64, total: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ray::{Ray, RAY_T_MAX};
 
     #[test]
     fn packet_visibility_gives_the_single_ray_transfer_and_hits() {

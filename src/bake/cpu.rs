@@ -12,9 +12,10 @@
 
 use rayon::prelude::*;
 
+use super::bounce::Hit;
 use super::{DirectInputs, Mode, Progress};
 use crate::packet::{self, lane_mask, FanPacket, LaneMask, PacketOrigins, RayPacket, LANES};
-use crate::ray::{Ray, RAY_T_MAX};
+use crate::ray::{intersect_triangle, Ray, TriangleHit, RAY_T_MAX};
 use crate::sampling::{tangent_frame, DirectionFrame, Estimator, VertexDirections};
 use crate::sh::{coeff_count, unshadowed_transfer};
 
@@ -375,34 +376,74 @@ pub fn visibility_bits(inputs: &DirectInputs, mode: Mode) -> Vec<u32> {
     bits
 }
 
-/// The closest hit of every ray of the direct pass, one closest-hit traversal per ray
-/// (`Bvh::closest_hit`): `(sample, triangle)` per receiver for the rays that hit something,
-/// and the rays cast. What `prt-gpu bench --ray-sets` times as its diffuse ray set; a bake
-/// casts closest-hit rays only where the packets found a ray blocked
-/// (`bounce::blocked_hits`).
+/// The closest hits of one vertex's rays along `samples` (indices into the sample set, each
+/// above the horizon): `(sample, hit)` for those that hit something. Tangent-frame sets are
+/// cast [`LANES`] samples at a time as fan packets ([`packet::closest_fan`]), world sets one
+/// ray at a time. Either way a hit's distance is bit for bit the one of `Bvh::closest_hit`,
+/// and so is its triangle but where the ray meets two at the same distance (an edge both
+/// share), where the packet may keep the other.
+pub fn closest_hits_of(inputs: &DirectInputs, vertex: usize, samples: &[u32]) -> Vec<(u32, Hit)> {
+    let normal = inputs.normals[vertex];
+    let origin = inputs.origins[vertex];
+    let to_world = VertexDirections::new(inputs.samples.frame, normal);
+    let direction = |s: u32| to_world.world(inputs.samples.directions[s as usize]);
+    let hit_of = |s: u32, triangle: u32, hit: TriangleHit| {
+        let (u, v) = (hit.u, hit.v);
+        (s, Hit { triangle, u, v })
+    };
+    if inputs.samples.frame == DirectionFrame::World {
+        return samples
+            .iter()
+            .filter_map(|&s| {
+                let ray = Ray::new(origin, direction(s));
+                let (triangle, hit) = inputs.bvh.closest_hit(&ray, RAY_T_MAX)?;
+                Some(hit_of(s, triangle, hit))
+            })
+            .collect();
+    }
+    let mut hits = Vec::new();
+    let mut world = [glam::Vec3::ZERO; LANES];
+    for group in samples.chunks(LANES) {
+        for (w, &s) in world.iter_mut().zip(group) {
+            *w = direction(s);
+        }
+        let world = &world[..group.len()];
+        let packet = FanPacket::new(origin, world, crate::packet::ALL_LANES);
+        let closest = packet::closest_fan(inputs.bvh, &packet, RAY_T_MAX);
+        for (lane, &s) in group.iter().enumerate() {
+            let Some(tri) = inputs.bvh.triangles.get(closest.triangle[lane] as usize) else {
+                continue;
+            };
+            // The packet found the triangle and its distance; the single-ray test on that
+            // triangle gives the same distance and the barycentrics.
+            let [v0, v1, v2] = tri.vertices();
+            let ray = Ray::new(origin, world[lane]);
+            if let Some(hit) = intersect_triangle(&ray, v0, v1, v2, 0.0, RAY_T_MAX) {
+                hits.push(hit_of(s, tri.source_index, hit));
+            }
+        }
+    }
+    hits
+}
+
+/// The closest hit of every ray of the direct pass (`(sample, triangle)` per receiver, for the
+/// rays that hit something) and the rays cast: what `prt-gpu bench --ray-sets` times as its
+/// diffuse ray set. A bake casts closest-hit rays only where the shadow rays found a ray
+/// blocked (`bounce::blocked_hits`).
 pub fn closest_hit_triangles(inputs: &DirectInputs) -> (Vec<Vec<(u32, u32)>>, u64) {
     let per_receiver: Vec<(Vec<(u32, u32)>, u64)> = (0..inputs.origins.len())
         .into_par_iter()
         .map(|vertex| {
             let normal = inputs.normals[vertex];
-            let origin = inputs.origins[vertex];
             let to_world = VertexDirections::new(inputs.samples.frame, normal);
-            let mut hits = Vec::new();
-            let mut rays = 0;
-            for (s, &sample) in inputs.samples.directions.iter().enumerate() {
-                let direction = to_world.world(sample);
-                if normal.dot(direction) <= 0.0 {
-                    continue;
-                }
-                rays += 1;
-                if let Some((triangle, _)) = inputs
-                    .bvh
-                    .closest_hit(&Ray::new(origin, direction), RAY_T_MAX)
-                {
-                    hits.push((s as u32, triangle));
-                }
-            }
-            (hits, rays)
+            let above: Vec<u32> = (0..inputs.samples.len() as u32)
+                .filter(|&s| {
+                    normal.dot(to_world.world(inputs.samples.directions[s as usize])) > 0.0
+                })
+                .collect();
+            let hits = closest_hits_of(inputs, vertex, &above);
+            let triangles = hits.into_iter().map(|(s, hit)| (s, hit.triangle)).collect();
+            (triangles, above.len() as u64)
         })
         .collect();
     let rays = per_receiver.iter().map(|(_, rays)| rays).sum();

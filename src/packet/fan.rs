@@ -15,7 +15,9 @@
 
 use glam::Vec3;
 
-use super::{max, min, sheared_triangle_lanes, Isa, LaneMask, Lanes, Packet, ALL_LANES, LANES};
+use super::{
+    max, min, sheared_triangle_lanes, Isa, LaneLimit, LaneMask, Lanes, Packet, ALL_LANES, LANES,
+};
 use crate::bvh::{BvhNode, BvhTriangle};
 use crate::ray::{MIN_DIRECTION_COMPONENT, SLAB_WIDENING};
 
@@ -140,7 +142,7 @@ impl Packet for FanPacket {
     /// `ray::intersect_box` lane by lane: `(bound - origin) * inv_dir`, the nearer and farther
     /// of the two planes per axis, entry no earlier than 0, exit widened and capped at `t_max`.
     #[inline(always)]
-    fn box_lanes<I: Isa>(&self, node: &BvhNode, t_max: f32) -> LaneMask {
+    fn box_lanes<I: Isa>(&self, node: &BvhNode, t_max: impl LaneLimit) -> LaneMask {
         let words: &[f32; 8] = bytemuck::cast_ref(node);
         let low = self.translated([words[0], words[1], words[2]]);
         let high = self.translated([words[4], words[5], words[6]]);
@@ -153,7 +155,7 @@ impl Packet for FanPacket {
             let (lz, hz) = (low[2] * inv[2][lane], high[2] * inv[2][lane]);
             near[lane] = max(max(min(lx, hx), min(ly, hy)), max(min(lz, hz), 0.0));
             let exit = min(min(max(lx, hx), max(ly, hy)), max(lz, hz));
-            far[lane] = min(exit * SLAB_WIDENING, t_max);
+            far[lane] = min(exit * SLAB_WIDENING, t_max.at(lane));
         }
         I::le_mask(&near, &far)
     }
@@ -161,7 +163,13 @@ impl Packet for FanPacket {
     /// `ray::intersect_triangle` lane by lane: the vertices are translated to the origin once,
     /// then each lane permutes and shears them with its own constants.
     #[inline(always)]
-    fn triangle_lanes<I: Isa>(&self, tri: &BvhTriangle, lanes: LaneMask, t_max: f32) -> LaneMask {
+    fn triangle_lanes<I: Isa>(
+        &self,
+        tri: &BvhTriangle,
+        lanes: LaneMask,
+        t_max: impl LaneLimit,
+        hit_t: &mut Lanes,
+    ) -> LaneMask {
         let a = self.translated(tri.v0);
         let b = self.translated(tri.v1);
         let c = self.translated(tri.v2);
@@ -175,7 +183,7 @@ impl Packet for FanPacket {
                 z,
             )
         };
-        sheared_triangle_lanes::<I>([&a, &b, &c], shear, |lane| sz[lane], lanes, t_max)
+        sheared_triangle_lanes::<I>([&a, &b, &c], shear, |lane| sz[lane], lanes, t_max, hit_t)
     }
 }
 

@@ -22,6 +22,7 @@ pub use fan::FanPacket;
 pub use parallel::{PacketOrigins, RayPacket};
 
 use crate::bvh::{Bvh, BvhNode, BvhTriangle, STACK_SIZE};
+use crate::ray::NO_HIT;
 
 /// Rays per packet: one AVX-512 register of f32.
 pub const LANES: usize = 16;
@@ -67,20 +68,41 @@ fn min(a: f32, b: f32) -> f32 {
     }
 }
 
+/// The far end of each lane's ray: one distance for every lane (any-hit queries), or a
+/// lane's own (closest-hit queries, each lane's nearest hit so far).
+pub trait LaneLimit: Copy {
+    fn at(self, lane: usize) -> f32;
+}
+
+impl LaneLimit for f32 {
+    #[inline(always)]
+    fn at(self, _lane: usize) -> f32 {
+        self
+    }
+}
+
+impl LaneLimit for &Lanes {
+    #[inline(always)]
+    fn at(self, lane: usize) -> f32 {
+        self[lane]
+    }
+}
+
 /// The lane work of the watertight triangle test (`ray::intersect_triangle`), shared by both
 /// packet kinds, which differ only in how a vertex reaches a lane's sheared frame:
 /// `shear(v, lane)` is vertex `v` translated to the lane's origin, permuted and sheared, as
 /// `(x, y, z)` with `z` not yet scaled; `z_scale(lane)` is the lane's `1 / d_z`. Edge
 /// functions are computed for all lanes at once; the few lanes inside (most triangles are
 /// missed by every lane) finish one by one. Returns the lanes of `lanes` that hit on
-/// `(0, t_max)`.
+/// `(0, t_max)`, their distances written to `hit_t`.
 #[inline(always)]
 fn sheared_triangle_lanes<I: Isa>(
     [a, b, c]: [&[f32; 3]; 3],
     shear: impl Fn(&[f32; 3], usize) -> (f32, f32, f32),
     z_scale: impl Fn(usize) -> f32,
     lanes: LaneMask,
-    t_max: f32,
+    t_max: impl LaneLimit,
+    hit_t: &mut Lanes,
 ) -> LaneMask {
     let edge_functions = |lane: usize| {
         let (ax, ay, _) = shear(a, lane);
@@ -111,8 +133,9 @@ fn sheared_triangle_lanes<I: Isa>(
         let s = z_scale(lane);
         let (az, bz, cz) = (shear(a, lane).2, shear(b, lane).2, shear(c, lane).2);
         let t = (u * (s * az) + v * (s * bz) + w * (s * cz)) / det;
-        if t > 0.0 && t < t_max {
+        if t > 0.0 && t < t_max.at(lane) {
             hits |= 1 << lane;
+            hit_t[lane] = t;
         }
     }
     hits
@@ -123,30 +146,113 @@ trait Packet {
     /// Lanes that take part; the others never report a hit.
     fn active(&self) -> LaneMask;
     /// Lanes that meet the node's box within `[0, t_max]`, as `ray::intersect_box` decides.
-    fn box_lanes<I: Isa>(&self, node: &BvhNode, t_max: f32) -> LaneMask;
+    fn box_lanes<I: Isa>(&self, node: &BvhNode, t_max: impl LaneLimit) -> LaneMask;
     /// Lanes among `lanes` that hit the triangle on `(0, t_max)`, as
-    /// `ray::intersect_triangle` decides (both faces count, zero edge functions are inside).
-    fn triangle_lanes<I: Isa>(&self, tri: &BvhTriangle, lanes: LaneMask, t_max: f32) -> LaneMask;
+    /// `ray::intersect_triangle` decides (both faces count, zero edge functions are inside),
+    /// with their distances in `hit_t`.
+    fn triangle_lanes<I: Isa>(
+        &self,
+        tri: &BvhTriangle,
+        lanes: LaneMask,
+        t_max: impl LaneLimit,
+        hit_t: &mut Lanes,
+    ) -> LaneMask;
     /// Whether to enter `right` before `left` when lanes meet both.
     fn right_first(&self, _left: &BvhNode, _right: &BvhNode) -> bool {
         false
     }
 }
 
+/// What a traversal asks and keeps: the far end of each lane's ray, and what a triangle hit
+/// does to it.
+trait Query {
+    type Limit<'a>: LaneLimit
+    where
+        Self: 'a;
+    fn limit(&self) -> Self::Limit<'_>;
+    /// Keeps the hits of `lanes` on triangle `index` (of `Bvh::triangles`) at distances
+    /// `hit_t`; returns the lanes that are done.
+    fn record(&mut self, lanes: LaneMask, index: u32, hit_t: &Lanes) -> LaneMask;
+}
+
+/// Any hit on `(0, t_max)` blocks a lane, which is then done.
+struct Blocked {
+    t_max: f32,
+    blocked: LaneMask,
+}
+
+impl Query for Blocked {
+    type Limit<'a> = f32;
+    #[inline(always)]
+    fn limit(&self) -> f32 {
+        self.t_max
+    }
+    #[inline(always)]
+    fn record(&mut self, lanes: LaneMask, _index: u32, _hit_t: &Lanes) -> LaneMask {
+        self.blocked |= lanes;
+        lanes
+    }
+}
+
+/// Each lane's nearest hit so far; a hit shortens the lane's ray, and no lane is done before
+/// the walk ends.
+pub struct ClosestHits {
+    /// Distance of each lane's nearest hit, `t_max` where it has none.
+    pub t: Lanes,
+    /// Index in `Bvh::triangles` (leaf order) of the triangle hit, or `NO_HIT`.
+    pub triangle: [u32; LANES],
+}
+
+impl Query for ClosestHits {
+    type Limit<'a> = &'a Lanes;
+    #[inline(always)]
+    fn limit(&self) -> &Lanes {
+        &self.t
+    }
+    #[inline(always)]
+    fn record(&mut self, mut lanes: LaneMask, index: u32, hit_t: &Lanes) -> LaneMask {
+        while lanes != 0 {
+            let lane = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            self.t[lane] = hit_t[lane];
+            self.triangle[lane] = index;
+        }
+        0
+    }
+}
+
 /// Which lanes of `packet` are blocked on `(0, t_max)`: for every active lane the answer of
 /// [`Bvh::occluded`] for that lane's ray. Inactive lanes are never reported.
 pub fn occluded(bvh: &Bvh, packet: &RayPacket, t_max: f32) -> LaneMask {
-    dispatch::occluded(bvh, packet, t_max)
+    let mut query = Blocked { t_max, blocked: 0 };
+    dispatch::traverse(bvh, packet, &mut query);
+    query.blocked
 }
 
 /// [`occluded`] for a packet of rays from one origin.
 pub fn occluded_fan(bvh: &Bvh, packet: &FanPacket, t_max: f32) -> LaneMask {
-    dispatch::occluded(bvh, packet, t_max)
+    let mut query = Blocked { t_max, blocked: 0 };
+    dispatch::traverse(bvh, packet, &mut query);
+    query.blocked
+}
+
+/// The nearest hit on `(0, t_max)` of each active lane of a packet of rays from one origin:
+/// the distance [`Bvh::closest_hit`] finds for that lane's ray, bit for bit, and its triangle,
+/// or another at the same distance (where a ray meets two triangles at once, on a shared edge,
+/// the one tested first wins, and the two traversals test in different orders).
+pub fn closest_fan(bvh: &Bvh, packet: &FanPacket, t_max: f32) -> ClosestHits {
+    let mut query = ClosestHits {
+        t: [t_max; LANES],
+        triangle: [NO_HIT; LANES],
+    };
+    dispatch::traverse(bvh, packet, &mut query);
+    query
 }
 
 /// The traversal. A stack entry carries the lanes that met the node's box, so every lane
 /// visits exactly the nodes its single ray would visit (only the order differs); a node is
-/// entered while any of its lanes is still unblocked, and the walk ends once all are blocked.
+/// entered while any of its lanes is still open, and the walk ends once none is (an any-hit
+/// query closes a lane at its first hit, a closest-hit query only shortens its ray).
 ///
 /// Children are taken in the order the packet kind asks for ([`Packet::right_first`]). Parallel
 /// packets take them in stored order: on the dragon about 70% of the rays are unblocked and
@@ -156,32 +262,33 @@ pub fn occluded_fan(bvh: &Bvh, packet: &FanPacket, t_max: f32) -> LaneMask {
 /// centre is nearer their origin first: 9% faster on the dragon, where a vertex's blockers are
 /// mostly its neighbours, and 7% slower on the open built-in scene (docs/performance.md).
 #[inline(always)]
-fn occluded_lanes<P: Packet, I: Isa>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
+fn traverse<P: Packet, I: Isa, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
     let Some(root) = bvh.nodes.first() else {
-        return 0;
+        return;
     };
-    // Lanes not yet blocked.
-    let mut open = packet.active() & packet.box_lanes::<I>(root, t_max);
+    // Lanes still walking.
+    let mut open = packet.active() & packet.box_lanes::<I>(root, query.limit());
     if open == 0 {
-        return 0;
+        return;
     }
-    let mut blocked = 0;
+    let mut hit_t = [0.0f32; LANES];
     let mut stack = [(0u32, 0 as LaneMask); STACK_SIZE];
     let mut stack_len = 0;
     let mut node = root;
-    // Lanes that met the current node's box and are not blocked.
+    // Lanes that met the current node's box and are still open.
     let mut lanes = open;
     loop {
         if node.is_leaf() {
-            let first = node.left_or_first as usize;
-            for tri in &bvh.triangles[first..first + node.triangle_count as usize] {
-                let hits = packet.triangle_lanes::<I>(tri, lanes, t_max);
+            let first = node.left_or_first;
+            let leaf = &bvh.triangles[first as usize..][..node.triangle_count as usize];
+            for (index, tri) in (first..).zip(leaf) {
+                let hits = packet.triangle_lanes::<I>(tri, lanes, query.limit(), &mut hit_t);
                 if hits != 0 {
-                    blocked |= hits;
-                    open &= !hits;
-                    lanes &= !hits;
+                    let done = query.record(hits, index, &hit_t);
+                    open &= !done;
+                    lanes &= !done;
                     if open == 0 {
-                        return blocked;
+                        return;
                     }
                     if lanes == 0 {
                         break;
@@ -192,8 +299,8 @@ fn occluded_lanes<P: Packet, I: Isa>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneM
             let first = node.left_or_first;
             let left = &bvh.nodes[first as usize];
             let right = &bvh.nodes[first as usize + 1];
-            let in_left = lanes & packet.box_lanes::<I>(left, t_max);
-            let in_right = lanes & packet.box_lanes::<I>(right, t_max);
+            let in_left = lanes & packet.box_lanes::<I>(left, query.limit());
+            let in_right = lanes & packet.box_lanes::<I>(right, query.limit());
             match (in_left != 0, in_right != 0) {
                 (true, true) => {
                     if packet.right_first(left, right) {
@@ -221,10 +328,10 @@ fn occluded_lanes<P: Packet, I: Isa>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneM
                 (false, false) => {}
             }
         }
-        // Next stacked node that still has an unblocked lane.
+        // Next stacked node that still has an open lane.
         loop {
             if stack_len == 0 {
-                return blocked;
+                return;
             }
             stack_len -= 1;
             let (index, stacked_lanes) = stack[stack_len];
@@ -280,7 +387,7 @@ mod dispatch {
 
     /// The signature every copy shares.
     #[cfg(test)]
-    pub type Traversal<P> = fn(&Bvh, &P, f32) -> LaneMask;
+    pub type Copy<P, Q> = fn(&Bvh, &P, &mut Q);
 
     /// The widest vector unit of this machine, found once.
     #[cfg(target_arch = "x86_64")]
@@ -308,57 +415,57 @@ mod dispatch {
     }
 
     #[cfg(target_arch = "x86_64")]
-    pub fn occluded<P: Packet>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
+    pub fn traverse<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
         match level() {
             // SAFETY: the CPU has the features the function is compiled for.
-            Level::Avx512 => unsafe { avx512(bvh, packet, t_max) },
+            Level::Avx512 => unsafe { avx512(bvh, packet, query) },
             // SAFETY: as above.
-            Level::Avx2 => unsafe { avx2(bvh, packet, t_max) },
-            Level::Sse2 => occluded_lanes::<P, x86::Sse2>(bvh, packet, t_max),
+            Level::Avx2 => unsafe { avx2(bvh, packet, query) },
+            Level::Sse2 => super::traverse::<P, x86::Sse2, Q>(bvh, packet, query),
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma,bmi1,bmi2,popcnt")]
-    unsafe fn avx512<P: Packet>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
-        occluded_lanes::<P, x86::Avx512>(bvh, packet, t_max)
+    unsafe fn avx512<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
+        super::traverse::<P, x86::Avx512, Q>(bvh, packet, query)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,popcnt")]
-    unsafe fn avx2<P: Packet>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
-        occluded_lanes::<P, x86::Avx2>(bvh, packet, t_max)
+    unsafe fn avx2<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
+        super::traverse::<P, x86::Avx2, Q>(bvh, packet, query)
     }
 
     #[cfg(target_arch = "aarch64")]
-    pub fn occluded<P: Packet>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
-        occluded_lanes::<P, arm::Neon>(bvh, packet, t_max)
+    pub fn traverse<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
+        super::traverse::<P, arm::Neon, Q>(bvh, packet, query)
     }
 
     #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
-    pub fn occluded<P: Packet>(bvh: &Bvh, packet: &P, t_max: f32) -> LaneMask {
-        occluded_lanes::<P, Portable>(bvh, packet, t_max)
+    pub fn traverse<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
+        super::traverse::<P, Portable, Q>(bvh, packet, query)
     }
 
     /// Every copy of the traversal this machine can run, for tests that compare them.
     #[cfg(test)]
-    pub fn all_available<P: Packet>() -> Vec<(&'static str, Traversal<P>)> {
-        let mut copies: Vec<(&'static str, Traversal<P>)> =
-            vec![("portable", occluded_lanes::<P, Portable>)];
+    pub fn all_available<P: Packet, Q: Query>() -> Vec<(&'static str, Copy<P, Q>)> {
+        let mut copies: Vec<(&'static str, Copy<P, Q>)> =
+            vec![("portable", super::traverse::<P, Portable, Q>)];
         #[cfg(target_arch = "x86_64")]
         {
-            copies.push(("sse2", occluded_lanes::<P, x86::Sse2>));
+            copies.push(("sse2", super::traverse::<P, x86::Sse2, Q>));
             if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
                 // SAFETY: detected.
-                copies.push(("avx2", |b, p, t| unsafe { avx2(b, p, t) }));
+                copies.push(("avx2", |b, p, q| unsafe { avx2(b, p, q) }));
             }
             if std::is_x86_feature_detected!("avx512f") {
                 // SAFETY: detected.
-                copies.push(("avx512", |b, p, t| unsafe { avx512(b, p, t) }));
+                copies.push(("avx512", |b, p, q| unsafe { avx512(b, p, q) }));
             }
         }
         #[cfg(target_arch = "aarch64")]
-        copies.push(("neon", occluded_lanes::<P, arm::Neon>));
+        copies.push(("neon", super::traverse::<P, arm::Neon, Q>));
         copies
     }
 }
@@ -501,207 +608,4 @@ mod arm {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::bake::BakeInputs;
-    use crate::ray::{Ray, RAY_T_MAX};
-    use crate::sampling::Pcg32;
-    use crate::scene::{self, builtin, prepare::prepare};
-    use glam::Vec3;
-
-    fn random_direction(rng: &mut Pcg32) -> Vec3 {
-        loop {
-            let v = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
-            if (0.01..=1.0).contains(&v.length_squared()) {
-                return v.normalize();
-            }
-        }
-    }
-
-    /// Runs every copy of the traversal on `packet`: they must agree with each other and never
-    /// report an inactive lane. Returns (lanes compared, lanes that differ from `expected`,
-    /// lanes blocked).
-    fn check_copies<P: Packet>(
-        copies: &[(&'static str, dispatch::Traversal<P>)],
-        bvh: &Bvh,
-        packet: &P,
-        above: LaneMask,
-        expected: LaneMask,
-    ) -> [usize; 3] {
-        let answers: Vec<LaneMask> = copies
-            .iter()
-            .map(|(_, f)| f(bvh, packet, RAY_T_MAX))
-            .collect();
-        for ((name, _), &got) in copies.iter().zip(&answers) {
-            assert_eq!(got, answers[0], "{name} differs from the portable copy");
-            assert_eq!(got & !above, 0, "{name}: an inactive lane reported a hit");
-        }
-        [above, answers[0] ^ expected, expected].map(|m| m.count_ones() as usize)
-    }
-
-    /// Every copy of the traversal against single rays, on packets of `width` consecutive
-    /// (Morton-adjacent) vertices and random directions, lanes above the horizon active.
-    /// Returns (lanes compared, lanes that differ, lanes blocked).
-    fn compare_with_single_rays(inputs: &BakeInputs, width: usize, packets: usize) -> [usize; 3] {
-        let mut rng = Pcg32::new(7);
-        let mut counts = [0; 3];
-        for _ in 0..packets {
-            // (Per packet: a copy's type names the packet's borrow of its origins.)
-            let copies = dispatch::all_available();
-            let count = inputs.origins.len();
-            let start = (rng.next_u32() as usize) % (count - width + 1);
-            let origins = PacketOrigins::new(&inputs.origins[start..start + width]);
-            let direction = random_direction(&mut rng);
-            let normals = &inputs.normals[start..start + width];
-            let above = lane_mask(|l| l < width && normals[l].dot(direction) > 0.0);
-            let packet = RayPacket::new(&origins, direction, above);
-            let expected = lane_mask(|l| {
-                above & (1 << l) != 0 && inputs.bvh.occluded(&packet.lane_ray(l), RAY_T_MAX)
-            });
-            let checked = check_copies(&copies, &inputs.bvh, &packet, above, expected);
-            counts.iter_mut().zip(checked).for_each(|(c, n)| *c += n);
-        }
-        counts
-    }
-
-    #[test]
-    fn packets_agree_with_single_rays_on_the_dragon() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("tests/data/dragon_vrip_res3.ply.gz");
-        let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
-        let inputs = BakeInputs::new(&mesh, 1, 1, 1);
-        let [lanes, differ, blocked] = compare_with_single_rays(&inputs, LANES, 20_000);
-        println!(
-            "dragon: {lanes} lanes, {blocked} blocked, {differ} differ from single rays \
-             ({:.5}% identical)",
-            100.0 * (lanes - differ) as f64 / lanes as f64
-        );
-        assert!(
-            blocked > lanes / 10,
-            "too few blocked rays to test anything"
-        );
-        assert_eq!(differ, 0);
-    }
-
-    #[test]
-    fn packets_agree_with_single_rays_on_the_bunny_and_partial_packets() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny.obj");
-        let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
-        let inputs = BakeInputs::new(&mesh, 1, 1, 1);
-        for width in [1, 5, LANES - 1, LANES] {
-            let [lanes, differ, blocked] = compare_with_single_rays(&inputs, width, 4_000);
-            println!("bunny, {width} lanes: {lanes} lanes, {blocked} blocked, {differ} differ");
-            assert!(blocked > 0);
-            assert_eq!(differ, 0, "{width}-lane packets");
-        }
-    }
-
-    /// Every copy of the fan traversal against single rays: packets of `width` consecutive
-    /// samples of a cosine set, turned into the tangent frame of a random vertex, lanes above
-    /// the horizon active. Returns (lanes compared, lanes that differ, lanes blocked).
-    fn compare_fans_with_single_rays(
-        inputs: &BakeInputs,
-        width: usize,
-        packets: usize,
-    ) -> [usize; 3] {
-        let mut rng = Pcg32::new(11);
-        let set = crate::sampling::cosine_hemisphere(1024, 3);
-        let copies = dispatch::all_available();
-        let mut counts = [0; 3];
-        for _ in 0..packets {
-            let vertex = (rng.next_u32() as usize) % inputs.origins.len();
-            let normal = inputs.normals[vertex];
-            let start = (rng.next_u32() as usize) % (set.len() - width + 1);
-            let to_world = crate::sampling::VertexDirections::new(set.frame, normal);
-            let directions: Vec<Vec3> = set.directions[start..start + width]
-                .iter()
-                .map(|&d| to_world.world(d))
-                .collect();
-            let above = lane_mask(|l| l < width && normal.dot(directions[l]) > 0.0);
-            let packet = FanPacket::new(inputs.origins[vertex], &directions, above);
-            let expected = lane_mask(|l| {
-                above & (1 << l) != 0
-                    && inputs
-                        .bvh
-                        .occluded(&Ray::new(inputs.origins[vertex], directions[l]), RAY_T_MAX)
-            });
-            let checked = check_copies(&copies, &inputs.bvh, &packet, above, expected);
-            counts.iter_mut().zip(checked).for_each(|(c, n)| *c += n);
-        }
-        counts
-    }
-
-    #[test]
-    fn fans_agree_with_single_rays_on_the_dragon_and_bunny() {
-        for (name, widths) in [
-            ("dragon_vrip_res3.ply.gz", &[LANES][..]),
-            ("bunny.obj", &[1, 5, LANES - 1, LANES][..]),
-        ] {
-            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("tests/data")
-                .join(name);
-            let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
-            let inputs = BakeInputs::new(&mesh, 1, 1, 1);
-            for &width in widths {
-                let [lanes, differ, blocked] =
-                    compare_fans_with_single_rays(&inputs, width, 10_000);
-                println!(
-                    "{name}, {width} lanes: {lanes} lanes, {blocked} blocked, {differ} differ"
-                );
-                assert!(
-                    blocked > lanes / 20,
-                    "too few blocked rays to test anything"
-                );
-                assert_eq!(differ, 0, "{name}, {width}-lane fans");
-            }
-        }
-    }
-
-    #[test]
-    fn inactive_and_empty_lanes_never_report() {
-        // Inside a closed box every ray is blocked: exactly the active lanes must come back.
-        let (mesh, _) =
-            prepare(builtin::closed_box(Vec3::splat(-1.0), Vec3::splat(1.0), 4)).unwrap();
-        let bvh = crate::bvh::Bvh::build(&mesh.positions, &mesh.triangles);
-        let points: Vec<Vec3> = (0..LANES)
-            .map(|i| Vec3::new(i as f32 / LANES as f32 - 0.5, 0.1, -0.2))
-            .collect();
-        let mut rng = Pcg32::new(3);
-        for width in [1, 7, LANES] {
-            let origins = PacketOrigins::new(&points[..width]);
-            for _ in 0..50 {
-                let direction = random_direction(&mut rng);
-                for active in [0, 0b1010_0110_0101_1001, ALL_LANES] {
-                    let packet = RayPacket::new(&origins, direction, active);
-                    let expected = active & origins.filled;
-                    assert_eq!(packet.active, expected);
-                    for (name, f) in dispatch::all_available() {
-                        assert_eq!(f(&bvh, &packet, RAY_T_MAX), expected, "{name}");
-                    }
-                }
-            }
-        }
-        // The same for fans from one point inside.
-        for width in [1, 7, LANES] {
-            let directions: Vec<Vec3> = (0..width).map(|_| random_direction(&mut rng)).collect();
-            for active in [0, 0b1010_0110_0101_1001, ALL_LANES] {
-                let packet = FanPacket::new(points[3], &directions, active);
-                let expected = active & (ALL_LANES >> (LANES - width));
-                assert_eq!(packet.active, expected);
-                for (name, f) in dispatch::all_available() {
-                    assert_eq!(f(&bvh, &packet, RAY_T_MAX), expected, "{name} fan");
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn empty_scene_blocks_nothing() {
-        let bvh = crate::bvh::Bvh::build(&[], &[]);
-        let origins = PacketOrigins::new(&[Vec3::ZERO; 3]);
-        let packet = RayPacket::new(&origins, Vec3::X, ALL_LANES);
-        assert_eq!(occluded(&bvh, &packet, RAY_T_MAX), 0);
-        let fan = FanPacket::new(Vec3::ZERO, &[Vec3::X, Vec3::Y], ALL_LANES);
-        assert_eq!(occluded_fan(&bvh, &fan, RAY_T_MAX), 0);
-    }
-}
+mod tests;

@@ -17,7 +17,9 @@
 
 use glam::Vec3;
 
-use super::{max, min, sheared_triangle_lanes, Isa, LaneMask, Lanes, Packet, ALL_LANES, LANES};
+use super::{
+    max, min, sheared_triangle_lanes, Isa, LaneLimit, LaneMask, Lanes, Packet, ALL_LANES, LANES,
+};
 use crate::bvh::{BvhNode, BvhTriangle};
 use crate::ray::{Ray, SLAB_WIDENING};
 
@@ -103,7 +105,7 @@ impl<'a> RayPacket<'a> {
 /// (both products are rounded monotonically), so the per-lane min/max of the single-ray test
 /// is not needed and the answers are the same bit for bit.
 #[inline(always)]
-fn box_lanes<I: Isa>(packet: &RayPacket, node: &BvhNode, t_max: f32) -> LaneMask {
+fn box_lanes<I: Isa>(packet: &RayPacket, node: &BvhNode, t_max: impl LaneLimit) -> LaneMask {
     let inv = packet.ray.inv_direction;
     // Both planes are picked by index, without branches.
     let words: &[f32; 8] = bytemuck::cast_ref(node);
@@ -120,7 +122,7 @@ fn box_lanes<I: Isa>(packet: &RayPacket, node: &BvhNode, t_max: f32) -> LaneMask
         let fy = (far_plane[1] - o[1][lane]) * inv.y;
         let fz = (far_plane[2] - o[2][lane]) * inv.z;
         near[lane] = max(max(nx, ny), max(nz, 0.0));
-        far[lane] = min(min(min(fx, fy), fz) * SLAB_WIDENING, t_max);
+        far[lane] = min(min(min(fx, fy), fz) * SLAB_WIDENING, t_max.at(lane));
     }
     I::le_mask(&near, &far)
 }
@@ -140,7 +142,8 @@ fn triangle_lanes<I: Isa>(
     packet: &RayPacket,
     tri: &BvhTriangle,
     lanes: LaneMask,
-    t_max: f32,
+    t_max: impl LaneLimit,
+    hit_t: &mut Lanes,
 ) -> LaneMask {
     // (Three calls rather than `array::map`, whose closure LLVM leaves out of line.)
     let a = permute_vertex(packet, tri.v0);
@@ -153,7 +156,7 @@ fn triangle_lanes<I: Isa>(
         let (x, y, z) = (v[0] - o[0][lane], v[1] - o[1][lane], v[2] - o[2][lane]);
         (x - sx * z, y - sy * z, z)
     };
-    sheared_triangle_lanes::<I>([&a, &b, &c], shear, |_| sz, lanes, t_max)
+    sheared_triangle_lanes::<I>([&a, &b, &c], shear, |_| sz, lanes, t_max, hit_t)
 }
 
 impl Packet for RayPacket<'_> {
@@ -162,11 +165,17 @@ impl Packet for RayPacket<'_> {
         self.active
     }
     #[inline(always)]
-    fn box_lanes<I: Isa>(&self, node: &BvhNode, t_max: f32) -> LaneMask {
+    fn box_lanes<I: Isa>(&self, node: &BvhNode, t_max: impl LaneLimit) -> LaneMask {
         box_lanes::<I>(self, node, t_max)
     }
     #[inline(always)]
-    fn triangle_lanes<I: Isa>(&self, tri: &BvhTriangle, lanes: LaneMask, t_max: f32) -> LaneMask {
-        triangle_lanes::<I>(self, tri, lanes, t_max)
+    fn triangle_lanes<I: Isa>(
+        &self,
+        tri: &BvhTriangle,
+        lanes: LaneMask,
+        t_max: impl LaneLimit,
+        hit_t: &mut Lanes,
+    ) -> LaneMask {
+        triangle_lanes::<I>(self, tri, lanes, t_max, hit_t)
     }
 }

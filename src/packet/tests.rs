@@ -1,0 +1,272 @@
+//! The packet traversals against the single-ray reference, every compiled copy of them.
+
+use super::*;
+use crate::bake::BakeInputs;
+use crate::ray::{Ray, RAY_T_MAX};
+use crate::sampling::Pcg32;
+use crate::scene::{self, builtin, prepare::prepare};
+use glam::Vec3;
+
+fn random_direction(rng: &mut Pcg32) -> Vec3 {
+    loop {
+        let v = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+        if (0.01..=1.0).contains(&v.length_squared()) {
+            return v.normalize();
+        }
+    }
+}
+
+/// Runs every copy of the traversal on `packet`: they must agree with each other and never
+/// report an inactive lane. Returns (lanes compared, lanes that differ from `expected`,
+/// lanes blocked).
+/// The any-hit query through one copy of the traversal.
+fn any_hit<P: Packet>(
+    copy: dispatch::Copy<P, Blocked>,
+    bvh: &Bvh,
+    packet: &P,
+    t_max: f32,
+) -> LaneMask {
+    let mut query = Blocked { t_max, blocked: 0 };
+    copy(bvh, packet, &mut query);
+    query.blocked
+}
+
+fn check_copies<P: Packet>(
+    copies: &[(&'static str, dispatch::Copy<P, Blocked>)],
+    bvh: &Bvh,
+    packet: &P,
+    above: LaneMask,
+    expected: LaneMask,
+) -> [usize; 3] {
+    let answers: Vec<LaneMask> = copies
+        .iter()
+        .map(|&(_, f)| any_hit(f, bvh, packet, RAY_T_MAX))
+        .collect();
+    for ((name, _), &got) in copies.iter().zip(&answers) {
+        assert_eq!(got, answers[0], "{name} differs from the portable copy");
+        assert_eq!(got & !above, 0, "{name}: an inactive lane reported a hit");
+    }
+    [above, answers[0] ^ expected, expected].map(|m| m.count_ones() as usize)
+}
+
+/// Every copy of the traversal against single rays, on packets of `width` consecutive
+/// (Morton-adjacent) vertices and random directions, lanes above the horizon active.
+/// Returns (lanes compared, lanes that differ, lanes blocked).
+fn compare_with_single_rays(inputs: &BakeInputs, width: usize, packets: usize) -> [usize; 3] {
+    let mut rng = Pcg32::new(7);
+    let mut counts = [0; 3];
+    for _ in 0..packets {
+        // (Per packet: a copy's type names the packet's borrow of its origins.)
+        let copies = dispatch::all_available();
+        let count = inputs.origins.len();
+        let start = (rng.next_u32() as usize) % (count - width + 1);
+        let origins = PacketOrigins::new(&inputs.origins[start..start + width]);
+        let direction = random_direction(&mut rng);
+        let normals = &inputs.normals[start..start + width];
+        let above = lane_mask(|l| l < width && normals[l].dot(direction) > 0.0);
+        let packet = RayPacket::new(&origins, direction, above);
+        let expected = lane_mask(|l| {
+            above & (1 << l) != 0 && inputs.bvh.occluded(&packet.lane_ray(l), RAY_T_MAX)
+        });
+        let checked = check_copies(&copies, &inputs.bvh, &packet, above, expected);
+        counts.iter_mut().zip(checked).for_each(|(c, n)| *c += n);
+    }
+    counts
+}
+
+#[test]
+fn packets_agree_with_single_rays_on_the_dragon() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/dragon_vrip_res3.ply.gz");
+    let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
+    let inputs = BakeInputs::new(&mesh, 1, 1, 1);
+    let [lanes, differ, blocked] = compare_with_single_rays(&inputs, LANES, 20_000);
+    println!(
+        "dragon: {lanes} lanes, {blocked} blocked, {differ} differ from single rays \
+         ({:.5}% identical)",
+        100.0 * (lanes - differ) as f64 / lanes as f64
+    );
+    assert!(
+        blocked > lanes / 10,
+        "too few blocked rays to test anything"
+    );
+    assert_eq!(differ, 0);
+}
+
+#[test]
+fn packets_agree_with_single_rays_on_the_bunny_and_partial_packets() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny.obj");
+    let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
+    let inputs = BakeInputs::new(&mesh, 1, 1, 1);
+    for width in [1, 5, LANES - 1, LANES] {
+        let [lanes, differ, blocked] = compare_with_single_rays(&inputs, width, 4_000);
+        println!("bunny, {width} lanes: {lanes} lanes, {blocked} blocked, {differ} differ");
+        assert!(blocked > 0);
+        assert_eq!(differ, 0, "{width}-lane packets");
+    }
+}
+
+/// Every copy of the fan traversal against single rays: packets of `width` consecutive
+/// samples of a cosine set, turned into the tangent frame of a random vertex, lanes above
+/// the horizon active. Returns (lanes compared, lanes that differ, lanes blocked).
+fn compare_fans_with_single_rays(inputs: &BakeInputs, width: usize, packets: usize) -> [usize; 3] {
+    let mut rng = Pcg32::new(11);
+    let set = crate::sampling::cosine_hemisphere(1024, 3);
+    let copies = dispatch::all_available();
+    let mut counts = [0; 3];
+    for _ in 0..packets {
+        let vertex = (rng.next_u32() as usize) % inputs.origins.len();
+        let normal = inputs.normals[vertex];
+        let start = (rng.next_u32() as usize) % (set.len() - width + 1);
+        let to_world = crate::sampling::VertexDirections::new(set.frame, normal);
+        let directions: Vec<Vec3> = set.directions[start..start + width]
+            .iter()
+            .map(|&d| to_world.world(d))
+            .collect();
+        let above = lane_mask(|l| l < width && normal.dot(directions[l]) > 0.0);
+        let packet = FanPacket::new(inputs.origins[vertex], &directions, above);
+        let expected = lane_mask(|l| {
+            above & (1 << l) != 0
+                && inputs
+                    .bvh
+                    .occluded(&Ray::new(inputs.origins[vertex], directions[l]), RAY_T_MAX)
+        });
+        let checked = check_copies(&copies, &inputs.bvh, &packet, above, expected);
+        counts.iter_mut().zip(checked).for_each(|(c, n)| *c += n);
+    }
+    counts
+}
+
+#[test]
+fn fans_agree_with_single_rays_on_the_dragon_and_bunny() {
+    for (name, widths) in [
+        ("dragon_vrip_res3.ply.gz", &[LANES][..]),
+        ("bunny.obj", &[1, 5, LANES - 1, LANES][..]),
+    ] {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data")
+            .join(name);
+        let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
+        let inputs = BakeInputs::new(&mesh, 1, 1, 1);
+        for &width in widths {
+            let [lanes, differ, blocked] = compare_fans_with_single_rays(&inputs, width, 10_000);
+            println!("{name}, {width} lanes: {lanes} lanes, {blocked} blocked, {differ} differ");
+            assert!(
+                blocked > lanes / 20,
+                "too few blocked rays to test anything"
+            );
+            assert_eq!(differ, 0, "{name}, {width}-lane fans");
+        }
+    }
+}
+
+#[test]
+fn fans_find_the_single_rays_closest_hits_on_the_dragon_and_bunny() {
+    let set = crate::sampling::cosine_hemisphere(1024, 5);
+    for name in ["dragon_vrip_res3.ply.gz", "bunny.obj"] {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data")
+            .join(name);
+        let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
+        let inputs = BakeInputs::new(&mesh, 1, 1, 1);
+        let bvh = &inputs.bvh;
+        let mut rng = Pcg32::new(13);
+        let (mut hits, mut other_triangle, mut lanes) = (0, 0, 0);
+        for _ in 0..3_000 {
+            let vertex = (rng.next_u32() as usize) % inputs.origins.len();
+            let (origin, normal) = (inputs.origins[vertex], inputs.normals[vertex]);
+            let width = 1 + (rng.next_u32() as usize) % LANES;
+            let start = (rng.next_u32() as usize) % (set.len() - width + 1);
+            let to_world = crate::sampling::VertexDirections::new(set.frame, normal);
+            let directions: Vec<Vec3> = set.directions[start..start + width]
+                .iter()
+                .map(|&d| to_world.world(d))
+                .collect();
+            let skipped = rng.next_u32();
+            let active = lane_mask(|l| l < width && (skipped >> l) & 7 != 0);
+            let packet = FanPacket::new(origin, &directions, active);
+            for (copy_name, copy) in dispatch::all_available::<FanPacket, ClosestHits>() {
+                let mut query = ClosestHits {
+                    t: [RAY_T_MAX; LANES],
+                    triangle: [NO_HIT; LANES],
+                };
+                copy(bvh, &packet, &mut query);
+                for (lane, &direction) in directions.iter().enumerate() {
+                    let found = (query.triangle[lane] != NO_HIT).then(|| {
+                        let tri = &bvh.triangles[query.triangle[lane] as usize];
+                        (tri.source_index, query.t[lane].to_bits())
+                    });
+                    if active & (1 << lane) == 0 {
+                        assert_eq!(found, None, "{copy_name}: an inactive lane hit");
+                        continue;
+                    }
+                    let single = bvh
+                        .closest_hit(&Ray::new(origin, direction), RAY_T_MAX)
+                        .map(|(triangle, hit)| (triangle, hit.t.to_bits()));
+                    lanes += 1;
+                    hits += single.is_some() as usize;
+                    // The same distance, bit for bit; the same triangle but at a tie.
+                    assert_eq!(
+                        found.map(|f| f.1),
+                        single.map(|s| s.1),
+                        "{copy_name} {name}"
+                    );
+                    other_triangle += (found != single) as usize;
+                }
+            }
+        }
+        println!("{name}: {lanes} lanes, {hits} hit, {other_triangle} another triangle at the same distance");
+        assert!(hits > 1_000, "too few hits ({hits}) to test anything");
+        assert!(
+            other_triangle * 10_000 <= hits,
+            "{other_triangle} ties of {hits} hits"
+        );
+    }
+}
+
+#[test]
+fn inactive_and_empty_lanes_never_report() {
+    // Inside a closed box every ray is blocked: exactly the active lanes must come back.
+    let (mesh, _) = prepare(builtin::closed_box(Vec3::splat(-1.0), Vec3::splat(1.0), 4)).unwrap();
+    let bvh = crate::bvh::Bvh::build(&mesh.positions, &mesh.triangles);
+    let points: Vec<Vec3> = (0..LANES)
+        .map(|i| Vec3::new(i as f32 / LANES as f32 - 0.5, 0.1, -0.2))
+        .collect();
+    let mut rng = Pcg32::new(3);
+    for width in [1, 7, LANES] {
+        let origins = PacketOrigins::new(&points[..width]);
+        for _ in 0..50 {
+            let direction = random_direction(&mut rng);
+            for active in [0, 0b1010_0110_0101_1001, ALL_LANES] {
+                let packet = RayPacket::new(&origins, direction, active);
+                let expected = active & origins.filled;
+                assert_eq!(packet.active, expected);
+                for (name, f) in dispatch::all_available() {
+                    assert_eq!(any_hit(f, &bvh, &packet, RAY_T_MAX), expected, "{name}");
+                }
+            }
+        }
+    }
+    // The same for fans from one point inside.
+    for width in [1, 7, LANES] {
+        let directions: Vec<Vec3> = (0..width).map(|_| random_direction(&mut rng)).collect();
+        for active in [0, 0b1010_0110_0101_1001, ALL_LANES] {
+            let packet = FanPacket::new(points[3], &directions, active);
+            let expected = active & (ALL_LANES >> (LANES - width));
+            assert_eq!(packet.active, expected);
+            for (name, f) in dispatch::all_available() {
+                assert_eq!(any_hit(f, &bvh, &packet, RAY_T_MAX), expected, "{name} fan");
+            }
+        }
+    }
+}
+
+#[test]
+fn empty_scene_blocks_nothing() {
+    let bvh = crate::bvh::Bvh::build(&[], &[]);
+    let origins = PacketOrigins::new(&[Vec3::ZERO; 3]);
+    let packet = RayPacket::new(&origins, Vec3::X, ALL_LANES);
+    assert_eq!(occluded(&bvh, &packet, RAY_T_MAX), 0);
+    let fan = FanPacket::new(Vec3::ZERO, &[Vec3::X, Vec3::Y], ALL_LANES);
+    assert_eq!(occluded_fan(&bvh, &fan, RAY_T_MAX), 0);
+}

@@ -109,6 +109,36 @@ pub fn intersect_box(ray: &Ray, min: Vec3, max: Vec3, t_min: f32, t_max: f32) ->
     (near <= far).then_some(near)
 }
 
+/// The far end of a closest-hit query once a hit at distance `t` (positive, finite) is known:
+/// the next f32 after `t`, so that a triangle at the very same distance is still found, and
+/// [`replaces`] settles the tie whatever order a traversal meets the two in. WGSL twin `past`
+/// in wgsl/bvh.wgsl.
+pub fn past(t: f32) -> f32 {
+    t.next_up()
+}
+
+/// How far beyond the closest hit so far boxes are still entered, relative to its distance.
+/// A box that holds a triangle hit at exactly that distance must not be passed by: its entry
+/// distance is rounded otherwise than the triangle's hit distance, and differently for the
+/// CPU's exact boxes and the GPU's grid-rounded ones, so without a margin a tie could be seen
+/// by one traversal and not by another. 2^-12 is far above both roundings (a few ulps).
+pub const TIE_REACH: f32 = 1.0 + 1.0 / 4096.0;
+
+/// The far end of the box tests once a closest hit at `t` is known ([`TIE_REACH`]). WGSL twin
+/// `reach` in wgsl/bvh.wgsl.
+pub fn reach(t: f32) -> f32 {
+    t * TIE_REACH
+}
+
+/// Whether a hit at `t` on the triangle at `index` in the BVH's leaf order (`Bvh::triangles`)
+/// replaces the closest hit so far, at `best_t` on `best_index`: it is nearer, or as near and
+/// first in leaf order. Where a ray meets two triangles at one distance (on an edge they share,
+/// or on coincident faces, common in CAD models) every traversal, the CPU's single rays and
+/// packets and the GPU's, then keeps the same one. WGSL twin `replaces` in wgsl/bvh.wgsl.
+pub fn replaces(t: f32, index: u32, best_t: f32, best_index: u32) -> bool {
+    t < best_t || (t == best_t && index < best_index)
+}
+
 /// A hit on a triangle: distance along the ray and barycentrics of vertices 1 and 2.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleHit {

@@ -3,7 +3,7 @@
 
 use crate::bvh::gpu::{LAST_IN_LEAF, LEAF_FLAG};
 use crate::bvh::STACK_SIZE;
-use crate::ray::{MIN_DIRECTION_COMPONENT, NO_HIT, RAY_T_MAX, SLAB_WIDENING};
+use crate::ray::{MIN_DIRECTION_COMPONENT, NO_HIT, RAY_T_MAX, SLAB_WIDENING, TIE_REACH};
 
 /// Invocations per workgroup of every kernel.
 pub const WORKGROUP_SIZE: u32 = 64;
@@ -39,6 +39,7 @@ fn prelude() -> String {
          const STACK_SIZE: u32 = {STACK_SIZE}u;\n\
          const WORKGROUP_SIZE: u32 = {WORKGROUP_SIZE}u;\n\
          const SLAB_WIDENING: f32 = {SLAB_WIDENING:?};\n\
+         const TIE_REACH: f32 = {TIE_REACH:?};\n\
          const MIN_DIRECTION_COMPONENT: f32 = {MIN_DIRECTION_COMPONENT:?};\n\
          const RAY_T_MAX: f32 = {RAY_T_MAX:?};\n\
          const NO_HIT: u32 = {NO_HIT}u;\n\
@@ -357,6 +358,7 @@ mod tests {
                     v.to_bits(),
                     match name {
                         "SLAB_WIDENING" => SLAB_WIDENING,
+                        "TIE_REACH" => TIE_REACH,
                         "MIN_DIRECTION_COMPONENT" => MIN_DIRECTION_COMPONENT,
                         "RAY_T_MAX" => RAY_T_MAX,
                         other => panic!("unexpected f32 constant {other:?}"),
@@ -382,6 +384,6 @@ mod tests {
             assert_eq!(value, expected, "{name}");
             checked += 1;
         }
-        assert_eq!(checked, 11, "expected eleven generated constants");
+        assert_eq!(checked, 12, "expected twelve generated constants");
     }
 }

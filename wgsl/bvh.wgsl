@@ -240,7 +240,9 @@ fn box_max(q: vec3<u32>, grid: BoxGrid) -> vec3<f32> {
 // RAY_T_MAX: see intersect_triangle's `exact_t`) traversal of `nodes`/`triangles`, whose boxes
 // lie on `grid`
 // (declared by the kernel that includes this file); Rust twin: Bvh::traverse, which visits the
-// same nodes in the same order (with exact instead of grid-rounded boxes).
+// same nodes in the same order (with exact instead of grid-rounded boxes). Of triangles at one
+// distance the closest-hit query keeps the first in leaf order (`replaces`), as every CPU
+// traversal does, whatever order the grid-rounded boxes make it meet them in.
 // Every loop iteration counts against `max_steps`: llvmpipe silently ends any invocation's loops
 // after 65,535 iterations in total, so a traversal that could come near that reports itself
 // as exhausted instead of returning a wrong answer.
@@ -252,9 +254,14 @@ fn box_max(q: vec3<u32>, grid: BoxGrid) -> vec3<f32> {
 // leaf's triangles are read as three vec4 each.
 fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) -> Trace {
     var result = Trace(false, false, NO_HIT, 0.0, 0.0);
-    // The closest hit so far, its barycentrics divided out when the traversal ends.
-    var closest = TriangleHit(-1.0, 0.0, 0.0, 1.0);
+    // The closest hit so far, its barycentrics divided out when the traversal ends, and its
+    // triangle's position in leaf order (for ties, `replaces`).
+    var closest = TriangleHit(t_max_in, 0.0, 0.0, 1.0);
+    var closest_index = NO_HIT;
+    // Where the ray ends for the triangle tests, just past the closest hit once there is one,
+    // and for the box tests, a little farther (`reach`).
     var t_max = t_max_in;
+    var box_t_max = t_max_in;
     var stack: array<u32, STACK_SIZE>;
     var stack_len = 0u;
     // The root's children are tested by the first step.
@@ -280,14 +287,16 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) 
                 let w1 = triangles[3u * i + 1u];
                 let w2 = triangles[3u * i + 2u];
                 let hit = intersect_triangle(ray, bitcast<vec3<f32>>(w0.xyz), bitcast<vec3<f32>>(w1.xyz), bitcast<vec3<f32>>(w2.xyz), 0.0, t_max, !any_hit);
-                if (hit.t >= 0.0) {
+                if (hit.t >= 0.0 && (any_hit || replaces(hit.t, i, closest.t, closest_index))) {
                     result.hit = true;
                     result.triangle = w0.w;
                     closest = hit;
+                    closest_index = i;
                     if (any_hit) {
                         return result;
                     }
-                    t_max = hit.t;
+                    t_max = past(hit.t);
+                    box_t_max = reach(hit.t);
                 }
                 if (w1.w != 0u) {
                     break;
@@ -303,8 +312,8 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) 
             let t1r = (box_max(r.xyz, grid) - ray.origin) * ray.inv_direction;
             let near_l = box_near(t0l, t1l);
             let near_r = box_near(t0r, t1r);
-            let hit_l = near_l <= box_far(t0l, t1l, t_max);
-            let hit_r = near_r <= box_far(t0r, t1r, t_max);
+            let hit_l = near_l <= box_far(t0l, t1l, box_t_max);
+            let hit_r = near_r <= box_far(t0r, t1r, box_t_max);
             if (hit_l && hit_r) {
                 // Visit the nearer child first, keep the other.
                 let near_first = near_l <= near_r;
@@ -333,6 +342,22 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) 
         }
     }
     return result;
+}
+
+// The next f32 after a positive finite t; Rust twin: ray::past.
+fn past(t: f32) -> f32 {
+    return bitcast<f32>(bitcast<u32>(t) + 1u);
+}
+
+// The far end of the box tests once a closest hit at t is known; Rust twin: ray::reach.
+fn reach(t: f32) -> f32 {
+    return t * TIE_REACH;
+}
+
+// Whether a hit at t on the triangle at `index` in leaf order replaces the closest so far:
+// nearer, or as near and first in leaf order; Rust twin: ray::replaces.
+fn replaces(t: f32, index: u32, best_t: f32, best_index: u32) -> bool {
+    return t < best_t || (t == best_t && index < best_index);
 }
 
 fn box_near(t0: vec3<f32>, t1: vec3<f32>) -> f32 {

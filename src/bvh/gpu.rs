@@ -149,7 +149,7 @@ impl GpuBvh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ray::{intersect_box, intersect_triangle, Ray, RAY_T_MAX};
+    use crate::ray::{intersect_box, intersect_triangle, past, reach, replaces, Ray, RAY_T_MAX};
     use crate::sampling::Pcg32;
     use crate::scene::builtin;
     use glam::Vec3;
@@ -162,7 +162,9 @@ mod tests {
     /// The kernel's traversal (wgsl/bvh.wgsl `trace`), step for step, on the CPU.
     fn gpu_closest_hit(g: &GpuBvh, ray: &Ray, any_hit: bool) -> Option<(u32, f32)> {
         let mut t_max = RAY_T_MAX;
+        let mut box_t_max = RAY_T_MAX;
         let mut best = None;
+        let mut best_index = NO_HIT;
         let mut stack = Vec::new();
         let mut node = 0u32;
         loop {
@@ -173,11 +175,16 @@ mod tests {
                     let t = &g.triangles[i];
                     let [v0, v1, v2] = t.vertices();
                     if let Some(hit) = intersect_triangle(ray, v0, v1, v2, 0.0, t_max) {
-                        best = Some((t.source_index, hit.t));
-                        if any_hit {
-                            return best;
+                        let best_t = best.map_or(RAY_T_MAX, |b: (u32, f32)| b.1);
+                        if any_hit || replaces(hit.t, i as u32, best_t, best_index) {
+                            best = Some((t.source_index, hit.t));
+                            best_index = i as u32;
+                            if any_hit {
+                                return best;
+                            }
+                            t_max = past(hit.t);
+                            box_t_max = reach(hit.t);
                         }
-                        t_max = hit.t;
                     }
                     if t.last_in_leaf != 0 {
                         break;
@@ -188,7 +195,7 @@ mod tests {
                 let n = &g.nodes[node as usize];
                 let test = |q| {
                     let (lo, hi) = g.decode(q);
-                    intersect_box(ray, Vec3::from(lo), Vec3::from(hi), 0.0, t_max)
+                    intersect_box(ray, Vec3::from(lo), Vec3::from(hi), 0.0, box_t_max)
                 };
                 match (test(n.left_box), test(n.right_box)) {
                     (Some(a), Some(b)) => {

@@ -14,7 +14,7 @@ use glam::Vec3;
 
 pub mod gpu;
 
-use crate::ray::{intersect_box, intersect_triangle, Ray, TriangleHit};
+use crate::ray::{intersect_box, intersect_triangle, past, reach, replaces, Ray, TriangleHit};
 
 /// One BVH node, 32 bytes. The GPU reads the tree as [`gpu::GpuNode`]s instead.
 #[repr(C)]
@@ -237,30 +237,40 @@ impl Bvh {
     /// Any-hit query: does anything block the ray on `(0, t_max)`?
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         let mut hit = false;
-        self.traverse(ray, t_max, |_, _| {
+        self.traverse(ray, t_max, |_, _, _| {
             hit = true;
-            (true, 0.0)
+            (true, 0.0, 0.0)
         });
         hit
     }
 
-    /// Closest-hit query: the nearest triangle (scene index) on `(0, t_max)` and where it is hit.
+    /// Closest-hit query: the nearest triangle (scene index) on `(0, t_max)` and where it is hit;
+    /// of triangles at the same distance, the first in leaf order ([`crate::ray::replaces`]).
     pub fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<(u32, TriangleHit)> {
-        let mut best = None;
-        self.traverse(ray, t_max, |triangle, hit| {
-            best = Some((triangle, hit));
-            (false, hit.t)
+        // (leaf-order index, scene index, hit)
+        let mut best: Option<(u32, u32, TriangleHit)> = None;
+        self.traverse(ray, t_max, |index, triangle, hit| {
+            let closest = match best {
+                Some((i, _, b)) if !replaces(hit.t, index, b.t, i) => b.t,
+                _ => {
+                    best = Some((index, triangle, hit));
+                    hit.t
+                }
+            };
+            (false, past(closest), reach(closest))
         });
-        best
+        best.map(|(_, triangle, hit)| (triangle, hit))
     }
 
-    /// Stack traversal shared by both queries. `on_hit` returns (stop, new t_max).
+    /// Stack traversal shared by both queries. `on_hit(leaf-order index, scene index, hit)`
+    /// returns (stop, new t_max of the triangle tests, new t_max of the box tests).
     fn traverse(
         &self,
         ray: &Ray,
         mut t_max: f32,
-        mut on_hit: impl FnMut(u32, TriangleHit) -> (bool, f32),
+        mut on_hit: impl FnMut(u32, u32, TriangleHit) -> (bool, f32, f32),
     ) {
+        let mut box_t_max = t_max;
         let Some(root) = self.nodes.first() else {
             return;
         };
@@ -272,22 +282,23 @@ impl Bvh {
         let mut node = root;
         loop {
             if node.is_leaf() {
-                let first = node.left_or_first as usize;
-                for tri in &self.triangles[first..first + node.triangle_count as usize] {
+                let first = node.left_or_first;
+                let leaf = &self.triangles[first as usize..][..node.triangle_count as usize];
+                for (index, tri) in (first..).zip(leaf) {
                     let [v0, v1, v2] = tri.vertices();
                     if let Some(hit) = intersect_triangle(ray, v0, v1, v2, 0.0, t_max) {
-                        let (stop, new_t_max) = on_hit(tri.source_index, hit);
+                        let stop;
+                        (stop, t_max, box_t_max) = on_hit(index, tri.source_index, hit);
                         if stop {
                             return;
                         }
-                        t_max = new_t_max;
                     }
                 }
             } else {
                 let left = &self.nodes[node.left_or_first as usize];
                 let right = &self.nodes[node.left_or_first as usize + 1];
-                let t_left = intersect_box(ray, left.min(), left.max(), 0.0, t_max);
-                let t_right = intersect_box(ray, right.min(), right.max(), 0.0, t_max);
+                let t_left = intersect_box(ray, left.min(), left.max(), 0.0, box_t_max);
+                let t_right = intersect_box(ray, right.min(), right.max(), 0.0, box_t_max);
                 match (t_left, t_right) {
                     (Some(a), Some(b)) => {
                         let (near, far) = if a <= b {
@@ -497,6 +508,9 @@ mod tests {
             .all(|n| n.triangle_count <= MAX_LEAF_TRIANGLES));
         let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z);
         assert!(bvh.occluded(&ray, f32::INFINITY));
+        // All 100 at one distance: the closest is the first in leaf order.
+        let (triangle, _) = bvh.closest_hit(&ray, f32::INFINITY).unwrap();
+        assert_eq!(triangle, bvh.triangles[0].source_index);
     }
 
     #[test]

@@ -22,7 +22,7 @@ pub use fan::FanPacket;
 pub use parallel::{PacketOrigins, RayPacket};
 
 use crate::bvh::{Bvh, BvhNode, BvhTriangle, STACK_SIZE};
-use crate::ray::NO_HIT;
+use crate::ray::{past, reach, replaces, NO_HIT};
 
 /// Rays per packet: one AVX-512 register of f32.
 pub const LANES: usize = 16;
@@ -170,6 +170,8 @@ trait Query {
     where
         Self: 'a;
     fn limit(&self) -> Self::Limit<'_>;
+    /// The far end of each lane's box tests.
+    fn box_limit(&self) -> Self::Limit<'_>;
     /// Keeps the hits of `lanes` on triangle `index` (of `Bvh::triangles`) at distances
     /// `hit_t`; returns the lanes that are done.
     fn record(&mut self, lanes: LaneMask, index: u32, hit_t: &Lanes) -> LaneMask;
@@ -188,34 +190,61 @@ impl Query for Blocked {
         self.t_max
     }
     #[inline(always)]
+    fn box_limit(&self) -> f32 {
+        self.t_max
+    }
+    #[inline(always)]
     fn record(&mut self, lanes: LaneMask, _index: u32, _hit_t: &Lanes) -> LaneMask {
         self.blocked |= lanes;
         lanes
     }
 }
 
-/// Each lane's nearest hit so far; a hit shortens the lane's ray, and no lane is done before
-/// the walk ends.
+/// Each lane's nearest hit so far; a hit shortens the lane's ray to just past it, and no lane
+/// is done before the walk ends.
 pub struct ClosestHits {
     /// Distance of each lane's nearest hit, `t_max` where it has none.
     pub t: Lanes,
     /// Index in `Bvh::triangles` (leaf order) of the triangle hit, or `NO_HIT`.
     pub triangle: [u32; LANES],
+    /// Where each lane's ray ends: `ray::past` its nearest hit, `t_max` before one.
+    limit: Lanes,
+    /// Where each lane's box tests end: `ray::reach` its nearest hit, `t_max` before one.
+    box_limit: Lanes,
+}
+
+impl ClosestHits {
+    fn new(t_max: f32) -> Self {
+        ClosestHits {
+            t: [t_max; LANES],
+            triangle: [NO_HIT; LANES],
+            limit: [t_max; LANES],
+            box_limit: [t_max; LANES],
+        }
+    }
 }
 
 impl Query for ClosestHits {
     type Limit<'a> = &'a Lanes;
     #[inline(always)]
     fn limit(&self) -> &Lanes {
-        &self.t
+        &self.limit
+    }
+    #[inline(always)]
+    fn box_limit(&self) -> &Lanes {
+        &self.box_limit
     }
     #[inline(always)]
     fn record(&mut self, mut lanes: LaneMask, index: u32, hit_t: &Lanes) -> LaneMask {
         while lanes != 0 {
             let lane = lanes.trailing_zeros() as usize;
             lanes &= lanes - 1;
-            self.t[lane] = hit_t[lane];
-            self.triangle[lane] = index;
+            if replaces(hit_t[lane], index, self.t[lane], self.triangle[lane]) {
+                self.t[lane] = hit_t[lane];
+                self.triangle[lane] = index;
+                self.limit[lane] = past(hit_t[lane]);
+                self.box_limit[lane] = reach(hit_t[lane]);
+            }
         }
         0
     }
@@ -237,14 +266,10 @@ pub fn occluded_fan(bvh: &Bvh, packet: &FanPacket, t_max: f32) -> LaneMask {
 }
 
 /// The nearest hit on `(0, t_max)` of each active lane of a packet of rays from one origin:
-/// the distance [`Bvh::closest_hit`] finds for that lane's ray, bit for bit, and its triangle,
-/// or another at the same distance (where a ray meets two triangles at once, on a shared edge,
-/// the one tested first wins, and the two traversals test in different orders).
+/// what [`Bvh::closest_hit`] finds for that lane's ray, its distance bit for bit, and of
+/// triangles at that distance the same one (`ray::replaces`).
 pub fn closest_fan(bvh: &Bvh, packet: &FanPacket, t_max: f32) -> ClosestHits {
-    let mut query = ClosestHits {
-        t: [t_max; LANES],
-        triangle: [NO_HIT; LANES],
-    };
+    let mut query = ClosestHits::new(t_max);
     dispatch::traverse(bvh, packet, &mut query);
     query
 }
@@ -267,7 +292,7 @@ fn traverse<P: Packet, I: Isa, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
         return;
     };
     // Lanes still walking.
-    let mut open = packet.active() & packet.box_lanes::<I>(root, query.limit());
+    let mut open = packet.active() & packet.box_lanes::<I>(root, query.box_limit());
     if open == 0 {
         return;
     }
@@ -299,8 +324,8 @@ fn traverse<P: Packet, I: Isa, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
             let first = node.left_or_first;
             let left = &bvh.nodes[first as usize];
             let right = &bvh.nodes[first as usize + 1];
-            let in_left = lanes & packet.box_lanes::<I>(left, query.limit());
-            let in_right = lanes & packet.box_lanes::<I>(right, query.limit());
+            let in_left = lanes & packet.box_lanes::<I>(left, query.box_limit());
+            let in_right = lanes & packet.box_lanes::<I>(right, query.box_limit());
             match (in_left != 0, in_right != 0) {
                 (true, true) => {
                     if packet.right_first(left, right) {

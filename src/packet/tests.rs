@@ -160,10 +160,18 @@ fn fans_agree_with_single_rays_on_the_dragon_and_bunny() {
     }
 }
 
+/// Every copy of the closest-hit fan traversal against single rays: fans of up to 16
+/// consecutive samples of a cosine set from random vertices, some lanes inactive. The hits are
+/// the single rays', triangle and distance bit for bit; 2CylinderEngine has coincident faces,
+/// where the tie rule (`ray::replaces`) decides.
 #[test]
-fn fans_find_the_single_rays_closest_hits_on_the_dragon_and_bunny() {
+fn fans_find_the_single_rays_closest_hits() {
     let set = crate::sampling::cosine_hemisphere(1024, 5);
-    for name in ["dragon_vrip_res3.ply.gz", "bunny.obj"] {
+    for name in [
+        "dragon_vrip_res3.ply.gz",
+        "bunny.obj",
+        "gltf/2CylinderEngine.glb",
+    ] {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("tests/data")
             .join(name);
@@ -171,7 +179,7 @@ fn fans_find_the_single_rays_closest_hits_on_the_dragon_and_bunny() {
         let inputs = BakeInputs::new(&mesh, 1, 1, 1);
         let bvh = &inputs.bvh;
         let mut rng = Pcg32::new(13);
-        let (mut hits, mut other_triangle, mut lanes) = (0, 0, 0);
+        let (mut hits, mut lanes) = (0, 0);
         for _ in 0..3_000 {
             let vertex = (rng.next_u32() as usize) % inputs.origins.len();
             let (origin, normal) = (inputs.origins[vertex], inputs.normals[vertex]);
@@ -186,10 +194,7 @@ fn fans_find_the_single_rays_closest_hits_on_the_dragon_and_bunny() {
             let active = lane_mask(|l| l < width && (skipped >> l) & 7 != 0);
             let packet = FanPacket::new(origin, &directions, active);
             for (copy_name, copy) in dispatch::all_available::<FanPacket, ClosestHits>() {
-                let mut query = ClosestHits {
-                    t: [RAY_T_MAX; LANES],
-                    triangle: [NO_HIT; LANES],
-                };
+                let mut query = ClosestHits::new(RAY_T_MAX);
                 copy(bvh, &packet, &mut query);
                 for (lane, &direction) in directions.iter().enumerate() {
                     let found = (query.triangle[lane] != NO_HIT).then(|| {
@@ -203,24 +208,14 @@ fn fans_find_the_single_rays_closest_hits_on_the_dragon_and_bunny() {
                     let single = bvh
                         .closest_hit(&Ray::new(origin, direction), RAY_T_MAX)
                         .map(|(triangle, hit)| (triangle, hit.t.to_bits()));
+                    assert_eq!(found, single, "{copy_name} {name}");
                     lanes += 1;
                     hits += single.is_some() as usize;
-                    // The same distance, bit for bit; the same triangle but at a tie.
-                    assert_eq!(
-                        found.map(|f| f.1),
-                        single.map(|s| s.1),
-                        "{copy_name} {name}"
-                    );
-                    other_triangle += (found != single) as usize;
                 }
             }
         }
-        println!("{name}: {lanes} lanes, {hits} hit, {other_triangle} another triangle at the same distance");
+        println!("{name}: {lanes} lanes, {hits} hit");
         assert!(hits > 1_000, "too few hits ({hits}) to test anything");
-        assert!(
-            other_triangle * 10_000 <= hits,
-            "{other_triangle} ties of {hits} hits"
-        );
     }
 }
 

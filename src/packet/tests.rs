@@ -106,6 +106,24 @@ fn packets_agree_with_single_rays_on_the_bunny_and_partial_packets() {
     }
 }
 
+/// A random vertex of `inputs` and `width` consecutive samples of `set` from a random start,
+/// turned into the vertex's tangent frame.
+fn random_fan(
+    inputs: &BakeInputs,
+    set: &crate::sampling::SampleSet,
+    width: usize,
+    rng: &mut Pcg32,
+) -> (usize, Vec<Vec3>) {
+    let vertex = (rng.next_u32() as usize) % inputs.origins.len();
+    let start = (rng.next_u32() as usize) % (set.len() - width + 1);
+    let to_world = crate::sampling::VertexDirections::new(set.frame, inputs.normals[vertex]);
+    let directions = set.directions[start..start + width]
+        .iter()
+        .map(|&d| to_world.world(d))
+        .collect();
+    (vertex, directions)
+}
+
 /// Every copy of the fan traversal against single rays: packets of `width` consecutive
 /// samples of a cosine set, turned into the tangent frame of a random vertex, lanes above
 /// the horizon active. Returns (lanes compared, lanes that differ, lanes blocked).
@@ -115,14 +133,8 @@ fn compare_fans_with_single_rays(inputs: &BakeInputs, width: usize, packets: usi
     let copies = dispatch::all_available();
     let mut counts = [0; 3];
     for _ in 0..packets {
-        let vertex = (rng.next_u32() as usize) % inputs.origins.len();
+        let (vertex, directions) = random_fan(inputs, &set, width, &mut rng);
         let normal = inputs.normals[vertex];
-        let start = (rng.next_u32() as usize) % (set.len() - width + 1);
-        let to_world = crate::sampling::VertexDirections::new(set.frame, normal);
-        let directions: Vec<Vec3> = set.directions[start..start + width]
-            .iter()
-            .map(|&d| to_world.world(d))
-            .collect();
         let above = lane_mask(|l| l < width && normal.dot(directions[l]) > 0.0);
         let packet = FanPacket::new(inputs.origins[vertex], &directions, above);
         let expected = lane_mask(|l| {
@@ -181,15 +193,9 @@ fn fans_find_the_single_rays_closest_hits() {
         let mut rng = Pcg32::new(13);
         let (mut hits, mut lanes) = (0, 0);
         for _ in 0..3_000 {
-            let vertex = (rng.next_u32() as usize) % inputs.origins.len();
-            let (origin, normal) = (inputs.origins[vertex], inputs.normals[vertex]);
             let width = 1 + (rng.next_u32() as usize) % LANES;
-            let start = (rng.next_u32() as usize) % (set.len() - width + 1);
-            let to_world = crate::sampling::VertexDirections::new(set.frame, normal);
-            let directions: Vec<Vec3> = set.directions[start..start + width]
-                .iter()
-                .map(|&d| to_world.world(d))
-                .collect();
+            let (vertex, directions) = random_fan(&inputs, &set, width, &mut rng);
+            let origin = inputs.origins[vertex];
             let skipped = rng.next_u32();
             let active = lane_mask(|l| l < width && (skipped >> l) & 7 != 0);
             let packet = FanPacket::new(origin, &directions, active);

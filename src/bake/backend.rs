@@ -7,11 +7,9 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::bounce::{self, GatherMatrix};
-use super::{gpu, DirectInputs, DirectPass, Mode, Progress};
+use super::{cpu, gpu, DirectInputs, DirectPass, Mode, Progress};
 use crate::device::GpuContext;
 use crate::error::Result;
-use crate::ray::{Ray, RAY_T_MAX};
-use crate::sampling::VertexDirections;
 use crate::scene::Scene;
 use crate::sh::coeff_count;
 
@@ -167,23 +165,16 @@ impl Backend for CpuBackend {
         cap: f32,
         _progress: &dyn Progress,
     ) -> Result<Vec<f32>> {
-        let samples = &inputs.samples;
-        let mut distances = vec![cap; inputs.origins.len() * samples.len()];
+        let samples = inputs.samples.len();
+        let mut distances = vec![cap; inputs.origins.len() * samples];
         distances
-            .par_chunks_mut(samples.len().max(1))
-            .zip(inputs.origins.par_iter().zip(inputs.normals))
-            .for_each(|(row, (&origin, &normal))| {
-                let to_world = VertexDirections::new(samples.frame, normal);
-                for (distance, &sample) in row.iter_mut().zip(&samples.directions) {
-                    let direction = to_world.world(sample);
-                    if normal.dot(direction) <= 0.0 {
-                        continue;
-                    }
-                    let ray = Ray::new(origin, direction);
-                    if let Some((_, hit)) = inputs.bvh.closest_hit(&ray, RAY_T_MAX) {
-                        *distance = hit.t.min(cap);
-                    }
-                }
+            .par_chunks_mut(samples.max(1))
+            .enumerate()
+            .for_each(|(vertex, row)| {
+                let above = cpu::samples_above_horizon(inputs, vertex);
+                cpu::visit_closest_hits(inputs, vertex, &above, |s, _, hit| {
+                    row[s as usize] = hit.t.min(cap);
+                });
             });
         Ok(distances)
     }

@@ -154,7 +154,8 @@ pub fn blocked_hits(inputs: &DirectInputs, vertex: usize, visible: &[u32]) -> Ve
 }
 
 /// Albedo-free direct transfer `[vertex][k]` and the gather matrix, on the CPU: visibility
-/// from the packets of the shadowed bake, then one closest-hit traversal per blocked ray.
+/// from the packets of the shadowed bake, then the blocked rays' closest hits
+/// ([`cpu::closest_hits_of`]).
 /// Returns them and the rays cast (one per sample above the horizon, as in shadowed mode).
 pub fn direct_transfer_and_gather_matrix_cpu(
     inputs: &DirectInputs,

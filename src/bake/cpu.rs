@@ -377,31 +377,30 @@ pub fn visibility_bits(inputs: &DirectInputs, mode: Mode) -> Vec<u32> {
 }
 
 /// The closest hits of one vertex's rays along `samples` (indices into the sample set, each
-/// above the horizon): `(sample, hit)` for those that hit something. Tangent-frame sets are
-/// cast [`LANES`] samples at a time as fan packets ([`packet::closest_fan`]), world sets one
-/// ray at a time. Either way a hit's distance is bit for bit the one of `Bvh::closest_hit`,
-/// and so is its triangle but where the ray meets two at the same distance (an edge both
-/// share), where the packet may keep the other.
-pub fn closest_hits_of(inputs: &DirectInputs, vertex: usize, samples: &[u32]) -> Vec<(u32, Hit)> {
+/// above the horizon), handed to `visit(sample, triangle, hit)` for those that hit something.
+/// Tangent-frame sets are cast [`LANES`] samples at a time as fan packets
+/// ([`packet::closest_fan`]), world sets one ray at a time. Either way a hit is bit for bit the
+/// one of `Bvh::closest_hit`, ties between triangles at one distance included
+/// (`ray::replaces`).
+pub fn visit_closest_hits(
+    inputs: &DirectInputs,
+    vertex: usize,
+    samples: &[u32],
+    mut visit: impl FnMut(u32, u32, TriangleHit),
+) {
     let normal = inputs.normals[vertex];
     let origin = inputs.origins[vertex];
     let to_world = VertexDirections::new(inputs.samples.frame, normal);
     let direction = |s: u32| to_world.world(inputs.samples.directions[s as usize]);
-    let hit_of = |s: u32, triangle: u32, hit: TriangleHit| {
-        let (u, v) = (hit.u, hit.v);
-        (s, Hit { triangle, u, v })
-    };
     if inputs.samples.frame == DirectionFrame::World {
-        return samples
-            .iter()
-            .filter_map(|&s| {
-                let ray = Ray::new(origin, direction(s));
-                let (triangle, hit) = inputs.bvh.closest_hit(&ray, RAY_T_MAX)?;
-                Some(hit_of(s, triangle, hit))
-            })
-            .collect();
+        for &s in samples {
+            let ray = Ray::new(origin, direction(s));
+            if let Some((triangle, hit)) = inputs.bvh.closest_hit(&ray, RAY_T_MAX) {
+                visit(s, triangle, hit);
+            }
+        }
+        return;
     }
-    let mut hits = Vec::new();
     let mut world = [glam::Vec3::ZERO; LANES];
     for group in samples.chunks(LANES) {
         for (w, &s) in world.iter_mut().zip(group) {
@@ -419,11 +418,29 @@ pub fn closest_hits_of(inputs: &DirectInputs, vertex: usize, samples: &[u32]) ->
             let [v0, v1, v2] = tri.vertices();
             let ray = Ray::new(origin, world[lane]);
             if let Some(hit) = intersect_triangle(&ray, v0, v1, v2, 0.0, RAY_T_MAX) {
-                hits.push(hit_of(s, tri.source_index, hit));
+                visit(s, tri.source_index, hit);
             }
         }
     }
+}
+
+/// [`visit_closest_hits`] collected: `(sample, hit)` for the rays that hit something.
+pub fn closest_hits_of(inputs: &DirectInputs, vertex: usize, samples: &[u32]) -> Vec<(u32, Hit)> {
+    let mut hits = Vec::new();
+    visit_closest_hits(inputs, vertex, samples, |s, triangle, hit| {
+        let (u, v) = (hit.u, hit.v);
+        hits.push((s, Hit { triangle, u, v }));
+    });
     hits
+}
+
+/// The samples of `vertex` above its horizon, in order.
+pub fn samples_above_horizon(inputs: &DirectInputs, vertex: usize) -> Vec<u32> {
+    let normal = inputs.normals[vertex];
+    let to_world = VertexDirections::new(inputs.samples.frame, normal);
+    (0..inputs.samples.len() as u32)
+        .filter(|&s| normal.dot(to_world.world(inputs.samples.directions[s as usize])) > 0.0)
+        .collect()
 }
 
 /// The closest hit of every ray of the direct pass (`(sample, triangle)` per receiver, for the
@@ -434,15 +451,11 @@ pub fn closest_hit_triangles(inputs: &DirectInputs) -> (Vec<Vec<(u32, u32)>>, u6
     let per_receiver: Vec<(Vec<(u32, u32)>, u64)> = (0..inputs.origins.len())
         .into_par_iter()
         .map(|vertex| {
-            let normal = inputs.normals[vertex];
-            let to_world = VertexDirections::new(inputs.samples.frame, normal);
-            let above: Vec<u32> = (0..inputs.samples.len() as u32)
-                .filter(|&s| {
-                    normal.dot(to_world.world(inputs.samples.directions[s as usize])) > 0.0
-                })
-                .collect();
-            let hits = closest_hits_of(inputs, vertex, &above);
-            let triangles = hits.into_iter().map(|(s, hit)| (s, hit.triangle)).collect();
+            let above = samples_above_horizon(inputs, vertex);
+            let mut triangles = Vec::new();
+            visit_closest_hits(inputs, vertex, &above, |s, triangle, _| {
+                triangles.push((s, triangle))
+            });
             (triangles, above.len() as u64)
         })
         .collect();

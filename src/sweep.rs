@@ -429,7 +429,8 @@ pub struct BackendTimes {
 
 /// Times the direct-transfer pass `repeats` times on the CPU and, given a baker, the GPU,
 /// alternating so that both see the same machine load; reports the medians. `on_round` is
-/// called before each round.
+/// called before each round. In interreflected mode the pass is what a bake runs before its
+/// bounces on either backend: the transfer and the gather matrix of the rays' closest hits.
 pub fn time_backends(
     inputs: &DirectInputs,
     mode: Mode,
@@ -443,12 +444,22 @@ pub fn time_backends(
     for round in 0..repeats.max(1) {
         on_round(round);
         let started = Instant::now();
-        rays = cpu::direct_transfer(inputs, mode, &NoProgress).1;
+        rays = match mode {
+            Mode::Interreflected => {
+                crate::bake::bounce::direct_transfer_and_gather_matrix_cpu(inputs, &NoProgress).2
+            }
+            mode => cpu::direct_transfer(inputs, mode, &NoProgress).1,
+        };
         cpu_times.push(started.elapsed().as_secs_f64());
         if let Some(baker) = baker {
             let started = Instant::now();
-            let (_, run) =
-                gpu::direct_transfer(baker, inputs, mode, Chunking::default(), &NoProgress)?;
+            let chunking = Chunking::default();
+            let run = match mode {
+                Mode::Interreflected => {
+                    gpu::direct_transfer_and_gather_matrix(baker, inputs, chunking, &NoProgress)?.2
+                }
+                mode => gpu::direct_transfer(baker, inputs, mode, chunking, &NoProgress)?.1,
+            };
             gpu_runs.push((started.elapsed().as_secs_f64(), run));
         }
     }

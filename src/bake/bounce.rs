@@ -141,14 +141,8 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
 /// far faster than a closest-hit traversal, and the open rays, most of them on a typical mesh
 /// and the ones that cross the whole tree, then need no closest hit at all.
 pub fn blocked_hits(inputs: &DirectInputs, vertex: usize, visible: &[u32]) -> Vec<(u32, Hit)> {
-    let normal = inputs.normals[vertex];
-    let to_world = VertexDirections::new(inputs.samples.frame, normal);
-    let blocked: Vec<u32> = (0..inputs.samples.len() as u32)
-        .filter(|&s| {
-            visible[s as usize / 32] & (1 << (s % 32)) == 0
-                && normal.dot(to_world.world(inputs.samples.directions[s as usize])) > 0.0
-        })
-        .collect();
+    let mut blocked = cpu::samples_above_horizon(inputs, vertex);
+    blocked.retain(|&s| visible[s as usize / 32] & (1 << (s % 32)) == 0);
     // A blocked ray always has a closest hit: both queries run the same tests.
     cpu::closest_hits_of(inputs, vertex, &blocked)
 }

@@ -1,11 +1,42 @@
 //! The packet traversals against the single-ray reference, every compiled copy of them.
 
 use super::*;
-use crate::bake::BakeInputs;
 use crate::ray::{Ray, RAY_T_MAX};
 use crate::sampling::Pcg32;
 use crate::scene::{self, builtin, prepare::prepare};
 use glam::Vec3;
+
+/// A mesh's BVH and its vertices as ray origins (moved off the surface) with their normals:
+/// what the packet tests cast from, built here from `scene` and `bvh` alone.
+struct Surface {
+    bvh: Bvh,
+    origins: Vec<Vec3>,
+    normals: Vec<Vec3>,
+}
+
+impl Surface {
+    /// The prepared mesh `tests/data/<name>`.
+    fn load(name: &str) -> Surface {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data")
+            .join(name);
+        let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
+        let bvh = Bvh::build(&mesh.positions, &mesh.triangles);
+        let normals = mesh.normals.clone().expect("a prepared mesh has normals");
+        let extent = bvh.extent();
+        let origins = mesh
+            .positions
+            .iter()
+            .zip(&normals)
+            .map(|(&p, &n)| crate::ray::offset_ray_origin(p, n, extent))
+            .collect();
+        Surface {
+            bvh,
+            origins,
+            normals,
+        }
+    }
+}
 
 fn random_direction(rng: &mut Pcg32) -> Vec3 {
     loop {
@@ -52,7 +83,7 @@ fn check_copies<P: Packet>(
 /// Every copy of the traversal against single rays, on packets of `width` consecutive
 /// (Morton-adjacent) vertices and random directions, lanes above the horizon active.
 /// Returns (lanes compared, lanes that differ, lanes blocked).
-fn compare_with_single_rays(inputs: &BakeInputs, width: usize, packets: usize) -> [usize; 3] {
+fn compare_with_single_rays(inputs: &Surface, width: usize, packets: usize) -> [usize; 3] {
     let mut rng = Pcg32::new(7);
     let mut counts = [0; 3];
     for _ in 0..packets {
@@ -76,10 +107,7 @@ fn compare_with_single_rays(inputs: &BakeInputs, width: usize, packets: usize) -
 
 #[test]
 fn packets_agree_with_single_rays_on_the_dragon() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/dragon_vrip_res3.ply.gz");
-    let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
-    let inputs = BakeInputs::new(&mesh, 1, 1, 1);
+    let inputs = Surface::load("dragon_vrip_res3.ply.gz");
     let [lanes, differ, blocked] = compare_with_single_rays(&inputs, LANES, 20_000);
     println!(
         "dragon: {lanes} lanes, {blocked} blocked, {differ} differ from single rays \
@@ -95,9 +123,7 @@ fn packets_agree_with_single_rays_on_the_dragon() {
 
 #[test]
 fn packets_agree_with_single_rays_on_the_bunny_and_partial_packets() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny.obj");
-    let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
-    let inputs = BakeInputs::new(&mesh, 1, 1, 1);
+    let inputs = Surface::load("bunny.obj");
     for width in [1, 5, LANES - 1, LANES] {
         let [lanes, differ, blocked] = compare_with_single_rays(&inputs, width, 4_000);
         println!("bunny, {width} lanes: {lanes} lanes, {blocked} blocked, {differ} differ");
@@ -109,7 +135,7 @@ fn packets_agree_with_single_rays_on_the_bunny_and_partial_packets() {
 /// A random vertex of `inputs` and `width` consecutive samples of `set` from a random start,
 /// turned into the vertex's tangent frame.
 fn random_fan(
-    inputs: &BakeInputs,
+    inputs: &Surface,
     set: &crate::sampling::SampleSet,
     width: usize,
     rng: &mut Pcg32,
@@ -127,7 +153,7 @@ fn random_fan(
 /// Every copy of the fan traversal against single rays: packets of `width` consecutive
 /// samples of a cosine set, turned into the tangent frame of a random vertex, lanes above
 /// the horizon active. Returns (lanes compared, lanes that differ, lanes blocked).
-fn compare_fans_with_single_rays(inputs: &BakeInputs, width: usize, packets: usize) -> [usize; 3] {
+fn compare_fans_with_single_rays(inputs: &Surface, width: usize, packets: usize) -> [usize; 3] {
     let mut rng = Pcg32::new(11);
     let set = crate::sampling::cosine_hemisphere(1024, 3);
     let copies = dispatch::all_available();
@@ -155,11 +181,7 @@ fn fans_agree_with_single_rays_on_the_dragon_and_bunny() {
         ("dragon_vrip_res3.ply.gz", &[LANES][..]),
         ("bunny.obj", &[1, 5, LANES - 1, LANES][..]),
     ] {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("tests/data")
-            .join(name);
-        let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
-        let inputs = BakeInputs::new(&mesh, 1, 1, 1);
+        let inputs = Surface::load(name);
         for &width in widths {
             let [lanes, differ, blocked] = compare_fans_with_single_rays(&inputs, width, 10_000);
             println!("{name}, {width} lanes: {lanes} lanes, {blocked} blocked, {differ} differ");
@@ -184,11 +206,7 @@ fn fans_find_the_single_rays_closest_hits() {
         "bunny.obj",
         "gltf/2CylinderEngine.glb",
     ] {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("tests/data")
-            .join(name);
-        let (mesh, _) = prepare(scene::load(&path).unwrap()).unwrap();
-        let inputs = BakeInputs::new(&mesh, 1, 1, 1);
+        let inputs = Surface::load(name);
         let bvh = &inputs.bvh;
         let mut rng = Pcg32::new(13);
         let (mut hits, mut lanes) = (0, 0);

@@ -161,6 +161,39 @@ fn rays_from_inside_a_closed_box_never_escape() {
     );
 }
 
+#[test]
+fn a_closed_room_with_smooth_corners_bakes_no_light_at_any_vertex() {
+    // A box seen from inside, its normals computed (angle-weighted, no crease split): a
+    // corner's normal runs along the diagonal, and its tangent plane cuts through the walls.
+    // Its vertices' rays must still start inside the room (receivers::vertex_ray_starts keeps
+    // the origin in front of every face); before, 6 of the 8 corners saw a third of the sky.
+    for cells in [1, 2, 5] {
+        let room = builtin::seen_from_inside(builtin::closed_box(-Vec3::ONE, Vec3::ONE, cells));
+        for backend in common::backends() {
+            let options = BakeOptions {
+                bands: 2,
+                samples: 1024,
+                ..BakeOptions::default()
+            };
+            let (baked, report) =
+                bake(room.clone(), &options, backend.as_ref(), &NoProgress).unwrap();
+            assert!(report.rays_cast > 0);
+            let lit = baked
+                .transfer
+                .coeffs()
+                .chunks(baked.transfer.coeffs_per_channel() * 3)
+                .filter(|vertex| vertex.iter().any(|&t| t != 0.0))
+                .count();
+            assert_eq!(
+                lit,
+                0,
+                "{cells} cells, {}: {lit} vertices lit",
+                backend.describe()
+            );
+        }
+    }
+}
+
 /// Rays from every origin along every direction on the GPU: (escaped, cast).
 fn gpu_escapes(baker: &GpuBaker, bvh: &Bvh, origins: &[Vec3], directions: Vec<Vec3>) -> (u64, u64) {
     // Each origin twice, with normals +X and -X, so every direction is above one horizon.

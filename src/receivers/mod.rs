@@ -15,6 +15,7 @@ pub mod uv_set;
 
 use glam::{DVec3, Vec3};
 
+use crate::ray::offset_ray_origin;
 use crate::sampling::{pcg_hash, Pcg32};
 use crate::scene::Scene;
 
@@ -101,6 +102,13 @@ pub const VERTEX_SLIDE: f64 = 1e-3;
 /// floor, a table leg's top under the table), a ray from the line itself would start exactly on
 /// the other surface and see it or not by rounding. A vertex inside a flat or gently curved
 /// patch barely moves (its faces' centroids surround it).
+///
+/// The slide is shortened where it would carry the ray origin (the start moved off along the
+/// normal, `ray::offset_ray_origin`) behind one of the vertex's own faces. Where a smooth
+/// normal spans a sharp concave corner (a room's corner, its normal along the diagonal) the
+/// tangent plane cuts through the faces, and a full slide put the origin outside the room: a
+/// third of a corner's rays escaped to the sky. Shortened, the origin stays in front of every
+/// face that faces its normal by at least half the height the normal offset gives it.
 pub fn vertex_ray_starts(scene: &Scene) -> Vec<Vec3> {
     let normals = scene
         .normals
@@ -119,20 +127,63 @@ pub fn vertex_ray_starts(scene: &Scene) -> Vec<Vec3> {
             *count += 1;
         }
     }
-    scene
+    let slides: Vec<DVec3> = scene
         .positions
         .iter()
         .zip(normals)
         .zip(centroids)
         .map(|((&p, &n), (sum, count))| {
             if count == 0 {
-                return p;
+                return DVec3::ZERO;
             }
             let (p, n) = (p.as_dvec3(), n.as_dvec3());
             let towards = sum / count as f64 - p;
-            (p + (towards - n * n.dot(towards)) * VERTEX_SLIDE).as_vec3()
+            (towards - n * n.dot(towards)) * VERTEX_SLIDE
         })
+        .collect();
+    let scales = slide_scales(scene, normals, &slides);
+    scene
+        .positions
+        .iter()
+        .zip(slides.iter().zip(scales))
+        .map(|(&p, (&slide, scale))| (p.as_dvec3() + slide * scale).as_vec3())
         .collect()
+}
+
+/// How much of each vertex's `slide` keeps its ray origin in front of its own faces (see
+/// [`vertex_ray_starts`]): 1, or less where a face would otherwise be crossed. Faces turned
+/// away from the vertex's normal (folded slivers) are left out: no origin along the normal is
+/// in front of them.
+fn slide_scales(scene: &Scene, normals: &[Vec3], slides: &[DVec3]) -> Vec<f64> {
+    let extent = scene_extent(&scene.positions);
+    let mut scales = vec![1.0f64; scene.positions.len()];
+    for &triangle in &scene.triangles {
+        let Some(face) = face_normal(&scene.positions, triangle)
+            .as_dvec3()
+            .try_normalize()
+        else {
+            continue;
+        };
+        for i in triangle.map(|i| i as usize) {
+            let behind = -face.dot(slides[i]);
+            let p = scene.positions[i];
+            let lift = face.dot((offset_ray_origin(p, normals[i], extent) - p).as_dvec3());
+            if behind > 0.0 && lift > 0.0 {
+                scales[i] = scales[i].min(0.5 * lift / behind);
+            }
+        }
+    }
+    scales
+}
+
+/// The largest side of the bounding box of `positions` (what `ray::offset_ray_origin` scales
+/// its floor by; the BVH's root box is the same box).
+fn scene_extent(positions: &[Vec3]) -> f32 {
+    let (lo, hi) = positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    (hi - lo).max_element().max(0.0)
 }
 
 /// The interpolated normal, normalised; the face normal where the corners' normals cancel.

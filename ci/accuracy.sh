@@ -11,7 +11,7 @@ if [ $# -ge 1 ]; then
 else
     log=$(mktemp)
     trap 'rm -f "$log"' EXIT
-    cargo test --release --locked --test oracle_distant --test oracle_local -- --nocapture \
+    cargo test --release --locked --test oracle_distant --test oracle_local --test oracle_probes -- --nocapture \
         --test-threads 1 >"$log" 2>&1 || { tail -40 "$log" >&2; exit 1; }
 fi
 {
@@ -29,7 +29,9 @@ beyond both noises (`sqrt(error^2 - oracle^2 - bake^2)`), and for interpolated r
 their measured floor: for local lights the difference the vertex representation of the bounced
 light makes (the bake's gather rays with the direct light exact at each hit point), for
 least-squares vertices and lightmap texels the difference from the baker at the points
-themselves. The tests (`tests/oracle_distant.rs`, `tests/oracle_local.rs`) assert the bounds;
+themselves. Probes: irradiance at free points for random normals against Mitsuba's (cosine-distributed
+paths from the point). The tests (`tests/oracle_distant.rs`, `tests/oracle_local.rs`,
+`tests/oracle_probes.rs`) assert the bounds;
 this table is their printed figures, made by `ci/accuracy.sh`.
 
 | what | error | oracle noise | notes |

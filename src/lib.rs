@@ -30,6 +30,7 @@ pub mod morton;
 pub mod packet;
 pub mod pipeline;
 pub mod precision;
+pub mod probes;
 pub mod ray;
 pub mod receivers;
 pub mod render;

@@ -16,6 +16,7 @@ use crate::device::GpuContext;
 use crate::error::Error;
 use crate::local::{self, LocalBake, LocalReport};
 use crate::precision::Precision;
+use crate::probes::{self, ProbeSet};
 use crate::receivers::uv_set::{self, UvSet};
 use crate::scene::gltf::GltfScene;
 use crate::scene::Scene;
@@ -35,6 +36,9 @@ pub struct Baked {
     pub half_float: Option<HalfFloatCost>,
     /// Side notes of the stages (where a stage ran and why), one line each.
     pub notes: Vec<String>,
+    /// The probes the spec asks for, baked around the scene, and the seconds they took.
+    pub probes: Option<ProbeSet>,
+    pub probe_seconds: f64,
 }
 
 /// Bakes `scene` as `spec` asks, its direct pass from `source`, on `backend`; `gltf` is the
@@ -142,6 +146,17 @@ impl Planned<'_> {
             Bands::Auto { threshold } => Some(choose_auto_bands(&mut mesh, threshold)),
             Bands::Fixed(_) => None,
         };
+        let probes_started = Instant::now();
+        let probes = match &spec.probes {
+            Some(probes) => {
+                let sampling = (spec.transfer.samples, spec.transfer.seed);
+                Some(probes::bake_probes(
+                    &mesh, probes, sampling, backend, progress,
+                )?)
+            }
+            None => None,
+        };
+        let probe_seconds = probes_started.elapsed().as_secs_f64();
         let compressed = match spec.compression() {
             Some(compression) => Some(compress_transfer(
                 &mesh,
@@ -165,6 +180,8 @@ impl Planned<'_> {
             compressed,
             half_float,
             notes,
+            probes,
+            probe_seconds,
         })
     }
 
@@ -181,6 +198,13 @@ impl Planned<'_> {
         progress: &dyn Progress,
     ) -> Result<Streamed> {
         check_container(self.spec, gltf)?;
+        if self.spec.probes.is_some() {
+            return Err(Error::Options(
+                "probes are baked after the whole transfer and written with it; a streamed bake \
+                 writes its transfer chunk by chunk"
+                    .into(),
+            ));
+        }
         let streamed = bake::stream::StreamedBake::plan(self.scene, &self.spec.options())?;
         let precision = self.spec.storage.precision;
         // Built at the first chunk, of its bands (with --bands auto, those chosen).
@@ -285,9 +309,11 @@ pub fn plan_memory(
     if need.whole() <= budget {
         return Ok(whole);
     }
-    let streamable = bake::stream::streams(&options) && spec.storage.layout == Layout::PerVertex;
-    let why_not = "only bakes at the vertices (no least-squares fit or lightmap), without \
-                   --compress, stream in chunks";
+    let streamable = bake::stream::streams(&options)
+        && spec.storage.layout == Layout::PerVertex
+        && spec.probes.is_none();
+    let why_not = "only bakes at the vertices (no least-squares fit, lightmap or probes), \
+                   without --compress, stream in chunks";
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;
@@ -345,7 +371,8 @@ pub fn write(
     path: &Path,
 ) -> Result<Option<glb::scene::SceneWrite>> {
     check_container(spec, gltf)?;
-    let stored = glb::Stored::new(&baked.mesh, baked.cpca.as_ref(), spec.storage.precision)?;
+    let stored = glb::Stored::new(&baked.mesh, baked.cpca.as_ref(), spec.storage.precision)?
+        .with_probes(baked.probes.as_ref())?;
     match gltf {
         Some(gltf) => Ok(Some(glb::scene::write_scene_glb(
             path,

@@ -36,6 +36,82 @@ pub struct BakeSpec {
     /// specs written before it hash as they did.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub local: Option<LocalOptions>,
+    /// Relightable probes in the space around the scene (`--probes`), baked after its
+    /// transfer. Left out of the JSON when unset, so specs written before it hash as they did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probes: Option<ProbeSpec>,
+}
+
+/// Where probes go and what each stores (`probes::bake_probes`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeSpec {
+    pub placement: ProbePlacement,
+    pub form: ProbeForm,
+}
+
+/// Where the probes are: a grid over the scene's bounds, or the user's points.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ProbePlacement {
+    /// Points `spacing` apart along each axis, centred on the scene's bounding box and
+    /// covering it.
+    Grid {
+        spacing: f32,
+    },
+    Points(Vec<[f32; 3]>),
+}
+
+/// What a probe stores.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum ProbeForm {
+    /// The incident radiance's SH from the light's: bands^2 x bands^2 per channel.
+    Radiance,
+    /// Only what irradiance needs: the first three bands' rows, cosine-convolved
+    /// (9 x bands^2 per channel).
+    Irradiance,
+}
+
+impl ProbeForm {
+    pub fn name(self) -> &'static str {
+        match self {
+            ProbeForm::Radiance => "radiance",
+            ProbeForm::Irradiance => "irradiance",
+        }
+    }
+}
+
+/// The most probes one bake places.
+pub const MAX_PROBES: usize = 1 << 22;
+
+impl ProbeSpec {
+    /// Refuses a grid without a positive finite spacing, points that are not finite, and no
+    /// probe at all.
+    pub fn validate(&self) -> Result<()> {
+        match &self.placement {
+            ProbePlacement::Grid { spacing } if !(spacing.is_finite() && *spacing > 0.0) => {
+                Err(Error::Options(format!(
+                    "--probes {spacing}: the grid spacing must be a positive length"
+                )))
+            }
+            ProbePlacement::Points(points) if points.is_empty() => Err(Error::Options(
+                "--probe-points: the file lists no point".into(),
+            )),
+            ProbePlacement::Points(points) if points.len() > MAX_PROBES => {
+                Err(Error::Options(format!(
+                    "--probe-points: {} points, more than {MAX_PROBES}",
+                    points.len()
+                )))
+            }
+            ProbePlacement::Points(points) if points.iter().flatten().any(|x| !x.is_finite()) => {
+                Err(Error::Options(
+                    "--probe-points: a point has a coordinate that is not finite".into(),
+                ))
+            }
+            _ => Ok(()),
+        }
+    }
 }
 
 /// Where transfer is computed: at the vertices or at surface points fitted back to them, and
@@ -157,6 +233,7 @@ impl Default for BakeSpec {
             },
             container: Container::Mesh,
             local: None,
+            probes: None,
         }
     }
 }
@@ -221,7 +298,33 @@ impl BakeSpec {
                 )));
             }
         }
-        self.check_storage_fits_container()
+        self.check_storage_fits_container()?;
+        self.check_probes()
+    }
+
+    /// Probes: valid, and only where there is occlusion for them to see (unshadowed transfer
+    /// has none: every probe would be the identity). Written into a baked mesh whole; the
+    /// scene baked in place and streamed bakes do not carry them yet.
+    fn check_probes(&self) -> Result<()> {
+        let Some(probes) = &self.probes else {
+            return Ok(());
+        };
+        probes.validate()?;
+        if self.transfer.mode == Mode::Unshadowed {
+            return Err(Error::Options(
+                "--probes with --mode unshadowed: nothing is occluded, so every probe would be \
+                 the identity (bake shadowed or interreflected)"
+                    .into(),
+            ));
+        }
+        if self.container == Container::GltfInPlace {
+            return Err(Error::Options(
+                "--probes with a glTF scene baked in place: the probes go into a baked mesh's \
+                 .glb; the in-place writer does not carry them yet"
+                    .into(),
+            ));
+        }
+        Ok(())
     }
 
     /// A local-lights bake: its section, valid, and nothing of what SH transfer is stored as
@@ -251,6 +354,7 @@ impl BakeSpec {
                 self.container != Container::Mesh,
                 "a glTF scene baked in place",
             ),
+            (self.probes.is_some(), "--probes"),
         ];
         if let Some((_, what)) = asked.iter().find(|(given, _)| *given) {
             return Err(Error::Options(format!(

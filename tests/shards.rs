@@ -71,6 +71,26 @@ fn merged_shards_equal_the_whole_bake_byte_for_byte() {
     }
 }
 
+#[test]
+fn probes_are_baked_by_the_merge_as_by_the_whole_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let extra = [
+        "--device",
+        "cpu",
+        "--samples",
+        "64",
+        "--mode",
+        "interreflected",
+    ];
+    let extra = [&extra[..], &["--probes", "1", "--probe-form", "irradiance"]].concat();
+    let (whole, merged) = whole_and_merged(None, &extra, 3, dir.path());
+    assert!(whole == merged, "the merged file with probes differs");
+    let probes = prt_gpu::glb::probes::decode_probes(&merged, Path::new("merged.glb"))
+        .unwrap()
+        .expect("the merged file holds probes");
+    assert!(!probes.is_empty());
+}
+
 /// Fits, auto bands, lean storage and compression run in the merge, as in the whole bake.
 #[test]
 fn merge_runs_the_rest_of_the_bake_as_the_whole_bake_does() {

@@ -6,7 +6,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::bounce::{self, GatherMatrix};
+use super::bounce::{self, GatherMatrix, Hit};
 use super::{cpu, gpu, DirectInputs, DirectPass, Mode, Progress};
 use crate::device::GpuContext;
 use crate::error::Result;
@@ -67,6 +67,14 @@ pub trait Backend: Sync {
         cap: f32,
         progress: &dyn Progress,
     ) -> Result<Vec<f32>>;
+
+    /// The closest hit of every ray of `inputs` above its receiver's horizon that hits
+    /// something, `(sample, hit)` per receiver, samples ascending: what probes see.
+    fn closest_hits(
+        &self,
+        inputs: &DirectInputs,
+        progress: &dyn Progress,
+    ) -> Result<Vec<Vec<(u32, Hit)>>>;
 
     /// The direct pass over the receivers of `inputs`: albedo-free transfer, and in
     /// interreflected mode the gather matrix of the rays' closest hits.
@@ -177,6 +185,22 @@ impl Backend for CpuBackend {
                 });
             });
         Ok(distances)
+    }
+
+    fn closest_hits(
+        &self,
+        inputs: &DirectInputs,
+        progress: &dyn Progress,
+    ) -> Result<Vec<Vec<(u32, Hit)>>> {
+        Ok((0..inputs.origins.len())
+            .into_par_iter()
+            .map(|receiver| {
+                let above = cpu::samples_above_horizon(inputs, receiver);
+                let hits = cpu::closest_hits_of(inputs, receiver, &above);
+                progress.advance(1);
+                hits
+            })
+            .collect())
     }
 }
 
@@ -292,6 +316,14 @@ impl Backend for GpuBackend<'_> {
                 }
             });
         Ok(distances)
+    }
+
+    fn closest_hits(
+        &self,
+        inputs: &DirectInputs,
+        progress: &dyn Progress,
+    ) -> Result<Vec<Vec<(u32, Hit)>>> {
+        gpu::closest_hits(self.baker, inputs, self.chunking, progress)
     }
 }
 

@@ -104,6 +104,9 @@ pub(crate) fn run_info(path: &Path) -> Result<()> {
             cpca.clusters, cpca.components
         ));
     }
+    if let Some(probes) = glb::probes::read_probes(path)? {
+        lines.push(format!("probes:       {}", probes.describe()));
+    }
     lines.push(format!("backend:      {}", metadata.backend));
     lines.push(format!(
         "made by:      {} {}",

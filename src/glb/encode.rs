@@ -15,23 +15,33 @@ pub(super) fn encode_valid(stored: Stored, lightmap_uri: Option<&str>) -> Result
     validate_mesh(baked)?;
     let (mut bin, mut views) = encode_bin(baked, cpca.is_none(), precision);
     let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, precision, &mut bin, &mut views));
+    let probes = stored
+        .probes()
+        .map(|set| probes::encode(set, &mut bin, &mut views));
     let shape = Shape::of(baked);
-    let json = encode_json(
-        shape,
-        lightmap_uri,
-        cpca_extras,
-        views,
-        bin.len(),
-        precision,
-    )?;
+    let extras = Extras {
+        cpca: cpca_extras,
+        probes,
+    };
+    let json = encode_json(shape, lightmap_uri, extras, views, bin.len(), precision)?;
     glb_container(json, bin)
+}
+
+/// What `extras.prt` says of views appended after the mesh's and the transfer's.
+#[derive(Default)]
+pub(super) struct Extras {
+    pub(super) cpca: Option<CpcaExtras>,
+    pub(super) probes: Option<probes::ProbesExtras>,
 }
 
 /// The JSON chunk of `baked` with the BIN chunk's `views` (`bin_len` bytes in all).
 pub(super) fn encode_json(
     shape: Shape,
     lightmap_uri: Option<&str>,
-    cpca_extras: Option<CpcaExtras>,
+    Extras {
+        cpca: cpca_extras,
+        probes,
+    }: Extras,
     views: Vec<BufferViewJson>,
     bin_len: usize,
     precision: Precision,
@@ -49,6 +59,7 @@ pub(super) fn encode_json(
             },
             transfer_precision: (precision == Precision::F16).then_some(FLOAT16),
             cpca: cpca_extras,
+            probes,
             lightmap: shape.lightmap.map(|texels| LightmapExtras {
                 uri: lightmap_uri.unwrap_or(DEFAULT_LIGHTMAP_URI).to_string(),
                 width: texels.width,

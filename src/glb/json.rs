@@ -141,6 +141,8 @@ pub(super) struct PrtExtras<'a> {
     pub(super) lightmap: Option<LightmapExtras>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(super) cpca: Option<CpcaExtras>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) probes: Option<probes::ProbesExtras>,
 }
 
 #[derive(Deserialize)]

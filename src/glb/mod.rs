@@ -40,6 +40,7 @@ mod decode;
 mod encode;
 mod json;
 pub mod local;
+pub mod probes;
 pub mod relit;
 pub mod scene;
 mod stored;
@@ -632,6 +633,7 @@ mod tests {
             (PYTHON_READER, "glb::PYTHON_READER"),
             (compressed::PYTHON_READER, "glb::compressed::PYTHON_READER"),
             (local::PYTHON_READER, "glb::local::PYTHON_READER"),
+            (probes::PYTHON_READER, "glb::probes::PYTHON_READER"),
         ] {
             assert!(
                 readme.contains(reader),

@@ -3,6 +3,7 @@
 //! (the baked mesh, the glTF scene in place) takes, so no writer re-checks a flag.
 
 use super::*;
+use crate::probes::ProbeSet;
 
 /// A bake as a file stores it: its transfer at a precision, compressed or not (the compressed
 /// form then replaces the per-vertex one), its lightmap beside.
@@ -11,6 +12,7 @@ pub struct Stored<'a> {
     baked: &'a BakedMesh,
     cpca: Option<&'a Cpca>,
     precision: Precision,
+    probes: Option<&'a ProbeSet>,
 }
 
 impl<'a> Stored<'a> {
@@ -40,6 +42,7 @@ impl<'a> Stored<'a> {
             baked,
             cpca,
             precision,
+            probes: None,
         })
     }
 
@@ -56,7 +59,27 @@ impl<'a> Stored<'a> {
             baked: shape,
             cpca: None,
             precision,
+            probes: None,
         }
+    }
+
+    /// The same, with `probes` (from a bake of this mesh) in the file beside its transfer.
+    pub fn with_probes(self, probes: Option<&'a ProbeSet>) -> Result<Stored<'a>> {
+        if let Some(set) = probes {
+            if set.matrices.len() != set.len() * set.per_probe()
+                || set.status.len() != set.len()
+                || set.matrices.iter().any(|m| !m.is_finite())
+            {
+                return Err(Error::Geometry(
+                    "the probes' matrices do not match their count or are not finite".into(),
+                ));
+            }
+        }
+        Ok(Stored { probes, ..self })
+    }
+
+    pub fn probes(&self) -> Option<&'a ProbeSet> {
+        self.probes
     }
 
     pub fn baked(&self) -> &'a BakedMesh {

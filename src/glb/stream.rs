@@ -52,7 +52,14 @@ impl GlbStream {
             .expect("validate_shape bounds the file's size");
         views.push(planar_view(bin.len(), transfer_len, precision));
         let bin_len = bin.len() + transfer_len;
-        let json = encode_json(shape, None, None, views, bin_len, precision)?;
+        let json = encode_json(
+            shape,
+            None,
+            super::encode::Extras::default(),
+            views,
+            bin_len,
+            precision,
+        )?;
         // Every view's length is a multiple of 4, so the BIN chunk needs no padding.
         let head = glb_head(json, bin_len)?;
         let total = head.len() + bin_len;

@@ -96,12 +96,38 @@ pub fn path_trace(
     bounces: u32,
     samples: u32,
 ) -> Option<OracleRadiance> {
+    let query = serde_json::json!({"query": "exit", "bounces": bounces});
+    run_job(scene, points, light, query, samples)
+}
+
+/// Irradiance at free points of space (a probe's, not on the surface) for surfaces of the
+/// given normals (`SurfacePoint::face` unused), from `samples` cosine-distributed paths each:
+/// the sky seen directly, plus light the scene reflects up to `reflections` times on its way
+/// (0: the sky alone, the scene a black occluder). `None` where [`available`] is false.
+pub fn irradiance(
+    scene: &Scene,
+    points: &[SurfacePoint],
+    light: &OracleLight,
+    reflections: u32,
+    samples: u32,
+) -> Option<OracleRadiance> {
+    let query = serde_json::json!({"query": "irradiance", "reflections": reflections});
+    run_job(scene, points, light, query, samples)
+}
+
+fn run_job(
+    scene: &Scene,
+    points: &[SurfacePoint],
+    light: &OracleLight,
+    query: serde_json::Value,
+    samples: u32,
+) -> Option<OracleRadiance> {
     if !available() {
         return None;
     }
     let scratch = super::Scratch::new();
     let dir = &scratch.0;
-    write_job(dir, scene, points, light, bounces, samples);
+    write_job(dir, scene, points, light, query, samples);
     let mut command = Command::new("python3");
     command.arg(script()).arg(dir);
     if std::env::var_os("DRJIT_LIBLLVM_PATH").is_none() {
@@ -221,7 +247,7 @@ fn write_job(
     scene: &Scene,
     points: &[SurfacePoint],
     light: &OracleLight,
-    bounces: u32,
+    query: serde_json::Value,
     samples: u32,
 ) {
     let normals = scene
@@ -240,7 +266,7 @@ fn write_job(
     write_floats(&dir.join("points.f32"), vec3s(&positions));
     write_floats(&dir.join("qnormals.f32"), vec3s(&query_normals));
     write_u32s(&dir.join("qfaces.u32"), points.iter().map(|p| p.face));
-    let job = serde_json::json!({
+    let mut job = serde_json::json!({
         "vertices": scene.positions.len(),
         "faces": scene.triangles.len(),
         "points": points.len(),
@@ -252,10 +278,12 @@ fn write_job(
         "query_normals": "qnormals.f32",
         "query_faces": "qfaces.u32",
         "light": light_json(light),
-        "bounces": bounces,
         "samples": samples,
         "seed": 1,
     });
+    if let (Some(job), Some(query)) = (job.as_object_mut(), query.as_object()) {
+        job.extend(query.clone());
+    }
     std::fs::write(dir.join("job.json"), job.to_string()).expect("write the oracle's job");
 }
 

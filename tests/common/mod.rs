@@ -10,6 +10,7 @@
 #![allow(dead_code)]
 
 pub mod gltf_builder;
+pub mod sky;
 
 use std::path::Path;
 use std::sync::OnceLock;

@@ -18,7 +18,11 @@ JOB_DIR (float32 unless said otherwise):
              | {"type": "spot", "position": [...], "direction": [...],
                 "half_angle_degrees": A, "intensity": I}
              | {"type": "sh", "bands": B, "coefficients": [[r, g, b], ...]},
-      "bounces": K,                   # 0: direct light only
+      "query": "exit",                # exit radiance at surface points (the default), or
+             "irradiance",            # irradiance at free points for the query normals
+      "bounces": K,                   # exit: 0 is direct light only
+      "reflections": R,               # irradiance: surface reflections a path may have
+                                      # (0: the sky alone, the scene a black occluder)
       "samples": S,                   # paths per point
       "seed": 1
     }
@@ -212,7 +216,38 @@ def render(mi, variant, scene, origin, direction, bounces, samples, seed):
     integrator = mi.load_dict(
         {"type": "path", "max_depth": 2 + bounces, "rr_depth": 1000, "hide_emitters": True}
     )
-    N = origin.shape[0]
+    return mean_and_error(
+        mi, variant, scene, integrator, origin.shape[0], samples, seed,
+        lambda start, stop: (
+            np.repeat(origin[start:stop], samples, axis=0),
+            np.repeat(direction[start:stop], samples, axis=0),
+        ),
+        1.0,
+    )
+
+
+def irradiance(mi, variant, scene, points, normals, reflections, samples, seed):
+    """Irradiance at free points for surfaces of the given normals: pi times the mean radiance
+    arriving along cosine-distributed directions (Malley's method, drawn here with numpy),
+    the sky seen directly (emitters shown) and through up to `reflections` diffuse
+    reflections (max_depth 1 + reflections, no Russian roulette)."""
+    integrator = mi.load_dict(
+        {"type": "path", "max_depth": 1 + reflections, "rr_depth": 1000, "hide_emitters": False}
+    )
+    rng = np.random.default_rng(seed)
+    return mean_and_error(
+        mi, variant, scene, integrator, points.shape[0], samples, seed,
+        lambda start, stop: (
+            np.repeat(points[start:stop], samples, axis=0),
+            cosine_directions(rng, np.repeat(normals[start:stop], samples, axis=0)),
+        ),
+        math.pi,
+    )
+
+
+def mean_and_error(mi, variant, scene, integrator, N, samples, seed, rays, scale):
+    """Mean and standard error over `samples` paths of each of N queries of `scale` times the
+    integrator's radiance along the rays `rays(start, stop)` gives for queries start..stop."""
     total = np.zeros((N, 3))
     squares = np.zeros((N, 3))
     # Batches of about 2M paths keep Dr.Jit's memory bounded.
@@ -220,8 +255,7 @@ def render(mi, variant, scene, origin, direction, bounces, samples, seed):
     for start in range(0, N, per_batch):
         stop = min(N, start + per_batch)
         n = stop - start
-        o = np.repeat(origin[start:stop], samples, axis=0)
-        d = np.repeat(direction[start:stop], samples, axis=0)
+        o, d = rays(start, stop)
         if variant.startswith("scalar"):
             values = scalar_paths(mi, integrator, scene, o, d, seed + start)
         else:
@@ -233,12 +267,25 @@ def render(mi, variant, scene, origin, direction, bounces, samples, seed):
             )
             color, _, _ = integrator.sample(scene, sampler, ray)
             values = np.stack([np.array(color[i], dtype=np.float64) for i in range(3)], axis=1)
-        values = values.reshape(n, samples, 3)
+        values = scale * values.reshape(n, samples, 3)
         total[start:stop] = values.sum(axis=1)
         squares[start:stop] = (values * values).sum(axis=1)
     mean = total / samples
     variance = np.maximum(0.0, squares / samples - mean * mean) * samples / max(1, samples - 1)
     return mean, np.sqrt(variance / samples)
+
+
+def cosine_directions(rng, normals):
+    """A cosine-distributed direction about each unit normal: a uniform point of the unit
+    disk lifted onto the hemisphere, in a frame built around the normal."""
+    u1, u2 = rng.random(normals.shape[0]), rng.random(normals.shape[0])
+    r, phi = np.sqrt(u1), 2 * math.pi * u2
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(0.0, 1.0 - u1))], 1)
+    helper = np.where(np.abs(normals[:, :1]) > 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+    tangent = np.cross(helper, normals)
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    bitangent = np.cross(normals, tangent)
+    return local[:, :1] * tangent + local[:, 1:2] * bitangent + local[:, 2:] * normals
 
 
 def scalar_paths(mi, integrator, scene, o, d, seed):
@@ -265,11 +312,22 @@ def main():
             "Debian's libllvm19 or set DRJIT_LIBLLVM_PATH); it is too slow for this job"
         )
     scene, positions, triangles = build_scene(mi, job, job_dir)
-    extent = float(np.max(positions.max(axis=0) - positions.min(axis=0)))
-    origin, direction = query_rays(job, job_dir, positions, triangles, extent)
-    mean, error = render(
-        mi, variant, scene, origin, direction, job["bounces"], job["samples"], job.get("seed", 1)
-    )
+    if job.get("query", "exit") == "irradiance":
+        N = job["points"]
+        points = read(job_dir, job["query_points"], "<f4", (N, 3)).astype(np.float64)
+        normals = read(job_dir, job["query_normals"], "<f4", (N, 3)).astype(np.float64)
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        mean, error = irradiance(
+            mi, variant, scene, points, normals, job["reflections"], job["samples"],
+            job.get("seed", 1),
+        )
+    else:
+        extent = float(np.max(positions.max(axis=0) - positions.min(axis=0)))
+        origin, direction = query_rays(job, job_dir, positions, triangles, extent)
+        mean, error = render(
+            mi, variant, scene, origin, direction, job["bounces"], job["samples"],
+            job.get("seed", 1),
+        )
     mean.astype("<f4").tofile(os.path.join(job_dir, "radiance.f32"))
     error.astype("<f4").tofile(os.path.join(job_dir, "stderr.f32"))
     print(json.dumps({"variant": variant, "mitsuba": mi.__version__,

@@ -76,6 +76,19 @@ pub(crate) struct BakeArgs {
     /// With --lightmap on a glTF scene: the TEXCOORD_n set to bake it on.
     #[arg(long, value_name = "N")]
     pub(crate) lightmap_uv: Option<u32>,
+    /// Relightable probes for what moves through the scene: a grid this far apart (scene
+    /// units) over its bounds. Each probe maps the light's SH to the SH of the radiance
+    /// arriving there, shadowed by the scene and, when interreflected, with its bounced light;
+    /// they go into the .glb (README, "Probes").
+    #[arg(long, value_name = "SPACING", conflicts_with = "probe_points")]
+    pub(crate) probes: Option<f32>,
+    /// Probes at the points of a text file, one `x y z` per line (`#` starts a comment).
+    #[arg(long, value_name = "FILE")]
+    pub(crate) probe_points: Option<PathBuf>,
+    /// What a probe stores: the incident radiance (bands^2 x bands^2 per channel) or only what
+    /// irradiance needs (the first three bands, cosine-convolved). Default: radiance.
+    #[arg(long, value_enum, value_name = "FORM")]
+    pub(crate) probe_form: Option<ProbeForm>,
     /// Override every material's albedo, as linear R,G,B in [0, 1].
     #[arg(long, value_parser = parse_rgb)]
     pub(crate) albedo: Option<Vec3>,

@@ -17,6 +17,7 @@ use prt_gpu::bake::{self, backend_for, BakeOptions, BakeReport, Fit, Storage};
 use prt_gpu::device::{self, DeviceChoice, GpuContext};
 use prt_gpu::local::LocalOptions;
 use prt_gpu::precision::Precision;
+use prt_gpu::probes::ProbeForm;
 use prt_gpu::receivers::PointDensity;
 use prt_gpu::render::{self, ToneMap};
 use prt_gpu::shard::{self, PartHeader};
@@ -98,8 +99,31 @@ pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeS
             Some(path) if scene::is_gltf(path) => Container::GltfInPlace,
             _ => Container::Mesh,
         },
+        probes: probe_spec(args)?,
         ..defaults
     })
+}
+
+/// The probes `--probes`, `--probe-points` and `--probe-form` ask for.
+fn probe_spec(args: &BakeArgs) -> Result<Option<spec::ProbeSpec>> {
+    let placement = match (args.probes, &args.probe_points) {
+        (Some(spacing), _) => spec::ProbePlacement::Grid { spacing },
+        (None, Some(path)) => spec::ProbePlacement::Points(prt_gpu::probes::read_points(path)?),
+        (None, None) => {
+            if let Some(form) = args.probe_form {
+                return Err(Error::Options(format!(
+                    "--probe-form {} says what probes store; ask for them with --probes SPACING \
+                     or --probe-points FILE",
+                    form.name()
+                )));
+            }
+            return Ok(None);
+        }
+    };
+    Ok(Some(spec::ProbeSpec {
+        placement,
+        form: args.probe_form.unwrap_or(spec::ProbeForm::Radiance),
+    }))
 }
 
 /// Where the direct pass comes from: computed here, or the merged parts' (whose fingerprint

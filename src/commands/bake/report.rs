@@ -14,6 +14,14 @@ pub(super) fn print_shaping_lines(baked: &pipeline::Baked) {
     if let Some(compressed) = &baked.compressed {
         eprintln!("{compressed}");
     }
+    if let Some(probes) = &baked.probes {
+        eprintln!(
+            "probes: {}; {} rays each, in {:.2} s",
+            probes.describe(),
+            probes.samples,
+            baked.probe_seconds
+        );
+    }
 }
 
 /// What baking a glTF scene in place did.

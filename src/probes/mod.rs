@@ -1,0 +1,359 @@
+//! Relightable probes: transfer at points in the space around a static scene, so that what
+//! moves through it is lit by the scene's shadowing and bounced light under whatever distant
+//! light is current (Direct3D's `ComputeVolumeSamples`). Each probe stores the linear map from
+//! the light's SH coefficients to the SH of the radiance arriving there (`transfer.rs`); the
+//! rays it casts over the whole sphere come from the bake's backend, as every other ray does.
+//!
+//! Placement (`placement.rs`): a probe whose rays mostly reach the backs of surfaces is inside
+//! geometry; it is moved just past the nearest of those surfaces when that lies within half a
+//! grid cell, as engines do, and marked invalid otherwise.
+
+mod lookup;
+mod placement;
+pub mod transfer;
+
+pub use placement::{grid_points, ProbeGrid, ProbeStatus, BACK_FACE_LIMIT, POINT_REACH};
+pub use transfer::{cosine_convolution, IRRADIANCE_BANDS};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::bake::bounce::Hit;
+use crate::bake::{Backend, BakedMesh, DirectInputs, Mode, Progress};
+use crate::bvh::Bvh;
+use crate::error::{Error, Result};
+use crate::sampling::{stratified_sphere, Estimator, SampleSet, Sampling};
+use crate::scene::Scene;
+use crate::sh::rotation::EulerShRotation;
+use crate::sh::{coeff_count, ShTable};
+pub use crate::spec::{ProbeForm, ProbePlacement, ProbeSpec, MAX_PROBES};
+use transfer::{probe_matrix, BlockedRay};
+
+/// Probes baked: where each is, what became of it, and its transfer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProbeSet {
+    pub bands: u32,
+    /// 1 where the light's colour passes unchanged (shadowed, or every albedo grey), else 3.
+    pub channels: u32,
+    pub form: ProbeForm,
+    /// Rows per channel: `bands^2` for radiance, up to 9 for irradiance.
+    pub rows: usize,
+    /// The grid the probes were placed on, when they were (`None`: the user's points).
+    pub grid: Option<ProbeGrid>,
+    /// Where each probe was baked: its grid point or given point, or where it was moved to.
+    pub positions: Vec<Vec3>,
+    pub status: Vec<ProbeStatus>,
+    /// `[probe][channel][row][k]`; zero for invalid probes.
+    pub matrices: Vec<f32>,
+    /// Sample directions each probe cast over the sphere.
+    pub samples: u32,
+}
+
+impl ProbeSet {
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Values per probe: channels x rows x bands^2.
+    pub fn per_probe(&self) -> usize {
+        self.channels as usize * self.rows * coeff_count(self.bands)
+    }
+
+    /// One line: how many probes, what became of them, what each stores.
+    pub fn describe(&self) -> String {
+        let count = |status| self.status.iter().filter(|&&s| s == status).count();
+        let n = coeff_count(self.bands);
+        format!(
+            "{} probes ({} placed, {} moved out of geometry, {} invalid), {} form: {} channel(s) \
+             x {} x {} float32, {} bytes each{}",
+            self.len(),
+            count(ProbeStatus::Placed),
+            count(ProbeStatus::Moved),
+            count(ProbeStatus::Invalid),
+            self.form.name(),
+            self.channels,
+            self.rows,
+            n,
+            4 * self.per_probe(),
+            match self.grid {
+                Some(g) => format!(
+                    "; a {} x {} x {} grid {} apart",
+                    g.dims[0], g.dims[1], g.dims[2], g.spacing
+                ),
+                None => String::new(),
+            }
+        )
+    }
+
+    /// Probe `p`'s matrix, `[channel][row][k]`.
+    pub fn matrix(&self, p: usize) -> &[f32] {
+        let n = self.per_probe();
+        &self.matrices[p * n..(p + 1) * n]
+    }
+}
+
+/// The points of a probe file: one `x y z` per line, blank lines and `#` comments skipped.
+pub fn read_points(path: &std::path::Path) -> Result<Vec<[f32; 3]>> {
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_points(&text).map_err(|message| Error::Mesh {
+        path: path.to_path_buf(),
+        message,
+    })
+}
+
+/// [`read_points`] of a file's text.
+pub fn parse_points(text: &str) -> std::result::Result<Vec<[f32; 3]>, String> {
+    let mut points = Vec::new();
+    for (number, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let values: Vec<f32> = line
+            .split(|c: char| c.is_whitespace() || c == ',')
+            .filter(|word| !word.is_empty())
+            .map(|word| word.parse::<f32>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|e| format!("line {}: {e}", number + 1))?;
+        match values[..] {
+            [x, y, z] if [x, y, z].iter().all(|v| v.is_finite()) => points.push([x, y, z]),
+            _ => {
+                return Err(format!(
+                    "line {}: a probe point is three finite numbers, x y z",
+                    number + 1
+                ))
+            }
+        }
+    }
+    Ok(points)
+}
+
+/// Probes per batch of rays: bounds the hits held at once (about 6 KiB per probe at 1,024
+/// samples).
+const PROBES_PER_BATCH: usize = 4096;
+
+/// Bakes probes around `baked` (its prepared scene and its transfer, which gives the exit
+/// light of the surfaces a probe sees in interreflected mode) as `spec` asks, `samples`
+/// stratified directions over the sphere from `seed`, on `backend`.
+pub fn bake_probes(
+    baked: &BakedMesh,
+    spec: &ProbeSpec,
+    (samples, seed): (u32, u64),
+    backend: &dyn Backend,
+    progress: &dyn Progress,
+) -> Result<ProbeSet> {
+    spec.validate()?;
+    let scene = &baked.scene;
+    let bands = baked.transfer.bands();
+    let (grid, points) = match &spec.placement {
+        ProbePlacement::Grid { spacing } => {
+            let grid = ProbeGrid::over(scene, *spacing)?;
+            (Some(grid), grid.points())
+        }
+        ProbePlacement::Points(points) => (None, points.iter().map(|&p| Vec3::from(p)).collect()),
+    };
+    let exit = ExitLight::of(baked);
+    let samples = Sampling::Stratified.samples_used(samples);
+    let directions = stratified_sphere(samples, seed);
+    let sight = Sight::new(scene, bands, directions);
+    let reach = grid.map_or(POINT_REACH * sight.bvh.extent(), |g| 0.5 * g.spacing);
+    progress.stage("probes", points.len() as u64);
+    let mut positions = Vec::with_capacity(points.len());
+    let mut status = Vec::with_capacity(points.len());
+    let n = coeff_count(bands);
+    let rows = match spec.form {
+        ProbeForm::Radiance => n,
+        ProbeForm::Irradiance => {
+            (bands.min(IRRADIANCE_BANDS) * bands.min(IRRADIANCE_BANDS)) as usize
+        }
+    };
+    let channels = exit.as_ref().map_or(1, |e| e.channels);
+    let mut matrices = Vec::with_capacity(points.len() * channels * rows * n);
+    for batch in points.chunks(PROBES_PER_BATCH) {
+        let seen = sight.cast(batch, backend)?;
+        let placed = placement::place(batch, &seen, reach, &sight, backend)?;
+        let batch_matrices: Vec<Vec<f32>> = placed
+            .par_iter()
+            .map(|probe| match probe.status {
+                ProbeStatus::Invalid => vec![0.0; channels * rows * n],
+                _ => {
+                    let full = sight.matrix(&probe.hits, exit.as_ref(), channels);
+                    shaped(full, spec.form, n, channels)
+                }
+            })
+            .collect();
+        for (probe, m) in placed.into_iter().zip(batch_matrices) {
+            positions.push(probe.position);
+            status.push(probe.status);
+            matrices.extend(m);
+        }
+        progress.advance(batch.len() as u64);
+    }
+    Ok(ProbeSet {
+        bands,
+        channels: channels as u32,
+        form: spec.form,
+        rows,
+        grid,
+        positions,
+        status,
+        matrices,
+        samples,
+    })
+}
+
+/// The full matrix in `form`, as float32.
+fn shaped(full: Vec<f64>, form: ProbeForm, n: usize, channels: usize) -> Vec<f32> {
+    let kept = match form {
+        ProbeForm::Radiance => full,
+        ProbeForm::Irradiance => transfer::irradiance_rows(&full, n, channels).1,
+    };
+    kept.into_iter().map(|x| x as f32).collect()
+}
+
+/// The exit transfer of the scene's vertices, `[vertex][channel][k]`: radiance leaving a
+/// vertex is `sum_k exit_k l_k`. Interreflected bakes only; a shadowed bake's surfaces reflect
+/// nothing a probe sees. One channel where every albedo is grey (the probes' lean form: the
+/// light's colour then passes unchanged), three otherwise.
+struct ExitLight {
+    values: Vec<f32>,
+    channels: usize,
+}
+
+impl ExitLight {
+    fn of(baked: &BakedMesh) -> Option<ExitLight> {
+        if baked.metadata.mode != Mode::Interreflected {
+            return None;
+        }
+        let transfer = &baked.transfer;
+        let albedo = &baked.scene.albedo;
+        let grey = albedo.iter().all(|a| a.x == a.y && a.y == a.z);
+        let channels = if grey { 1 } else { 3 };
+        let stored_channels = transfer.channels() as usize;
+        let n = coeff_count(transfer.bands());
+        let mut values = Vec::with_capacity(transfer.vertex_count() * channels * n);
+        for (v, vertex_albedo) in albedo.iter().enumerate().take(transfer.vertex_count()) {
+            for (c, &tint) in vertex_albedo.to_array().iter().enumerate().take(channels) {
+                let stored = transfer.vertex_channel(v, c.min(stored_channels - 1));
+                let scale = if baked.metadata.albedo_free {
+                    tint
+                } else {
+                    1.0
+                };
+                values.extend(stored.iter().map(|t| t * scale));
+            }
+        }
+        Some(ExitLight { values, channels })
+    }
+}
+
+/// What a probe's rays are cast with: the scene's tree, the sphere's directions split into
+/// two hemispheres (each probe is two receivers, facing +Z and -Z, so the backends' horizon
+/// test gives each ray to exactly one of them) and their SH.
+pub(crate) struct Sight<'s> {
+    scene: &'s Scene,
+    normals: &'s [Vec3],
+    bvh: Bvh,
+    samples: SampleSet,
+    table: ShTable,
+    rotation: EulerShRotation,
+}
+
+/// A probe's closest hits over the sphere, `(sample, hit)`, samples ascending within each
+/// hemisphere.
+pub(crate) type ProbeHits = Vec<(u32, Hit)>;
+
+impl<'s> Sight<'s> {
+    fn new(scene: &'s Scene, bands: u32, samples: SampleSet) -> Sight<'s> {
+        let normals = scene
+            .normals
+            .as_deref()
+            .expect("a prepared scene has normals");
+        let table = ShTable::new(bands, &samples.directions);
+        Sight {
+            scene,
+            normals,
+            bvh: Bvh::build(&scene.positions, &scene.triangles),
+            samples,
+            table,
+            rotation: EulerShRotation::new(bands),
+        }
+    }
+
+    /// The closest hits of every probe at `points`.
+    fn cast(&self, points: &[Vec3], backend: &dyn Backend) -> Result<Vec<ProbeHits>> {
+        let origins: Vec<Vec3> = points.iter().flat_map(|&p| [p, p]).collect();
+        let normals: Vec<Vec3> = points.iter().flat_map(|_| [Vec3::Z, -Vec3::Z]).collect();
+        let inputs = DirectInputs {
+            origins: &origins,
+            normals: &normals,
+            triangles: &self.scene.triangles,
+            vertex_normals: self.normals,
+            bvh: &self.bvh,
+            samples: &self.samples,
+            table: &self.table,
+            estimator: Estimator::Visible,
+            tangent_to_world: &self.rotation,
+        };
+        let halves = backend.closest_hits(&inputs, &crate::bake::NoProgress)?;
+        if halves.len() != origins.len() {
+            return Err(Error::Gpu(format!(
+                "the backend answered {} receivers of {}",
+                halves.len(),
+                origins.len()
+            )));
+        }
+        Ok(halves
+            .chunks(2)
+            .map(|pair| pair.iter().flatten().copied().collect())
+            .collect())
+    }
+
+    fn direction(&self, sample: u32) -> Vec3 {
+        self.samples.directions[sample as usize]
+    }
+
+    /// Where `hit` of sample `sample` lies and whether it reaches a back face.
+    fn hit_point_and_side(&self, sample: u32, hit: Hit) -> (Vec3, bool) {
+        let triangle = self.scene.triangles[hit.triangle as usize];
+        let direction = self.direction(sample);
+        transfer::hit_point_and_side(
+            &self.scene.positions,
+            self.normals,
+            triangle,
+            hit,
+            direction,
+        )
+    }
+
+    /// The probe's full matrix `[channel][i][k]` from its hits.
+    fn matrix(&self, hits: &ProbeHits, exit: Option<&ExitLight>, channels: usize) -> Vec<f64> {
+        let n = coeff_count(self.table.bands);
+        let exits: Vec<Option<Vec<f64>>> = hits
+            .iter()
+            .map(|&(sample, hit)| {
+                let exit = exit?;
+                let (_, back) = self.hit_point_and_side(sample, hit);
+                let triangle = self.scene.triangles[hit.triangle as usize];
+                (!back).then(|| {
+                    transfer::interpolate_exit(&exit.values, exit.channels * n, triangle, hit)
+                })
+            })
+            .collect();
+        let blocked = hits
+            .iter()
+            .zip(&exits)
+            .map(|(&(sample, _), exit)| BlockedRay {
+                sh: self.table.row(sample as usize),
+                exit: exit.as_deref(),
+            });
+        probe_matrix(n, channels, self.samples.weight, blocked)
+    }
+}

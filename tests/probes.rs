@@ -1,0 +1,418 @@
+//! Relightable probes (`--probes`): analytic cases (nothing around, a closed room, a roof over
+//! an open sky), placement inside geometry, CPU against GPU, and the file read back by the
+//! baker's reader, the numpy recipe and the Khronos glTF-Validator. Against the path tracer:
+//! tests/oracle_probes.rs.
+
+mod common;
+
+use std::f64::consts::PI;
+
+use common::{assert_clean_failure, backends, validate_gltf, BadInput};
+use glam::Vec3;
+use prt_gpu::bake::{Backend, CpuBackend, DirectSource, Mode, NoProgress};
+use prt_gpu::probes::{ProbeForm, ProbePlacement, ProbeSet, ProbeSpec, ProbeStatus};
+use prt_gpu::scene::{builtin, Scene};
+use prt_gpu::sh::coeff_count;
+use prt_gpu::spec::BakeSpec;
+use prt_gpu::{glb, pipeline};
+
+fn spec(mode: Mode, samples: u32, placement: ProbePlacement) -> BakeSpec {
+    let mut spec = BakeSpec::default();
+    spec.transfer.mode = mode;
+    spec.transfer.samples = samples;
+    spec.probes = Some(ProbeSpec {
+        placement,
+        form: ProbeForm::Radiance,
+    });
+    spec
+}
+
+fn bake(spec: &BakeSpec, scene: Scene, backend: &dyn Backend) -> pipeline::Baked {
+    pipeline::run(
+        spec,
+        scene,
+        None,
+        backend,
+        DirectSource::Compute,
+        &NoProgress,
+    )
+    .unwrap()
+}
+
+fn probes_of(spec: &BakeSpec, scene: Scene, backend: &dyn Backend) -> ProbeSet {
+    bake(spec, scene, backend).probes.expect("probes baked")
+}
+
+fn points(points: &[[f32; 3]]) -> ProbePlacement {
+    ProbePlacement::Points(points.to_vec())
+}
+
+/// The incident radiance's SH at probe `p` under a constant sky of radiance 1, first channel.
+fn under_constant_sky(probes: &ProbeSet, p: usize) -> Vec<f64> {
+    let mut light = vec![[0.0f32; 3]; coeff_count(probes.bands)];
+    light[0] = [(4.0 * std::f32::consts::PI).sqrt(); 3];
+    probes.apply(p, &light).iter().map(|rgb| rgb[0]).collect()
+}
+
+/// A unit square in the plane z = 0 (normal +Z).
+fn square() -> Scene {
+    builtin::grid_plane(Vec3::ZERO, Vec3::X, Vec3::Y, 1, Vec3::splat(0.5))
+}
+
+#[test]
+fn a_probe_that_sees_nothing_is_exactly_the_identity() {
+    // In the square's plane, beside it: no direction of positive measure reaches it.
+    for mode in [Mode::Shadowed, Mode::Interreflected] {
+        let probes = probes_of(
+            &spec(mode, 256, points(&[[5.0, 0.0, 0.0]])),
+            square(),
+            &CpuBackend,
+        );
+        assert_eq!(probes.status, [ProbeStatus::Placed]);
+        let n = coeff_count(probes.bands);
+        for c in 0..probes.channels as usize {
+            for i in 0..n {
+                for k in 0..n {
+                    let expected = if i == k { 1.0 } else { 0.0 };
+                    assert_eq!(probes.matrix(0)[(c * n + i) * n + k], expected, "{mode:?}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn a_probe_in_a_closed_room_receives_nothing() {
+    // A closed box seen from inside: no light enters, so neither the sky nor bounced light
+    // reaches the probe, and every ray is blocked. The estimate is then the identity minus the
+    // quadrature of `y_i y_k` over the whole sample set: the negative of that set's
+    // quadrature error, which must itself be small.
+    let room = || builtin::seen_from_inside(builtin::closed_box(-Vec3::ONE, Vec3::ONE, 2));
+    let samples = prt_gpu::sampling::stratified_sphere(1024, 1);
+    let n = 16;
+    let mut quadrature_error = vec![0.0f64; n * n];
+    for d in &samples.directions {
+        let y = prt_gpu::sh::basis(4, d.as_dvec3());
+        for i in 0..n {
+            for k in 0..n {
+                quadrature_error[i * n + k] += samples.weight * y[i] * y[k];
+            }
+        }
+    }
+    (0..n).for_each(|i| quadrature_error[i * n + i] -= 1.0);
+    let largest = quadrature_error.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    assert!(
+        largest < 0.02,
+        "the sample set's quadrature error {largest}"
+    );
+    for mode in [Mode::Shadowed, Mode::Interreflected] {
+        let probes = probes_of(
+            &spec(mode, 1024, points(&[[0.1, 0.2, -0.3]])),
+            room(),
+            &CpuBackend,
+        );
+        assert_eq!(probes.status, [ProbeStatus::Placed], "{mode:?}");
+        for c in 0..probes.channels as usize {
+            let m = &probes.matrix(0)[c * n * n..(c + 1) * n * n];
+            for (ours, error) in m.iter().zip(&quadrature_error) {
+                assert!(
+                    (*ours as f64 + error).abs() < 1e-5,
+                    "{mode:?}: {ours} against {error}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_probe_under_a_roof_sees_the_sky_below_and_the_light_the_roof_reflects() {
+    // A roof 1 above the probe, 1,000 wide, facing down, under a constant sky of radiance 1:
+    // the sky below reaches the probe; above, the roof's underside sends what it reflects of
+    // the lower sky, radiance rho (its irradiance pi times rho / pi). So the incident radiance
+    // is 1 below and rho above: SH coefficients sqrt(4 pi)(1 + rho)/2 and, for y_10 =
+    // sqrt(3 / 4 pi) z, (rho - 1) pi sqrt(3 / 4 pi). Shadowed, the roof reflects nothing.
+    let rho = 0.5;
+    let roof = builtin::grid_plane(
+        Vec3::Z,
+        1000.0 * Vec3::X,
+        -1000.0 * Vec3::Y,
+        1,
+        Vec3::splat(rho as f32),
+    );
+    for (mode, reflected) in [(Mode::Shadowed, 0.0), (Mode::Interreflected, rho)] {
+        let mut spec = spec(mode, 1024, points(&[[0.0, 0.0, 0.0]]));
+        spec.transfer.bounces = 1;
+        let probes = probes_of(&spec, roof.clone(), &CpuBackend);
+        let incident = under_constant_sky(&probes, 0);
+        let dc = (4.0 * PI).sqrt() * (1.0 + reflected) / 2.0;
+        let z = (reflected - 1.0) * PI * (3.0 / (4.0 * PI)).sqrt();
+        assert!(
+            (incident[0] - dc).abs() < 0.01 * dc,
+            "{mode:?}: {incident:?}"
+        );
+        assert!(
+            (incident[2] - z).abs() < 0.01 * z.abs(),
+            "{mode:?}: {incident:?}"
+        );
+        for k in [1, 3] {
+            assert!(incident[k].abs() < 0.01, "{mode:?}: {incident:?}");
+        }
+    }
+}
+
+#[test]
+fn probes_inside_geometry_are_moved_out_within_half_a_cell_or_marked_invalid() {
+    // A closed box of side 1 under a grid of 0.4: every probe but the centre's lies 0.1 from
+    // a wall and is moved through it; the centre lies 0.5 from every wall, beyond half a cell.
+    let cube = builtin::closed_box(-0.5 * Vec3::ONE, 0.5 * Vec3::ONE, 2);
+    let probes = probes_of(
+        &spec(Mode::Shadowed, 256, ProbePlacement::Grid { spacing: 0.4 }),
+        cube,
+        &CpuBackend,
+    );
+    let grid = probes.grid.expect("a grid");
+    assert_eq!(grid.dims, [3, 3, 3]);
+    let placed = grid.points();
+    let mut counts = [0; 3];
+    for (p, (&status, &at)) in probes.status.iter().zip(&probes.positions).enumerate() {
+        counts[status.code() as usize] += 1;
+        match status {
+            ProbeStatus::Invalid => {
+                assert!(placed[p].length() < 1e-6, "the centre alone is invalid");
+                assert!(probes.matrix(p).iter().all(|&m| m == 0.0));
+            }
+            ProbeStatus::Moved => {
+                assert!(
+                    at.abs().max_element() > 0.5,
+                    "probe {p} at {at} is still inside"
+                );
+                assert!(
+                    at.distance(placed[p]) <= 0.2,
+                    "probe {p} moved beyond half a cell"
+                );
+            }
+            ProbeStatus::Placed => panic!("probe {p} at {at} lies inside the box"),
+        }
+    }
+    assert_eq!(counts, [0, 26, 1]);
+}
+
+#[test]
+fn cpu_and_gpu_probes_agree() {
+    let backends = backends();
+    let mut spec = spec(
+        Mode::Interreflected,
+        256,
+        ProbePlacement::Grid { spacing: 0.75 },
+    );
+    spec.transfer.bounces = 1;
+    let cpu = probes_of(&spec, builtin::default_scene(), backends[0].as_ref());
+    assert!(cpu.status.contains(&ProbeStatus::Placed));
+    for backend in &backends[1..] {
+        let gpu = probes_of(&spec, builtin::default_scene(), backend.as_ref());
+        assert_eq!(gpu.status, cpu.status, "{}", backend.describe());
+        assert_eq!(gpu.positions, cpu.positions, "{}", backend.describe());
+        // The hits are the same ray for ray (one tie rule); the bounced light differs by the
+        // float rounding of the surfaces' transfer.
+        let worst = gpu
+            .matrices
+            .iter()
+            .zip(&cpu.matrices)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "{}: {worst}", backend.describe());
+    }
+}
+
+#[test]
+fn the_file_holds_the_probes_for_every_reader() {
+    let dir = tempfile::tempdir().unwrap();
+    for (form, name) in [
+        (ProbeForm::Radiance, "r.glb"),
+        (ProbeForm::Irradiance, "i.glb"),
+    ] {
+        let mut spec = spec(
+            Mode::Interreflected,
+            256,
+            ProbePlacement::Grid { spacing: 1.0 },
+        );
+        spec.probes.as_mut().unwrap().form = form;
+        let baked = bake(&spec, builtin::default_scene(), &CpuBackend);
+        let path = dir.path().join(name);
+        pipeline::write(&spec, &baked, None, &path).unwrap();
+        let probes = baked.probes.as_ref().unwrap();
+        assert_eq!(
+            probes.channels, 3,
+            "the built-in scene's albedo is not grey"
+        );
+        let rows = match form {
+            ProbeForm::Radiance => 16,
+            ProbeForm::Irradiance => 9,
+        };
+        assert_eq!(probes.rows, rows);
+        let read = glb::probes::read_probes(&path)
+            .unwrap()
+            .expect("probes in the file");
+        assert_eq!(&read, probes);
+        // The mesh and its transfer read as before.
+        assert_eq!(glb::read_glb(&path).unwrap().transfer, baked.mesh.transfer);
+        if let Some(report) = validate_gltf(&path) {
+            assert_eq!(report.num_errors, 0, "{}", report.listing());
+            assert_eq!(report.num_warnings, 0, "{}", report.listing());
+        }
+        let Some(printed) = prt_gpu::testing::probes_reader_output(&path) else {
+            continue;
+        };
+        let status: Vec<u64> = serde_json::from_value(printed["status"].clone()).unwrap();
+        let codes: Vec<u64> = probes.status.iter().map(|s| s.code() as u64).collect();
+        assert_eq!(status, codes);
+        let positions: Vec<[f32; 3]> =
+            serde_json::from_value(printed["positions"].clone()).unwrap();
+        let ours: Vec<[f32; 3]> = probes.positions.iter().map(|p| p.to_array()).collect();
+        assert_eq!(positions, ours);
+        let incident: Vec<Vec<Vec<f64>>> =
+            serde_json::from_value(printed["incident"].clone()).unwrap();
+        let white = {
+            let mut light = vec![[0.0f32; 3]; 16];
+            light[0] = [(4.0 * std::f32::consts::PI).sqrt(); 3];
+            light
+        };
+        for (p, numpy) in incident.iter().enumerate() {
+            let ours = probes.apply(p, &white);
+            for (c, rows) in numpy.iter().enumerate() {
+                for (i, &value) in rows.iter().enumerate() {
+                    assert!(
+                        (value - ours[i][c]).abs() < 1e-5,
+                        "probe {p} channel {c} row {i}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn probes_go_with_every_receiver_storage_and_layout_of_a_baked_mesh() {
+    use prt_gpu::bake::Fit;
+    use prt_gpu::precision::Precision;
+    use prt_gpu::spec::{Compression, Layout};
+    let dir = tempfile::tempdir().unwrap();
+    let base = spec(
+        Mode::Interreflected,
+        64,
+        ProbePlacement::Grid { spacing: 1.5 },
+    );
+    let reference = probes_of(&base, builtin::default_scene(), &CpuBackend);
+    type Edit = fn(&mut BakeSpec);
+    let cases: Vec<(&str, Edit)> = vec![
+        ("least squares", |s| s.receivers.fit = Fit::LeastSquares),
+        ("lightmap", |s| s.receivers.lightmap = Some(512)),
+        ("f16", |s| s.storage.precision = Precision::F16),
+        ("compressed", |s| {
+            s.storage.layout = Layout::Cpca(Compression::Shape {
+                clusters: 4,
+                components: 4,
+            })
+        }),
+    ];
+    for (name, edit) in cases {
+        let mut spec = base.clone();
+        edit(&mut spec);
+        let baked = bake(&spec, builtin::default_scene(), &CpuBackend);
+        let path = dir.path().join(format!("{name}.glb"));
+        pipeline::write(&spec, &baked, None, &path).unwrap();
+        let read = glb::probes::read_probes(&path)
+            .unwrap()
+            .expect("probes in the file");
+        assert_eq!(Some(&read), baked.probes.as_ref(), "{name}");
+        // The same places and what became of them; the matrices see the transfer this
+        // bake's receivers gave the surfaces.
+        assert_eq!(read.positions, reference.positions, "{name}");
+        assert_eq!(read.status, reference.status, "{name}");
+        if let Some(report) = validate_gltf(&path) {
+            assert_eq!(report.num_errors, 0, "{name}: {}", report.listing());
+        }
+    }
+}
+
+#[test]
+fn bad_probe_options_are_refused_in_one_line() {
+    for input in [
+        BadInput {
+            case: "zero spacing",
+            file: None,
+            args: &["bake", "--probes", "0", "-o", "o.glb"],
+            expect: "--probes 0: the grid spacing must be a positive length",
+        },
+        BadInput {
+            case: "too many probes",
+            file: None,
+            args: &["bake", "--probes", "0.001", "-o", "o.glb"],
+            expect: "choose a larger spacing",
+        },
+        BadInput {
+            case: "missing points file",
+            file: None,
+            args: &["bake", "--probe-points", "nope.txt", "-o", "o.glb"],
+            expect: "nope.txt",
+        },
+        BadInput {
+            case: "bad points line",
+            file: Some(("p.txt", b"# probes\n0 1 2\n0 1\n")),
+            args: &["bake", "--probe-points", "p.txt", "-o", "o.glb"],
+            expect: "p.txt: line 3: a probe point is three finite numbers",
+        },
+        BadInput {
+            case: "form alone",
+            file: None,
+            args: &["bake", "--probe-form", "irradiance", "-o", "o.glb"],
+            expect: "ask for them with --probes",
+        },
+        BadInput {
+            case: "glTF in place",
+            file: None,
+            args: &[
+                "bake",
+                concat!(
+                    env!("CARGO_MANIFEST_DIR"),
+                    "/tests/data/gltf/BoxTextured.glb"
+                ),
+                "--probes",
+                "1",
+                "-o",
+                "o.glb",
+            ],
+            expect: "the in-place writer does not carry them yet",
+        },
+        BadInput {
+            case: "streamed",
+            file: None,
+            args: &[
+                "bake",
+                "--probes",
+                "1",
+                "--memory-limit",
+                "1M",
+                "-o",
+                "o.glb",
+            ],
+            expect: "lightmap or probes",
+        },
+        BadInput {
+            case: "unshadowed",
+            file: None,
+            args: &[
+                "bake",
+                "--probes",
+                "1",
+                "--mode",
+                "unshadowed",
+                "-o",
+                "o.glb",
+            ],
+            expect: "every probe would be the identity",
+        },
+    ] {
+        assert_clean_failure(&input);
+    }
+}

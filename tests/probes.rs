@@ -416,3 +416,73 @@ fn bad_probe_options_are_refused_in_one_line() {
         assert_clean_failure(&input);
     }
 }
+
+#[test]
+fn render_draws_spheres_lit_by_the_probes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = |args: &[&str]| {
+        let out = common::prt_gpu(args, d);
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    run(&["bake", "--samples", "64", "--probes", "0.5", "-o", "p.glb"]);
+    run(&[
+        "render",
+        "p.glb",
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "-o",
+        "plain.png",
+    ]);
+    let sphere = ["--probe-sphere", "1.2,0.5,1.2,0.4"];
+    let with = [
+        &["render", "p.glb", "--width", "160", "--height", "120"][..],
+        &sphere,
+    ]
+    .concat();
+    run(&[&with[..], &["-o", "sphere.png"]].concat());
+    let pixels = |name: &str| image::open(d.join(name)).unwrap().to_rgba8();
+    let (plain, sphere) = (pixels("plain.png"), pixels("sphere.png"));
+    let changed = plain
+        .pixels()
+        .zip(sphere.pixels())
+        .filter(|(a, b)| a != b)
+        .count();
+    // A ball 0.8 across in a 4-unit scene framed into 160 x 120: some hundred pixels.
+    assert!(changed > 60, "{changed} pixels changed");
+    let lit = plain
+        .pixels()
+        .zip(sphere.pixels())
+        .filter(|(a, b)| a != b && b[3] == 255 && b[0] > 20)
+        .count();
+    assert!(
+        lit > changed / 2,
+        "{lit} of {changed} changed pixels are lit"
+    );
+
+    run(&["bake", "--samples", "16", "-o", "none.glb"]);
+    assert_clean_failure(&BadInput {
+        case: "no probes in the file",
+        file: None,
+        args: &["render", "/nonexistent/none.glb", "--probe-sphere", "0,1,0"],
+        expect: "none.glb",
+    });
+    let out = common::prt_gpu(&["render", "none.glb", "--probe-sphere", "0,1,0"], d);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("holds no probes"),
+        "{stderr}"
+    );
+    let out = common::prt_gpu(&["render", "p.glb", "--probe-sphere", "0,1,0,-2"], d);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("positive radius"),
+        "{stderr}"
+    );
+}

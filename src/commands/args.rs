@@ -162,6 +162,24 @@ pub(crate) fn parse_point(text: &str) -> std::result::Result<Vec3, String> {
     parse_triple(text, "X,Y,Z")
 }
 
+/// `--probe-sphere X,Y,Z[,R]`: a centre and, where given, a positive radius.
+pub(crate) fn parse_sphere(text: &str) -> std::result::Result<(Vec3, Option<f32>), String> {
+    let expected = "expected X,Y,Z[,R]: three finite numbers and an optional positive radius";
+    match text.rsplit_once(',') {
+        Some((centre, radius)) if centre.matches(',').count() == 2 => {
+            let radius: f32 = radius.trim().parse().map_err(|_| expected.to_string())?;
+            if !(radius.is_finite() && radius > 0.0) {
+                return Err(expected.into());
+            }
+            Ok((parse_triple(centre, "X,Y,Z")?, Some(radius)))
+        }
+        _ => Ok((
+            parse_triple(text, "X,Y,Z").map_err(|_| expected.to_string())?,
+            None,
+        )),
+    }
+}
+
 /// A direction towards a light: not the zero vector.
 pub(crate) fn parse_direction(text: &str) -> std::result::Result<Vec3, String> {
     let direction = parse_triple(text, "X,Y,Z (a direction)")?;

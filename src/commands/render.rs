@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
-use super::args::{parse_finite, parse_point, LightShaping};
+use super::args::{parse_finite, parse_point, parse_sphere, LightShaping};
 use super::bake::open_render_device;
 use super::light::{load_light, shape};
 use prt_gpu::bake::gpu::GpuBaker;
@@ -79,6 +79,11 @@ pub(crate) struct RenderArgs {
     /// tracing, shadow edges blurred over a map cell). Default: rays.
     #[arg(long, value_enum, value_name = "rays|depth-maps")]
     pub(crate) shadows: Option<Shadows>,
+    /// Bakes with probes (bake --probes): a diffuse test sphere at X,Y,Z of radius R (default
+    /// 5% of the scene's extent), lit by the probes at its centre as a moving object would be
+    /// (trilinear on the grid). Repeatable.
+    #[arg(long, value_name = "X,Y,Z[,R]", value_parser = parse_sphere, allow_hyphen_values = true)]
+    pub(crate) probe_sphere: Vec<(Vec3, Option<f32>)>,
     /// Output: an image, .png (tone-mapped sRGB) or .exr (linear HDR); or .glb: a copy of the
     /// (one) baked file with each vertex's relit radiance as its COLOR_0.
     #[arg(short, long, default_value = "preview.png")]
@@ -127,6 +132,18 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
             .camera
             .unwrap_or_else(|| Camera::framing_scene(&baked.scene));
         let mut panel = match &cpca {
+            _ if !args.probe_sphere.is_empty() => {
+                let (scene, radiance) =
+                    with_probe_spheres(path, &baked, cpca.as_ref(), &light, &args.probe_sphere)?;
+                render::render(
+                    &context,
+                    &scene,
+                    &radiance,
+                    &camera,
+                    args.width,
+                    args.height,
+                )?
+            }
             // As a run-time would: the light dotted into each cluster once, then per vertex.
             Some(cpca) => render::render(
                 &context,
@@ -169,6 +186,37 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
         args.output.display()
     );
     Ok(())
+}
+
+/// The baked scene relit per vertex (its clusters', when compressed) with `spheres` added,
+/// lit by the probes of the file at `path`.
+fn with_probe_spheres(
+    path: &Path,
+    baked: &prt_gpu::bake::BakedMesh,
+    cpca: Option<&prt_gpu::compress::Cpca>,
+    light: &light::ShLight,
+    spheres: &[(Vec3, Option<f32>)],
+) -> Result<(prt_gpu::scene::Scene, Vec<[f32; 3]>)> {
+    let probes = glb::probes::read_probes(path)?.ok_or_else(|| {
+        Error::Options(format!(
+            "--probe-sphere: {} holds no probes (bake it with --probes or --probe-points)",
+            path.display()
+        ))
+    })?;
+    let relit = match cpca {
+        Some(cpca) => cpca.relight(light)?,
+        None => render::relight_baked(baked, light)?,
+    };
+    let (lo, hi) = render::bounds(&baked.scene.positions);
+    let spheres: Vec<render::ProbeSphere> = spheres
+        .iter()
+        .map(|&(centre, radius)| render::ProbeSphere {
+            centre,
+            radius: radius.unwrap_or(0.05 * (hi - lo).max_element()),
+        })
+        .collect();
+    let radiance = render::apply_albedo(baked, relit);
+    render::with_probe_spheres(&baked.scene, radiance, &probes, &spheres, light)
 }
 
 /// `render FILE --light ... -o relit.glb`: the file's relit radiance as COLOR_0 of a copy.
@@ -258,10 +306,10 @@ fn over_albedo(radiance: f32, albedo: f32) -> f32 {
 const MAX_FRAMES: u32 = 10_000;
 
 fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
-    if args.light.is_some() || args.sky {
+    if args.light.is_some() || args.sky || !args.probe_sphere.is_empty() {
         return Err(Error::Options(
-            "--light and --sky are distant light; a local-lights bake takes --point-light and \
-             --spot-light"
+            "--light, --sky and --probe-sphere are distant light; a local-lights bake takes \
+             --point-light and --spot-light"
                 .into(),
         ));
     }
@@ -408,6 +456,13 @@ fn frame_count(args: &RenderArgs, path: &Path) -> Result<u32> {
 /// baked file reads, in a directory that exists. (The frames of a sequence are checked once
 /// the file is known to be a local-lights bake.)
 fn check_render_outputs(args: &RenderArgs) -> Result<()> {
+    if !args.probe_sphere.is_empty() && is_glb(&args.output) {
+        return Err(Error::Options(
+            "--probe-sphere draws test spheres into an image; -o .glb writes a relit copy of \
+             the baked mesh"
+                .into(),
+        ));
+    }
     let lightmaps: Vec<PathBuf> = args
         .baked
         .iter()

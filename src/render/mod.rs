@@ -12,9 +12,11 @@
 //!   `render`).
 //! - `image`: side-by-side panels, tone mapping, sRGB bytes and the PNG and EXR files.
 //! - `sky`: the light drawn behind the model, as a sky dome.
+//! - `probes`: test spheres lit by a bake's probes, as a dynamic object is.
 
 mod camera;
 mod image;
+mod probes;
 mod raster;
 mod relight;
 mod sky;
@@ -25,6 +27,7 @@ pub use self::image::{
     check_image_output, side_by_side, to_rgba8, tone_map, write_image, ToneMap, IMAGE_EXTENSIONS,
 };
 pub use camera::{bounds, Camera, DEFAULT_FOV_DEG};
+pub use probes::{probes_at, with_probe_spheres, ProbeSphere, SPHERE_ALBEDO};
 pub use raster::{preview, render, RenderParams};
 pub use relight::{apply_albedo, relight, relight_baked, tint_by};
 pub use sky::{draw_sky, pixel_ray, sky_radiance};

@@ -3,6 +3,10 @@
 //! sphere) against baking the vertices (over their hemisphere), per receiver, at 1,024 samples
 //! and 4 bands; and relighting 10,000 probes, as a run-time would once a frame, in each form.
 //!
+//! The GPU entries (relighting: the matrices uploaded once, each frame the light uploaded and
+//! the relit SH read back) run on any adapter (PRT_GPU_BENCH_ADAPTER=name picks one;
+//! PRT_GPU_BENCH_SKIP_GPU=1 skips them).
+//!
 //! Run: `cargo bench --bench probes` (criterion reports probes, vertices or relit probes per s).
 
 use std::path::PathBuf;
@@ -11,6 +15,7 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
 use prt_gpu::bake::{self, cpu, BakeInputs, BakeOptions, CpuBackend, Mode, NoProgress};
+use prt_gpu::device::DeviceChoice;
 use prt_gpu::probes::{self, ProbeForm, ProbePlacement, ProbeSpec};
 use prt_gpu::sampling::{Pcg32, Sampling};
 use prt_gpu::scene;
@@ -65,6 +70,16 @@ fn bake_probes_against_vertices(c: &mut Criterion) {
 
 fn relight_probes(c: &mut Criterion) {
     let count = 10_000;
+    let gpu = match std::env::var_os("PRT_GPU_BENCH_SKIP_GPU") {
+        Some(_) => None,
+        None => {
+            let adapter = std::env::var("PRT_GPU_BENCH_ADAPTER").ok();
+            prt_gpu::device::open(DeviceChoice::Gpu, adapter.as_deref())
+                .inspect_err(|e| eprintln!("no GPU entry: {e}"))
+                .ok()
+                .flatten()
+        }
+    };
     let mut group = c.benchmark_group("relight 10,000 probes, 4 bands, RGB");
     group.sample_size(20);
     group.throughput(Throughput::Elements(count as u64));
@@ -90,6 +105,13 @@ fn relight_probes(c: &mut Criterion) {
         group.bench_function(format!("cpu, {} form", form.name()), |b| {
             b.iter(|| set.relight(&light))
         });
+        if let Some(context) = &gpu {
+            let uploaded = probes::gpu::GpuProbes::new(context, &set).expect("upload");
+            let name = format!("gpu {}, {} form", context.adapter.label(), form.name());
+            group.bench_function(name, |b| {
+                b.iter(|| uploaded.relight(&light).expect("relight"))
+            });
+        }
     }
     group.finish();
 }

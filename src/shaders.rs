@@ -29,6 +29,7 @@ const RENDER_WGSL: &str = include_str!("../wgsl/render.wgsl");
 const COMPRESSED_COMMON_WGSL: &str = include_str!("../wgsl/compressed_common.wgsl");
 const COMPRESSED_PROJECT_WGSL: &str = include_str!("../wgsl/compressed_project.wgsl");
 const COMPRESSED_RESPOND_WGSL: &str = include_str!("../wgsl/compressed_respond.wgsl");
+const PROBES_RELIGHT_WGSL: &str = include_str!("../wgsl/probes_relight.wgsl");
 const CPCA_ASSIGN_WGSL: &str = include_str!("../wgsl/cpca_assign.wgsl");
 
 /// Constants every kernel sees. `{:?}` prints the shortest decimal that parses back to the
@@ -102,6 +103,11 @@ pub fn compressed_respond_kernel() -> String {
         "{}{COMPRESSED_COMMON_WGSL}\n{COMPRESSED_RESPOND_WGSL}",
         prelude()
     )
+}
+
+/// The kernel relighting probes for a frame.
+pub fn probes_relight_kernel() -> String {
+    format!("{}{PROBES_RELIGHT_WGSL}", prelude())
 }
 
 /// The bounce (gather) kernel.
@@ -209,6 +215,26 @@ mod tests {
         parse(&compressed_project_kernel());
         parse(&compressed_respond_kernel());
         parse(&cpca_assign_kernel());
+        parse(&probes_relight_kernel());
+    }
+
+    #[test]
+    fn probe_relight_params_match_their_wgsl_twin() {
+        use crate::probes::gpu::ProbeRelightParams;
+        assert_eq!(
+            wgsl_layout(&parse(&probes_relight_kernel()), "ProbeRelightParams"),
+            rust_layout!(
+                ProbeRelightParams,
+                probes,
+                rows,
+                coeffs,
+                channels,
+                first_probe,
+                pad0,
+                pad1,
+                pad2
+            )
+        );
     }
 
     #[test]

@@ -486,3 +486,48 @@ fn render_draws_spheres_lit_by_the_probes() {
         "{stderr}"
     );
 }
+
+#[test]
+fn gpu_relighting_agrees_with_the_cpu() {
+    let Some(baker) = common::gpu_baker() else {
+        return;
+    };
+    let mut spec = spec(
+        Mode::Interreflected,
+        64,
+        ProbePlacement::Grid { spacing: 0.5 },
+    );
+    spec.transfer.bounces = 1;
+    let baked = probes_of(&spec, builtin::default_scene(), &CpuBackend);
+    // More probes than one dispatch holds, one channel, in the irradiance form.
+    let mut random = prt_gpu::sampling::Pcg32::new(5);
+    let many = ProbeSet {
+        bands: 3,
+        channels: 1,
+        form: ProbeForm::Irradiance,
+        rows: 9,
+        grid: None,
+        positions: vec![Vec3::ZERO; 5000],
+        status: vec![ProbeStatus::Placed; 5000],
+        matrices: (0..5000 * 9 * 9).map(|_| random.next_f32() - 0.5).collect(),
+        samples: 16,
+    };
+    assert!(many.len() > prt_gpu::probes::gpu::PROBES_PER_DISPATCH as usize);
+    let light: Vec<[f32; 3]> = (0..16)
+        .map(|k| [1.0 / (1 + k) as f32, 0.5, -0.25 * (k % 3) as f32])
+        .collect();
+    for probes in [&baked, &many] {
+        let gpu = prt_gpu::probes::gpu::GpuProbes::new(&baker.context, probes)
+            .unwrap()
+            .relight(&light)
+            .unwrap();
+        let cpu = probes.relight(&light);
+        assert_eq!(gpu.len(), cpu.len());
+        for (g, c) in gpu.iter().zip(&cpu) {
+            for rgb in 0..3 {
+                let tolerance = 1e-5 * (1.0 + c[rgb].abs());
+                assert!((g[rgb] - c[rgb]).abs() <= tolerance, "{g:?} against {c:?}");
+            }
+        }
+    }
+}

@@ -4,7 +4,6 @@
 use glam::{DVec3, Vec3};
 
 use super::{ProbeForm, ProbeSet, ProbeStatus};
-use crate::sh::coeff_count;
 
 impl ProbeSet {
     /// The matrix at `point` (`[channel][row][k]`), trilinear in the grid's probes around it,
@@ -59,35 +58,6 @@ impl ProbeSet {
             .collect()
     }
 
-    /// Row `i` of `matrix` (one probe's) for colour `rgb` times the light's coefficients.
-    fn row_times_light(&self, matrix: &[f32], i: usize, rgb: usize, light: &[[f32; 3]]) -> f64 {
-        let n = coeff_count(self.bands);
-        let c = rgb.min(self.channels as usize - 1);
-        let row = &matrix[(c * self.rows + i) * n..(c * self.rows + i + 1) * n];
-        row.iter()
-            .zip(light)
-            .map(|(&m, l)| m as f64 * l[rgb] as f64)
-            .sum()
-    }
-
-    /// Every probe relit by `light` (`[k]` RGB): what a run-time computes once a frame,
-    /// `[probe][row]` RGB — the incident radiance's SH, or for the irradiance form the
-    /// irradiance's.
-    pub fn relight(&self, light: &[[f32; 3]]) -> Vec<[f32; 3]> {
-        use rayon::prelude::*;
-        let mut out = vec![[0.0f32; 3]; self.len() * self.rows];
-        out.par_chunks_mut(self.rows)
-            .zip(self.matrices.par_chunks(self.per_probe().max(1)))
-            .for_each(|(relit, matrix)| {
-                for (i, value) in relit.iter_mut().enumerate() {
-                    *value = std::array::from_fn(|rgb| {
-                        self.row_times_light(matrix, i, rgb, light) as f32
-                    });
-                }
-            });
-        out
-    }
-
     /// Irradiance (RGB) at a surface of unit normal `normal` lit through `matrix` (one
     /// probe's or [`ProbeSet::interpolate`]'s) by `light` (`[k]` RGB): the incident
     /// radiance's SH convolved with the clamped cosine, band by band.
@@ -116,6 +86,7 @@ impl ProbeSet {
 mod tests {
     use super::*;
     use crate::probes::ProbeGrid;
+    use crate::sh::coeff_count;
 
     /// A 2 x 2 x 2 grid of one-band probes whose single entry is the probe's index.
     fn cube_of_probes() -> ProbeSet {
@@ -180,22 +151,9 @@ mod tests {
 
     #[test]
     fn irradiance_of_a_constant_sky_through_the_identity_is_pi_times_its_radiance() {
-        let bands = 3;
-        let n = coeff_count(bands);
-        let identity: Vec<f32> = (0..n * n)
-            .map(|e| if e / n == e % n { 1.0 } else { 0.0 })
-            .collect();
-        let probes = ProbeSet {
-            bands,
-            channels: 1,
-            form: ProbeForm::Radiance,
-            rows: n,
-            grid: None,
-            positions: vec![Vec3::ZERO],
-            status: vec![ProbeStatus::Placed],
-            matrices: identity.clone(),
-            samples: 16,
-        };
+        let probes = ProbeSet::open_sky(3);
+        let n = coeff_count(3);
+        let identity = probes.matrix(0).to_vec();
         let mut light = vec![[0.0f32; 3]; n];
         light[0] = [2.0 * (4.0 * std::f32::consts::PI).sqrt(), 0.0, 1.0];
         for normal in [DVec3::Z, DVec3::new(0.6, -0.8, 0.0)] {

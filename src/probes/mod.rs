@@ -8,6 +8,7 @@
 //! geometry; it is moved just past the nearest of those surfaces when that lies within half a
 //! grid cell, as engines do, and marked invalid otherwise.
 
+pub mod gpu;
 mod lookup;
 mod placement;
 pub mod transfer;
@@ -63,6 +64,24 @@ impl ProbeSet {
         self.channels as usize * self.rows * coeff_count(self.bands)
     }
 
+    /// One probe at the origin that sees nothing: the identity at `bands`, one channel.
+    pub fn open_sky(bands: u32) -> ProbeSet {
+        let n = coeff_count(bands);
+        ProbeSet {
+            bands,
+            channels: 1,
+            form: ProbeForm::Radiance,
+            rows: n,
+            grid: None,
+            positions: vec![Vec3::ZERO],
+            status: vec![ProbeStatus::Placed],
+            matrices: (0..n * n)
+                .map(|e| if e / n == e % n { 1.0 } else { 0.0 })
+                .collect(),
+            samples: 0,
+        }
+    }
+
     /// One line: how many probes, what became of them, what each stores.
     pub fn describe(&self) -> String {
         let count = |status| self.status.iter().filter(|&&s| s == status).count();
@@ -87,6 +106,40 @@ impl ProbeSet {
                 None => String::new(),
             }
         )
+    }
+
+    /// Row `i` of `matrix` (one probe's) for colour `rgb` times the light's coefficients.
+    pub(crate) fn row_times_light(
+        &self,
+        matrix: &[f32],
+        i: usize,
+        rgb: usize,
+        light: &[[f32; 3]],
+    ) -> f64 {
+        let n = coeff_count(self.bands);
+        let c = rgb.min(self.channels as usize - 1);
+        let row = &matrix[(c * self.rows + i) * n..(c * self.rows + i + 1) * n];
+        row.iter()
+            .zip(light)
+            .map(|(&m, l)| m as f64 * l[rgb] as f64)
+            .sum()
+    }
+
+    /// Every probe relit by `light` (`[k]` RGB): what a run-time computes once a frame,
+    /// `[probe][row]` RGB — the incident radiance's SH, or for the irradiance form the
+    /// irradiance's.
+    pub fn relight(&self, light: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        let mut out = vec![[0.0f32; 3]; self.len() * self.rows];
+        out.par_chunks_mut(self.rows)
+            .zip(self.matrices.par_chunks(self.per_probe().max(1)))
+            .for_each(|(relit, matrix)| {
+                for (i, value) in relit.iter_mut().enumerate() {
+                    *value = std::array::from_fn(|rgb| {
+                        self.row_times_light(matrix, i, rgb, light) as f32
+                    });
+                }
+            });
+        out
     }
 
     /// Probe `p`'s matrix, `[channel][row][k]`.

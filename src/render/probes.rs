@@ -81,25 +81,7 @@ pub fn with_probe_spheres(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::probes::{ProbeForm, ProbeStatus};
-
-    /// Probes that see nothing: the identity at 2 bands, one probe at the origin.
-    fn open_sky() -> ProbeSet {
-        let n = 4;
-        ProbeSet {
-            bands: 2,
-            channels: 1,
-            form: ProbeForm::Radiance,
-            rows: n,
-            grid: None,
-            positions: vec![Vec3::ZERO],
-            status: vec![ProbeStatus::Placed],
-            matrices: (0..n * n)
-                .map(|e| if e / n == e % n { 1.0 } else { 0.0 })
-                .collect(),
-            samples: 16,
-        }
-    }
+    use crate::probes::ProbeStatus;
 
     #[test]
     fn a_sphere_under_a_constant_sky_shows_its_albedo_times_the_sky() {
@@ -111,7 +93,7 @@ mod tests {
         let scene = builtin::icosphere(Vec3::ZERO, 1.0, 1);
         let own = vec![[9.0; 3]; scene.positions.len()];
         let (merged, radiance) =
-            with_probe_spheres(&scene, own, &open_sky(), &[sphere], &light).unwrap();
+            with_probe_spheres(&scene, own, &ProbeSet::open_sky(2), &[sphere], &light).unwrap();
         assert_eq!(merged.positions.len(), radiance.len());
         assert_eq!(
             radiance[..scene.positions.len()],
@@ -127,7 +109,7 @@ mod tests {
 
     #[test]
     fn a_sphere_with_no_valid_probe_is_refused() {
-        let mut probes = open_sky();
+        let mut probes = ProbeSet::open_sky(2);
         probes.status[0] = ProbeStatus::Invalid;
         let sphere = ProbeSphere {
             centre: Vec3::ZERO,

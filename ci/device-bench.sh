@@ -3,7 +3,8 @@
 # to finish in under 5 minutes there. Builds in release, lists the adapters, times the direct
 # pass on the CPU and GPU backends side by side (`prt-gpu bench`), bakes on the GPU the
 # dragon and the largest mesh in the repository, printing rays/s per backend and the adapter,
-# and compresses the dragon (CPCA) with the clustering on the CPU and on the GPU.
+# compresses the dragon (CPCA) with the clustering on the CPU and on the GPU, and bakes probes
+# around it on each (the 'probes:' line's seconds).
 # Record its output in docs/performance.md ("On a hardware GPU").
 #
 #   ci/device-bench.sh [OUT_DIR] [MESH...]
@@ -83,6 +84,12 @@ for device in cpu gpu; do
     say "CPCA of $dragon, clustering on the $device (lean, 384x8, f16; the 'compressed:' line)"
     $bin bake "$dragon" --device $device --storage lean --compress 384x8 --precision f16 \
         -o "$out/dragon.$device.cpca.glb" 2>&1 | grep -E 'compressed|baked'
+done
+
+for device in cpu gpu; do
+    say "probes around $dragon on the $device (interreflected, a grid 0.01 apart; the 'probes:' line)"
+    $bin bake "$dragon" --device $device --mode interreflected --probes 0.01 \
+        -o "$out/dragon.$device.probes.glb" 2>&1 | grep -E '^probes|baked'
 done
 
 say "done in $(( $(date +%s) - started )) s"

@@ -147,6 +147,21 @@ pub struct TriangleHit {
     pub v: f32,
 }
 
+/// The barycentrics of a hit's three corners from those of corners 1 and 2 (`u`, `v`).
+pub fn barycentrics(u: f32, v: f32) -> [f32; 3] {
+    [1.0 - u - v, u, v]
+}
+
+/// `values` at the corners `corners` of a triangle blended at barycentrics `(u, v)` of
+/// corners 1 and 2: a hit's point, its interpolated shading normal.
+pub fn blend_at(values: &[Vec3], corners: [u32; 3], u: f32, v: f32) -> Vec3 {
+    corners
+        .iter()
+        .zip(barycentrics(u, v))
+        .map(|(&j, b)| values[j as usize] * b)
+        .sum()
+}
+
 /// Watertight ray–triangle intersection (Woop, Benthin, Wald 2013).
 ///
 /// The vertices are translated to the ray origin and sheared so the ray runs along +z; the

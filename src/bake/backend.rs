@@ -10,6 +10,7 @@ use super::bounce::{self, GatherMatrix, Hit};
 use super::{cpu, gpu, DirectInputs, DirectPass, Mode, Progress};
 use crate::device::GpuContext;
 use crate::error::Result;
+use crate::ray::blend_at;
 use crate::scene::Scene;
 use crate::sh::coeff_count;
 
@@ -307,11 +308,8 @@ impl Backend for GpuBackend<'_> {
             .zip(hits.par_iter().zip(inputs.origins))
             .for_each(|(row, (own, &origin))| {
                 for &(sample, hit) in own {
-                    let corners =
-                        scene.triangles[hit.triangle as usize].map(|i| scene.positions[i as usize]);
-                    let point = corners[0] * (1.0 - hit.u - hit.v)
-                        + corners[1] * hit.u
-                        + corners[2] * hit.v;
+                    let corners = scene.triangles[hit.triangle as usize];
+                    let point = blend_at(&scene.positions, corners, hit.u, hit.v);
                     row[sample as usize] = (point - origin).length().min(cap);
                 }
             });

@@ -18,7 +18,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{cpu, DirectInputs, Mode, Progress};
-use crate::ray::NO_HIT;
+use crate::ray::{barycentrics, blend_at, NO_HIT};
 use crate::sampling::{DirectionFrame, VertexDirections};
 use crate::sh::coeff_count;
 
@@ -101,12 +101,7 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
         let direction = to_world.world(inputs.samples.directions[sample as usize]);
         let cosine = normal.dot(direction);
         let corners = inputs.triangles[hit.triangle as usize];
-        let barycentrics = [1.0 - hit.u - hit.v, hit.u, hit.v];
-        let shading_normal: Vec3 = corners
-            .iter()
-            .zip(barycentrics)
-            .map(|(&j, b)| inputs.vertex_normals[j as usize] * b)
-            .sum();
+        let shading_normal = blend_at(inputs.vertex_normals, corners, hit.u, hit.v);
         if cosine <= 0.0 || shading_normal.dot(direction) >= 0.0 {
             continue;
         }
@@ -114,7 +109,7 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
             DirectionFrame::World => cosine as f64,
             DirectionFrame::Tangent => 1.0,
         };
-        for (&j, b) in corners.iter().zip(barycentrics) {
+        for (&j, b) in corners.iter().zip(barycentrics(hit.u, hit.v)) {
             entries.push((j, scale * density_weight * b.max(0.0) as f64));
         }
     }

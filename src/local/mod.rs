@@ -29,7 +29,7 @@ use crate::bake::{self, Backend, BakeInputs, BakeOptions, Mode, Progress};
 use crate::bvh::Bvh;
 use crate::compress::{compress_rows, Cpca, CpcaOptions};
 use crate::error::Result;
-use crate::ray::{Ray, RAY_T_MAX};
+use crate::ray::{blend_at, Ray, RAY_T_MAX};
 use crate::receivers::vertex_ray_starts;
 use crate::sampling::{tangent_frame, DirectionFrame, Pcg32, SampleSet, Sampling};
 use crate::scene::prepare::prepare;
@@ -304,9 +304,8 @@ pub fn in_free_space(scene: &Scene, normals: &[Vec3], bvh: &Bvh, p: Vec3) -> boo
     .all(|&d| match bvh.closest_hit(&Ray::new(p, d), RAY_T_MAX) {
         None => true,
         Some((triangle, hit)) => {
-            let [a, b, c] = scene.triangles[triangle as usize].map(|i| normals[i as usize]);
-            let shading = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
-            shading.dot(d) < 0.0
+            let corners = scene.triangles[triangle as usize];
+            blend_at(normals, corners, hit.u, hit.v).dot(d) < 0.0
         }
     })
 }

@@ -64,10 +64,7 @@ impl ProbeGrid {
     /// The grid of `spacing` whose cells cover `scene`'s bounding box, centred on it, a probe
     /// at each cell's centre: none lies on the box's faces, where a floor or a wall would be.
     pub fn over(scene: &Scene, spacing: f32) -> Result<ProbeGrid> {
-        let (lo, hi) = scene.positions.iter().fold(
-            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-            |(lo, hi), &p| (lo.min(p), hi.max(p)),
-        );
+        let (lo, hi) = scene.bounds();
         let size = (hi - lo).max(Vec3::ZERO);
         let count = (size / spacing)
             .ceil()

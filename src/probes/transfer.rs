@@ -17,6 +17,7 @@
 use glam::Vec3;
 
 use crate::bake::bounce::Hit;
+use crate::ray::{barycentrics, blend_at};
 
 /// What one blocked ray of a probe contributes: its direction's SH row and, where it reaches
 /// the front of a surface that reflects light, the exit transfer there (`[channel][k]`).
@@ -26,37 +27,39 @@ pub struct BlockedRay<'a> {
 }
 
 /// `M[c][i][k]` for `channels` channels of `n = bands^2` coefficients, from the probe's
-/// blocked rays, each standing for `weight` steradians.
+/// blocked rays, each standing for `weight` steradians. The sky's part (the identity minus
+/// what is blocked) is the same for every channel and summed once; the reflected part is
+/// summed per channel.
 pub fn probe_matrix<'a>(
     n: usize,
     channels: usize,
     weight: f64,
     blocked: impl IntoIterator<Item = BlockedRay<'a>>,
 ) -> Vec<f64> {
-    let mut matrix = vec![0.0; channels * n * n];
-    for c in 0..channels {
-        for i in 0..n {
-            matrix[(c * n + i) * n + i] = 1.0;
-        }
-    }
+    let mut sky = vec![0.0; n * n];
+    (0..n).for_each(|i| sky[i * n + i] = 1.0);
+    let mut reflected = vec![0.0; channels * n * n];
     for ray in blocked {
         for i in 0..n {
             let yi = ray.sh[i] as f64 * weight;
+            for (m, &yk) in sky[i * n..(i + 1) * n].iter_mut().zip(ray.sh) {
+                *m -= yi * yk as f64;
+            }
+            let Some(exit) = ray.exit else {
+                continue;
+            };
             for c in 0..channels {
-                let row = &mut matrix[(c * n + i) * n..(c * n + i + 1) * n];
-                for (k, m) in row.iter_mut().enumerate() {
-                    *m -= yi * ray.sh[k] as f64;
-                }
-                if let Some(exit) = ray.exit {
-                    let exit = &exit[c * n..(c + 1) * n];
-                    for (m, e) in row.iter_mut().zip(exit) {
-                        *m += yi * e;
-                    }
+                let row = &mut reflected[(c * n + i) * n..(c * n + i + 1) * n];
+                for (m, e) in row.iter_mut().zip(&exit[c * n..(c + 1) * n]) {
+                    *m += yi * e;
                 }
             }
         }
     }
-    matrix
+    for (c_row, r) in reflected.iter_mut().enumerate() {
+        *r += sky[c_row % (n * n)];
+    }
+    reflected
 }
 
 /// Where a ray's hit point is and whether it reaches the surface's back (the side its
@@ -68,22 +71,16 @@ pub fn hit_point_and_side(
     hit: Hit,
     direction: Vec3,
 ) -> (Vec3, bool) {
-    let barycentrics = [1.0 - hit.u - hit.v, hit.u, hit.v];
-    let mut point = Vec3::ZERO;
-    let mut normal = Vec3::ZERO;
-    for (&j, b) in triangle.iter().zip(barycentrics) {
-        point += positions[j as usize] * b;
-        normal += normals[j as usize] * b;
-    }
+    let point = blend_at(positions, triangle, hit.u, hit.v);
+    let normal = blend_at(normals, triangle, hit.u, hit.v);
     (point, normal.dot(direction) >= 0.0)
 }
 
 /// The exit transfer at a hit, `[channel][k]`: the corners' `exit` (`[vertex][channel][k]`,
 /// `per_vertex` values each) weighted by the hit's barycentrics.
 pub fn interpolate_exit(exit: &[f32], per_vertex: usize, triangle: [u32; 3], hit: Hit) -> Vec<f64> {
-    let barycentrics = [1.0 - hit.u - hit.v, hit.u, hit.v];
     let mut out = vec![0.0; per_vertex];
-    for (&j, b) in triangle.iter().zip(barycentrics) {
+    for (&j, b) in triangle.iter().zip(barycentrics(hit.u, hit.v)) {
         let corner = &exit[j as usize * per_vertex..(j as usize + 1) * per_vertex];
         for (o, &e) in out.iter_mut().zip(corner) {
             *o += b as f64 * e as f64;

@@ -155,7 +155,7 @@ pub fn vertex_ray_starts(scene: &Scene) -> Vec<Vec3> {
 /// away from the vertex's normal (folded slivers) are left out: no origin along the normal is
 /// in front of them.
 fn slide_scales(scene: &Scene, normals: &[Vec3], slides: &[DVec3]) -> Vec<f64> {
-    let extent = scene_extent(&scene.positions);
+    let extent = scene.extent();
     let mut scales = vec![1.0f64; scene.positions.len()];
     for &triangle in &scene.triangles {
         let Some(face) = face_normal(&scene.positions, triangle)
@@ -174,16 +174,6 @@ fn slide_scales(scene: &Scene, normals: &[Vec3], slides: &[DVec3]) -> Vec<f64> {
         }
     }
     scales
-}
-
-/// The largest side of the bounding box of `positions` (what `ray::offset_ray_origin` scales
-/// its floor by; the BVH's root box is the same box).
-fn scene_extent(positions: &[Vec3]) -> f32 {
-    let (lo, hi) = positions.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
-    (hi - lo).max_element().max(0.0)
 }
 
 /// The interpolated normal, normalised; the face normal where the corners' normals cancel.

@@ -38,6 +38,21 @@ impl Scene {
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
     }
+
+    /// The corners of the positions' bounding box (inverted, infinite, when there are none).
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.positions.iter().fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        )
+    }
+
+    /// The bounding box's largest side (what `ray::offset_ray_origin` scales its floor by; a
+    /// BVH's root box is the same box); 0 without positions.
+    pub fn extent(&self) -> f32 {
+        let (lo, hi) = self.bounds();
+        (hi - lo).max_element().max(0.0)
+    }
 }
 
 /// Albedo given to surfaces whose file says nothing about their colour.

@@ -748,3 +748,134 @@ fn export_x3d_refuses_what_it_cannot_write_with_one_line() {
     // 5 bands x 3 channels = 75 floats: 19 attributes, more than WebGL leaves.
     export("wide.glb", &[], "vertex attributes");
 }
+
+/// Probes: the page's test sphere, lit by the probes at its centre, against `render
+/// --probe-sphere` at the same place (a grid of radiance probes, interpolated; a few given
+/// points in the irradiance form, the nearest valid one), with the tolerances of the files'
+/// own comparisons; and the irradiance SH the page computes at the centre against the
+/// library's (`ProbeSet::interpolate`, `ProbeSet::irradiance`) for random normals.
+#[test]
+fn page_lights_a_sphere_with_the_probes_as_render_does() {
+    let Some(chromium) = chromium_and_adapter() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let bake = ["bake", "--samples", "64", "--device", "cpu"];
+    run_ok(
+        &[&bake[..], &["--probes", "0.5", "-o", "grid.glb"]].concat(),
+        d,
+    );
+    std::fs::write(
+        d.join("points.txt"),
+        "1.2 0.5 1.2\n-1 0.8 0.9\n0.3 1.6 -0.4\n",
+    )
+    .unwrap();
+    let points = [
+        "--probe-points",
+        "points.txt",
+        "--probe-form",
+        "irradiance",
+        "--mode",
+        "interreflected",
+        "-o",
+        "points.glb",
+    ];
+    run_ok(&[&bake[..], &points].concat(), d);
+    write_light(d, "light.json", 4, &[]);
+    run_ok(
+        &[
+            "view",
+            "grid.glb",
+            "points.glb",
+            "--light",
+            "light.json",
+            "-o",
+            "viewer.html",
+        ],
+        d,
+    );
+    let page = d.join("viewer.html");
+    let grid = d.join("grid.glb");
+    let camera = another_camera(&grid);
+    let turned_query = format!("file=0&sky=0&cam={camera}");
+    let cases: [(&str, &str, &str, Vec<&str>); 3] = [
+        ("grid.glb", "file=0", "1.2,0.5,1.2,0.4", vec!["--sky"]),
+        (
+            "grid.glb",
+            &turned_query,
+            "1.2,0.5,1.2,0.4",
+            vec!["--camera", &camera],
+        ),
+        (
+            "points.glb",
+            "file=1&exposure=1",
+            "-0.9,0.7,0.9,0.5",
+            vec!["--sky", "--exposure", "1"],
+        ),
+    ];
+    for (file, query, sphere, options) in cases {
+        let mut options = options;
+        options.extend(["--light", "light.json", "--probe-sphere", sphere]);
+        let expected = render(d, &d.join(file), &options);
+        assert!(has_contrast(&expected), "{query}: the render shows nothing");
+        let shot = |sphere: &str| {
+            let url = page_url(&page, &format!("{query}&sphere={sphere}"));
+            chromium.screenshot(&url, WIDTH, HEIGHT)
+        };
+        let difference = Difference::of(&shot(sphere), &expected);
+        println!("{query}, sphere {sphere}: {difference:?}");
+        assert!(difference.within_tolerance(), "{query}: {difference:?}");
+        // The sphere is seen: without it the page is outside the tolerance.
+        let without = Difference::of(&shot("0"), &expected);
+        assert!(!without.within_tolerance(), "{query}: {without:?}");
+    }
+
+    let light = prt_gpu::light::read_json(&d.join("light.json")).unwrap();
+    let probes = prt_gpu::glb::probes::read_probes(&grid).unwrap().unwrap();
+    for (query, centre) in [
+        (
+            "sphere=0.37,0.61,-0.23",
+            Some(glam::Vec3::new(0.37, 0.61, -0.23)),
+        ),
+        // The default place: a valid probe.
+        ("", None),
+    ] {
+        let dom = chromium.dump_dom(&page_url(&page, &format!("report=sphere&{query}")));
+        let report: serde_json::Value =
+            serde_json::from_str(report_element(&dom).expect("the page reports its sphere"))
+                .unwrap();
+        let at: Vec<f32> = report["sphere"]["centre"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_f64().unwrap() as f32)
+            .collect();
+        let at = glam::Vec3::from_slice(&at);
+        match centre {
+            Some(centre) => assert_eq!(at, centre),
+            None => assert!(probes
+                .positions
+                .iter()
+                .zip(&probes.status)
+                .any(|(&p, s)| { p == at && *s != prt_gpu::probes::ProbeStatus::Invalid })),
+        }
+        let irradiance: Vec<[f64; 3]> =
+            serde_json::from_value(report["irradiance"].clone()).unwrap();
+        assert_eq!(irradiance.len(), probes.rows);
+        let matrix = probes.interpolate(at).unwrap();
+        for normal in prt_gpu::sampling::fibonacci_sphere(50, 7).directions {
+            let normal = normal.as_dvec3();
+            let expected = probes.irradiance(&matrix, &light.coeffs, normal);
+            let basis = prt_gpu::sh::basis(probes.bands, normal);
+            for rgb in 0..3 {
+                let page: f64 = irradiance.iter().zip(&basis).map(|(e, y)| e[rgb] * y).sum();
+                let tolerance = 1e-5 * expected[rgb].abs().max(1.0);
+                assert!(
+                    (page - expected[rgb]).abs() < tolerance,
+                    "{query}: {page} vs {expected:?}"
+                );
+            }
+        }
+    }
+}

@@ -1,10 +1,11 @@
 "use strict";
 // The viewer: reads the embedded bakes and light, draws the selected bake relit per vertex
 // (mesh.vert) over a sky: the environment map where the page embeds one (sky_map.frag), else
-// the SH light (sky.frag); and turns camera, light and exposure with
-// the mouse, the controls or the URL. Matches `prt-gpu render`: the same camera (look-at,
-// vertical field of view, near and far planes hugging the mesh), the same dot product, the
-// same tone mapping.
+// the SH light (sky.frag); for a file with probes, a test sphere lit by them (probes.js); and
+// turns camera, light, exposure and the sphere with the mouse, the controls or the URL.
+// Matches `prt-gpu render` (with --probe-sphere): the same camera (look-at, vertical field of
+// view, near and far planes hugging what is drawn), the same dot product, the same tone
+// mapping.
 
 const DATA = JSON.parse(document.getElementById("prt-data").textContent);
 const TONE_MAPS = ["none", "reinhard", "aces"];
@@ -20,6 +21,16 @@ const length = (a) => Math.sqrt(dot(a, a));
 const normalize = (a) => scale(a, 1 / length(a));
 
 // ---- The state: everything a view depends on, read from and written to the URL ----
+// The test sphere of a file with probes: "default" (at the valid probe nearest the middle,
+// render's default radius), "off", or { centre, radius } (radius null: the default).
+function sphereChoice(text) {
+  if (text === "0") return "off";
+  const values = numbers(text, 3);
+  if (!values) return "default";
+  const radius = values.length > 3 && values[3] > 0 ? values[3] : null;
+  return { centre: values.slice(0, 3), radius };
+}
+
 function numbers(text, count) {
   if (text === null) return null;
   const values = text.split(",").map(Number);
@@ -41,6 +52,8 @@ function initialState(params) {
     tone: TONE_MAPS.includes(tone) ? tone : "reinhard",
     file: Number.isInteger(file) && file >= 0 && file < DATA.bakes.length ? file : 0,
     sky: skyChoice(params.get("sky")),
+    sphere: sphereChoice(params.get("sphere")),
+    fly: params.get("fly") === "1",
   };
 }
 
@@ -56,7 +69,22 @@ function stateQuery(state) {
   const c = state.camera;
   return `?cam=${[...c.eye, ...c.target, c.fov].map(round).join(",")}` +
     `&rot=${state.rotation.map(round).join(",")}&exposure=${round(state.exposure)}` +
-    `&tone=${state.tone}&file=${state.file}&sky=${state.sky}`;
+    `&tone=${state.tone}&file=${state.file}&sky=${state.sky}` + sphereQuery(state, round);
+}
+
+function sphereQuery(state, round) {
+  const sphere = activeSphere(state);
+  if (state.sphere === "off") return "&sphere=0";
+  if (!sphere) return "";
+  return `&sphere=${[...sphere.centre, sphere.radius].map(round).join(",")}${state.fly ? "&fly=1" : ""}`;
+}
+
+// The sphere drawn for the current file: null where it has no probes or it is off.
+function activeSphere(state) {
+  const probes = DATA.bakes[state.file].probes;
+  if (!probes || state.sphere === "off") return null;
+  if (state.sphere === "default") return { centre: probes.sphereCentre, radius: probes.sphereRadius };
+  return { centre: state.sphere.centre, radius: state.sphere.radius ?? probes.sphereRadius };
 }
 
 // ---- The camera: render::Camera's look-at and projection, in WebGL's clip space ----
@@ -76,10 +104,18 @@ function cameraBasis(camera) {
   return { forward, right, up };
 }
 
-// Near and far planes hugging the bounding sphere (render's depth_range).
-function depthRange(camera, bake) {
-  const center = scale(add(bake.boundsMin, bake.boundsMax), 0.5);
-  const halfDiagonal = length(sub(bake.boundsMax, bake.boundsMin)) * 0.5;
+// The box of what is drawn: the file's mesh and the test sphere (render merges the two).
+function drawnBounds(bake, sphere) {
+  if (!sphere) return [bake.boundsMin, bake.boundsMax];
+  const low = sphere.centre.map((c) => c - sphere.radius);
+  const high = sphere.centre.map((c) => c + sphere.radius);
+  return [bake.boundsMin.map((v, a) => Math.min(v, low[a])), bake.boundsMax.map((v, a) => Math.max(v, high[a]))];
+}
+
+// Near and far planes hugging the bounding sphere of `[low, high]` (render's depth_range).
+function depthRange(camera, [low, high]) {
+  const center = scale(add(low, high), 0.5);
+  const halfDiagonal = length(sub(high, low)) * 0.5;
   const floor = 1e-3 * Math.max(1, ...center.map(Math.abs));
   const radius = Number.isFinite(halfDiagonal) ? Math.max(halfDiagonal, floor) : 1;
   const distance = length(sub(center, camera.eye));
@@ -230,6 +266,7 @@ class Viewer {
     this.gl = canvas.getContext("webgl2", { antialias: false, preserveDrawingBuffer: true });
     if (!this.gl) throw new Error("this browser has no WebGL2");
     this.meshes = new Map();
+    this.spheres = new Map();
     this.sky = null;
     this.skyMap = null;
   }
@@ -241,8 +278,8 @@ class Viewer {
 
   skyProgram() {
     if (!this.sky) {
-      const program = compile(this.gl, `#define LIGHT_BANDS ${DATA.light.bands}`,
-        { vertex: ["sky-vertex"], fragment: ["tone-map", "sky-fragment"] });
+      const program = compile(this.gl, `#define SH_BANDS ${DATA.light.bands}`,
+        { vertex: ["sky-vertex"], fragment: ["tone-map", "sh-sum", "sky-fragment"] });
       this.sky = { program, at: uniforms(this.gl, program) };
     }
     return this.sky;
@@ -278,14 +315,54 @@ class Viewer {
     const light = this.light();
     if (state.sky === "map" && DATA.light.map) this.drawSkyMap(width, height);
     else if (state.sky !== "0") this.drawSky(light, width, height);
-    this.drawMesh(light, width / height);
+    const sphere = activeSphere(state);
+    const clip = clipFromWorld(state.camera, width / height,
+      ...depthRange(state.camera, drawnBounds(DATA.bakes[state.file], sphere)));
+    this.drawMesh(light, clip);
+    this.drawSphere(light, clip, sphere);
+  }
+
+  sphereOf(index) {
+    if (!this.spheres.has(index)) this.spheres.set(index, sphereResources(this.gl, DATA.bakes[index].probes));
+    return this.spheres.get(index);
+  }
+
+  // The irradiance's SH at the current sphere's centre, or null (no sphere, or no valid probe
+  // around it).
+  sphereIrradiance(light) {
+    const sphere = activeSphere(this.state);
+    return sphere ? this.sphereOf(this.state.file).field.irradianceAt(sphere.centre, light) : null;
+  }
+
+  drawSphere(light, clip, sphere) {
+    const message = document.getElementById("message");
+    message.textContent = "";
+    if (!sphere) return;
+    const irradiance = this.sphereIrradiance(light);
+    if (!irradiance) {
+      message.textContent = "no valid probe lights the sphere here";
+      return;
+    }
+    const { gl, state } = this;
+    const { program, vao, at } = this.sphereOf(state.file);
+    const toRadiance = DATA.sphere.albedo / Math.PI;
+    gl.useProgram(program);
+    gl.uniformMatrix4fv(at("clip_from_world"), false, clip);
+    gl.uniform3fv(at("sh_coeffs"), irradiance.flat().map((e) => e * toRadiance));
+    gl.uniform3fv(at("centre"), sphere.centre);
+    gl.uniform1f(at("radius"), sphere.radius);
+    setToneMap(gl, at, state);
+    gl.enable(gl.DEPTH_TEST);
+    gl.bindVertexArray(vao);
+    gl.drawElements(gl.TRIANGLES, DATA.sphere.triangles * 3, gl.UNSIGNED_INT, 0);
+    gl.bindVertexArray(null);
   }
 
   drawSky(light, width, height) {
     const { gl } = this;
     const { program, at } = this.skyProgram();
     gl.useProgram(program);
-    gl.uniform3fv(at("light"), light.flat());
+    gl.uniform3fv(at("sh_coeffs"), light.flat());
     this.drawBackdrop(at, width, height);
   }
 
@@ -320,14 +397,13 @@ class Viewer {
     gl.drawArrays(gl.TRIANGLES, 0, 3);
   }
 
-  drawMesh(light, aspect) {
+  drawMesh(light, clip) {
     const { gl, state } = this;
     const bake = DATA.bakes[state.file];
     const mesh = this.mesh(state.file);
     const at = uniforms(gl, mesh.program);
-    const [near, far] = depthRange(state.camera, bake);
     gl.useProgram(mesh.program);
-    gl.uniformMatrix4fv(at("clip_from_world"), false, clipFromWorld(state.camera, aspect, near, far));
+    gl.uniformMatrix4fv(at("clip_from_world"), false, clip);
     gl.uniform3fv(at("light"), light.slice(0, bake.bands * bake.bands).flat());
     gl.activeTexture(gl.TEXTURE0);
     gl.bindTexture(gl.TEXTURE_2D, mesh.texture);
@@ -361,12 +437,24 @@ function zoom(camera, factor) {
   camera.eye = add(camera.target, scale(sub(camera.eye, camera.target), factor));
 }
 
+// Moves the sphere in the plane facing the camera, following the pointer at its depth.
+function moveSphere(state, dx, dy, canvasHeight) {
+  const sphere = activeSphere(state);
+  if (!sphere) return;
+  const { forward, right, up } = cameraBasis(state.camera);
+  const depth = dot(sub(sphere.centre, state.camera.eye), forward);
+  const perPixel = (2 * depth * Math.tan((state.camera.fov * Math.PI) / 360)) / canvasHeight;
+  const centre = add(sphere.centre, add(scale(right, dx * perPixel), scale(up, -dy * perPixel)));
+  state.sphere = { centre, radius: sphere.radius };
+}
+
 function connectInput(viewer, redraw) {
   const { canvas, state } = viewer;
   let last = null;
   canvas.addEventListener("contextmenu", (e) => e.preventDefault());
   canvas.addEventListener("pointerdown", (e) => {
-    last = { x: e.clientX, y: e.clientY, light: e.shiftKey || e.button === 2 };
+    const sphere = e.altKey || e.button === 1;
+    last = { x: e.clientX, y: e.clientY, light: !sphere && (e.shiftKey || e.button === 2), sphere };
     canvas.setPointerCapture(e.pointerId);
   });
   canvas.addEventListener("pointerup", () => { last = null; });
@@ -374,7 +462,10 @@ function connectInput(viewer, redraw) {
     if (!last) return;
     const [dx, dy] = [e.clientX - last.x, e.clientY - last.y];
     [last.x, last.y] = [e.clientX, e.clientY];
-    if (last.light) {
+    if (last.sphere) {
+      state.fly = false;
+      moveSphere(state, dx, dy, canvas.clientHeight);
+    } else if (last.light) {
       state.rotation[0] += dx * 0.5; // yaw about +Y
       state.rotation[1] += dy * 0.5; // pitch about +X
     } else {
@@ -388,11 +479,16 @@ function connectInput(viewer, redraw) {
     redraw();
   }, { passive: false });
   const fileSelect = document.getElementById("file");
-  DATA.bakes.forEach((bake, i) => fileSelect.add(new Option(`${i + 1}: ${bake.name} (${bake.mode}, ${bake.bands} bands)`, i)));
+  DATA.bakes.forEach((bake, i) => fileSelect.add(new Option(`${i + 1}: ${bake.name} (${bake.mode}, ${bake.bands} bands${bake.probes ? ", probes" : ""})`, i)));
   const exposure = document.getElementById("exposure");
   const tone = document.getElementById("tone");
   const sky = document.getElementById("sky");
+  const sphere = document.getElementById("sphere");
+  const fly = document.getElementById("fly");
   const show = () => {
+    document.getElementById("probe-controls").hidden = !DATA.bakes[state.file].probes;
+    sphere.checked = state.sphere !== "off";
+    fly.checked = state.fly;
     fileSelect.value = state.file;
     exposure.value = state.exposure;
     document.getElementById("exposure-value").textContent = state.exposure.toFixed(1);
@@ -404,6 +500,8 @@ function connectInput(viewer, redraw) {
   tone.addEventListener("change", () => { state.tone = tone.value; redraw(); });
   if (!DATA.light.map) sky.querySelector('option[value="map"]').remove();
   sky.addEventListener("change", () => { state.sky = sky.value; redraw(); });
+  sphere.addEventListener("change", () => { state.sphere = sphere.checked ? "default" : "off"; redraw(); });
+  fly.addEventListener("change", () => { state.fly = fly.checked; redraw(); });
   window.addEventListener("keydown", (e) => {
     const index = Number(e.key) - 1;
     if (index >= 0 && index < DATA.bakes.length) { state.file = index; redraw(); }
@@ -426,8 +524,10 @@ function bench(viewer, frames) {
   viewer.draw();
   gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);
   const start = performance.now();
+  const flying = !!activeSphere(viewer.state);
   for (let i = 0; i < frames; i++) {
     viewer.state.rotation[0] += 360 / frames; // a new light every frame, as when dragging
+    if (flying) flySphere(viewer, i / 30); // and the sphere's probes looked up again
     viewer.draw();
     gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);
   }
@@ -441,6 +541,7 @@ function bench(viewer, frames) {
     vertices: bake.vertices,
     triangles: bake.triangles,
     bands: bake.bands,
+    probe_sphere: flying,
     renderer: gl.getParameter(gl.RENDERER),
   };
 }
@@ -460,10 +561,17 @@ function main() {
       viewer.draw();
       show();
       document.getElementById("url").textContent = stateQuery(state);
-      history.replaceState(null, "", stateQuery(state));
+      // Not every frame of a flight: browsers throttle pages that rewrite their URL so often.
+      if (!state.fly) history.replaceState(null, "", stateQuery(state));
     });
   };
   show = connectInput(viewer, redraw);
+  const flightStart = performance.now();
+  const fly = () => {
+    if (state.fly && flySphere(viewer, (performance.now() - flightStart) / 1000)) redraw();
+    requestAnimationFrame(fly);
+  };
+  requestAnimationFrame(fly);
   // The first frame is drawn at once, so a headless screenshot taken at load sees it.
   viewer.draw();
   show();
@@ -471,6 +579,18 @@ function main() {
   const frames = Number(params.get("bench"));
   if (frames > 0) report(bench(viewer, frames));
   if (params.get("report") === "light") report({ bands: DATA.light.bands, coeffs: viewer.light() });
+  if (params.get("report") === "sphere") {
+    report({ sphere: activeSphere(state), irradiance: viewer.sphereIrradiance(viewer.light()) });
+  }
+}
+
+// Moves the current file's sphere to where its flight is at `seconds`; false without one.
+function flySphere(viewer, seconds) {
+  const sphere = activeSphere(viewer.state);
+  if (!sphere) return false;
+  const centre = viewer.sphereOf(viewer.state.file).field.flightAt(seconds);
+  viewer.state.sphere = { centre, radius: sphere.radius };
+  return true;
 }
 
 try {

@@ -207,12 +207,12 @@ fn with_probe_spheres(
         Some(cpca) => cpca.relight(light)?,
         None => render::relight_baked(baked, light)?,
     };
-    let (lo, hi) = render::bounds(&baked.scene.positions);
+    let default_radius = render::default_sphere_radius(&baked.scene);
     let spheres: Vec<render::ProbeSphere> = spheres
         .iter()
         .map(|&(centre, radius)| render::ProbeSphere {
             centre,
-            radius: radius.unwrap_or(0.05 * (hi - lo).max_element()),
+            radius: radius.unwrap_or(default_radius),
         })
         .collect();
     let radiance = render::apply_albedo(baked, relit);

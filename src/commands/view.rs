@@ -76,11 +76,12 @@ pub(crate) fn run_view(args: ViewArgs) -> Result<()> {
     )?;
     let mut bakes = Vec::new();
     for path in &args.baked {
-        bakes.push((path.display().to_string(), glb::read_glb(path)?));
+        let probes = glb::probes::read_probes(path)?;
+        bakes.push((path.display().to_string(), glb::read_glb(path)?, probes));
     }
     let bands = bakes
         .iter()
-        .map(|(_, b)| b.metadata.bands)
+        .map(|(_, b, _)| b.metadata.bands)
         .max()
         .unwrap_or(1);
     let (light, map) = view_light(&args, bands)?;
@@ -92,18 +93,24 @@ pub(crate) fn run_view(args: ViewArgs) -> Result<()> {
     });
     let inputs: Vec<view::ViewerBake> = bakes
         .iter()
-        .map(|(name, baked)| view::ViewerBake {
+        .map(|(name, baked, probes)| view::ViewerBake {
             name: stem_name(name),
             baked,
+            probes: probes.as_ref(),
         })
         .collect();
     view::write_viewer(&args.output, &inputs, &light, sky.as_ref())?;
     let size = std::fs::metadata(&args.output)
         .map(|m| m.len())
         .unwrap_or(0);
+    let with_probes = inputs.iter().filter(|b| b.probes.is_some()).count();
     println!(
-        "viewer of {} file(s), light of {} bands{}, {:.1} MB -> {}",
+        "viewer of {} file(s){}, light of {} bands{}, {:.1} MB -> {}",
         inputs.len(),
+        match with_probes {
+            0 => String::new(),
+            n => format!(" ({n} with probes: a sphere lit by them)"),
+        },
         light.bands,
         if sky.is_some() {
             ", the map as the sky"

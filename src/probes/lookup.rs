@@ -68,17 +68,20 @@ impl ProbeSet {
                 .take(self.rows)
                 .enumerate()
                 .map(|(i, y_i)| {
-                    // The irradiance form's rows are convolved already.
-                    let factor = match self.form {
-                        ProbeForm::Radiance => {
-                            super::cosine_convolution((i as f64).sqrt().floor() as u32)
-                        }
-                        ProbeForm::Irradiance => 1.0,
-                    };
-                    factor * self.row_times_light(matrix, i, rgb, light) * y_i
+                    self.row_factor(i) * self.row_times_light(matrix, i, rgb, light) * y_i
                 })
                 .sum()
         })
+    }
+
+    /// What row `i` of a matrix is multiplied by to give the irradiance's SH: band `l`'s
+    /// clamped-cosine factor `A_l` for the radiance form, 1 for the irradiance form (its rows
+    /// are convolved already).
+    pub fn row_factor(&self, i: usize) -> f64 {
+        match self.form {
+            ProbeForm::Radiance => super::cosine_convolution((i as f64).sqrt().floor() as u32),
+            ProbeForm::Irradiance => 1.0,
+        }
     }
 }
 

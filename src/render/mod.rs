@@ -27,7 +27,9 @@ pub use self::image::{
     check_image_output, side_by_side, to_rgba8, tone_map, write_image, ToneMap, IMAGE_EXTENSIONS,
 };
 pub use camera::{bounds, Camera, DEFAULT_FOV_DEG};
-pub use probes::{probes_at, with_probe_spheres, ProbeSphere, SPHERE_ALBEDO};
+pub use probes::{
+    default_sphere_radius, probes_at, unit_sphere, with_probe_spheres, ProbeSphere, SPHERE_ALBEDO,
+};
 pub use raster::{preview, render, RenderParams};
 pub use relight::{apply_albedo, relight, relight_baked, tint_by};
 pub use sky::{draw_sky, pixel_ray, sky_radiance};

@@ -14,6 +14,17 @@ pub const SPHERE_ALBEDO: f32 = 0.8;
 /// Subdivisions of a test sphere's icosahedron (642 vertices).
 const SPHERE_SUBDIVISIONS: u32 = 3;
 
+/// A test sphere's radius where none is given: 5% of the scene's largest side.
+pub fn default_sphere_radius(scene: &Scene) -> f32 {
+    0.05 * scene.extent()
+}
+
+/// The test sphere at the origin with radius 1, as `with_probe_spheres` tessellates it: the
+/// web viewer draws this mesh moved and scaled.
+pub fn unit_sphere() -> Scene {
+    builtin::icosphere(Vec3::ZERO, 1.0, SPHERE_SUBDIVISIONS)
+}
+
 /// A test sphere: where it is and how big.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ProbeSphere {

@@ -24,7 +24,10 @@ use crate::error::{Error, Result};
 use crate::fs::write_atomically;
 use crate::light::sky::latlong_copy;
 use crate::light::{EnvImage, Mapping, ShLight};
+use crate::probes::ProbeSet;
 use crate::render::{bounds, Camera};
+
+mod probes;
 
 /// The page: markup and style, with `{{TITLE}}`, `{{SHADERS}}`, `{{DATA}}` and `{{SCRIPT}}`
 /// replaced when the file is written.
@@ -33,8 +36,10 @@ const PAGE: &str = include_str!("../../assets/viewer/viewer.html");
 const SH_SCRIPT: &str = include_str!("../../assets/viewer/sh.js");
 /// Camera, input handling and drawing.
 const VIEWER_SCRIPT: &str = include_str!("../../assets/viewer/viewer.js");
+/// The probes' lookup and the test sphere they light.
+const PROBES_SCRIPT: &str = include_str!("../../assets/viewer/probes.js");
 /// The shaders, each embedded as a `<script type="x-shader/...">` element of this id.
-const SHADERS: [(&str, &str); 9] = [
+const SHADERS: [(&str, &str); 11] = [
     (
         "tone-map",
         include_str!("../../assets/viewer/tone_map.glsl"),
@@ -56,6 +61,11 @@ const SHADERS: [(&str, &str); 9] = [
         "lightmap-fragment",
         include_str!("../../assets/viewer/lightmap.frag"),
     ),
+    ("sh-sum", include_str!("../../assets/viewer/sh_sum.glsl")),
+    (
+        "probe-sphere-vertex",
+        include_str!("../../assets/viewer/probe_sphere.vert"),
+    ),
     ("sky-vertex", include_str!("../../assets/viewer/sky.vert")),
     ("sky-fragment", include_str!("../../assets/viewer/sky.frag")),
     (
@@ -76,10 +86,12 @@ pub struct ViewerSky<'a> {
     pub yaw_pitch_roll: [f64; 3],
 }
 
-/// One baked file for the viewer, named as the page lists it.
+/// One baked file for the viewer, named as the page lists it, with its probes where it has
+/// them (the page then moves a test sphere through the scene lit by them).
 pub struct ViewerBake<'a> {
     pub name: String,
     pub baked: &'a BakedMesh,
+    pub probes: Option<&'a ProbeSet>,
 }
 
 /// The page's data: what `viewer.js` reads from the `prt-data` element.
@@ -89,6 +101,8 @@ struct PageData {
     /// The camera when the URL gives none: `render`'s framing of the first file.
     camera: PageCamera,
     bakes: Vec<PageBake>,
+    /// The unit test sphere, where a file has probes.
+    sphere: Option<probes::PageSphere>,
 }
 
 #[derive(Serialize)]
@@ -140,6 +154,7 @@ struct PageBake {
     albedo: Option<String>,
     /// Per-texel transfer, where the file has a lightmap: it replaces `transfer` in the page.
     lightmap: Option<PageLightmap>,
+    probes: Option<probes::PageProbes>,
 }
 
 #[derive(Serialize)]
@@ -192,6 +207,10 @@ pub fn viewer_html(
             target: camera.target.to_array(),
             fov: camera.vertical_fov_deg,
         },
+        sphere: bakes
+            .iter()
+            .any(|b| b.probes.is_some())
+            .then(probes::page_sphere),
         bakes: page_bakes,
     };
     let json = serde_json::to_string(&data)
@@ -204,7 +223,10 @@ pub fn viewer_html(
     Ok(PAGE
         .replace("{{TITLE}}", &escape_html(&title))
         .replace("{{SHADERS}}", &shader_elements())
-        .replace("{{SCRIPT}}", &format!("{SH_SCRIPT}\n{VIEWER_SCRIPT}"))
+        .replace(
+            "{{SCRIPT}}",
+            &format!("{SH_SCRIPT}\n{PROBES_SCRIPT}\n{VIEWER_SCRIPT}"),
+        )
         .replace("{{DATA}}", &script_safe(&json)))
 }
 
@@ -270,6 +292,14 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
         Ok(lightmap) => lightmap,
         Err(why) => return refuse(why),
     };
+    let probes = bake
+        .probes
+        .map(|p| probes::page_probes(p, &baked.scene, light_bands))
+        .transpose();
+    let probes = match probes {
+        Ok(probes) => probes,
+        Err(why) => return refuse(why),
+    };
     let (min, max) = bounds(&baked.scene.positions);
     let albedo = baked
         .metadata
@@ -289,6 +319,7 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
         transfer: base64_f32(transfer.coeffs().iter().copied()),
         albedo,
         lightmap,
+        probes,
     })
 }
 
@@ -388,6 +419,7 @@ mod tests {
             &[ViewerBake {
                 name,
                 baked: &baked,
+                probes: None,
             }],
             &light,
             None,
@@ -416,6 +448,7 @@ mod tests {
             let bake = ViewerBake {
                 name: "x.glb".into(),
                 baked,
+                probes: None,
             };
             viewer_html(&[bake], light, None)
         };
@@ -442,5 +475,32 @@ mod tests {
         empty.transfer = crate::bake::Transfer::zeros(3, 3, 0);
         assert!(viewer(&empty, &ShLight::constant(3, [1.0; 3])).is_err());
         assert!(viewer_html(&[], &ShLight::constant(3, [1.0; 3]), None).is_err());
+    }
+
+    #[test]
+    fn the_viewer_refuses_probes_it_could_not_light_a_sphere_with() {
+        let baked = sphere(3);
+        let light = ShLight::constant(3, [1.0; 3]);
+        let with = |probes: &ProbeSet| {
+            let bake = ViewerBake {
+                name: "p.glb".into(),
+                baked: &baked,
+                probes: Some(probes),
+            };
+            viewer_html(&[bake], &light, None)
+        };
+        let html = with(&ProbeSet::open_sky(3)).unwrap();
+        assert!(html.contains("\"probes\":{") && html.contains("\"sphere\":{"));
+        let wider = with(&ProbeSet::open_sky(4)).unwrap_err();
+        assert!(wider.to_string().contains("probes have 4 bands"), "{wider}");
+        let mut invalid = ProbeSet::open_sky(3);
+        invalid.status[0] = crate::probes::ProbeStatus::Invalid;
+        let none = with(&invalid).unwrap_err();
+        assert!(none.to_string().contains("none of its probes"), "{none}");
+        let mut broken = ProbeSet::open_sky(3);
+        broken.matrices[4] = f32::INFINITY;
+        assert!(with(&broken).is_err());
+        broken.matrices.pop();
+        assert!(with(&broken).is_err());
     }
 }

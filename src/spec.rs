@@ -303,8 +303,7 @@ impl BakeSpec {
     }
 
     /// Probes: valid, and only where there is occlusion for them to see (unshadowed transfer
-    /// has none: every probe would be the identity). Written into a baked mesh whole; the
-    /// scene baked in place and streamed bakes do not carry them yet.
+    /// has none: every probe would be the identity).
     fn check_probes(&self) -> Result<()> {
         let Some(probes) = &self.probes else {
             return Ok(());
@@ -314,13 +313,6 @@ impl BakeSpec {
             return Err(Error::Options(
                 "--probes with --mode unshadowed: nothing is occluded, so every probe would be \
                  the identity (bake shadowed or interreflected)"
-                    .into(),
-            ));
-        }
-        if self.container == Container::GltfInPlace {
-            return Err(Error::Options(
-                "--probes with a glTF scene baked in place: the probes go into a baked mesh's \
-                 .glb; the in-place writer does not carry them yet"
                     .into(),
             ));
         }

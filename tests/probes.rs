@@ -291,6 +291,74 @@ fn the_file_holds_the_probes_for_every_reader() {
     }
 }
 
+/// A glTF scene baked in place: the probes in the root's `extras.prt`, read back by our reader
+/// and the numpy recipe, equal to those of the same scene baked as a mesh; the file still
+/// passes the validator; `info`, `render --probe-sphere` and `view` find them.
+#[test]
+fn a_gltf_scene_baked_in_place_carries_its_probes() {
+    use prt_gpu::scene::gltf as gltf_scene;
+    use prt_gpu::spec::Container;
+    let dir = tempfile::tempdir().unwrap();
+    let input = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/gltf/2CylinderEngine.glb"
+    );
+    let (gltf, scene) = gltf_scene::load(std::path::Path::new(input)).unwrap();
+    let mut spec = spec(Mode::Shadowed, 32, ProbePlacement::Grid { spacing: 60.0 });
+    spec.container = Container::GltfInPlace;
+    let run = |spec: &BakeSpec, gltf| {
+        let (source, progress) = (DirectSource::Compute, &NoProgress);
+        pipeline::run(spec, scene.clone(), gltf, &CpuBackend, source, progress).unwrap()
+    };
+    let baked = run(&spec, Some(&gltf));
+    let path = dir.path().join("engine.glb");
+    pipeline::write(&spec, &baked, Some(&gltf), &path).unwrap();
+    let probes = baked.probes.as_ref().unwrap();
+    assert!(probes.len() > 100, "{}", probes.describe());
+    assert!(probes.status.contains(&ProbeStatus::Moved));
+    let read = glb::probes::read_probes(&path)
+        .unwrap()
+        .expect("probes in the scene");
+    assert_eq!(&read, probes);
+    assert!(glb::is_scene_file(&std::fs::read(&path).unwrap()));
+    spec.container = Container::Mesh;
+    assert_eq!(run(&spec, None).probes.as_ref(), Some(probes));
+    if let Some(report) = validate_gltf(&path) {
+        assert_eq!(report.num_errors, 0, "{}", report.listing());
+        assert_eq!(report.num_warnings, 0, "{}", report.listing());
+    }
+    if let Some(printed) = prt_gpu::testing::probes_reader_output(&path) {
+        let status: Vec<u8> = serde_json::from_value(printed["status"].clone()).unwrap();
+        let codes: Vec<u8> = probes.status.iter().map(|s| s.code()).collect();
+        assert_eq!(status, codes);
+    }
+    let d = dir.path();
+    let out = common::prt_gpu(&["info", "engine.glb"], d);
+    assert!(String::from_utf8_lossy(&out.stdout).contains(&probes.describe()));
+    let valid = probes
+        .status
+        .iter()
+        .position(|&s| s == ProbeStatus::Placed)
+        .unwrap();
+    let at = probes.positions[valid];
+    let sphere = format!("{},{},{},20", at.x, at.y, at.z);
+    for args in [
+        &[
+            "render",
+            "engine.glb",
+            "--probe-sphere",
+            &sphere,
+            "-o",
+            "e.png",
+        ][..],
+        &["view", "engine.glb", "-o", "e.html"],
+    ] {
+        let out = common::prt_gpu(args, d);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{args:?}: {stderr}");
+    }
+}
+
 #[test]
 fn probes_go_with_every_receiver_storage_and_layout_of_a_baked_mesh() {
     use prt_gpu::bake::Fit;
@@ -367,22 +435,6 @@ fn bad_probe_options_are_refused_in_one_line() {
             file: None,
             args: &["bake", "--probe-form", "irradiance", "-o", "o.glb"],
             expect: "ask for them with --probes",
-        },
-        BadInput {
-            case: "glTF in place",
-            file: None,
-            args: &[
-                "bake",
-                concat!(
-                    env!("CARGO_MANIFEST_DIR"),
-                    "/tests/data/gltf/BoxTextured.glb"
-                ),
-                "--probes",
-                "1",
-                "-o",
-                "o.glb",
-            ],
-            expect: "the in-place writer does not carry them yet",
         },
         BadInput {
             case: "streamed",

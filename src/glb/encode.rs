@@ -15,9 +15,12 @@ pub(super) fn encode_valid(stored: Stored, lightmap_uri: Option<&str>) -> Result
     validate_mesh(baked)?;
     let (mut bin, mut views) = encode_bin(baked, cpca.is_none(), precision);
     let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, precision, &mut bin, &mut views));
-    let probes = stored
-        .probes()
-        .map(|set| probes::encode(set, &mut bin, &mut views));
+    let probes = stored.probes().map(|set| {
+        probes::encode(set, |bytes| {
+            append_view(&mut bin, &mut views, |bin| bin.extend(bytes))
+        })
+    });
+    bin.resize(bin.len().next_multiple_of(4), 0);
     let shape = Shape::of(baked);
     let extras = Extras {
         cpca: cpca_extras,
@@ -113,6 +116,7 @@ pub(super) fn mesh_json<X: Serialize>(
             byte_length: bin_len as u64,
             uri: None,
         }],
+        extras: None,
     };
     serde_json::to_vec(&doc)
         .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))

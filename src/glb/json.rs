@@ -37,6 +37,9 @@ pub(super) struct Document<X> {
     pub(super) buffer_views: Vec<BufferViewJson>,
     #[serde(default)]
     pub(super) buffers: Vec<BufferJson>,
+    /// The root's: a scene baked in place keeps its `prt` here.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(super) extras: Option<serde_json::Value>,
 }
 
 #[derive(Serialize, Deserialize)]

@@ -1,5 +1,6 @@
-//! Probes in a baked mesh's file: three views of its BIN chunk named by `extras.prt.probes` —
-//! positions, status codes, matrices — and how to read them back.
+//! Probes in a baked file: three views of its BIN chunk named by `extras.prt.probes` (a baked
+//! mesh's first mesh's, a scene baked in place's root's) — positions, status codes, matrices —
+//! and how to read them back.
 
 use super::*;
 use crate::probes::{ProbeForm, ProbeGrid, ProbeSet, ProbeStatus};
@@ -38,22 +39,23 @@ pub struct GridExtras {
     pub dims: [u32; 3],
 }
 
-/// Appends `probes`' views to `bin` and `views`; what `extras.prt.probes` says of them.
+/// `probes`' three views, each appended by `push_view` (which returns its index); what
+/// `extras.prt.probes` says of them. A baked mesh appends them to its BIN chunk, a scene baked
+/// in place to its own.
 pub(super) fn encode(
     probes: &ProbeSet,
-    bin: &mut Vec<u8>,
-    views: &mut Vec<BufferViewJson>,
+    mut push_view: impl FnMut(Vec<u8>) -> usize,
 ) -> ProbesExtras {
-    let positions = append_view(bin, views, |bytes| {
-        put_f32s(bytes, probes.positions.iter().flat_map(|p| p.to_array()))
-    });
-    let status = append_view(bin, views, |bytes| {
-        bytes.extend(probes.status.iter().map(|s| s.code()))
-    });
-    let matrices = append_view(bin, views, |bytes| {
-        put_f32s(bytes, probes.matrices.iter().copied())
-    });
-    bin.resize(bin.len().next_multiple_of(4), 0);
+    let mut positions = Vec::with_capacity(12 * probes.len());
+    put_f32s(
+        &mut positions,
+        probes.positions.iter().flat_map(|p| p.to_array()),
+    );
+    let positions = push_view(positions);
+    let status = push_view(probes.status.iter().map(|s| s.code()).collect());
+    let mut matrices = Vec::with_capacity(4 * probes.matrices.len());
+    put_f32s(&mut matrices, probes.matrices.iter().copied());
+    let matrices = push_view(matrices);
     ProbesExtras {
         count: probes.len(),
         bands: probes.bands,
@@ -87,12 +89,12 @@ pub fn read_probes(path: &Path) -> Result<Option<ProbeSet>> {
 pub fn decode_probes(bytes: &[u8], path: &Path) -> Result<Option<ProbeSet>> {
     let (json, bin) = split_chunks(bytes, path)?;
     let doc = parse_document(json, path)?;
-    let Some(value) = doc
-        .meshes
-        .first()
-        .and_then(|mesh| mesh.extras.as_ref())
-        .and_then(|extras| extras.get("prt"))
-        .and_then(|prt| prt.get("probes"))
+    // A baked mesh's first mesh holds them; a scene baked in place, its root.
+    fn probes_in(extras: Option<&serde_json::Value>) -> Option<&serde_json::Value> {
+        extras?.get("prt")?.get("probes")
+    }
+    let Some(value) = probes_in(doc.meshes.first().and_then(|mesh| mesh.extras.as_ref()))
+        .or_else(|| probes_in(doc.extras.as_ref()))
     else {
         return Ok(None);
     };
@@ -207,7 +209,8 @@ pub const PYTHON_READER: &str = r#"import json, struct, sys, numpy as np
 data = open(sys.argv[1], "rb").read()
 n = struct.unpack_from("<I", data, 12)[0]  # JSON chunk length; BIN chunk data starts at 28 + n
 gltf, binary = json.loads(data[20:20 + n]), data[28 + n:]
-bv, probes = gltf["bufferViews"], gltf["meshes"][0]["extras"]["prt"]["probes"]
+prt = gltf["meshes"][0].get("extras", {}).get("prt", {})  # a baked mesh's; a scene baked in place: the root's
+bv, probes = gltf["bufferViews"], prt.get("probes") or gltf["extras"]["prt"]["probes"]
 view = lambda i, dtype: np.frombuffer(binary, dtype, bv[i]["byteLength"] // np.dtype(dtype).itemsize, bv[i].get("byteOffset", 0))
 P, C, R, B = probes["count"], probes["channels"], probes["rows"], probes["bands"]
 positions = view(probes["positions_buffer_view"], "<f4").reshape(P, 3)

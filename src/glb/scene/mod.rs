@@ -114,6 +114,10 @@ fn encode_scene(
     let mut root = gltf.root.clone();
     let repaired = embed_accessors(&mut root, &gltf.buffers, &mut bin).map_err(bad)?;
     embed_images(&mut root, gltf, &mut bin);
+    // Before the transfer: a streamed bake reserves its views last.
+    let probes = stored
+        .probes()
+        .map(|set| crate::glb::probes::encode(set, |bytes| bin.push(&bytes, None, None) as usize));
     let report = SceneWrite {
         repaired,
         ..add_transfer(&mut root, gltf, stored, vertex_map, &mut bin).map_err(bad)?
@@ -136,6 +140,9 @@ fn encode_scene(
             texcoord: texels.set,
             layout: crate::lightmap::LAYOUT.to_string(),
         });
+    }
+    if let Some(probes) = probes {
+        prt["probes"] = json!(probes);
     }
     root.extras = raw(&json!({ "prt": prt }))?;
     root.asset.generator = Some(format!(

@@ -198,13 +198,6 @@ impl Planned<'_> {
         progress: &dyn Progress,
     ) -> Result<Streamed> {
         check_container(self.spec, gltf)?;
-        if self.spec.probes.is_some() {
-            return Err(Error::Options(
-                "probes are baked after the whole transfer and written with it; a streamed bake \
-                 writes its transfer chunk by chunk"
-                    .into(),
-            ));
-        }
         let streamed = bake::stream::StreamedBake::plan(self.scene, &self.spec.options())?;
         let precision = self.spec.storage.precision;
         // Built at the first chunk, of its bands (with --bands auto, those chosen).
@@ -238,12 +231,29 @@ impl Planned<'_> {
             Bands::Auto { threshold } => Some(threshold),
             Bands::Fixed(_) => None,
         };
+        // Probes, once the transfer is known: an interreflected bake's exit light read back
+        // from its scratch file a chunk at a time.
+        let sampling = (self.spec.transfer.samples, self.spec.transfer.seed);
+        let mut bake_probes = |interreflected: Option<&mut bake::stream::Interreflected>,
+                               bands: u32| {
+            let spec = self.spec.probes.as_ref().expect("asked for");
+            let scene = streamed.scene();
+            let exit = interreflected
+                .map(|baked| probes::ExitLight::of_streamed(baked, &scene.albedo, bands, chunk))
+                .transpose()?;
+            let around = (scene, bands, exit.as_ref());
+            probes::bake_probes_around(around, spec, sampling, backend, progress)
+        };
         let sink = glb::stream::StreamSink {
             path,
             scene: gltf,
             precision,
             bands_auto,
             each_chunk: &mut each_chunk,
+            probes: match self.spec.probes {
+                Some(_) => Some(&mut bake_probes),
+                None => None,
+            },
         };
         let written = glb::stream::bake_streamed(&streamed, backend, chunk, sink, progress)?;
         Ok(Streamed {
@@ -258,6 +268,8 @@ impl Planned<'_> {
             ),
             half_float: half_float.map(|tally| tally.cost()),
             preview: preview.then(|| (streamed.into_scene(), radiance)),
+            probes: written.probes,
+            probe_seconds: written.probe_seconds,
         })
     }
 }
@@ -273,6 +285,9 @@ pub struct Streamed {
     /// The prepared scene and its radiance at the vertices under the preview light (albedo
     /// applied), when asked for: what [`render::preview`] would draw of the whole bake.
     pub preview: Option<(Scene, Vec<[f32; 3]>)>,
+    /// The probes in the file, and the seconds they took.
+    pub probes: Option<ProbeSet>,
+    pub probe_seconds: f64,
 }
 
 /// How a bake fits the memory it may use.
@@ -301,19 +316,27 @@ pub fn plan_memory(
         message: None,
     };
     let options = spec.options();
+    let probes = spec.probes.as_ref().map_or(0, |probes| {
+        let interreflected = options.mode == bake::Mode::Interreflected;
+        probes::memory_need(
+            probes,
+            scene,
+            (options.bands, options.samples),
+            interreflected,
+        )
+    });
     let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
-        .with_document(gltf.map_or(0, GltfScene::byte_size));
+        .with_document(gltf.map_or(0, GltfScene::byte_size))
+        .with_probes(probes);
     let Some(budget) = limit.or(available) else {
         return Ok(whole);
     };
     if need.whole() <= budget {
         return Ok(whole);
     }
-    let streamable = bake::stream::streams(&options)
-        && spec.storage.layout == Layout::PerVertex
-        && spec.probes.is_none();
-    let why_not = "only bakes at the vertices (no least-squares fit, lightmap or probes), \
-                   without --compress, stream in chunks";
+    let streamable = bake::stream::streams(&options) && spec.storage.layout == Layout::PerVertex;
+    let why_not = "only bakes at the vertices (no least-squares fit or lightmap), without \
+                   --compress, stream in chunks";
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;

@@ -359,6 +359,132 @@ fn a_gltf_scene_baked_in_place_carries_its_probes() {
     }
 }
 
+/// A streamed bake (`--memory-limit` below the whole bake's need) carries the probes: baked
+/// once the transfer is known (an interreflected bake's exit light read back from its scratch
+/// file, at the bands `--bands auto` keeps), written where the whole bake writes them. The
+/// file is the whole bake's byte for byte: the built-in scene as a mesh, shadowed and
+/// interreflected, with bands auto, lean half floats and irradiance probes, on the GPU; and a
+/// glTF scene in place.
+#[test]
+fn streamed_bakes_carry_the_probes_of_the_whole_bake() {
+    use prt_gpu::bake::stream::MemoryNeed;
+    const ENGINE: &str = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/gltf/2CylinderEngine.glb"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cases: [(Option<&str>, &[&str]); 6] = [
+        (None, &["--mode", "shadowed"]),
+        (None, &["--mode", "interreflected"]),
+        (None, &["--mode", "interreflected", "--bands", "auto"]),
+        (
+            None,
+            &[
+                "--mode",
+                "interreflected",
+                "--storage",
+                "lean",
+                "--precision",
+                "f16",
+                "--probe-form",
+                "irradiance",
+            ],
+        ),
+        (None, &["--mode", "interreflected", "--device", "gpu"]),
+        (
+            Some(ENGINE),
+            &["--mode", "interreflected", "--bounces", "1"],
+        ),
+    ];
+    for (input, extra) in cases {
+        if extra.contains(&"gpu") && common::gpu_baker().is_none() {
+            continue;
+        }
+        let (scene, document, spacing) = match input {
+            Some(path) => {
+                let (gltf, scene) = prt_gpu::scene::gltf::load(std::path::Path::new(path)).unwrap();
+                (scene, gltf.byte_size(), "60")
+            }
+            None => (builtin::default_scene(), 0, "0.5"),
+        };
+        let interreflected = extra.contains(&"interreflected");
+        let mut probe_spec = spec(
+            Mode::Shadowed,
+            64,
+            ProbePlacement::Grid {
+                spacing: spacing.parse().unwrap(),
+            },
+        );
+        let options = probe_spec.options();
+        let bands = match extra.contains(&"auto") {
+            true => prt_gpu::spec::AUTO_MAX_BANDS,
+            false => 4,
+        };
+        if extra.contains(&"irradiance") {
+            probe_spec.probes.as_mut().unwrap().form = ProbeForm::Irradiance;
+        }
+        let probes = prt_gpu::probes::memory_need(
+            probe_spec.probes.as_ref().unwrap(),
+            &scene,
+            (bands, 64),
+            interreflected,
+        );
+        let options = prt_gpu::bake::BakeOptions {
+            bands,
+            mode: if interreflected {
+                Mode::Interreflected
+            } else {
+                Mode::Shadowed
+            },
+            ..options
+        };
+        let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
+            .with_document(document)
+            .with_probes(probes);
+        let limit = need.streamed(2048).to_string();
+        let run = |output: &str, limit: &str| {
+            let mut args = vec!["bake", "--samples", "64", "--probes", spacing, "-o", output];
+            args.extend(input);
+            args.extend(["--memory-limit", limit]);
+            args.extend(extra);
+            let out = common::prt_gpu(&args, d);
+            let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+            assert!(out.status.success(), "{extra:?}: {stderr}");
+            stderr
+        };
+        let whole = run("whole.glb", "1T");
+        let streamed = run("streamed.glb", &limit);
+        assert!(
+            streamed.contains("chunks of 2048 receivers"),
+            "{extra:?}: {streamed}"
+        );
+        let probes_line = |stderr: &str| {
+            let line = stderr.lines().find(|l| l.starts_with("probes:"));
+            line.unwrap_or_else(|| panic!("{extra:?}: {stderr}"))
+                .split(';')
+                .next()
+                .unwrap()
+                .to_string()
+        };
+        assert_eq!(probes_line(&whole), probes_line(&streamed), "{extra:?}");
+        let same = std::fs::read(d.join("whole.glb")).unwrap()
+            == std::fs::read(d.join("streamed.glb")).unwrap();
+        assert!(
+            same,
+            "{extra:?}: the streamed file differs from the whole bake's"
+        );
+        let read = glb::probes::read_probes(&d.join("streamed.glb"))
+            .unwrap()
+            .unwrap();
+        assert_eq!(
+            read.channels,
+            if interreflected { 3 } else { 1 },
+            "{extra:?}"
+        );
+    }
+}
+
 #[test]
 fn probes_go_with_every_receiver_storage_and_layout_of_a_baked_mesh() {
     use prt_gpu::bake::Fit;
@@ -435,20 +561,6 @@ fn bad_probe_options_are_refused_in_one_line() {
             file: None,
             args: &["bake", "--probe-form", "irradiance", "-o", "o.glb"],
             expect: "ask for them with --probes",
-        },
-        BadInput {
-            case: "streamed",
-            file: None,
-            args: &[
-                "bake",
-                "--probes",
-                "1",
-                "--memory-limit",
-                "1M",
-                "-o",
-                "o.glb",
-            ],
-            expect: "lightmap or probes",
         },
         BadInput {
             case: "unshadowed",

@@ -39,6 +39,8 @@ pub struct MemoryNeed {
     /// A glTF scene's buffers and images (0 for a mesh): held as read, and copied into the
     /// written file's BIN chunk.
     pub document: u64,
+    /// Probes baked around the scene (`probes::memory_need`; 0 without).
+    pub probes: u64,
     /// What a streamed bake holds for every vertex whatever the chunk: an interreflected
     /// bake's previous bounce.
     pub held_streamed: u64,
@@ -86,6 +88,7 @@ impl MemoryNeed {
         MemoryNeed {
             fixed: fixed + v * errors,
             document: 0,
+            probes: 0,
             held_streamed: v * bounces_held,
             // The direct pass, its RGB transfer, and the file's bytes twice (encoded BIN,
             // then the whole container).
@@ -106,6 +109,14 @@ impl MemoryNeed {
         }
     }
 
+    /// The need with probes of `bytes` (`probes::memory_need`), held whatever the chunking.
+    pub fn with_probes(self, bytes: u64) -> MemoryNeed {
+        MemoryNeed {
+            probes: bytes,
+            ..self
+        }
+    }
+
     /// The need with a glTF scene's document of `bytes` (its buffers and images).
     pub fn with_document(self, bytes: usize) -> MemoryNeed {
         MemoryNeed {
@@ -115,15 +126,16 @@ impl MemoryNeed {
     }
 
     /// What a streamed bake holds whatever its chunk: the mesh, its BVH, the document as read
-    /// and in the file's BIN chunk (written in place, not wrapped again), the previous bounce.
+    /// and in the file's BIN chunk (written in place, not wrapped again), the previous bounce,
+    /// the probes.
     fn held(&self) -> u64 {
-        self.fixed + 2 * self.document + self.held_streamed
+        self.fixed + 2 * self.document + self.held_streamed + self.probes
     }
 
     /// The whole bake's need, every receiver at once.
     pub fn whole(&self) -> u64 {
         // The document as read, in the BIN chunk, and in the container around it.
-        self.fixed + 3 * self.document + self.receivers * self.per_receiver_whole
+        self.fixed + 3 * self.document + self.probes + self.receivers * self.per_receiver_whole
     }
 
     /// The need of a bake streamed `chunk` receivers at a time.
@@ -176,9 +188,13 @@ impl MemoryNeed {
                     format_bytes(2 * bytes)
                 ),
             };
+            let probes = match self.probes {
+                0 => String::new(),
+                bytes => format!(", the probes {}", format_bytes(bytes)),
+            };
             return Err(Error::Options(format!(
                 "--memory-limit {}: this bake needs at least {} (the mesh and its BVH \
-                 {}{document}{bounce}, one chunk of {MIN_CHUNK} receivers {})",
+                 {}{document}{bounce}{probes}, one chunk of {MIN_CHUNK} receivers {})",
                 format_bytes(limit),
                 format_bytes(self.streamed(MIN_CHUNK)),
                 format_bytes(self.fixed),

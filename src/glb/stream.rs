@@ -4,7 +4,6 @@
 //! and each chunk's coefficients go to their places in the planar transfer view. The bytes are
 //! those [`super::write_glb`] writes for the same bake.
 
-use std::cell::RefCell;
 use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
@@ -12,8 +11,8 @@ use std::time::Instant;
 use super::scene::stream::SceneStream;
 use super::scene::SceneWrite;
 use super::{
-    check_finite_coeffs, encode_json, encode_mesh_views, glb_head, groups, planar_bytes,
-    planar_view, put_planar_block, validate_shape, Precision, Shape,
+    array_view, check_finite_coeffs, encode_json, encode_mesh_views, glb_head, groups,
+    planar_bytes, planar_view, put_planar_block, validate_shape, Precision, Shape, ARRAY_BUFFER,
 };
 use crate::bake::adaptive::{AdaptiveReport, ReceiverErrors};
 use crate::bake::spill::Spill;
@@ -24,6 +23,7 @@ use crate::bake::{
 };
 use crate::error::{Error, Result};
 use crate::fs::AtomicFile;
+use crate::probes::ProbeSet;
 use crate::scene::gltf::GltfScene;
 use crate::sh::coeff_count;
 
@@ -41,8 +41,13 @@ pub struct GlbStream {
 
 impl GlbStream {
     /// Starts the file at `path` for the mesh and transfer shape of `shape`, the transfer at
-    /// `precision`.
-    fn create(path: &Path, shape: Shape, precision: Precision) -> Result<GlbStream> {
+    /// `precision`, with `probes` after it (as [`super::write_glb`] places them).
+    fn create(
+        path: &Path,
+        shape: Shape,
+        precision: Precision,
+        probes: Option<&ProbeSet>,
+    ) -> Result<GlbStream> {
         validate_shape(shape)?;
         let transfer = shape.transfer;
         let v = shape.scene.positions.len();
@@ -51,22 +56,30 @@ impl GlbStream {
         let transfer_len = planar_bytes(v, transfer.channels, transfer.bands, precision)
             .expect("validate_shape bounds the file's size");
         views.push(planar_view(bin.len(), transfer_len, precision));
-        let bin_len = bin.len() + transfer_len;
-        let json = encode_json(
-            shape,
-            None,
-            super::encode::Extras::default(),
-            views,
-            bin_len,
-            precision,
-        )?;
-        // Every view's length is a multiple of 4, so the BIN chunk needs no padding.
+        // Every view's length is a multiple of 4, so the probes start aligned after the
+        // transfer; their own views are padded to 4 as the whole file pads them.
+        let tail_start = bin.len() + transfer_len;
+        let mut tail = Vec::new();
+        let probes = probes.map(|set| {
+            super::probes::encode(set, |bytes| {
+                tail.resize(tail.len().next_multiple_of(4), 0);
+                let start = tail_start + tail.len();
+                tail.extend_from_slice(&bytes);
+                views.push(array_view(start, bytes.len(), None, ARRAY_BUFFER));
+                views.len() - 1
+            })
+        });
+        tail.resize(tail.len().next_multiple_of(4), 0);
+        let bin_len = tail_start + tail.len();
+        let extras = super::encode::Extras { cpca: None, probes };
+        let json = encode_json(shape, None, extras, views, bin_len, precision)?;
         let head = glb_head(json, bin_len)?;
         let total = head.len() + bin_len;
         let mut file = AtomicFile::create(path)?;
         file.set_len(total as u64)?;
         file.write_at(0, &head)?;
         file.write_at(head.len() as u64, &bin)?;
+        file.write_at((head.len() + tail_start) as u64, &tail)?;
         Ok(GlbStream {
             file,
             transfer_start: (head.len() + bin.len()) as u64,
@@ -117,7 +130,14 @@ pub struct StreamSink<'a> {
     /// the energy above them.
     pub bands_auto: Option<f64>,
     pub each_chunk: &'a mut dyn FnMut(&Transfer) -> Result<()>,
+    /// Bakes the probes the file holds, once the transfer is known and before the file
+    /// starts: given an interreflected bake's transfer (to read its exit light from) and the
+    /// bands the file keeps.
+    pub probes: Option<&'a mut ProbeStage<'a>>,
 }
+
+/// What bakes a streamed file's probes ([`StreamSink::probes`]).
+pub type ProbeStage<'a> = dyn FnMut(Option<&mut Interreflected>, u32) -> Result<ProbeSet> + 'a;
 
 /// The file a streamed bake writes: a baked mesh, its chunks written in place as they come,
 /// or a glTF scene, whose transfer views are filled at the end in the scene's vertex order.
@@ -131,7 +151,7 @@ impl<'m> Streaming<'m> {
     /// `chunk` scene vertices at a time.
     fn create(
         bake: &StreamedBake,
-        metadata: &BakeMetadata,
+        (metadata, probes): (&BakeMetadata, Option<&ProbeSet>),
         sink: &StreamSink,
         vertex_map: &'m [u32],
         chunk: usize,
@@ -150,13 +170,13 @@ impl<'m> Streaming<'m> {
                     metadata,
                     lightmap: None,
                 };
-                Streaming::Mesh(GlbStream::create(sink.path, shape, sink.precision)?)
+                Streaming::Mesh(GlbStream::create(sink.path, shape, sink.precision, probes)?)
             }
             Some(gltf) => Streaming::Scene(SceneStream::create(
                 sink.path,
                 gltf,
                 (shape_transfer, metadata),
-                sink.precision,
+                (sink.precision, probes),
                 vertex_map,
                 chunk,
             )?),
@@ -185,7 +205,7 @@ pub fn bake_streamed(
     bake: &StreamedBake,
     backend: &dyn Backend,
     chunk: usize,
-    sink: StreamSink,
+    mut sink: StreamSink,
     progress: &dyn Progress,
 ) -> Result<StreamedWrite> {
     let started = Instant::now();
@@ -199,7 +219,7 @@ pub fn bake_streamed(
     }
     // Interreflection finishes every bounce before the file starts: the file records how
     // many bounces ran, and each bounce reads every vertex's last.
-    let mut interreflected = match bake.mode() {
+    let interreflected = match bake.mode() {
         Mode::Interreflected => Some(bake.interreflected(chunk, backend, progress)?),
         _ => None,
     };
@@ -212,27 +232,22 @@ pub fn bake_streamed(
         .step_by(chunk)
         .map(|first| first..(first + chunk).min(receivers))
         .collect();
-    let mut rays_cast = 0;
-    let target = bake.target_error();
-    let adaptive = RefCell::new(ReceiverErrors::default());
-    let mut next_chunk = |range: Range<usize>| -> Result<Transfer> {
-        match &mut interreflected {
-            Some(baked) => baked.chunk(range, metadata.channels),
-            None => {
-                let (transfer, rays, receivers) = bake.chunk(range, backend, progress)?;
-                rays_cast += rays;
-                adaptive.borrow_mut().extend(receivers.unwrap_or_default());
-                Ok(transfer)
-            }
-        }
+    let mut source = ChunkSource {
+        bake,
+        backend,
+        progress,
+        interreflected,
+        rays_cast: 0,
+        adaptive: ReceiverErrors::default(),
     };
+    let target = bake.target_error();
     // --bands auto: the bands are known once every chunk is baked, and the file's layout
     // depends on them; an error target: the file records the mean samples of all receivers.
     // The chunks then wait in a scratch file (at the most bands).
     let mut held = match sink.bands_auto.is_some() || target.is_some() {
         true => Some(HeldChunks::bake(
             &ranges,
-            &mut next_chunk,
+            &mut |range| source.next(range, metadata.channels),
             &metadata,
             sink.bands_auto,
         )?),
@@ -241,17 +256,23 @@ pub fn bake_streamed(
     if let Some(held) = &held {
         metadata.bands = held.bands;
     }
-    let adaptive = target.map(|target| AdaptiveReport::of(&adaptive.borrow(), &target));
+    let adaptive = target.map(|target| AdaptiveReport::of(&source.adaptive, &target));
     if let Some(adaptive) = &adaptive {
         metadata.samples = adaptive.samples_mean.round() as u32;
     }
+    let probes_started = Instant::now();
+    let probes = match sink.probes.as_mut() {
+        Some(bake_probes) => Some(bake_probes(source.interreflected.as_mut(), metadata.bands)?),
+        None => None,
+    };
+    let probe_seconds = probes_started.elapsed().as_secs_f64();
     let (_, vertex_map, _) = bake.prepared();
-    let mut file = Streaming::create(bake, &metadata, &sink, vertex_map, chunk)?;
+    let mut file = Streaming::create(bake, (&metadata, probes.as_ref()), &sink, vertex_map, chunk)?;
     for range in ranges {
         let first = range.start;
         let transfer = match &mut held {
             Some(held) => held.read(range, metadata.channels)?,
-            None => next_chunk(range)?,
+            None => source.next(range, metadata.channels)?,
         };
         (sink.each_chunk)(&transfer)?;
         file.put(first, &transfer)?;
@@ -261,13 +282,48 @@ pub fn bake_streamed(
     Ok(StreamedWrite {
         report: BakeReport {
             adaptive,
-            ..streamed_report(bake, backend, (rays_cast, seconds), interreflected)
+            ..streamed_report(
+                bake,
+                backend,
+                (source.rays_cast, seconds),
+                source.interreflected,
+            )
         },
         scene_write: written,
         bands_chosen: held
             .filter(|_| sink.bands_auto.is_some())
             .map(|held| (held.bands, held.beyond)),
+        probes,
+        probe_seconds,
     })
+}
+
+/// Where a streamed bake's chunks come from: an interreflected bake's scratch file, or the
+/// backend, a chunk of receivers at a time (tallying rays and, with an error target, each
+/// receiver's samples and error).
+struct ChunkSource<'b> {
+    bake: &'b StreamedBake,
+    backend: &'b dyn Backend,
+    progress: &'b dyn Progress,
+    interreflected: Option<Interreflected>,
+    rays_cast: u64,
+    adaptive: ReceiverErrors,
+}
+
+impl ChunkSource<'_> {
+    /// The transfer of the receivers `range`, `channels` of it.
+    fn next(&mut self, range: Range<usize>, channels: u32) -> Result<Transfer> {
+        match &mut self.interreflected {
+            Some(baked) => baked.chunk(range, channels),
+            None => {
+                let (transfer, rays, receivers) =
+                    self.bake.chunk(range, self.backend, self.progress)?;
+                self.rays_cast += rays;
+                self.adaptive.extend(receivers.unwrap_or_default());
+                Ok(transfer)
+            }
+        }
+    }
 }
 
 /// The report of a streamed bake that cast `rays_cast` rays (its bounces' own count instead
@@ -365,4 +421,7 @@ pub struct StreamedWrite {
     pub scene_write: Option<(SceneWrite, f64)>,
     /// With `--bands auto`: the bands kept and the fraction of the energy left above them.
     pub bands_chosen: Option<(u32, f64)>,
+    /// The probes in the file, and the seconds they took.
+    pub probes: Option<ProbeSet>,
+    pub probe_seconds: f64,
 }

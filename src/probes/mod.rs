@@ -8,11 +8,13 @@
 //! geometry; it is moved just past the nearest of those surfaces when that lies within half a
 //! grid cell, as engines do, and marked invalid otherwise.
 
+mod exit;
 pub mod gpu;
 mod lookup;
 mod placement;
 pub mod transfer;
 
+pub use exit::ExitLight;
 pub use placement::{grid_points, ProbeGrid, ProbeStatus, BACK_FACE_LIMIT, POINT_REACH};
 pub use transfer::{cosine_convolution, IRRADIANCE_BANDS};
 
@@ -20,7 +22,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::bake::bounce::Hit;
-use crate::bake::{Backend, BakedMesh, DirectInputs, Mode, Progress};
+use crate::bake::{Backend, BakedMesh, DirectInputs, Progress};
 use crate::bvh::Bvh;
 use crate::error::{Error, Result};
 use crate::sampling::{stratified_sphere, Estimator, SampleSet, Sampling};
@@ -188,6 +190,41 @@ pub fn parse_points(text: &str) -> std::result::Result<Vec<[f32; 3]>, String> {
     Ok(points)
 }
 
+/// Bytes baking `spec`'s probes around `scene` at `bands` from `samples` directions holds at
+/// most (the bake's memory estimate adds them, streamed or whole): every probe's matrix as
+/// stored (three channels at most) with its position and status; a batch's hits and full
+/// matrices in flight; the tree the probes cast through and their sample tables; and an
+/// interreflected bake's exit light.
+pub fn memory_need(
+    spec: &ProbeSpec,
+    scene: &Scene,
+    (bands, samples): (u32, u32),
+    interreflected: bool,
+) -> u64 {
+    let count = match &spec.placement {
+        ProbePlacement::Grid { spacing } => ProbeGrid::over(scene, *spacing)
+            .map_or(0, |grid| grid.dims.iter().map(|&d| d as u64).product()),
+        ProbePlacement::Points(points) => points.len() as u64,
+    };
+    let n = coeff_count(bands) as u64;
+    let rows = match spec.form {
+        ProbeForm::Radiance => n,
+        ProbeForm::Irradiance => coeff_count(bands.min(IRRADIANCE_BANDS)) as u64,
+    };
+    let samples = Sampling::Stratified.samples_used(samples) as u64;
+    let stored = count * (3 * rows * n * 4 + 13);
+    // Each hit twice (as the backend answers it and joined per probe), 16 bytes with its
+    // sample; the f64 matrix before it is shaped.
+    let batch = count.min(PROBES_PER_BATCH as u64) * (2 * 16 * samples + 3 * n * n * 8);
+    let tree = 160 * scene.triangle_count() as u64;
+    let tables = samples * (16 + 4 * n);
+    let exit = match interreflected {
+        true => scene.vertex_count() as u64 * 3 * n * 4,
+        false => 0,
+    };
+    stored + batch + tree + tables + exit
+}
+
 /// Probes per batch of rays: bounds the hits held at once (about 6 KiB per probe at 1,024
 /// samples).
 const PROBES_PER_BATCH: usize = 4096;
@@ -198,13 +235,26 @@ const PROBES_PER_BATCH: usize = 4096;
 pub fn bake_probes(
     baked: &BakedMesh,
     spec: &ProbeSpec,
+    sampling: (u32, u64),
+    backend: &dyn Backend,
+    progress: &dyn Progress,
+) -> Result<ProbeSet> {
+    let exit = ExitLight::of(baked);
+    let around = (&baked.scene, baked.transfer.bands(), exit.as_ref());
+    bake_probes_around(around, spec, sampling, backend, progress)
+}
+
+/// Bakes probes around a prepared `scene` at `bands`, `exit` the light its surfaces send on
+/// (an interreflected bake's; `None`: they send none), as `spec` asks. What
+/// [`bake_probes`] does for a whole bake, and a streamed bake does with its scratch file.
+pub fn bake_probes_around(
+    (scene, bands, exit): (&Scene, u32, Option<&ExitLight>),
+    spec: &ProbeSpec,
     (samples, seed): (u32, u64),
     backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<ProbeSet> {
     spec.validate()?;
-    let scene = &baked.scene;
-    let bands = baked.transfer.bands();
     let (grid, points) = match &spec.placement {
         ProbePlacement::Grid { spacing } => {
             let grid = ProbeGrid::over(scene, *spacing)?;
@@ -212,7 +262,6 @@ pub fn bake_probes(
         }
         ProbePlacement::Points(points) => (None, points.iter().map(|&p| Vec3::from(p)).collect()),
     };
-    let exit = ExitLight::of(baked);
     let samples = Sampling::Stratified.samples_used(samples);
     let directions = stratified_sphere(samples, seed);
     let sight = Sight::new(scene, bands, directions);
@@ -227,7 +276,7 @@ pub fn bake_probes(
             (bands.min(IRRADIANCE_BANDS) * bands.min(IRRADIANCE_BANDS)) as usize
         }
     };
-    let channels = exit.as_ref().map_or(1, |e| e.channels);
+    let channels = exit.map_or(1, |e| e.channels);
     let mut matrices = Vec::with_capacity(points.len() * channels * rows * n);
     for batch in points.chunks(PROBES_PER_BATCH) {
         let seen = sight.cast(batch, backend)?;
@@ -237,7 +286,7 @@ pub fn bake_probes(
             .map(|probe| match probe.status {
                 ProbeStatus::Invalid => vec![0.0; channels * rows * n],
                 _ => {
-                    let full = sight.matrix(&probe.hits, exit.as_ref(), channels);
+                    let full = sight.matrix(&probe.hits, exit, channels);
                     shaped(full, spec.form, n, channels)
                 }
             })
@@ -269,42 +318,6 @@ fn shaped(full: Vec<f64>, form: ProbeForm, n: usize, channels: usize) -> Vec<f32
         ProbeForm::Irradiance => transfer::irradiance_rows(&full, n, channels).1,
     };
     kept.into_iter().map(|x| x as f32).collect()
-}
-
-/// The exit transfer of the scene's vertices, `[vertex][channel][k]`: radiance leaving a
-/// vertex is `sum_k exit_k l_k`. Interreflected bakes only; a shadowed bake's surfaces reflect
-/// nothing a probe sees. One channel where every albedo is grey (the probes' lean form: the
-/// light's colour then passes unchanged), three otherwise.
-struct ExitLight {
-    values: Vec<f32>,
-    channels: usize,
-}
-
-impl ExitLight {
-    fn of(baked: &BakedMesh) -> Option<ExitLight> {
-        if baked.metadata.mode != Mode::Interreflected {
-            return None;
-        }
-        let transfer = &baked.transfer;
-        let albedo = &baked.scene.albedo;
-        let grey = albedo.iter().all(|a| a.x == a.y && a.y == a.z);
-        let channels = if grey { 1 } else { 3 };
-        let stored_channels = transfer.channels() as usize;
-        let n = coeff_count(transfer.bands());
-        let mut values = Vec::with_capacity(transfer.vertex_count() * channels * n);
-        for (v, vertex_albedo) in albedo.iter().enumerate().take(transfer.vertex_count()) {
-            for (c, &tint) in vertex_albedo.to_array().iter().enumerate().take(channels) {
-                let stored = transfer.vertex_channel(v, c.min(stored_channels - 1));
-                let scale = if baked.metadata.albedo_free {
-                    tint
-                } else {
-                    1.0
-                };
-                values.extend(stored.iter().map(|t| t * scale));
-            }
-        }
-        Some(ExitLight { values, channels })
-    }
 }
 
 /// What a probe's rays are cast with: the scene's tree, the sphere's directions split into

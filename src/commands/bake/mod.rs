@@ -255,6 +255,7 @@ fn report_streamed(
     if let Some(cost) = &streamed.half_float {
         eprintln!("{cost}");
     }
+    print_probes_line(streamed.probes.as_ref(), streamed.probe_seconds);
     if let (Some(path), Some((scene, radiance))) = (&execution.preview, &streamed.preview) {
         let image = match baker {
             Some(baker) => render_radiance_preview(&baker.context, scene, radiance),

@@ -14,12 +14,16 @@ pub(super) fn print_shaping_lines(baked: &pipeline::Baked) {
     if let Some(compressed) = &baked.compressed {
         eprintln!("{compressed}");
     }
-    if let Some(probes) = &baked.probes {
+    print_probes_line(baked.probes.as_ref(), baked.probe_seconds);
+}
+
+/// The probes a bake made, if it made any.
+pub(super) fn print_probes_line(probes: Option<&prt_gpu::probes::ProbeSet>, seconds: f64) {
+    if let Some(probes) = probes {
         eprintln!(
-            "probes: {}; {} rays each, in {:.2} s",
+            "probes: {}; {} rays each, in {seconds:.2} s",
             probes.describe(),
             probes.samples,
-            baked.probe_seconds
         );
     }
 }

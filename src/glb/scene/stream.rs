@@ -15,6 +15,7 @@ use crate::error::Result;
 use crate::fs::{check_destination, AtomicFile};
 use crate::glb::{check_finite_coeffs, glb_head, groups, Stored};
 use crate::precision::Precision;
+use crate::probes::ProbeSet;
 use crate::scene::gltf::GltfScene;
 use crate::scene::prepare::DROPPED;
 use crate::scene::Scene;
@@ -40,13 +41,14 @@ pub struct SceneStream<'m> {
 
 impl<'m> SceneStream<'m> {
     /// Starts `gltf` baked in place at `path`, its transfer of the shape of `shape` (no
-    /// coefficients) at `precision`; scene vertex `i` is baked vertex `vertex_map[i]`. The
+    /// coefficients) at `precision`, with `probes`; scene vertex `i` is baked vertex
+    /// `vertex_map[i]`. The
     /// views are later filled `block` scene vertices at a time.
     pub fn create(
         path: &Path,
         gltf: &GltfScene,
         (shape, metadata): (TransferShape, &BakeMetadata),
-        precision: Precision,
+        (precision, probes): (Precision, Option<&ProbeSet>),
         vertex_map: &'m [u32],
         block: usize,
     ) -> Result<SceneStream<'m>> {
@@ -65,7 +67,7 @@ impl<'m> SceneStream<'m> {
             streaming: true,
             ..Bin::default()
         };
-        let stored = Stored::streamed(&baked, precision);
+        let stored = Stored::streamed(&baked, precision).with_probes(probes)?;
         let (json, bin, report) = encode_scene(gltf, stored, vertex_map, None, streaming)?;
         let bin_len = bin.len().next_multiple_of(4);
         let head = glb_head(json, bin_len)?;

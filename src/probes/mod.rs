@@ -212,17 +212,23 @@ pub fn memory_need(
         ProbeForm::Irradiance => coeff_count(bands.min(IRRADIANCE_BANDS)) as u64,
     };
     let samples = Sampling::Stratified.samples_used(samples) as u64;
-    let stored = count * (3 * rows * n * 4 + 13);
-    // Each hit twice (as the backend answers it and joined per probe), 16 bytes with its
-    // sample; the f64 matrix before it is shaped.
-    let batch = count.min(PROBES_PER_BATCH as u64) * (2 * 16 * samples + 3 * n * n * 8);
+    // Three channels only where interreflected light comes off coloured surfaces.
+    let grey = scene.albedo.iter().all(|a| a.x == a.y && a.y == a.z);
+    let channels = if interreflected && !grey { 3 } else { 1 };
+    let stored = count * (channels * rows * n * 4 + 13);
+    // Each hit of 16 bytes (with its sample) as the backend answers it (where a growing
+    // vector may hold twice its length) and joined per probe, and the batch's matrices until
+    // they join the set; per thread, one probe's f64 matrix before it is shaped.
+    let hits = 3 * 16 * samples;
+    let batch = count.min(PROBES_PER_BATCH as u64) * (hits + channels * rows * n * 4);
+    let threads = rayon::current_num_threads() as u64 * channels * n * n * 8;
     let tree = 160 * scene.triangle_count() as u64;
     let tables = samples * (16 + 4 * n);
     let exit = match interreflected {
-        true => scene.vertex_count() as u64 * 3 * n * 4,
+        true => scene.vertex_count() as u64 * channels * n * 4,
         false => 0,
     };
-    stored + batch + tree + tables + exit
+    stored + batch + threads + tree + tables + exit
 }
 
 /// Probes per batch of rays: bounds the hits held at once (about 6 KiB per probe at 1,024
@@ -280,7 +286,7 @@ pub fn bake_probes_around(
     let mut matrices = Vec::with_capacity(points.len() * channels * rows * n);
     for batch in points.chunks(PROBES_PER_BATCH) {
         let seen = sight.cast(batch, backend)?;
-        let placed = placement::place(batch, &seen, reach, &sight, backend)?;
+        let placed = placement::place(batch, seen, reach, &sight, backend)?;
         let batch_matrices: Vec<Vec<f32>> = placed
             .par_iter()
             .map(|probe| match probe.status {
@@ -378,7 +384,11 @@ impl<'s> Sight<'s> {
         }
         Ok(halves
             .chunks(2)
-            .map(|pair| pair.iter().flatten().copied().collect())
+            .map(|pair| {
+                let mut hits = Vec::with_capacity(pair.iter().map(Vec::len).sum());
+                pair.iter().for_each(|half| hits.extend_from_slice(half));
+                hits
+            })
             .collect())
     }
 

@@ -119,32 +119,38 @@ pub(super) struct Placed {
 /// invalid where that fails.
 pub(super) fn place(
     points: &[Vec3],
-    seen: &[ProbeHits],
+    seen: Vec<ProbeHits>,
     reach: f32,
     sight: &Sight,
     backend: &dyn Backend,
 ) -> Result<Vec<Placed>> {
     let samples = sight.samples.len();
+    let mut moves = Vec::new();
+    // Each probe takes its hits over (they are a batch's largest allocation); an invalid one
+    // keeps none.
     let mut placed: Vec<Placed> = points
         .iter()
         .zip(seen)
-        .map(|(&position, hits)| Placed {
-            position,
-            status: ProbeStatus::Placed,
-            hits: hits.clone(),
+        .enumerate()
+        .map(|(index, (&position, hits))| {
+            if !inside(sight, &hits, samples) {
+                let status = ProbeStatus::Placed;
+                return Placed {
+                    position,
+                    status,
+                    hits,
+                };
+            }
+            if let Some(to) = way_out(sight, position, &hits, reach) {
+                moves.push((index, to));
+            }
+            Placed {
+                position,
+                status: ProbeStatus::Invalid,
+                hits: Vec::new(),
+            }
         })
         .collect();
-    let mut moves = Vec::new();
-    for (index, probe) in placed.iter_mut().enumerate() {
-        if !inside(sight, &probe.hits, samples) {
-            continue;
-        }
-        probe.status = ProbeStatus::Invalid;
-        probe.hits.clear();
-        if let Some(to) = way_out(sight, probe.position, &seen[index], reach) {
-            moves.push((index, to));
-        }
-    }
     if moves.is_empty() {
         return Ok(placed);
     }

@@ -84,6 +84,8 @@ install_pinned() { # DIR WHAT
 install_pinned ci/gltf-validator "the glTF-Validator"
 # X_ITE, the X3D browser the X3D export is loaded in (tests/viewer.rs).
 install_pinned ci/x3d "X_ITE"
+# three.js, the engine relit lightmaps are loaded in (tests/lightmaps.rs).
+install_pinned ci/three "three.js"
 
 # Mesa's drivers complain on stderr without a runtime directory (headless machines).
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"

@@ -5,6 +5,7 @@
 
 mod common;
 
+use std::path::{Path, PathBuf};
 use std::process::Output;
 
 use common::prt_gpu;
@@ -267,3 +268,169 @@ fn bad_lightmap_requests_fail_cleanly() {
     assert!(stderr.contains("m.lightmap.exr"), "{stderr}");
     dir.close().unwrap();
 }
+
+/// three.js, installed by ci/test.sh (npm ci in ci/three): its module build and its addons;
+/// `None` with a printed reason where it is missing, except under CI: a panic.
+fn three_or_skip() -> Option<(PathBuf, PathBuf)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("ci/three/node_modules/three");
+    let (module, addons) = (
+        root.join("build/three.module.js"),
+        root.join("examples/jsm/"),
+    );
+    if module.is_file() && addons.is_dir() {
+        return Some((module, addons));
+    }
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "three.js is missing under CI (ci/test.sh installs it)"
+    );
+    eprintln!("skipping: three.js is not installed (npm ci --prefix ci/three)");
+    None
+}
+
+/// A relit lightmap for engines (`render --light ... -o relit.glb` on a lightmapped bake): the
+/// texels relit, as an RGB OpenEXR image beside the copy, which names it. OpenEXR's own reader
+/// reads the texels `render` relights; three.js loads the copy with its glTF loader and the
+/// image with its EXR loader, draws it with a stock MeshBasicMaterial and a light map, and
+/// the screenshot matches `prt-gpu render` of the bake within the web viewer's tolerance.
+#[test]
+fn a_relit_lightmap_loads_in_three_js_and_matches_render() {
+    use common::pixels::{has_contrast, Difference};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let teapot = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
+    let run = |args: &[&str]| succeeded(&prt_gpu(args, d));
+    run(&[
+        "bake",
+        teapot,
+        "--samples",
+        "128",
+        "--lightmap",
+        "128",
+        "-o",
+        "lm.glb",
+    ]);
+    let light = [
+        "--sky",
+        "0.6,0.7,0.9",
+        "--ground",
+        "0.2,0.15,0.1",
+        "--sun",
+        "0.5,0.8,0.3",
+    ];
+    run(&[&["light", "--bands", "4", "-o", "light.json"][..], &light].concat());
+    run(&[
+        "render",
+        "lm.glb",
+        "--light",
+        "light.json",
+        "-o",
+        "relit.glb",
+    ]);
+    assert!(d.join("relit.radiance.exr").is_file());
+    let baked = read_glb(&d.join("lm.glb")).unwrap();
+    let texels = baked.lightmap.as_ref().unwrap();
+    let sh = prt_gpu::light::read_json(&d.join("light.json")).unwrap();
+    let expected = prt_gpu::render::relight(&texels.transfer, &sh).unwrap();
+
+    // The copy names the image; OpenEXR reads the relit texels back.
+    let relit = read_glb(&d.join("relit.glb")).unwrap();
+    assert_eq!(relit.scene.positions, baked.scene.positions);
+    if let Some(report) = common::validate_gltf(&d.join("relit.glb")) {
+        assert_eq!(report.num_errors, 0, "{}", report.listing());
+    }
+    if prt_gpu::testing::python_with(&["numpy", "OpenEXR"]) {
+        let read = prt_gpu::testing::python_json(RELIT_LIGHTMAP_READER, &d.join("relit.glb"));
+        let size: [u32; 2] = serde_json::from_value(read["size"].clone()).unwrap();
+        assert_eq!(size, [texels.width, texels.height]);
+        let rgb: Vec<[f32; 3]> = serde_json::from_value(read["rgb"].clone()).unwrap();
+        assert_eq!(rgb, expected, "the image holds the texels render relights");
+        assert_eq!(read["alpha"], 1.0);
+    }
+
+    // three.js draws it as render does.
+    let Some(chromium) = prt_gpu::testing::Chromium::find_or_skip() else {
+        return;
+    };
+    let Some((three, addons)) = three_or_skip() else {
+        return;
+    };
+    // The loaders finish after the page's load event; virtual time lets them.
+    let chromium = chromium.after_virtual_time(30_000);
+    let (width, height) = (320u32, 240u32);
+    let mut camera = prt_gpu::render::Camera::framing_scene(&baked.scene);
+    camera.eye = camera.target + glam::Quat::from_rotation_y(0.7) * (camera.eye - camera.target);
+    let distance = camera.eye.distance(camera.target);
+    let page = include_str!("data/three_lightmap_page.html")
+        .replace("{{THREE}}", &format!("file://{}", three.display()))
+        .replace("{{ADDONS}}", &format!("file://{}", addons.display()))
+        .replace("{{GLB}}", "relit.glb")
+        .replace("{{WIDTH}}", &width.to_string())
+        .replace("{{HEIGHT}}", &height.to_string())
+        .replace(
+            "{{CAMERA}}",
+            &serde_json::json!({
+                "eye": camera.eye.to_array(),
+                "target": camera.target.to_array(),
+                "up": [0.0, 1.0, 0.0],
+                "fov": camera.vertical_fov_deg,
+                "near": 0.01 * distance,
+                "far": 10.0 * distance,
+            })
+            .to_string(),
+        );
+    let page_path = d.join("three.html");
+    std::fs::write(&page_path, page).unwrap();
+    let url = format!("file://{}", page_path.display());
+    let dom = chromium.dump_dom(&url);
+    let report = prt_gpu::testing::report_element(&dom).unwrap_or("");
+    let report: serde_json::Value = serde_json::from_str(report).unwrap_or_default();
+    assert!(
+        report["error"].is_null() && report["meshes"] == 1,
+        "{report}"
+    );
+    assert_eq!(
+        report["lightmap"],
+        serde_json::json!([texels.width, texels.height])
+    );
+    let (e, t) = (camera.eye, camera.target);
+    let cam = format!(
+        "{},{},{},{},{},{},{}",
+        e.x, e.y, e.z, t.x, t.y, t.z, camera.vertical_fov_deg
+    );
+    let (w, h) = (width.to_string(), height.to_string());
+    run(&[
+        "render",
+        "lm.glb",
+        "--light",
+        "light.json",
+        "--camera",
+        &cam,
+        "--width",
+        &w,
+        "--height",
+        &h,
+        "-o",
+        "render.png",
+    ]);
+    let expected = image::open(d.join("render.png")).unwrap().into_rgb8();
+    assert!(has_contrast(&expected));
+    let shot = chromium.screenshot(&url, width, height);
+    let difference = Difference::of(&shot, &expected);
+    println!("three.js against render: {difference:?}");
+    assert!(difference.within_tolerance(), "{difference:?}");
+}
+
+/// Reads a relit copy's lightmap (`extras.prt.relit.lightmap`) with OpenEXR's Python binding:
+/// its size, alpha and the RGB of every texel, row by row.
+const RELIT_LIGHTMAP_READER: &str = r#"import json, pathlib, struct, sys, numpy as np, OpenEXR
+data = open(sys.argv[1], "rb").read()
+n = struct.unpack_from("<I", data, 12)[0]
+lightmap = json.loads(data[20:20 + n])["meshes"][0]["extras"]["prt"]["relit"]["lightmap"]
+exr = OpenEXR.File(str(pathlib.Path(sys.argv[1]).with_name(lightmap["uri"])), separate_channels=True)
+channels = exr.parts[0].channels
+rgb = np.stack([channels[c].pixels for c in "RGB"], -1).astype(np.float32)
+H, W = rgb.shape[:2]
+alpha = channels["A"].pixels
+print(json.dumps({"size": [W, H], "alpha": float(alpha.min()) if alpha.min() == alpha.max() else None, "rgb": rgb.reshape(-1, 3).tolist()}))
+"#;

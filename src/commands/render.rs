@@ -236,14 +236,59 @@ fn write_relit_distant(args: &RenderArgs) -> Result<()> {
         Some(cpca) => render::apply_albedo(&baked, cpca.relight(&light)?),
         None => render::relight_baked(&baked, &light)?,
     };
-    let scale = glb::relit::write_relit_copy(path, &args.output, &radiance, &name)?;
+    let lightmap = match &baked.lightmap {
+        Some(texels) => Some(write_relit_lightmap(&args.output, texels, &light)?),
+        None => None,
+    };
+    let described = lightmap.as_ref().map(|(lightmap, _)| lightmap);
+    let scale = glb::relit::write_relit_copy(path, &args.output, &radiance, (&name, described))
+        .inspect_err(|_| {
+            // A relit copy is whole or not at all: no lightmap without its file.
+            if let Some((_, written)) = &lightmap {
+                let _ = std::fs::remove_file(written);
+            }
+        })?;
     println!(
-        "relit {} vertices under {name} -> {} ({})",
+        "relit {} vertices under {name} -> {} ({}){}",
         radiance.len(),
         args.output.display(),
-        relit_attributes(scale)
+        relit_attributes(scale),
+        match &lightmap {
+            Some((lightmap, written)) => format!(
+                "; its {}x{} texels -> {} (extras.prt.relit.lightmap)",
+                lightmap.width,
+                lightmap.height,
+                written.display()
+            ),
+            None => String::new(),
+        }
     );
     Ok(())
+}
+
+/// The texels of a lightmapped file relit by `light`, written as an RGB OpenEXR image beside
+/// the relit copy `output` (`glb::relit::RELIT_LIGHTMAP`); what the copy says of it and where
+/// it went.
+fn write_relit_lightmap(
+    output: &Path,
+    texels: &prt_gpu::bake::TexelBake,
+    light: &light::ShLight,
+) -> Result<(glb::relit::RelitLightmap, PathBuf)> {
+    let uri = glb::relit::relit_lightmap_file_name(output);
+    let path = output.with_file_name(&uri);
+    let pixels: Vec<[f32; 4]> = render::relight(&texels.transfer, light)?
+        .into_iter()
+        .map(|[r, g, b]| [r, g, b, 1.0])
+        .collect();
+    let (width, height) = (texels.width, texels.height);
+    render::write_image(&path, &pixels, width, height, ToneMap::None, 0.0)?;
+    let lightmap = glb::relit::RelitLightmap {
+        uri,
+        width,
+        height,
+        texcoord: texels.set,
+    };
+    Ok((lightmap, path))
 }
 
 /// The light `-o .glb` relights under, shaped, and its name for the file and the report.
@@ -408,7 +453,7 @@ fn write_relit_local(
     }
     let frame = relighter.frame(lights, args.operator);
     let name = local_lights::describe(lights);
-    let scale = glb::relit::write_relit_copy(path, &args.output, &frame.total(), &name)?;
+    let scale = glb::relit::write_relit_copy(path, &args.output, &frame.total(), (&name, None))?;
     let shadows = relighter.shadows().describe();
     println!(
         "relit {} vertices under {name}, {} operator, shadows by {shadows} -> {} ({})",
@@ -482,7 +527,18 @@ fn check_render_outputs(args: &RenderArgs) -> Result<()> {
         option: "-o",
         path: &args.output,
     };
-    fs::check_outputs(&[output], &inputs)?;
+    // A relit copy of a lightmapped file writes its relit lightmap beside it.
+    let relit_lightmap = args
+        .output
+        .with_file_name(glb::relit::relit_lightmap_file_name(&args.output));
+    let beside = fs::Output {
+        option: "-o (its relit lightmap)",
+        path: &relit_lightmap,
+    };
+    match is_glb(&args.output) && !lightmaps.is_empty() {
+        true => fs::check_outputs(&[output, beside], &inputs)?,
+        false => fs::check_outputs(&[output], &inputs)?,
+    }
     let mut formats = render::IMAGE_EXTENSIONS.to_vec();
     formats.push("glb");
     fs::check_named_format(

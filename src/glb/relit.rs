@@ -44,6 +44,32 @@ pub const RELIT_RADIANCE: &str = "relit exit radiance, linear RGB, unscaled (W/(
 pub const RELIT_SCENE_COLOR: &str = "relit shading: exit radiance over the vertex's albedo (what \
 the material's base colour multiplies) / scale, linear RGB, negative values as 0";
 
+/// `extras.prt.relit.lightmap.layout`: what a relit lightmap holds and how an engine shows it.
+pub const RELIT_LIGHTMAP: &str = "exit radiance at the lightmap's texels (the SH lightmap \
+relit), linear RGB, OpenEXR float32 R, G, B and A = 1, row 0 at v = 0, on the texcoord set \
+named; shown as baked by an unlit material that adds a light map, e.g. three.js \
+MeshBasicMaterial({ color: white, lightMap, lightMapIntensity: Math.PI }) (three divides a basic \
+material's light map by pi)";
+
+/// A lightmapped file's texels relit, written beside its relit copy and named in the copy's
+/// `extras.prt.relit.lightmap`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RelitLightmap {
+    /// The image's name, relative to the copy.
+    pub uri: String,
+    pub width: u32,
+    pub height: u32,
+    /// The `TEXCOORD_n` set it is laid on.
+    pub texcoord: u32,
+}
+
+/// The relit lightmap's name beside the relit copy `glb`: `relit.glb` -> `relit.radiance.exr`.
+pub fn relit_lightmap_file_name(glb: &Path) -> String {
+    let name = super::lightmap_file_name(glb);
+    let stem = name.strip_suffix(".lightmap.exr").unwrap_or(&name);
+    format!("{stem}.radiance.exr")
+}
+
 /// The extension that makes a relit scene's baked materials show `COLOR_0` as it is.
 pub const UNLIT: &str = "KHR_materials_unlit";
 
@@ -54,7 +80,7 @@ pub fn with_relit_colors(
     bytes: &[u8],
     path: &Path,
     radiance: &[[f32; 3]],
-    light: &str,
+    (light, lightmap): (&str, Option<&RelitLightmap>),
 ) -> Result<(Vec<u8>, f32)> {
     let damaged = |message: String| Error::baked(path, message);
     let (json, bin) = split_chunks(bytes, path)?;
@@ -82,6 +108,15 @@ pub fn with_relit_colors(
             "light": light,
         }),
     );
+    if let Some(lightmap) = lightmap {
+        prt["relit"]["lightmap"] = serde_json::json!({
+            "uri": lightmap.uri,
+            "width": lightmap.width,
+            "height": lightmap.height,
+            "texcoord": lightmap.texcoord,
+            "layout": RELIT_LIGHTMAP,
+        });
+    }
     let accessor = append_vec3s(&mut doc, &mut bin, radiance.iter().copied()).map_err(damaged)?;
     set_attribute(&mut doc, 0, 0, RADIANCE_ATTRIBUTE, accessor).map_err(damaged)?;
     finish(doc, bin, scale)
@@ -332,11 +367,11 @@ pub fn write_relit_copy(
     source: &Path,
     output: &Path,
     radiance: &[[f32; 3]],
-    light: &str,
+    light_and_lightmap: (&str, Option<&RelitLightmap>),
 ) -> Result<f32> {
     check_destination(output)?;
     let bytes = std::fs::read(source).map_err(|e| Error::io(source, e))?;
-    let (relit, scale) = with_relit_colors(&bytes, source, radiance, light)?;
+    let (relit, scale) = with_relit_colors(&bytes, source, radiance, light_and_lightmap)?;
     write_atomically(output, &relit)?;
     Ok(scale)
 }
@@ -404,7 +439,7 @@ mod tests {
         let mut radiance = vec![[0.25f32, 0.5, 0.75]; v];
         radiance[1] = [4.0, -1.0, 2.0];
         let (relit, scale) =
-            with_relit_colors(&bytes, Path::new("a.glb"), &radiance, "test").unwrap();
+            with_relit_colors(&bytes, Path::new("a.glb"), &radiance, ("test", None)).unwrap();
         assert_eq!(scale, 4.0);
         // The radiance itself, unscaled and negative values kept, as _RADIANCE.
         let (json, bin) = split_chunks(&relit, Path::new("a.glb")).unwrap();
@@ -438,8 +473,13 @@ mod tests {
     #[test]
     fn a_wrong_vertex_count_is_an_error() {
         let (bytes, v) = baked_bytes();
-        let error =
-            with_relit_colors(&bytes, Path::new("a.glb"), &vec![[0.0; 3]; v + 1], "x").unwrap_err();
+        let error = with_relit_colors(
+            &bytes,
+            Path::new("a.glb"),
+            &vec![[0.0; 3]; v + 1],
+            ("x", None),
+        )
+        .unwrap_err();
         assert!(error.to_string().contains("COLOR_0"), "{error}");
     }
 }

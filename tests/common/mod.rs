@@ -10,6 +10,7 @@
 #![allow(dead_code)]
 
 pub mod gltf_builder;
+pub mod pixels;
 pub mod sky;
 
 use std::path::Path;

@@ -310,15 +310,7 @@ fn a_relit_lightmap_loads_in_three_js_and_matches_render() {
         "-o",
         "lm.glb",
     ]);
-    let light = [
-        "--sky",
-        "0.6,0.7,0.9",
-        "--ground",
-        "0.2,0.15,0.1",
-        "--sun",
-        "0.5,0.8,0.3",
-    ];
-    run(&[&["light", "--bands", "4", "-o", "light.json"][..], &light].concat());
+    common::write_light(d, "light.json", 4, &[]);
     run(&[
         "render",
         "lm.glb",

@@ -180,13 +180,9 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
 /// baked triangle (dropped), so every path of the scatter runs.
 #[test]
 fn a_gltf_scene_streamed_in_chunks_writes_the_whole_bakes_bytes() {
-    const ENGINE: &str = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/gltf/2CylinderEngine.glb"
-    );
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (gltf, scene) = prt_gpu::scene::gltf::load(Path::new(ENGINE)).unwrap();
+    let (gltf, scene) = prt_gpu::scene::gltf::load(Path::new(common::ENGINE_GLB)).unwrap();
     let cases: [&[&str]; 5] = [
         &["--device", "cpu"],
         &["--device", "cpu", "--storage", "lean", "--precision", "f16"],
@@ -227,7 +223,7 @@ fn a_gltf_scene_streamed_in_chunks_writes_the_whole_bakes_bytes() {
         let limit = need.streamed(4096);
         assert!(limit < need.whole());
         let run = |output: &str, limit: &str| {
-            let mut args = vec!["bake", ENGINE, "--samples", "32", "-o", output];
+            let mut args = vec!["bake", common::ENGINE_GLB, "--samples", "32", "-o", output];
             args.extend(["--memory-limit", limit]);
             args.extend(extra);
             let out = prt_gpu(&args, d);

@@ -299,10 +299,7 @@ fn a_gltf_scene_baked_in_place_carries_its_probes() {
     use prt_gpu::scene::gltf as gltf_scene;
     use prt_gpu::spec::Container;
     let dir = tempfile::tempdir().unwrap();
-    let input = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/gltf/2CylinderEngine.glb"
-    );
+    let input = common::ENGINE_GLB;
     let (gltf, scene) = gltf_scene::load(std::path::Path::new(input)).unwrap();
     let mut spec = spec(Mode::Shadowed, 32, ProbePlacement::Grid { spacing: 60.0 });
     spec.container = Container::GltfInPlace;
@@ -368,10 +365,6 @@ fn a_gltf_scene_baked_in_place_carries_its_probes() {
 #[test]
 fn streamed_bakes_carry_the_probes_of_the_whole_bake() {
     use prt_gpu::bake::stream::MemoryNeed;
-    const ENGINE: &str = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/gltf/2CylinderEngine.glb"
-    );
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let cases: [(Option<&str>, &[&str]); 6] = [
@@ -393,7 +386,7 @@ fn streamed_bakes_carry_the_probes_of_the_whole_bake() {
         ),
         (None, &["--mode", "interreflected", "--device", "gpu"]),
         (
-            Some(ENGINE),
+            Some(common::ENGINE_GLB),
             &["--mode", "interreflected", "--bounces", "1"],
         ),
     ];

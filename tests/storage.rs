@@ -377,10 +377,7 @@ fn gltf_scenes_baked_in_place_store_compressed_transfer() {
     use prt_gpu::precision::Precision;
     use prt_gpu::spec::{BakeSpec, Compression, Container, Layout};
     let dir = tempfile::tempdir().unwrap();
-    let input = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/gltf/2CylinderEngine.glb"
-    );
+    let input = common::ENGINE_GLB;
     let (gltf, scene) = prt_gpu::scene::gltf::load(std::path::Path::new(input)).unwrap();
     let mut sizes = Vec::new();
     for (storage, precision) in [

@@ -9,7 +9,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::pixels::{has_contrast, Difference, MAX_MEAN_DIFFERENCE, PIXEL_THRESHOLD};
-use common::prt_gpu;
+use common::{prt_gpu, write_light};
 use image::RgbImage;
 use prt_gpu::testing::{entries, report_element, Chromium};
 
@@ -51,26 +51,6 @@ fn bake_teapot(dir: &Path, name: &str, bands: u32, extra: &[&str]) -> PathBuf {
     args.extend_from_slice(extra);
     run_ok(&args, dir);
     dir.join(name)
-}
-
-/// A sky, ground and sun light of `bands` bands, written to `dir/name`, with `extra` options.
-fn write_light(dir: &Path, name: &str, bands: u32, extra: &[&str]) {
-    let bands = bands.to_string();
-    let mut args = vec![
-        "light",
-        "--sky",
-        "0.6,0.7,0.9",
-        "--ground",
-        "0.2,0.15,0.1",
-        "--sun",
-        "0.5,0.8,0.3",
-        "--bands",
-        &bands,
-        "-o",
-        name,
-    ];
-    args.extend_from_slice(extra);
-    run_ok(&args, dir);
 }
 
 fn page_url(page: &Path, query: &str) -> String {

@@ -56,6 +56,39 @@ pub fn prt_gpu(args: &[&str], dir: &Path) -> std::process::Output {
         .expect("run prt-gpu")
 }
 
+/// The glTF scene with the most parts among the test files: 115 primitives, meshes shown by
+/// several nodes.
+pub const ENGINE_GLB: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/data/gltf/2CylinderEngine.glb"
+);
+
+/// A sky, ground and sun light of `bands` bands, written to `dir/name` by `prt-gpu light`, with
+/// `extra` options.
+pub fn write_light(dir: &Path, name: &str, bands: u32, extra: &[&str]) {
+    let bands = bands.to_string();
+    let mut args = vec![
+        "light",
+        "--sky",
+        "0.6,0.7,0.9",
+        "--ground",
+        "0.2,0.15,0.1",
+        "--sun",
+        "0.5,0.8,0.3",
+        "--bands",
+        &bands,
+        "-o",
+        name,
+    ];
+    args.extend_from_slice(extra);
+    let out = prt_gpu(&args, dir);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 /// A bad invocation: the file it needs (name, contents), its arguments, and a piece of the
 /// one-line error it must print.
 pub struct BadInput {

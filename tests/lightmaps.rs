@@ -8,6 +8,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
+use common::pixels::Difference;
 use common::prt_gpu;
 use glam::Vec3;
 use prt_gpu::bake::texels::bake_texels;
@@ -298,7 +299,6 @@ fn three_or_skip() -> Option<(PathBuf, PathBuf)> {
 /// the screenshot matches `prt-gpu render` of the bake within the web viewer's tolerance.
 #[test]
 fn a_relit_lightmap_loads_in_three_js_and_matches_render() {
-    use common::pixels::{has_contrast, Difference};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let teapot = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
@@ -347,19 +347,77 @@ fn a_relit_lightmap_loads_in_three_js_and_matches_render() {
     let Some(chromium) = prt_gpu::testing::Chromium::find_or_skip() else {
         return;
     };
-    let Some((three, addons)) = three_or_skip() else {
+    let Some(three) = three_or_skip() else {
         return;
     };
+    let difference = three_against_render(&chromium, &three, d, ("lm.glb", "relit.glb"));
+    println!("three.js against render, the teapot: {difference:?}");
+    assert!(difference.within_tolerance(), "{difference:?}");
+
+    // A glTF scene baked in place on its own TEXCOORD_1, with base colours: its relit
+    // lightmap holds the shading they multiply.
+    let scene = common::gltf_builder::ground_and_card_gltf(d, Some(1), true, false);
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&scene).unwrap()).unwrap();
+    doc["materials"] = serde_json::json!([
+        { "pbrMetallicRoughness": { "baseColorFactor": [0.7, 0.6, 0.5, 1.0] } },
+        { "pbrMetallicRoughness": { "baseColorFactor": [0.3, 0.5, 0.8, 1.0] } },
+    ]);
+    for (mesh, material) in [(0, 0), (1, 1)] {
+        for primitive in doc["meshes"][mesh]["primitives"].as_array_mut().unwrap() {
+            primitive["material"] = serde_json::json!(material);
+        }
+    }
+    std::fs::write(&scene, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let scene = scene.to_str().unwrap();
+    run(&[
+        "bake",
+        scene,
+        "--samples",
+        "128",
+        "--lightmap",
+        "64",
+        "-o",
+        "scene.glb",
+    ]);
+    run(&[
+        "render",
+        "scene.glb",
+        "--light",
+        "light.json",
+        "-o",
+        "scene_relit.glb",
+    ]);
+    assert!(d.join("scene_relit.radiance.exr").is_file());
+    if let Some(report) = common::validate_gltf(&d.join("scene_relit.glb")) {
+        assert_eq!(report.num_errors, 0, "{}", report.listing());
+    }
+    let difference = three_against_render(&chromium, &three, d, ("scene.glb", "scene_relit.glb"));
+    println!("three.js against render, a glTF scene: {difference:?}");
+    assert!(difference.within_tolerance(), "{difference:?}");
+}
+
+/// three.js' screenshot of the relit copy `relit` (tests/data/three_lightmap_page.html)
+/// against `prt-gpu render` of the bake `baked` it was relit from, at 320x240 from a camera
+/// turned off render's framing.
+fn three_against_render(
+    chromium: &prt_gpu::testing::Chromium,
+    (three, addons): &(PathBuf, PathBuf),
+    d: &Path,
+    (baked, relit): (&str, &str),
+) -> common::pixels::Difference {
     // The loaders finish after the page's load event; virtual time lets them.
     let chromium = chromium.after_virtual_time(30_000);
     let (width, height) = (320u32, 240u32);
-    let mut camera = prt_gpu::render::Camera::framing_scene(&baked.scene);
+    let read = read_glb(&d.join(baked)).unwrap();
+    let texels = read.lightmap.as_ref().unwrap();
+    let mut camera = prt_gpu::render::Camera::framing_scene(&read.scene);
     camera.eye = camera.target + glam::Quat::from_rotation_y(0.7) * (camera.eye - camera.target);
     let distance = camera.eye.distance(camera.target);
     let page = include_str!("data/three_lightmap_page.html")
         .replace("{{THREE}}", &format!("file://{}", three.display()))
         .replace("{{ADDONS}}", &format!("file://{}", addons.display()))
-        .replace("{{GLB}}", "relit.glb")
+        .replace("{{GLB}}", relit)
         .replace("{{WIDTH}}", &width.to_string())
         .replace("{{HEIGHT}}", &height.to_string())
         .replace(
@@ -374,14 +432,14 @@ fn a_relit_lightmap_loads_in_three_js_and_matches_render() {
             })
             .to_string(),
         );
-    let page_path = d.join("three.html");
+    let page_path = d.join(format!("{relit}.html"));
     std::fs::write(&page_path, page).unwrap();
     let url = format!("file://{}", page_path.display());
     let dom = chromium.dump_dom(&url);
     let report = prt_gpu::testing::report_element(&dom).unwrap_or("");
     let report: serde_json::Value = serde_json::from_str(report).unwrap_or_default();
     assert!(
-        report["error"].is_null() && report["meshes"] == 1,
+        report["error"].is_null() && report["meshes"].as_u64() > Some(0),
         "{report}"
     );
     assert_eq!(
@@ -394,9 +452,9 @@ fn a_relit_lightmap_loads_in_three_js_and_matches_render() {
         e.x, e.y, e.z, t.x, t.y, t.z, camera.vertical_fov_deg
     );
     let (w, h) = (width.to_string(), height.to_string());
-    run(&[
+    let args = [
         "render",
-        "lm.glb",
+        baked,
         "--light",
         "light.json",
         "--camera",
@@ -407,13 +465,12 @@ fn a_relit_lightmap_loads_in_three_js_and_matches_render() {
         &h,
         "-o",
         "render.png",
-    ]);
+    ];
+    succeeded(&prt_gpu(&args, d));
     let expected = image::open(d.join("render.png")).unwrap().into_rgb8();
-    assert!(has_contrast(&expected));
+    assert!(common::pixels::has_contrast(&expected));
     let shot = chromium.screenshot(&url, width, height);
-    let difference = Difference::of(&shot, &expected);
-    println!("three.js against render: {difference:?}");
-    assert!(difference.within_tolerance(), "{difference:?}");
+    Difference::of(&shot, &expected)
 }
 
 /// Reads a relit copy's lightmap (`extras.prt.relit.lightmap`) with OpenEXR's Python binding:

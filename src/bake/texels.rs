@@ -39,7 +39,7 @@ pub const COVER_TEXELS: f32 = 0.25;
 /// Dilation rings: well past the gutter (so that a bilinear footprint reaching past a chart's
 /// edge reads filled texels), and enough to refill leaks from their valid neighbours; a leak
 /// wider than this keeps its own (dark) values.
-const DILATION_PASSES: u32 = 32 * GUTTER;
+pub const DILATION_PASSES: u32 = 32 * GUTTER;
 
 /// What the texel bake did, for the summary line.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -152,6 +152,35 @@ pub fn bake_atlas(
         .expect("one row of coefficients for every texel"),
     };
     Ok((bake, report))
+}
+
+/// The albedo at each texel of `texels` over `scene` (split at its corners, one vertex per
+/// texture coordinate, as a lightmapped file is read): the albedo interpolated at the point
+/// of the texel's triangle the bake placed it at, and whether a triangle covers the texel at
+/// all (`false`: a gutter texel dilation filled). What a relit lightmap's texels are divided
+/// by to give the shading a material's base colour multiplies.
+pub fn texel_albedo(scene: &Scene, texels: &TexelBake) -> (Vec<Vec3>, Vec<bool>) {
+    let size = glam::Vec2::new(texels.width as f32, texels.height as f32);
+    let atlas = Atlas {
+        width: texels.width,
+        height: texels.height,
+        corners: scene
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| glam::Vec2::from_array(texels.texcoords[v as usize]) * size))
+            .collect(),
+        chart_of: (0..scene.triangles.len() as u32).collect(),
+    };
+    let points = rasterize(&atlas);
+    let receivers = Receivers::at_points(scene, &points.points);
+    let count = (texels.width * texels.height) as usize;
+    let (mut albedo, mut covered) = (vec![Vec3::ZERO; count], vec![false; count]);
+    for (&(x, y), a) in points.texels.iter().zip(&receivers.albedo) {
+        let at = (y * texels.width + x) as usize;
+        albedo[at] = *a;
+        covered[at] = true;
+    }
+    (albedo, covered)
 }
 
 /// Per receiver, whether more than [`LEAK_FRACTION`] of [`LEAK_RAYS`] cosine-distributed rays

@@ -237,49 +237,36 @@ fn write_relit_distant(args: &RenderArgs) -> Result<()> {
         None => render::relight_baked(&baked, &light)?,
     };
     let lightmap = match &baked.lightmap {
-        Some(texels) => Some(write_relit_lightmap(&args.output, texels, &light)?),
+        Some(texels) => {
+            let relit = render::relight(&texels.transfer, &light)?;
+            Some(write_relit_lightmap(&args.output, texels, relit)?)
+        }
         None => None,
     };
     let described = lightmap.as_ref().map(|(lightmap, _)| lightmap);
     let scale = glb::relit::write_relit_copy(path, &args.output, &radiance, (&name, described))
-        .inspect_err(|_| {
-            // A relit copy is whole or not at all: no lightmap without its file.
-            if let Some((_, written)) = &lightmap {
-                let _ = std::fs::remove_file(written);
-            }
-        })?;
+        .inspect_err(|_| remove_relit_lightmap(&lightmap))?;
     println!(
         "relit {} vertices under {name} -> {} ({}){}",
         radiance.len(),
         args.output.display(),
         relit_attributes(scale),
-        match &lightmap {
-            Some((lightmap, written)) => format!(
-                "; its {}x{} texels -> {} (extras.prt.relit.lightmap)",
-                lightmap.width,
-                lightmap.height,
-                written.display()
-            ),
-            None => String::new(),
-        }
+        relit_lightmap_line(&lightmap)
     );
     Ok(())
 }
 
-/// The texels of a lightmapped file relit by `light`, written as an RGB OpenEXR image beside
-/// the relit copy `output` (`glb::relit::RELIT_LIGHTMAP`); what the copy says of it and where
-/// it went.
+/// The texels of a lightmapped file relit (`values`, one per texel), written as an RGB
+/// OpenEXR image beside the relit copy `output` (`glb::relit::RELIT_LIGHTMAP`); what the copy
+/// says of it and where it went.
 fn write_relit_lightmap(
     output: &Path,
     texels: &prt_gpu::bake::TexelBake,
-    light: &light::ShLight,
+    values: Vec<[f32; 3]>,
 ) -> Result<(glb::relit::RelitLightmap, PathBuf)> {
     let uri = glb::relit::relit_lightmap_file_name(output);
     let path = output.with_file_name(&uri);
-    let pixels: Vec<[f32; 4]> = render::relight(&texels.transfer, light)?
-        .into_iter()
-        .map(|[r, g, b]| [r, g, b, 1.0])
-        .collect();
+    let pixels: Vec<[f32; 4]> = values.into_iter().map(|[r, g, b]| [r, g, b, 1.0]).collect();
     let (width, height) = (texels.width, texels.height);
     render::write_image(&path, &pixels, width, height, ToneMap::None, 0.0)?;
     let lightmap = glb::relit::RelitLightmap {
@@ -322,20 +309,81 @@ fn write_relit_scene(args: &RenderArgs, path: &Path) -> Result<()> {
             .map(|(r, a)| std::array::from_fn(|c| over_albedo(r[c], a[c])))
             .collect(),
     };
-    let scale =
-        glb::relit::write_relit_scene_copy(path, &args.output, &gltf, &radiance, &shading, &name)?;
+    // A lightmapped scene: its texels' shading, as its vertices' is.
+    let lightmapped = glb::scene::read_scene_glb(path)?;
+    let lightmap = match &lightmapped.lightmap {
+        Some(texels) => {
+            let relit = render::relight(&texels.transfer, &light)?;
+            let shading = texel_shading(&lightmapped.scene, texels, relit)?;
+            Some(write_relit_lightmap(&args.output, texels, shading)?)
+        }
+        None => None,
+    };
+    let described = (
+        name.as_str(),
+        lightmap.as_ref().map(|(lightmap, _)| lightmap),
+    );
+    let scale = glb::relit::write_relit_scene_copy(
+        path,
+        &args.output,
+        &gltf,
+        &radiance,
+        &shading,
+        described,
+    )
+    .inspect_err(|_| remove_relit_lightmap(&lightmap))?;
     println!(
         "relit {} vertices of {} primitive(s) under {name} -> {} ({} = exit radiance; COLOR_0 \
-         = exit radiance / albedo / {scale} under unlit materials (extras.prt.relit))",
+         = exit radiance / albedo / {scale} under unlit materials (extras.prt.relit)){}",
         radiance.len(),
         gltf.instances
             .iter()
             .map(|i| i.primitives.len())
             .sum::<usize>(),
         args.output.display(),
-        glb::relit::RADIANCE_ATTRIBUTE
+        glb::relit::RADIANCE_ATTRIBUTE,
+        relit_lightmap_line(&lightmap)
     );
     Ok(())
+}
+
+/// A scene's relit texels over the albedo each was baked with; gutter texels, which no
+/// triangle covers, filled from their neighbours as the bake filled them.
+fn texel_shading(
+    scene: &prt_gpu::scene::Scene,
+    texels: &prt_gpu::bake::TexelBake,
+    relit: Vec<[f32; 3]>,
+) -> Result<Vec<[f32; 3]>> {
+    let (albedo, mut covered) = prt_gpu::bake::texels::texel_albedo(scene, texels);
+    let mut values: Vec<f32> = relit
+        .iter()
+        .zip(&albedo)
+        .flat_map(|(r, a)| [0, 1, 2].map(|c| over_albedo(r[c], a[c])))
+        .collect();
+    let (w, h) = (texels.width, texels.height);
+    let passes = prt_gpu::bake::texels::DILATION_PASSES;
+    prt_gpu::receivers::texels::dilate(w, h, &mut values, 3, &mut covered, passes)?;
+    Ok(values.chunks_exact(3).map(|v| [v[0], v[1], v[2]]).collect())
+}
+
+/// Removes a relit lightmap whose copy could not be written: the two go together or not at all.
+fn remove_relit_lightmap(lightmap: &Option<(glb::relit::RelitLightmap, PathBuf)>) {
+    if let Some((_, written)) = lightmap {
+        let _ = std::fs::remove_file(written);
+    }
+}
+
+/// What the report says of a relit lightmap, if one was written.
+fn relit_lightmap_line(lightmap: &Option<(glb::relit::RelitLightmap, PathBuf)>) -> String {
+    match lightmap {
+        Some((lightmap, written)) => format!(
+            "; its {}x{} texels -> {} (extras.prt.relit.lightmap)",
+            lightmap.width,
+            lightmap.height,
+            written.display()
+        ),
+        None => String::new(),
+    }
 }
 
 /// Radiance over the albedo that made it; zero where the albedo is (nothing to show there).

@@ -63,6 +63,25 @@ pub struct RelitLightmap {
     pub texcoord: u32,
 }
 
+/// `extras.prt.relit.lightmap.layout` of a relit scene: its texels hold the shading a
+/// material's base colour multiplies, as the scene's `COLOR_0` does.
+pub const RELIT_SCENE_LIGHTMAP: &str = "relit shading at the lightmap's texels: exit radiance \
+over the albedo the texel was baked with (what the material's base colour multiplies), linear \
+RGB, OpenEXR float32 R, G, B and A = 1, row 0 at v = 0, on the texcoord set named; shown as \
+baked by an unlit material with the base colour and a light map, e.g. three.js \
+MeshBasicMaterial({ color, map, lightMap, lightMapIntensity: Math.PI }) without vertex colours";
+
+/// `extras.prt.relit.lightmap` for `lightmap`, its texels described by `layout`.
+fn lightmap_extras(lightmap: &RelitLightmap, layout: &str) -> Value {
+    json!({
+        "uri": lightmap.uri,
+        "width": lightmap.width,
+        "height": lightmap.height,
+        "texcoord": lightmap.texcoord,
+        "layout": layout,
+    })
+}
+
 /// The relit lightmap's name beside the relit copy `glb`: `relit.glb` -> `relit.radiance.exr`.
 pub fn relit_lightmap_file_name(glb: &Path) -> String {
     let name = super::lightmap_file_name(glb);
@@ -109,13 +128,7 @@ pub fn with_relit_colors(
         }),
     );
     if let Some(lightmap) = lightmap {
-        prt["relit"]["lightmap"] = serde_json::json!({
-            "uri": lightmap.uri,
-            "width": lightmap.width,
-            "height": lightmap.height,
-            "texcoord": lightmap.texcoord,
-            "layout": RELIT_LIGHTMAP,
-        });
+        prt["relit"]["lightmap"] = lightmap_extras(lightmap, RELIT_LIGHTMAP);
     }
     let accessor = append_vec3s(&mut doc, &mut bin, radiance.iter().copied()).map_err(damaged)?;
     set_attribute(&mut doc, 0, 0, RADIANCE_ATTRIBUTE, accessor).map_err(damaged)?;
@@ -146,7 +159,7 @@ pub fn with_relit_scene_colors(
     gltf: &GltfScene,
     radiance: &[[f32; 3]],
     shading: &[[f32; 3]],
-    light: &str,
+    (light, lightmap): (&str, Option<&RelitLightmap>),
 ) -> Result<(Vec<u8>, f32)> {
     let damaged = |message: String| Error::baked(path, message);
     let (json, bin) = split_chunks(bytes, path)?;
@@ -212,6 +225,9 @@ pub fn with_relit_scene_colors(
             "light": light,
         }),
     );
+    if let Some(lightmap) = lightmap {
+        prt["relit"]["lightmap"] = lightmap_extras(lightmap, RELIT_SCENE_LIGHTMAP);
+    }
     finish(doc, bin, scale)
 }
 
@@ -384,11 +400,12 @@ pub fn write_relit_scene_copy(
     gltf: &GltfScene,
     radiance: &[[f32; 3]],
     shading: &[[f32; 3]],
-    light: &str,
+    light_and_lightmap: (&str, Option<&RelitLightmap>),
 ) -> Result<f32> {
     check_destination(output)?;
     let bytes = std::fs::read(source).map_err(|e| Error::io(source, e))?;
-    let (relit, scale) = with_relit_scene_colors(&bytes, source, gltf, radiance, shading, light)?;
+    let (relit, scale) =
+        with_relit_scene_colors(&bytes, source, gltf, radiance, shading, light_and_lightmap)?;
     write_atomically(output, &relit)?;
     Ok(scale)
 }

@@ -159,7 +159,22 @@ fn an_output_that_is_an_input_is_refused_and_the_input_kept() {
             "p1.part",
         ),
         (vec!["chart", "tet.obj", "-o", "tet.obj"], "tet.obj"),
+        // A lightmapped bake relit to a .glb writes its relit lightmap beside: x.radiance.exr.
+        (
+            vec![
+                "render",
+                "lm.glb",
+                "--light",
+                "x.radiance.exr",
+                "-o",
+                "x.glb",
+            ],
+            "x.radiance.exr",
+        ),
     ];
+    let lightmapped = bake_args("tet.obj", &["--lightmap", "32", "-o", "lm.glb"]);
+    succeed(&prt_gpu(&lightmapped, d), "a lightmapped bake");
+    std::fs::copy(d.join("map.png"), d.join("x.radiance.exr")).unwrap();
     let before = snapshot(d);
     for (args, output) in &cases {
         let what = args.join(" ");

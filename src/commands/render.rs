@@ -309,12 +309,18 @@ fn write_relit_scene(args: &RenderArgs, path: &Path) -> Result<()> {
             .map(|(r, a)| std::array::from_fn(|c| over_albedo(r[c], a[c])))
             .collect(),
     };
-    // A lightmapped scene: its texels' shading, as its vertices' is.
-    let lightmapped = glb::scene::read_scene_glb(path)?;
-    let lightmap = match &lightmapped.lightmap {
-        Some(texels) => {
+    // A lightmapped scene (read again with its texels): their shading, as its vertices' is.
+    let lightmapped = match glb::read_references(path)?.lightmap {
+        Some(_) => Some(glb::scene::read_scene_glb(path)?),
+        None => None,
+    };
+    let lightmap = match lightmapped
+        .as_ref()
+        .and_then(|b| Some((&b.scene, b.lightmap.as_ref()?)))
+    {
+        Some((scene, texels)) => {
             let relit = render::relight(&texels.transfer, &light)?;
-            let shading = texel_shading(&lightmapped.scene, texels, relit)?;
+            let shading = texel_shading(scene, texels, relit)?;
             Some(write_relit_lightmap(&args.output, texels, shading)?)
         }
         None => None,

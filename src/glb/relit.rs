@@ -19,6 +19,11 @@
 //! unlit (`KHR_materials_unlit`, listed in `extensionsUsed` but not required): a viewer then
 //! shows base colour × `COLOR_0`, the relit scene with its textures, and one without the
 //! extension falls back to its own lighting. The root's `extras.prt.relit` says so.
+//!
+//! A lightmapped file's texels are relit too, into an RGB OpenEXR image beside the copy that
+//! `extras.prt.relit.lightmap` names ([`RelitLightmap`]): the radiance for a baked mesh, which
+//! has no material; the shading, radiance over the texel's albedo, for a scene, whose
+//! materials multiply by their base colour ([`RELIT_LIGHTMAP`], [`RELIT_SCENE_LIGHTMAP`]).
 
 use std::collections::BTreeSet;
 use std::path::Path;

@@ -239,7 +239,7 @@ impl Planned<'_> {
             let spec = self.spec.probes.as_ref().expect("asked for");
             let scene = streamed.scene();
             let exit = interreflected
-                .map(|baked| probes::ExitLight::of_streamed(baked, &scene.albedo, bands, chunk))
+                .map(|baked| probes::ExitLight::of_streamed(baked, scene, bands, chunk))
                 .transpose()?;
             let around = (scene, bands, exit.as_ref());
             probes::bake_probes_around(around, spec, sampling, backend, progress)

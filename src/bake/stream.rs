@@ -276,8 +276,7 @@ impl StreamedBake {
     }
 
     fn all_grey(&self) -> bool {
-        let albedo = &self.planned.scene.albedo;
-        albedo.iter().all(|a| a.x == a.y && a.y == a.z)
+        self.planned.scene.all_grey()
     }
 
     pub fn mode(&self) -> Mode {

@@ -119,11 +119,7 @@ fn decode_with(
     };
     crate::sh::check_bands(extras.bands).map_err(|e| e.to_string())?;
     let n = coeff_count(extras.bands);
-    let expected_rows = match form {
-        ProbeForm::Radiance => n,
-        ProbeForm::Irradiance => coeff_count(extras.bands.min(crate::probes::IRRADIANCE_BANDS)),
-    };
-    if !matches!(extras.channels, 1 | 3) || extras.rows != expected_rows {
+    if !matches!(extras.channels, 1 | 3) || extras.rows != crate::probes::rows(form, extras.bands) {
         return Err(format!(
             "probes of {} channels and {} rows do not fit {} bands of the {} form",
             extras.channels, extras.rows, extras.bands, extras.form

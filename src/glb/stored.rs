@@ -65,15 +65,8 @@ impl<'a> Stored<'a> {
 
     /// The same, with `probes` (from a bake of this mesh) in the file beside its transfer.
     pub fn with_probes(self, probes: Option<&'a ProbeSet>) -> Result<Stored<'a>> {
-        if let Some(set) = probes {
-            if set.matrices.len() != set.len() * set.per_probe()
-                || set.status.len() != set.len()
-                || set.matrices.iter().any(|m| !m.is_finite())
-            {
-                return Err(Error::Geometry(
-                    "the probes' matrices do not match their count or are not finite".into(),
-                ));
-            }
+        if let Some(why) = probes.and_then(ProbeSet::broken) {
+            return Err(Error::Geometry(why.into()));
         }
         Ok(Stored { probes, ..self })
     }

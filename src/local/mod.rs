@@ -270,7 +270,7 @@ pub fn depth_error(maps: &DepthMaps, depth: &Cpca) -> f64 {
 /// kept where none of six axis rays first meets the back of a surface (the point is not
 /// inside an object); at most 64 draws per light kept.
 pub fn example_light_positions(scene: &Scene, bvh: &Bvh, options: &LocalOptions) -> Vec<Vec3> {
-    let (lo, hi) = bounds(&scene.positions);
+    let (lo, hi) = scene.bounds();
     let margin = (hi - lo) * 0.05;
     let (lo, hi) = (lo + margin, hi - margin);
     let normals = scene.normals.as_deref().unwrap_or_default();
@@ -378,20 +378,6 @@ fn clustering_features(scene: &Scene, extent: f32) -> Vec<f32> {
             [p.x, p.y, p.z, n.x, n.y, n.z]
         })
         .collect()
-}
-
-fn bounds(points: &[Vec3]) -> (Vec3, Vec3) {
-    points.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    )
-}
-
-/// The largest side of the points' box: the BVH's `extent` (its root box is the triangles'),
-/// so the run time finds the bake's ray origins without a tree.
-pub fn scene_extent(points: &[Vec3]) -> f32 {
-    let (lo, hi) = bounds(points);
-    (hi - lo).max_element().max(0.0)
 }
 
 #[cfg(test)]

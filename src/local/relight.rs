@@ -70,7 +70,7 @@ impl<'a> Relighter<'a> {
 
     pub fn with_shadows(bake: &'a LocalBake, shadows: Shadows) -> Self {
         let normals = bake.scene.normals.as_deref().unwrap_or_default();
-        let extent = scene_extent(&bake.scene.positions);
+        let extent = crate::scene::extent_of(&bake.scene.positions);
         let origins = bake::ray_origins(&vertex_ray_starts(&bake.scene), normals, extent);
         let frames = normals.iter().map(|&n| tangent_frame(n)).collect();
         let bvh = (shadows == Shadows::Rays)

@@ -40,5 +40,5 @@ fn the_interior_is_closed_and_free_space_is_told_from_inside_objects() {
     ] {
         assert!(!in_free_space(&scene, normals, &bvh, inside), "{inside}");
     }
-    assert_eq!(scene_extent(&scene.positions), bvh.extent());
+    assert_eq!(crate::scene::extent_of(&scene.positions), bvh.extent());
 }

@@ -144,6 +144,17 @@ impl ProbeSet {
         out
     }
 
+    /// Why the set's arrays cannot be stored or shown, if they cannot: a position, status or
+    /// matrix missing for a probe, or a value that is not finite.
+    pub fn broken(&self) -> Option<&'static str> {
+        if self.matrices.len() != self.len() * self.per_probe() || self.status.len() != self.len() {
+            return Some("the probes' arrays do not match their count");
+        }
+        let finite = self.matrices.iter().all(|m| m.is_finite())
+            && self.positions.iter().all(|p| p.is_finite());
+        (!finite).then_some("the probes hold values that are not finite")
+    }
+
     /// Probe `p`'s matrix, `[channel][row][k]`.
     pub fn matrix(&self, p: usize) -> &[f32] {
         let n = self.per_probe();
@@ -207,14 +218,14 @@ pub fn memory_need(
         ProbePlacement::Points(points) => points.len() as u64,
     };
     let n = coeff_count(bands) as u64;
-    let rows = match spec.form {
-        ProbeForm::Radiance => n,
-        ProbeForm::Irradiance => coeff_count(bands.min(IRRADIANCE_BANDS)) as u64,
-    };
+    let rows = rows(spec.form, bands) as u64;
     let samples = Sampling::Stratified.samples_used(samples) as u64;
     // Three channels only where interreflected light comes off coloured surfaces.
-    let grey = scene.albedo.iter().all(|a| a.x == a.y && a.y == a.z);
-    let channels = if interreflected && !grey { 3 } else { 1 };
+    let channels = if interreflected && !scene.all_grey() {
+        3
+    } else {
+        1
+    };
     let stored = count * (channels * rows * n * 4 + 13);
     // Each hit of 16 bytes (with its sample) as the backend answers it (where a growing
     // vector may hold twice its length) and joined per probe, and the batch's matrices until
@@ -229,6 +240,15 @@ pub fn memory_need(
         false => 0,
     };
     stored + batch + threads + tree + tables + exit
+}
+
+/// Rows per channel of a probe's matrix at `bands` in `form`: `bands^2` for radiance, the
+/// first [`IRRADIANCE_BANDS`] bands' for irradiance.
+pub fn rows(form: ProbeForm, bands: u32) -> usize {
+    match form {
+        ProbeForm::Radiance => coeff_count(bands),
+        ProbeForm::Irradiance => coeff_count(bands.min(IRRADIANCE_BANDS)),
+    }
 }
 
 /// Probes per batch of rays: bounds the hits held at once (about 6 KiB per probe at 1,024
@@ -276,12 +296,7 @@ pub fn bake_probes_around(
     let mut positions = Vec::with_capacity(points.len());
     let mut status = Vec::with_capacity(points.len());
     let n = coeff_count(bands);
-    let rows = match spec.form {
-        ProbeForm::Radiance => n,
-        ProbeForm::Irradiance => {
-            (bands.min(IRRADIANCE_BANDS) * bands.min(IRRADIANCE_BANDS)) as usize
-        }
-    };
+    let rows = rows(spec.form, bands);
     let channels = exit.map_or(1, |e| e.channels);
     let mut matrices = Vec::with_capacity(points.len() * channels * rows * n);
     for batch in points.chunks(PROBES_PER_BATCH) {

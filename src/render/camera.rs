@@ -158,11 +158,7 @@ pub fn bounds(positions: &[Vec3]) -> (Vec3, Vec3) {
     if positions.is_empty() {
         return (Vec3::ZERO, Vec3::ZERO);
     }
-    positions
-        .iter()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(*p), hi.max(*p))
-        })
+    crate::scene::bounds_of(positions)
 }
 
 #[cfg(test)]

@@ -39,20 +39,36 @@ impl Scene {
         self.triangles.len()
     }
 
-    /// The corners of the positions' bounding box (inverted, infinite, when there are none).
+    /// The corners of the positions' bounding box ([`bounds_of`]).
     pub fn bounds(&self) -> (Vec3, Vec3) {
-        self.positions.iter().fold(
-            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-            |(lo, hi), &p| (lo.min(p), hi.max(p)),
-        )
+        bounds_of(&self.positions)
     }
 
-    /// The bounding box's largest side (what `ray::offset_ray_origin` scales its floor by; a
-    /// BVH's root box is the same box); 0 without positions.
+    /// The bounding box's largest side ([`extent_of`]).
     pub fn extent(&self) -> f32 {
-        let (lo, hi) = self.bounds();
-        (hi - lo).max_element().max(0.0)
+        extent_of(&self.positions)
     }
+
+    /// Whether every albedo is grey (its channels equal): the light's colour then passes
+    /// through the transfer unchanged, and one channel of it is enough.
+    pub fn all_grey(&self) -> bool {
+        self.albedo.iter().all(|a| a.x == a.y && a.y == a.z)
+    }
+}
+
+/// The corners of the bounding box of `points` (inverted, infinite, when there are none).
+pub fn bounds_of(points: &[Vec3]) -> (Vec3, Vec3) {
+    points.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    )
+}
+
+/// The largest side of the bounding box of `points` (what `ray::offset_ray_origin` scales its
+/// floor by; a BVH's root box is the triangles' box, the same); 0 without points.
+pub fn extent_of(points: &[Vec3]) -> f32 {
+    let (lo, hi) = bounds_of(points);
+    (hi - lo).max_element().max(0.0)
 }
 
 /// Albedo given to surfaces whose file says nothing about their colour.

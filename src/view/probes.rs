@@ -64,15 +64,8 @@ pub(super) fn page_probes(
             probes.bands
         ));
     }
-    if probes.matrices.len() != probes.len() * probes.per_probe()
-        || probes.status.len() != probes.len()
-    {
-        return Err("its probes' arrays do not match their count".into());
-    }
-    if !probes.matrices.iter().all(|m| m.is_finite())
-        || !probes.positions.iter().all(|p| p.is_finite())
-    {
-        return Err("its probes hold non-finite values".into());
+    if let Some(why) = probes.broken() {
+        return Err(why.into());
     }
     let valid: Vec<bool> = probes
         .status

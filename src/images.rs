@@ -41,6 +41,44 @@ pub fn decode(bytes: &[u8], format: ImageFormat) -> Result<DynamicImage, String>
     DynamicImage::from_decoder(decoder).map_err(|e| image_error(&e))
 }
 
+/// Puts the attributes of a single-part OpenEXR header in name order, as the OpenEXR library
+/// writes them. The exr crate writes them in the order of a `HashMap`, which differs from run
+/// to run, and every image the tool writes must give the same bytes every time. The header keeps its length, so the
+/// offset table after it still points at the chunks.
+pub fn sort_exr_header_attributes(bytes: &mut [u8]) -> std::result::Result<(), String> {
+    const MULTIPART_OR_DEEP: u32 = 0x1800;
+    let flags = bytes
+        .get(4..8)
+        .map(|v| u32::from_le_bytes([v[0], v[1], v[2], v[3]]))
+        .ok_or("no OpenEXR version field")?;
+    if flags & MULTIPART_OR_DEEP != 0 {
+        return Err("only a single-part scan-line image's header is sorted".into());
+    }
+    let mut attributes: Vec<&[u8]> = Vec::new();
+    let mut at = 8;
+    let broken = || "the encoder wrote a header that does not parse".to_string();
+    while *bytes.get(at).ok_or_else(broken)? != 0 {
+        let name_end = at + nul_position(&bytes[at..]).ok_or_else(broken)?;
+        let kind_end = name_end + 1 + nul_position(&bytes[name_end + 1..]).ok_or_else(broken)?;
+        let size_at = kind_end + 1;
+        let size = bytes
+            .get(size_at..size_at + 4)
+            .map(|v| u32::from_le_bytes([v[0], v[1], v[2], v[3]]) as usize)
+            .ok_or_else(broken)?;
+        let end = size_at + 4 + size;
+        attributes.push(bytes.get(at..end).ok_or_else(broken)?);
+        at = end;
+    }
+    attributes.sort_by_key(|attribute| &attribute[..nul_position(attribute).unwrap_or(0)]);
+    let header: Vec<u8> = attributes.concat();
+    bytes[8..8 + header.len()].copy_from_slice(&header);
+    Ok(())
+}
+
+pub(crate) fn nul_position(bytes: &[u8]) -> Option<usize> {
+    bytes.iter().position(|&b| b == 0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -161,46 +161,8 @@ pub fn encode_lightmap(lightmap: &Lightmap) -> std::result::Result<Vec<u8>, Stri
         .to_buffered(&mut bytes)
         .map_err(|e| one_line(&e.to_string()))?;
     let mut bytes = bytes.into_inner();
-    sort_header_attributes(&mut bytes)?;
+    crate::images::sort_exr_header_attributes(&mut bytes)?;
     Ok(bytes)
-}
-
-/// Puts the attributes of a single-part OpenEXR header in name order, as the OpenEXR library
-/// writes them. The exr crate writes them in the order of a `HashMap`, which differs from run
-/// to run, and a bake must give the same bytes every time. The header keeps its length, so the
-/// offset table after it still points at the chunks.
-fn sort_header_attributes(bytes: &mut [u8]) -> std::result::Result<(), String> {
-    const MULTIPART_OR_DEEP: u32 = 0x1800;
-    let flags = bytes
-        .get(4..8)
-        .map(|v| u32::from_le_bytes([v[0], v[1], v[2], v[3]]))
-        .ok_or("no OpenEXR version field")?;
-    if flags & MULTIPART_OR_DEEP != 0 {
-        return Err("a lightmap is a single-part scan-line image".into());
-    }
-    let mut attributes: Vec<&[u8]> = Vec::new();
-    let mut at = 8;
-    let broken = || "the encoder wrote a header that does not parse".to_string();
-    while *bytes.get(at).ok_or_else(broken)? != 0 {
-        let name_end = at + nul_position(&bytes[at..]).ok_or_else(broken)?;
-        let kind_end = name_end + 1 + nul_position(&bytes[name_end + 1..]).ok_or_else(broken)?;
-        let size_at = kind_end + 1;
-        let size = bytes
-            .get(size_at..size_at + 4)
-            .map(|v| u32::from_le_bytes([v[0], v[1], v[2], v[3]]) as usize)
-            .ok_or_else(broken)?;
-        let end = size_at + 4 + size;
-        attributes.push(bytes.get(at..end).ok_or_else(broken)?);
-        at = end;
-    }
-    attributes.sort_by_key(|attribute| &attribute[..nul_position(attribute).unwrap_or(0)]);
-    let header: Vec<u8> = attributes.concat();
-    bytes[8..8 + header.len()].copy_from_slice(&header);
-    Ok(())
-}
-
-fn nul_position(bytes: &[u8]) -> Option<usize> {
-    bytes.iter().position(|&b| b == 0)
 }
 
 /// One half-float channel per coefficient and colour, pixels row-major.
@@ -396,8 +358,9 @@ mod tests {
         let mut names = Vec::new();
         let mut at = 8;
         while first[at] != 0 {
-            let name_end = at + nul_position(&first[at..]).unwrap();
-            let kind_end = name_end + 1 + nul_position(&first[name_end + 1..]).unwrap();
+            let name_end = at + crate::images::nul_position(&first[at..]).unwrap();
+            let kind_end =
+                name_end + 1 + crate::images::nul_position(&first[name_end + 1..]).unwrap();
             let size = u32::from_le_bytes(first[kind_end + 1..kind_end + 5].try_into().unwrap());
             names.push(String::from_utf8(first[at..name_end].to_vec()).unwrap());
             at = kind_end + 5 + size as usize;

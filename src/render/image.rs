@@ -167,13 +167,25 @@ fn encode_exr(
         .write()
         .to_buffered(&mut bytes)
         .map_err(|e| e.to_string())?;
-    Ok(bytes.into_inner())
+    let mut bytes = bytes.into_inner();
+    crate::images::sort_exr_header_attributes(&mut bytes)?;
+    Ok(bytes)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::testing::entries;
+
+    #[test]
+    fn an_exr_is_the_same_bytes_every_time() {
+        // The exr crate orders header attributes by a HashMap's iteration order.
+        let pixels: Vec<[f32; 4]> = (0..12).map(|i| [i as f32, 0.5, 2.0, 1.0]).collect();
+        let first = encode_exr(&pixels, 4, 3).unwrap();
+        for _ in 0..16 {
+            assert_eq!(encode_exr(&pixels, 4, 3).unwrap(), first);
+        }
+    }
 
     #[test]
     fn tone_maps_behave_at_their_landmarks() {

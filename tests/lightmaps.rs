@@ -225,8 +225,8 @@ fn bad_lightmap_requests_fail_cleanly() {
             "--lightmap 99999 is out of range",
         ),
         (
-            vec!["bake", "--lightmap", "64", "--device", "cpu", "-o", "o.glb"],
-            "a lightmap of 64 texels a side is too small for 12544 triangles",
+            vec!["bake", "--lightmap", "16", "--device", "cpu", "-o", "o.glb"],
+            "a lightmap of 16 texels a side is too small for the 21 charts of 12544 triangles",
         ),
         (
             vec![
@@ -486,3 +486,147 @@ H, W = rgb.shape[:2]
 alpha = channels["A"].pixels
 print(json.dumps({"size": [W, H], "alpha": float(alpha.min()) if alpha.min() == alpha.max() else None, "rgb": rgb.reshape(-1, 3).tolist()}))
 "#;
+
+/// A latitude-longitude sphere of `rings` x `segments` cells (poles as fans).
+fn uv_sphere(rings: u32, segments: u32) -> Scene {
+    let mut positions = vec![Vec3::Y];
+    for r in 1..rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
+        for s in 0..segments {
+            let phi = std::f32::consts::TAU * s as f32 / segments as f32;
+            positions.push(Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                -theta.sin() * phi.sin(),
+            ));
+        }
+    }
+    positions.push(Vec3::NEG_Y);
+    let at = |r: u32, s: u32| 1 + (r - 1) * segments + s % segments;
+    let south = positions.len() as u32 - 1;
+    let mut triangles = Vec::new();
+    for s in 0..segments {
+        triangles.push([0, at(1, s), at(1, s + 1)]);
+        triangles.push([south, at(rings - 1, s + 1), at(rings - 1, s)]);
+        for r in 1..rings - 1 {
+            let (a, b, c, d) = (at(r, s), at(r, s + 1), at(r + 1, s), at(r + 1, s + 1));
+            triangles.push([a, c, b]);
+            triangles.push([b, c, d]);
+        }
+    }
+    Scene {
+        albedo: vec![Vec3::splat(0.8); positions.len()],
+        positions,
+        normals: None,
+        triangles,
+    }
+}
+
+/// The seams' disagreement and the texels' noise, each as an RMS over the seams' lookup points
+/// relative to the RMS radiance there: `(stitched, unstitched, noise)`, radiance under a fixed
+/// SH light.
+fn seam_figures(input: &Scene, size: u32, samples: u32) -> (f64, f64, f64, usize) {
+    use prt_gpu::bake::texels::{bake_atlas, bake_atlas_with_stitched_seams, plan_atlas};
+    use prt_gpu::receivers::seams::seams;
+    use prt_gpu::receivers::texels::bilinear_taps;
+    let options = |seed| BakeOptions {
+        samples,
+        seed,
+        ..BakeOptions::default()
+    };
+    let (baked, _) = bake(input.clone(), &options(1), &CpuBackend, &NoProgress).unwrap();
+    let scene = baked.scene.clone();
+    let atlas = plan_atlas(&scene, size).unwrap();
+    let found = seams(&scene, &atlas);
+    assert!(found.len() > 20, "{} seam edges", found.len());
+    let light: Vec<f32> = (0..16)
+        .map(|k| [1.0, 0.7, 0.9, -0.4][k % 4] / (1 + k / 4) as f32)
+        .collect();
+    let radiance_at = |seed: u64, stitched: bool| -> Vec<(f64, f64)> {
+        let bake_one = if stitched {
+            bake_atlas_with_stitched_seams
+        } else {
+            bake_atlas
+        };
+        let (texels, _) = bake_one(
+            &scene,
+            &baked.transfer,
+            &options(seed),
+            &atlas,
+            &CpuBackend,
+            &NoProgress,
+        )
+        .unwrap();
+        let coeffs = texels.transfer.coeffs();
+        let stride = (texels.transfer.channels() * texels.transfer.bands().pow(2)) as usize;
+        let k = texels.transfer.bands().pow(2) as usize;
+        let radiance = |p: glam::DVec2| -> f64 {
+            bilinear_taps(atlas.width, atlas.height, p.as_vec2())
+                .iter()
+                .map(|&(t, w)| {
+                    let channel = &coeffs[t * stride..t * stride + k];
+                    w as f64
+                        * channel
+                            .iter()
+                            .zip(&light)
+                            .map(|(c, l)| (c * l) as f64)
+                            .sum::<f64>()
+                })
+                .sum()
+        };
+        found
+            .iter()
+            .flat_map(|seam| seam.points())
+            .map(|(a, b)| (radiance(a), radiance(b)))
+            .collect()
+    };
+    let rms = |values: &mut dyn Iterator<Item = f64>| {
+        let (sum, n) = values.fold((0.0, 0), |(s, n), v| (s + v * v, n + 1));
+        (sum / n as f64).sqrt()
+    };
+    let stitched = radiance_at(1, true);
+    let scale = rms(&mut stitched.iter().map(|p| p.0));
+    let across = |pairs: &[(f64, f64)]| rms(&mut pairs.iter().map(|(a, b)| a - b)) / scale;
+    let unstitched = radiance_at(1, false);
+    let again = radiance_at(2, false);
+    // One lookup's noise: the difference of two seeds over the square root of two.
+    let noise = rms(&mut unstitched.iter().zip(&again).map(|(a, b)| a.0 - b.0))
+        / std::f64::consts::SQRT_2
+        / scale;
+    (
+        across(&stitched),
+        across(&unstitched),
+        noise,
+        stitched.len(),
+    )
+}
+
+#[test]
+fn stitched_seams_agree_within_the_texels_own_noise() {
+    let dragon = prt_gpu::scene::load(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/dragon_vrip_res3.ply.gz"
+    )))
+    .unwrap();
+    for (name, scene, size) in [
+        ("UV sphere", uv_sphere(24, 48), 128),
+        ("dragon", dragon, 512),
+    ] {
+        let (stitched, unstitched, noise, points) = seam_figures(&scene, size, 64);
+        println!(
+            "{name} at {size}: across the seams {:.3}% stitched, {:.3}% as baked; texels' noise \
+             {:.3}% ({points} points)",
+            100.0 * stitched,
+            100.0 * unstitched,
+            100.0 * noise
+        );
+        assert!(
+            stitched <= noise,
+            "{name}: {stitched} against the noise {noise}"
+        );
+        assert!(
+            unstitched > 2.0 * stitched,
+            "{name}: {unstitched} unstitched"
+        );
+    }
+}

@@ -16,10 +16,10 @@ use super::{bake_at_in, Backend, BakeOptions, Progress, TexelBake, Transfer};
 use crate::bvh::Bvh;
 use crate::error::Result;
 use crate::ray::{offset_ray_origin, Ray, RAY_T_MAX};
-use crate::receivers::atlas::{generate_atlas, texels_per_unit_for_size, Atlas, GUTTER};
+use crate::receivers::atlas::{atlas_for_size, Atlas, GUTTER};
 use crate::receivers::face_normal;
-use crate::receivers::texels::{dilate, rasterize};
-use crate::receivers::{Receivers, SurfacePoint};
+use crate::receivers::texels::{bilinear_taps, dilate_by_owner, nearest_owner, rasterize};
+use crate::receivers::{seams, Receivers, SurfacePoint};
 use crate::sampling::{cosine_hemisphere, VertexDirections};
 use crate::scene::Scene;
 
@@ -48,6 +48,12 @@ pub struct TexelReport {
     pub height: u32,
     /// Texels some triangle covers (each baked once).
     pub covered: usize,
+    /// Charts of the atlas, and its L2 stretch ([`Atlas::stretch`]: 1 where texels keep
+    /// their shape on the surface).
+    pub charts: usize,
+    pub stretch: f64,
+    /// Seam edges: surface edges on two charts ([`crate::receivers::seams`]).
+    pub seams: usize,
     /// Covered texels found inside geometry and refilled from their neighbours.
     pub leaking: usize,
     pub rays_cast: u64,
@@ -57,7 +63,7 @@ pub struct TexelReport {
 /// The atlas of a lightmap about `size` texels on its longer side for the prepared `scene`;
 /// fails (before any ray is cast) where the charts cannot fit that size.
 pub fn plan_atlas(scene: &Scene, size: u32) -> Result<Atlas> {
-    generate_atlas(scene, texels_per_unit_for_size(scene, size)?)
+    atlas_for_size(scene, size)
 }
 
 /// Bakes a lightmap of about `size` texels on its longer side for the prepared `scene`, whose
@@ -79,7 +85,7 @@ pub fn bake_texels(
     Ok((bake, report))
 }
 
-/// Bakes the texels of `atlas` (see [`bake_texels`]).
+/// Bakes the texels of `atlas` (see [`bake_texels`]), its seams as baked.
 pub fn bake_atlas(
     scene: &Scene,
     vertex_transfer: &Transfer,
@@ -87,6 +93,31 @@ pub fn bake_atlas(
     atlas: &Atlas,
     backend: &dyn Backend,
     progress: &dyn Progress,
+) -> Result<(TexelBake, TexelReport)> {
+    let at = (scene, vertex_transfer, atlas);
+    bake_atlas_stitched(at, options, backend, progress, false)
+}
+
+/// [`bake_atlas`] with its seams stitched ([`crate::receivers::seams`]). Not what a bake
+/// does yet: the two sides agree, but the error at held-out points rises (docs/performance.md).
+pub fn bake_atlas_with_stitched_seams(
+    scene: &Scene,
+    vertex_transfer: &Transfer,
+    options: &BakeOptions,
+    atlas: &Atlas,
+    backend: &dyn Backend,
+    progress: &dyn Progress,
+) -> Result<(TexelBake, TexelReport)> {
+    let at = (scene, vertex_transfer, atlas);
+    bake_atlas_stitched(at, options, backend, progress, true)
+}
+
+fn bake_atlas_stitched(
+    (scene, vertex_transfer, atlas): (&Scene, &Transfer, &Atlas),
+    options: &BakeOptions,
+    backend: &dyn Backend,
+    progress: &dyn Progress,
+    stitch: bool,
 ) -> Result<(TexelBake, TexelReport)> {
     let started = Instant::now();
     let texels = rasterize(atlas);
@@ -102,12 +133,25 @@ pub fn bake_atlas(
     let mut image = texels.scatter(at_texels.coeffs(), stride)?;
     let mut valid = texels.valid_mask(&leaking)?;
     let (width, height) = (atlas.width, atlas.height);
-    dilate(
+    // Gutter texels take the values of the chart they are nearest, never of a neighbour
+    // reached first through a chart's refilled leaks.
+    let seeds: Vec<(usize, u32)> = texels
+        .texels
+        .iter()
+        .zip(&texels.points)
+        .map(|(&(x, y), p)| {
+            let at = y as usize * width as usize + x as usize;
+            (at, atlas.chart_of[p.triangle as usize])
+        })
+        .collect();
+    let owner = nearest_owner(width, height, &seeds);
+    dilate_by_owner(
         width,
         height,
         &mut image,
         stride,
         &mut valid,
+        &owner,
         DILATION_PASSES,
     )?;
     // Leaks too wide to fill keep what was baked there.
@@ -124,6 +168,10 @@ pub fn bake_atlas(
             valid[at] = true;
         }
     }
+    let seams = seams::seams(scene, atlas);
+    if stitch {
+        seams::stitch(width, height, &mut image, stride, &seams);
+    }
     let texcoords = atlas
         .corners
         .iter()
@@ -134,6 +182,9 @@ pub fn bake_atlas(
         width,
         height,
         covered: texels.texels.len(),
+        charts: atlas.chart_count(),
+        seams: seams.len(),
+        stretch: atlas.stretch(scene),
         leaking: leaking.iter().filter(|&&l| l).count(),
         rays_cast,
         seconds: started.elapsed().as_secs_f64(),
@@ -313,23 +364,17 @@ pub fn sample_bilinear(
     height: u32,
     uv: [f32; 2],
 ) -> Vec<f32> {
-    let x = uv[0] * width as f32 - 0.5;
-    let y = uv[1] * height as f32 - 0.5;
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let clamp = |v: f32, n: u32| (v.max(0.0) as u32).min(n - 1) as usize;
-    let at = |dx: f32, dy: f32| {
-        let i = clamp(y0 + dy, height) * width as usize + clamp(x0 + dx, width);
-        &values[i * channels..(i + 1) * channels]
-    };
-    let weights = [
-        ((1.0 - fx) * (1.0 - fy), at(0.0, 0.0)),
-        (fx * (1.0 - fy), at(1.0, 0.0)),
-        ((1.0 - fx) * fy, at(0.0, 1.0)),
-        (fx * fy, at(1.0, 1.0)),
-    ];
+    let taps = bilinear_taps(
+        width,
+        height,
+        glam::Vec2::new(uv[0] * width as f32, uv[1] * height as f32),
+    );
     (0..channels)
-        .map(|c| weights.iter().map(|(w, texel)| w * texel[c]).sum())
+        .map(|c| {
+            taps.iter()
+                .map(|&(i, w)| w * values[i * channels + c])
+                .sum()
+        })
         .collect()
 }
 

@@ -10,7 +10,7 @@
 //! trusted, [`mark_invalid`]) from their valid neighbours, so filtering near a chart's edge
 //! never reads an unbaked texel.
 
-use glam::DVec2;
+use glam::{DVec2, Vec2};
 use rayon::prelude::*;
 
 use super::atlas::Atlas;
@@ -73,6 +73,50 @@ impl TexelPoints {
     fn index(&self, x: u32, y: u32) -> usize {
         y as usize * self.width as usize + x as usize
     }
+}
+
+/// The four texels a bilinear lookup at `p` (atlas texel units; texel centres at `+0.5`) reads
+/// and their weights, as `(row-major index, weight)`, clamped at the borders.
+pub fn bilinear_taps(width: u32, height: u32, p: Vec2) -> [(usize, f32); 4] {
+    let (x, y) = (p.x - 0.5, p.y - 0.5);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let clamp = |v: f32, n: u32| (v.max(0.0) as u32).min(n - 1) as usize;
+    let at = |dx: f32, dy: f32| clamp(y0 + dy, height) * width as usize + clamp(x0 + dx, width);
+    [
+        (at(0.0, 0.0), (1.0 - fx) * (1.0 - fy)),
+        (at(1.0, 0.0), fx * (1.0 - fy)),
+        (at(0.0, 1.0), (1.0 - fx) * fy),
+        (at(1.0, 1.0), fx * fy),
+    ]
+}
+
+/// Per texel of a `width` x `height` image, the label of the nearest seed (Chebyshev distance,
+/// ties to the seed reached first, seeds taken in the order given); `u32::MAX` with no seeds.
+/// `seeds` are `(row-major texel, label)`.
+pub fn nearest_owner(width: u32, height: u32, seeds: &[(usize, u32)]) -> Vec<u32> {
+    let (w, h) = (width as usize, height as usize);
+    let mut owner = vec![u32::MAX; w * h];
+    let mut queue = std::collections::VecDeque::new();
+    for &(texel, label) in seeds {
+        if texel < owner.len() && owner[texel] == u32::MAX {
+            owner[texel] = label;
+            queue.push_back(texel);
+        }
+    }
+    while let Some(texel) = queue.pop_front() {
+        let (x, y) = (texel % w, texel / w);
+        for ny in y.saturating_sub(1)..(y + 2).min(h) {
+            for nx in x.saturating_sub(1)..(x + 2).min(w) {
+                let n = ny * w + nx;
+                if owner[n] == u32::MAX {
+                    owner[n] = owner[texel];
+                    queue.push_back(n);
+                }
+            }
+        }
+    }
+    owner
 }
 
 /// Marks texels invalid, so that [`dilate`] fills them from their neighbours: `valid[at[i]]`
@@ -276,10 +320,27 @@ pub fn dilate(
     valid: &mut [bool],
     passes: u32,
 ) -> Result<()> {
+    dilate_by_owner(width, height, values, channels, valid, &[], passes)
+}
+
+/// [`dilate`], each texel filled only from neighbours of its own owner (`owner`, one label per
+/// texel, such as [`nearest_owner`]'s chart; empty for one owner): a texel in the gutter takes
+/// the values of the chart it is nearest, whatever the texels of a nearer-filled neighbour
+/// chart hold.
+pub fn dilate_by_owner(
+    width: u32,
+    height: u32,
+    values: &mut [f32],
+    channels: usize,
+    valid: &mut [bool],
+    owner: &[u32],
+    passes: u32,
+) -> Result<()> {
     let (w, h) = (width as usize, height as usize);
     let texels = w.checked_mul(h);
     if texels != Some(valid.len())
         || texels.and_then(|n| n.checked_mul(channels)) != Some(values.len())
+        || !(owner.is_empty() || Some(owner.len()) == texels)
     {
         return Err(Error::Options(format!(
             "dilation of a {width} x {height} image of {channels} channels given {} values and {} flags",
@@ -288,7 +349,7 @@ pub fn dilate(
         )));
     }
     for _ in 0..passes {
-        let (filled, averages) = dilation_pass(w, h, values, channels, valid);
+        let (filled, averages) = dilation_pass(w, h, values, channels, valid, owner);
         if filled.is_empty() {
             break;
         }
@@ -310,10 +371,11 @@ fn dilation_pass(
     values: &[f32],
     channels: usize,
     valid: &[bool],
+    owner: &[u32],
 ) -> (Vec<usize>, Vec<f32>) {
     let rows: Vec<(Vec<usize>, Vec<f32>)> = (0..h)
         .into_par_iter()
-        .map(|y| fill_row(w, h, y, values, channels, valid))
+        .map(|y| fill_row(w, h, y, (values, channels), valid, owner))
         .collect();
     let mut texels = Vec::new();
     let mut averages = Vec::new();
@@ -324,15 +386,15 @@ fn dilation_pass(
     (texels, averages)
 }
 
-/// The invalid texels of row `y` with a valid 8-neighbour, and the averages of those
-/// neighbours (summed in a fixed order).
+/// The invalid texels of row `y` with a valid 8-neighbour of the same owner, and the averages
+/// of those neighbours (summed in a fixed order).
 fn fill_row(
     w: usize,
     h: usize,
     y: usize,
-    values: &[f32],
-    channels: usize,
+    (values, channels): (&[f32], usize),
     valid: &[bool],
+    owner: &[u32],
 ) -> (Vec<usize>, Vec<f32>) {
     let mut texels = Vec::new();
     let mut averages = Vec::new();
@@ -345,7 +407,7 @@ fn fill_row(
                 .flat_map(move |ny| {
                     (x.saturating_sub(1)..(x + 2).min(w)).map(move |nx| ny * w + nx)
                 })
-                .filter(|&n| valid[n])
+                .filter(move |&n| valid[n] && (owner.is_empty() || owner[n] == owner[y * w + x]))
         };
         let count = neighbours().count();
         if count == 0 {
@@ -584,9 +646,9 @@ mod tests {
 
     #[test]
     fn receivers_are_as_far_apart_on_the_surface_as_in_the_atlas() {
-        use super::super::atlas::MIN_CHART_EDGE;
         use super::super::Receivers;
-        let scene = quad_scene();
+        // Flat charts, none enlarged: the atlas is the surface at the density.
+        let scene = super::super::atlas::tests::flat_scene();
         let density = 20.0;
         let atlas = generate_atlas(&scene, density).unwrap();
         let texels = rasterize(&atlas);
@@ -601,11 +663,7 @@ mod tests {
                 first_of[t] = Some((flat, receivers.positions[i]));
                 continue;
             };
-            let corners = scene.triangles[t].map(|v| scene.positions[v as usize]);
-            let longest = (0..3)
-                .map(|k| corners[k].distance(corners[(k + 1) % 3]))
-                .fold(0.0, f32::max);
-            let scale = density.max(MIN_CHART_EDGE / longest);
+            let scale = density;
             let in_atlas = flat.distance(first_flat);
             let on_surface = receivers.positions[i].distance(first_3d) * scale;
             assert!(
@@ -640,7 +698,14 @@ mod tests {
         let values: Vec<f32> = texels.points.iter().map(chart_of).collect();
         let mut image = texels.scatter(&values, 1).unwrap();
         let (w, h) = (atlas.width, atlas.height);
-        dilate(w, h, &mut image, 1, &mut valid, 2).unwrap();
+        let seeds: Vec<(usize, u32)> = texels
+            .texels
+            .iter()
+            .zip(&texels.points)
+            .map(|(&(x, y), p)| ((y * w + x) as usize, atlas.chart_of[p.triangle as usize]))
+            .collect();
+        let owner = nearest_owner(w, h, &seeds);
+        dilate_by_owner(w, h, &mut image, 1, &mut valid, &owner, 2).unwrap();
         for (&(x, y), p) in texels.texels.iter().zip(&texels.points) {
             // Any 2x2 block holding the texel lies in its 3x3 neighbourhood.
             for ny in y - 1..=y + 1 {

@@ -100,11 +100,15 @@ pub(super) fn print_stage_lines(report: &BakeReport, output: &Path) {
     }
     if let Some(texels) = &report.texels {
         eprintln!(
-            "lightmap: {}x{} texels, {} covered ({} inside geometry, refilled), {} rays in \
-             {:.2} s -> {}",
+            "lightmap: {}x{} texels, {} charts ({} seam edges), {} covered ({:.1}% of the \
+             atlas; stretch {:.3}; {} inside geometry, refilled), {} rays in {:.2} s -> {}",
             texels.width,
             texels.height,
+            texels.charts,
+            texels.seams,
             texels.covered,
+            100.0 * texels.covered as f64 / (texels.width as f64 * texels.height as f64),
+            texels.stretch,
             texels.leaking,
             texels.rays_cast,
             texels.seconds,

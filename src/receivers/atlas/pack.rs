@@ -1,0 +1,277 @@
+//! Packing charts of any shape into an atlas of a given width, by their texels.
+//!
+//! Each chart's footprint is the range of texel rows it meets in each texel column (closed
+//! squares, as `texels::rasterize` counts them, with a margin for the rounding of placed
+//! corners). The atlas keeps a skyline: per column, the lowest row a new chart may use there,
+//! [`GUTTER`] rows above the highest texel of any chart within [`GUTTER`] columns. Charts go in
+//! largest first; each takes, of both its turns (as laid out, and a quarter turn) and every
+//! column, the place that keeps its top lowest (then the leftmost, then the unturned). Two
+//! charts' texels are then more than [`GUTTER`] texels apart (Chebyshev distance), so
+//! `GUTTER` empty texels lie between them, as between a chart and the border.
+
+use glam::DVec2;
+
+use super::GUTTER;
+
+/// A chart ready to pack: its triangles' corners in texels, inside `[0, size.x] x [0, size.y]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TexelChart {
+    pub corners: Vec<[DVec2; 3]>,
+    pub size: DVec2,
+}
+
+/// Where a chart went: its lower-left corner's texel, and whether it was given a quarter turn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Placement {
+    pub origin: [u32; 2],
+    pub turned: bool,
+}
+
+/// Charts placed in an atlas at most `width` texels wide (gutters at both sides included),
+/// and the width and height they take; `None` where a chart is wider than the atlas allows
+/// either way round.
+pub fn pack(charts: &[TexelChart], width: u32) -> Option<(Vec<Placement>, u32, u32)> {
+    let mut order: Vec<usize> = (0..charts.len()).collect();
+    let key = |c: &TexelChart| (c.size.x * c.size.y * 1024.0) as u64;
+    // Stable: equal sizes keep chart order.
+    order.sort_by_key(|&i| std::cmp::Reverse(key(&charts[i])));
+    let mut skyline = vec![GUTTER as i64; width as usize];
+    let mut placements = vec![
+        Placement {
+            origin: [0, 0],
+            turned: false
+        };
+        charts.len()
+    ];
+    let (mut used_width, mut height) = (0i64, 0i64);
+    for i in order {
+        let chart = &charts[i];
+        let mut best: Option<(i64, i64, i64, bool, Footprint)> = None;
+        for turned in [false, true] {
+            let footprint = Footprint::of(&placed_corners(chart, turned));
+            if let Some((x, y, waste)) = lowest_place(&skyline, &footprint) {
+                let top = y + footprint.top();
+                if best
+                    .as_ref()
+                    .is_none_or(|b| (top, waste, x) < (b.0, b.1, b.2))
+                {
+                    best = Some((top, waste, x, turned, footprint));
+                }
+            }
+        }
+        let (top, _, x, turned, footprint) = best?;
+        let y = top - footprint.top();
+        footprint.raise(&mut skyline, x, y);
+        height = height.max(top + 1 + GUTTER as i64);
+        used_width = used_width.max(x + footprint.columns.len() as i64 + GUTTER as i64);
+        placements[i] = Placement {
+            origin: [x as u32, y as u32],
+            turned,
+        };
+    }
+    let least = 2 * GUTTER as i64 + 1;
+    Some((
+        placements,
+        used_width.max(least) as u32,
+        height.max(least) as u32,
+    ))
+}
+
+/// A chart's corners as placed at the origin: turned a quarter (counter-clockwise, then moved
+/// back into the positive quadrant) when asked, and half a texel in, so that a corner on the
+/// box sits on a texel centre and which texels it touches is unambiguous.
+pub fn placed_corners(chart: &TexelChart, turned: bool) -> Vec<[DVec2; 3]> {
+    let half = DVec2::splat(0.5);
+    chart
+        .corners
+        .iter()
+        .map(|c| {
+            c.map(|p| {
+                let p = if turned {
+                    DVec2::new(chart.size.y - p.y, p.x)
+                } else {
+                    p
+                };
+                p + half
+            })
+        })
+        .collect()
+}
+
+/// Per texel column of a chart (from column 0), the lowest and highest texel row it meets.
+#[derive(Clone, Debug, PartialEq)]
+struct Footprint {
+    columns: Vec<(i64, i64)>,
+}
+
+impl Footprint {
+    fn of(corners: &[[DVec2; 3]]) -> Footprint {
+        // Placed corners are rounded to f32: a hundredth of a texel covers that at 16384.
+        const MARGIN: f64 = 0.01;
+        let mut columns: Vec<(i64, i64)> = Vec::new();
+        for triangle in corners {
+            let lo = triangle[0].min(triangle[1]).min(triangle[2]);
+            let hi = triangle[0].max(triangle[1]).max(triangle[2]);
+            let first = ((lo.x - MARGIN).ceil() as i64 - 1).max(0);
+            let last = (hi.x + MARGIN).floor() as i64;
+            if columns.len() <= last as usize {
+                columns.resize(last as usize + 1, (i64::MAX, i64::MIN));
+            }
+            for x in first..=last {
+                let (low, high) =
+                    rows_in_slab(triangle, x as f64 - MARGIN, x as f64 + 1.0 + MARGIN);
+                let rows = &mut columns[x as usize];
+                rows.0 = rows.0.min(((low - MARGIN).ceil() as i64 - 1).max(0));
+                rows.1 = rows.1.max((high + MARGIN).floor() as i64);
+            }
+        }
+        Footprint { columns }
+    }
+
+    fn top(&self) -> i64 {
+        self.columns.iter().map(|c| c.1).max().unwrap_or(0)
+    }
+
+    /// Raises the skyline over the chart placed at `(x, y)`.
+    fn raise(&self, skyline: &mut [i64], x: i64, y: i64) {
+        let g = GUTTER as i64;
+        for (i, &(low, high)) in self.columns.iter().enumerate() {
+            if low > high {
+                continue;
+            }
+            let column = x + i as i64;
+            let from = (column - g).max(0) as usize;
+            let to = ((column + g) as usize).min(skyline.len() - 1);
+            for s in &mut skyline[from..=to] {
+                *s = (*s).max(y + high + g + 1);
+            }
+        }
+    }
+}
+
+/// Where the chart stands on the skyline, its columns clear of the side gutters, leaving the
+/// fewest texels unused beneath it (then lowest, then leftmost): `(x, y, texels unused)`.
+fn lowest_place(skyline: &[i64], footprint: &Footprint) -> Option<(i64, i64, i64)> {
+    let g = GUTTER as i64;
+    let span = footprint.columns.len() as i64;
+    let last_x = skyline.len() as i64 - g - span;
+    let mut best: Option<(i64, i64, i64)> = None;
+    for x in g..=last_x {
+        let columns = || {
+            footprint
+                .columns
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| c.0 <= c.1)
+                .map(move |(i, c)| (skyline[(x + i as i64) as usize], c.0))
+        };
+        let y = columns().map(|(s, low)| s - low).max().unwrap_or(g).max(0);
+        let waste: i64 = columns().map(|(s, low)| y + low - s).sum();
+        if best.is_none_or(|b| (y, waste) < (b.1, b.0)) {
+            best = Some((waste, y, x));
+        }
+    }
+    best.map(|(waste, y, x)| (x, y, waste))
+}
+
+/// The lowest and highest `y` of the triangle between the vertical lines `x = from` and
+/// `x = to`: over its corners inside and where its edges cross the lines.
+fn rows_in_slab(corners: &[DVec2; 3], from: f64, to: f64) -> (f64, f64) {
+    let mut low = f64::INFINITY;
+    let mut high = f64::NEG_INFINITY;
+    let mut take = |y: f64| {
+        low = low.min(y);
+        high = high.max(y);
+    };
+    for i in 0..3 {
+        let (a, b) = (corners[i], corners[(i + 1) % 3]);
+        if a.x >= from && a.x <= to {
+            take(a.y);
+        }
+        for line in [from, to] {
+            if (a.x - line) * (b.x - line) < 0.0 {
+                let t = (line - a.x) / (b.x - a.x);
+                take(a.y + t * (b.y - a.y));
+            }
+        }
+    }
+    (low, high)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(side: f64) -> TexelChart {
+        TexelChart {
+            corners: vec![
+                [DVec2::ZERO, DVec2::new(side, 0.0), DVec2::splat(side)],
+                [DVec2::ZERO, DVec2::splat(side), DVec2::new(0.0, side)],
+            ],
+            size: DVec2::splat(side),
+        }
+    }
+
+    #[test]
+    fn a_footprint_is_the_texels_a_chart_meets() {
+        // Placed half a texel in, a 3-texel square spans texels 0..=3 each way.
+        let footprint = Footprint::of(&placed_corners(&square(3.0), false));
+        assert_eq!(footprint.columns, vec![(0, 3); 4]);
+        // A right triangle: column x meets rows up to its hypotenuse.
+        let triangle = TexelChart {
+            corners: vec![[DVec2::ZERO, DVec2::new(4.0, 0.0), DVec2::new(0.0, 4.0)]],
+            size: DVec2::splat(4.0),
+        };
+        let footprint = Footprint::of(&placed_corners(&triangle, false));
+        assert_eq!(
+            footprint.columns,
+            vec![(0, 4), (0, 4), (0, 3), (0, 2), (0, 1)]
+        );
+    }
+
+    #[test]
+    fn charts_interlock_and_keep_the_gutter() {
+        // Two right triangles pack into little more than one square's rows.
+        let triangle = TexelChart {
+            corners: vec![[DVec2::ZERO, DVec2::new(20.0, 0.0), DVec2::new(0.0, 20.0)]],
+            size: DVec2::splat(20.0),
+        };
+        let charts = vec![triangle.clone(), triangle];
+        let (placements, _, height) = pack(&charts, 60).unwrap();
+        assert!(height < 2 * 21, "height {height}");
+        let cells: Vec<Vec<(i64, i64)>> = charts
+            .iter()
+            .zip(&placements)
+            .map(|(c, p)| {
+                let f = Footprint::of(&placed_corners(c, p.turned));
+                let mut cells = Vec::new();
+                for (i, &(lo, hi)) in f.columns.iter().enumerate() {
+                    for y in lo..=hi {
+                        cells.push((p.origin[0] as i64 + i as i64, p.origin[1] as i64 + y));
+                    }
+                }
+                cells
+            })
+            .collect();
+        let g = GUTTER as i64;
+        for &(x, y) in cells.iter().flatten() {
+            assert!(x >= g && y >= g && x < 60 - g && y < height as i64 - g);
+        }
+        for a in &cells[0] {
+            for b in &cells[1] {
+                assert!((a.0 - b.0).abs().max((a.1 - b.1).abs()) > g, "{a:?} {b:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_chart_wider_than_the_atlas_is_turned_or_refused() {
+        let long = TexelChart {
+            corners: vec![[DVec2::ZERO, DVec2::new(30.0, 0.0), DVec2::new(0.0, 4.0)]],
+            size: DVec2::new(30.0, 4.0),
+        };
+        let (placements, _, height) = pack(std::slice::from_ref(&long), 12).unwrap();
+        assert!(placements[0].turned && height >= 30);
+        assert!(pack(&[long], 5).is_none());
+    }
+}

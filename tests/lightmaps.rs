@@ -526,7 +526,7 @@ fn uv_sphere(rings: u32, segments: u32) -> Scene {
 /// relative to the RMS radiance there: `(stitched, unstitched, noise)`, radiance under a fixed
 /// SH light.
 fn seam_figures(input: &Scene, size: u32, samples: u32) -> (f64, f64, f64, usize) {
-    use prt_gpu::bake::texels::{bake_atlas, bake_atlas_with_stitched_seams, plan_atlas};
+    use prt_gpu::bake::texels::{bake_atlas, bake_atlas_seams_as_baked, plan_atlas};
     use prt_gpu::receivers::seams::seams;
     use prt_gpu::receivers::texels::bilinear_taps;
     let options = |seed| BakeOptions {
@@ -544,9 +544,9 @@ fn seam_figures(input: &Scene, size: u32, samples: u32) -> (f64, f64, f64, usize
         .collect();
     let radiance_at = |seed: u64, stitched: bool| -> Vec<(f64, f64)> {
         let bake_one = if stitched {
-            bake_atlas_with_stitched_seams
-        } else {
             bake_atlas
+        } else {
+            bake_atlas_seams_as_baked
         };
         let (texels, _) = bake_one(
             &scene,
@@ -602,7 +602,7 @@ fn seam_figures(input: &Scene, size: u32, samples: u32) -> (f64, f64, f64, usize
 }
 
 #[test]
-fn stitched_seams_agree_within_the_texels_own_noise() {
+fn seams_agree_within_the_texels_own_noise() {
     let dragon = prt_gpu::scene::load(Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/tests/data/dragon_vrip_res3.ply.gz"

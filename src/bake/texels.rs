@@ -9,7 +9,7 @@
 
 use std::time::Instant;
 
-use glam::Vec3;
+use glam::{DVec2, Vec3};
 use rayon::prelude::*;
 
 use super::{bake_at_in, Backend, BakeOptions, Progress, TexelBake, Transfer};
@@ -18,7 +18,9 @@ use crate::error::Result;
 use crate::ray::{offset_ray_origin, Ray, RAY_T_MAX};
 use crate::receivers::atlas::{atlas_for_size, Atlas, GUTTER};
 use crate::receivers::face_normal;
-use crate::receivers::texels::{bilinear_taps, dilate_by_owner, nearest_owner, rasterize};
+use crate::receivers::texels::{
+    bilinear_taps, dilate_by_owner, nearest_owner, rasterize, TexelPoints,
+};
 use crate::receivers::{seams, Receivers, SurfacePoint};
 use crate::sampling::{cosine_hemisphere, VertexDirections};
 use crate::scene::Scene;
@@ -40,6 +42,10 @@ pub const COVER_TEXELS: f32 = 0.25;
 /// edge reads filled texels), and enough to refill leaks from their valid neighbours; a leak
 /// wider than this keeps its own (dark) values.
 pub const DILATION_PASSES: u32 = 32 * GUTTER;
+
+/// How firmly a texel dilation filled, or one baked at a point of its chart's edge, keeps its
+/// value when seams are stitched, against 1 for a texel baked at its own centre.
+pub const FILLED_ANCHOR: f32 = 0.01;
 
 /// What the texel bake did, for the summary line.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -85,7 +91,8 @@ pub fn bake_texels(
     Ok((bake, report))
 }
 
-/// Bakes the texels of `atlas` (see [`bake_texels`]), its seams as baked.
+/// Bakes the texels of `atlas` (see [`bake_texels`]), its seams stitched
+/// ([`crate::receivers::seams`]).
 pub fn bake_atlas(
     scene: &Scene,
     vertex_transfer: &Transfer,
@@ -95,12 +102,11 @@ pub fn bake_atlas(
     progress: &dyn Progress,
 ) -> Result<(TexelBake, TexelReport)> {
     let at = (scene, vertex_transfer, atlas);
-    bake_atlas_stitched(at, options, backend, progress, false)
+    bake_atlas_stitched(at, options, backend, progress, true)
 }
 
-/// [`bake_atlas`] with its seams stitched ([`crate::receivers::seams`]). Not what a bake
-/// does yet: the two sides agree, but the error at held-out points rises (docs/performance.md).
-pub fn bake_atlas_with_stitched_seams(
+/// [`bake_atlas`] with the seams as baked: what stitching changes, measured.
+pub fn bake_atlas_seams_as_baked(
     scene: &Scene,
     vertex_transfer: &Transfer,
     options: &BakeOptions,
@@ -109,7 +115,7 @@ pub fn bake_atlas_with_stitched_seams(
     progress: &dyn Progress,
 ) -> Result<(TexelBake, TexelReport)> {
     let at = (scene, vertex_transfer, atlas);
-    bake_atlas_stitched(at, options, backend, progress, true)
+    bake_atlas_stitched(at, options, backend, progress, false)
 }
 
 fn bake_atlas_stitched(
@@ -133,18 +139,16 @@ fn bake_atlas_stitched(
     let mut image = texels.scatter(at_texels.coeffs(), stride)?;
     let mut valid = texels.valid_mask(&leaking)?;
     let (width, height) = (atlas.width, atlas.height);
-    // Gutter texels take the values of the chart they are nearest, never of a neighbour
-    // reached first through a chart's refilled leaks.
-    let seeds: Vec<(usize, u32)> = texels
-        .texels
+    let owner = chart_owners(atlas, &texels);
+    // Texels baked at their own centres hold firm when seams are stitched; texels baked at a
+    // point on a chart's edge, and those dilation fills, take what stitching gives them.
+    let mut anchor: Vec<f32> = valid
         .iter()
-        .zip(&texels.points)
-        .map(|(&(x, y), p)| {
-            let at = y as usize * width as usize + x as usize;
-            (at, atlas.chart_of[p.triangle as usize])
-        })
+        .map(|&baked| if baked { 1.0 } else { FILLED_ANCHOR })
         .collect();
-    let owner = nearest_owner(width, height, &seeds);
+    for texel in off_centre_texels(atlas, &texels) {
+        anchor[texel] = FILLED_ANCHOR;
+    }
     dilate_by_owner(
         width,
         height,
@@ -170,7 +174,8 @@ fn bake_atlas_stitched(
     }
     let seams = seams::seams(scene, atlas);
     if stitch {
-        seams::stitch(width, height, &mut image, stride, &seams);
+        let rows = seams::seam_rows(width, height, &seams);
+        seams::solve((width, height), &mut image, stride, &rows, &anchor);
     }
     let texcoords = atlas
         .corners
@@ -203,6 +208,40 @@ fn bake_atlas_stitched(
         .expect("one row of coefficients for every texel"),
     };
     Ok((bake, report))
+}
+
+/// Per texel of the atlas, the chart whose covered texels are nearest: gutter texels take the
+/// values of that chart, never of a neighbour reached first through a chart's refilled leaks.
+fn chart_owners(atlas: &Atlas, texels: &TexelPoints) -> Vec<u32> {
+    let seeds: Vec<(usize, u32)> = texels
+        .texels
+        .iter()
+        .zip(&texels.points)
+        .map(|(&(x, y), p)| {
+            let at = y as usize * atlas.width as usize + x as usize;
+            (at, atlas.chart_of[p.triangle as usize])
+        })
+        .collect();
+    nearest_owner(atlas.width, atlas.height, &seeds)
+}
+
+/// The texels baked at a point of their chart's edge rather than at their centre (a chart
+/// covers only part of them), as row-major indices.
+fn off_centre_texels(atlas: &Atlas, texels: &TexelPoints) -> Vec<usize> {
+    // Off the centre by more than rounding.
+    const OFF_CENTRE: f64 = 1e-3;
+    texels
+        .texels
+        .iter()
+        .zip(&texels.points)
+        .filter(|&(&(x, y), p)| {
+            let c = atlas.corners[p.triangle as usize].map(|c| c.as_dvec2());
+            let b = p.barycentrics.map(|b| b as f64);
+            let point = c[0] * b[0] + c[1] * b[1] + c[2] * b[2];
+            point.distance(DVec2::new(x as f64 + 0.5, y as f64 + 0.5)) > OFF_CENTRE
+        })
+        .map(|(&(x, y), _)| y as usize * atlas.width as usize + x as usize)
+        .collect()
 }
 
 /// The albedo at each texel of `texels` over `scene` (split at its corners, one vertex per

@@ -1,20 +1,28 @@
-//! Seams: edges of the surface that lie in the atlas twice, once on each of two charts (or at
-//! two places of one chart, where a UV set is cut). Bilinear lookups on the two sides read
+//! Seams: surface edges that lie in the atlas twice, once on each of two charts (or at two
+//! places of one chart, where a UV set is cut). Bilinear lookups on the two sides read
 //! different texels, baked at different points, and disagree: the light steps along the seam.
+//! Only edges between faces within 30 degrees of each other are seams to stitch: across a
+//! sharper crease each face blocks the directions below its own plane, and the light steps.
 //!
-//! [`stitch`] moves the texels those lookups read, least squares, so that the two sides agree
-//! at points along every seam edge while each texel stays near its bake: minimise
-//! `sum_texels |x - baked|^2 + SEAM_WEIGHT * sum_points |lookup_a(x) - lookup_b(x)|^2`, the same
-//! weights for every coefficient (lightmappers' seam stitching). The normal equations are
-//! symmetric positive definite and solved by conjugate gradients, every coefficient at once.
+//! [`seam_rows`] asks that lookups on the two sides agree at points along every seam edge
+//! (lightmappers' seam stitching), and [`solve`] finds the texel values, least squares:
+//! minimise `sum_t anchor_t |x_t - x0_t|^2 + sum_rows weight |lookup_a(x) - lookup_b(x)|^2`, the same
+//! weights for every coefficient. The normal equations are symmetric positive definite and
+//! solved by Jacobi-preconditioned conjugate gradients, every coefficient at once.
 
 use std::collections::HashMap;
 
 use glam::DVec2;
+use rayon::prelude::*;
 
 use super::atlas::Atlas;
 use super::texels::bilinear_taps;
 use crate::scene::Scene;
+
+/// The cosine of the widest angle between two faces whose shared edge is stitched (30
+/// degrees): across a sharper crease each face blocks the directions below its own plane, and
+/// the light legitimately steps.
+const SMOOTH_COSINE: f32 = 0.866;
 
 /// How much agreement across a seam weighs against a texel keeping its baked value.
 pub const SEAM_WEIGHT: f64 = 10.0;
@@ -22,6 +30,9 @@ pub const SEAM_WEIGHT: f64 = 10.0;
 /// Lookups per texel of a seam edge's length (on its longer side), so that every texel along
 /// the seam is constrained.
 const POINTS_PER_TEXEL: f64 = 2.0;
+
+/// The residual, relative to the right-hand side, at which the solve stops.
+const TOLERANCE: f64 = 1e-3;
 
 /// Conjugate-gradient steps at most.
 const MAX_STEPS: usize = 200;
@@ -56,7 +67,7 @@ impl Seam {
 /// seam: the light may step there.
 pub fn seams(scene: &Scene, atlas: &Atlas) -> Vec<Seam> {
     // Per edge (its vertices, lower first), each triangle's corners at its two ends.
-    let mut by_edge: HashMap<(u32, u32), Vec<(DVec2, DVec2)>> = HashMap::new();
+    let mut by_edge: HashMap<(u32, u32), Vec<Side>> = HashMap::new();
     for (t, corners) in scene.triangles.iter().enumerate() {
         let flat = atlas.corners[t].map(|c| c.as_dvec2());
         for i in 0..3 {
@@ -70,21 +81,33 @@ pub fn seams(scene: &Scene, atlas: &Atlas) -> Vec<Seam> {
             } else {
                 (flat[j], flat[i])
             };
-            by_edge.entry((u.min(v), u.max(v))).or_default().push(ends);
+            by_edge
+                .entry((u.min(v), u.max(v)))
+                .or_default()
+                .push((ends.0, ends.1, t as u32));
         }
     }
     // Apart by more than rounding: a thousandth of a texel.
     const APART: f64 = 1e-3;
+    let normal = |t: u32| super::face_normal(&scene.positions, scene.triangles[t as usize]);
+    let smooth = |a: u32, b: u32| {
+        let (na, nb) = (normal(a), normal(b));
+        na.dot(nb) >= SMOOTH_COSINE * na.length() * nb.length()
+    };
     let mut seams: Vec<((u32, u32), Seam)> = by_edge
         .into_iter()
         .filter_map(|(edge, sides)| match sides.as_slice() {
-            &[a, b] if a.0.distance(b.0) > APART || a.1.distance(b.1) > APART => Some((
-                edge,
-                Seam {
-                    a: [a.0, a.1],
-                    b: [b.0, b.1],
-                },
-            )),
+            &[a, b]
+                if (a.0.distance(b.0) > APART || a.1.distance(b.1) > APART) && smooth(a.2, b.2) =>
+            {
+                Some((
+                    edge,
+                    Seam {
+                        a: [a.0, a.1],
+                        b: [b.0, b.1],
+                    },
+                ))
+            }
             _ => None,
         })
         .collect();
@@ -93,10 +116,20 @@ pub fn seams(scene: &Scene, atlas: &Atlas) -> Vec<Seam> {
     seams.into_iter().map(|(_, seam)| seam).collect()
 }
 
-/// One lookup pair's difference as taps: `+w` on side a's texels, `-w` on side b's.
-type Row = [(usize, f64); 8];
+/// One side of an edge: its triangle's corners in the atlas at the edge's lower and higher
+/// vertex, and the triangle.
+type Side = (DVec2, DVec2, u32);
 
-fn rows(seams: &[Seam], width: u32, height: u32) -> Vec<Row> {
+/// One equation on the texels, `sum_k w_k x[t_k] = 0` (side a's lookup less side b's), and its
+/// weight in the sum of squares.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Row {
+    taps: [(usize, f64); 8],
+    weight: f64,
+}
+
+/// Rows asking that lookups on the two sides of every seam agree, weighted [`SEAM_WEIGHT`].
+pub fn seam_rows(width: u32, height: u32, seams: &[Seam]) -> Vec<Row> {
     let mut rows = Vec::new();
     for seam in seams {
         for (a, b) in seam.points() {
@@ -104,103 +137,128 @@ fn rows(seams: &[Seam], width: u32, height: u32) -> Vec<Row> {
                 bilinear_taps(width, height, a.as_vec2()),
                 bilinear_taps(width, height, b.as_vec2()),
             );
-            let mut row = [(0, 0.0); 8];
+            let mut taps = [(0, 0.0); 8];
             for k in 0..4 {
-                row[k] = (ta[k].0, ta[k].1 as f64);
-                row[k + 4] = (tb[k].0, -tb[k].1 as f64);
+                taps[k] = (ta[k].0, ta[k].1 as f64);
+                taps[k + 4] = (tb[k].0, -tb[k].1 as f64);
             }
-            rows.push(row);
+            rows.push(Row {
+                taps,
+                weight: SEAM_WEIGHT,
+            });
         }
     }
     rows
 }
 
-/// Stitches the seams of a `width` x `height` image of `stride` values a texel (row-major),
-/// in place (see the module's notes). Texels no seam lookup reads keep their values.
-pub fn stitch(width: u32, height: u32, image: &mut [f32], stride: usize, seams: &[Seam]) {
-    let rows = rows(seams, width, height);
-    if rows.is_empty() || stride == 0 {
+/// Solves for the texels `rows` read, in place in a `width` x `height` image of `stride`
+/// values a texel (row-major; see the module's notes). `anchor` weighs, per texel, how firmly
+/// it keeps its value (empty: 1 for all). Texels no row reads keep their values.
+pub fn solve(
+    (width, height): (u32, u32),
+    image: &mut [f32],
+    stride: usize,
+    rows: &[Row],
+    anchor: &[f32],
+) {
+    let count = width as usize * height as usize;
+    if rows.is_empty() || stride == 0 || image.len() != count * stride {
         return;
     }
-    // The texels the lookups read, numbered densely in first-use order.
+    // The texels the rows read, numbered densely in first-use order.
     let mut index: HashMap<usize, usize> = HashMap::new();
     let mut texels = Vec::new();
-    let rows: Vec<[(usize, f64); 8]> = rows
-        .iter()
-        .map(|row| {
-            row.map(|(texel, w)| {
-                let i = *index.entry(texel).or_insert_with(|| {
-                    texels.push(texel);
-                    texels.len() - 1
-                });
-                (i, w)
-            })
+    let mut number = |texel: usize| {
+        *index.entry(texel).or_insert_with(|| {
+            texels.push(texel);
+            texels.len() - 1
         })
-        .collect();
-    let n = texels.len();
-    let baked: Vec<f64> = texels
+    };
+    let local: Vec<[(usize, f64); 8]> = rows
         .iter()
-        .flat_map(|&t| {
-            image[t * stride..(t + 1) * stride]
-                .iter()
-                .map(|&v| v as f64)
-        })
+        .map(|row| row.taps.map(|(texel, w)| (number(texel), w)))
         .collect();
-    // (I + w C^T C) x, columns side by side: x[i * stride + c].
+    let weight: Vec<f64> = texels
+        .iter()
+        .map(|&t| anchor.get(t).map_or(1.0, |&a| a as f64))
+        .collect();
+    let mut diagonal = weight.clone();
+    for (row, taps) in rows.iter().zip(&local) {
+        for &(i, w) in taps {
+            diagonal[i] += row.weight * w * w;
+        }
+    }
     let apply = |x: &[f64], out: &mut [f64]| {
-        out.copy_from_slice(x);
-        let mut difference = vec![0.0; stride];
-        for row in &rows {
-            difference.fill(0.0);
-            for &(i, w) in row {
-                for (d, v) in difference.iter_mut().zip(&x[i * stride..(i + 1) * stride]) {
-                    *d += w * v;
-                }
-            }
-            for &(i, w) in row {
-                for (o, d) in out[i * stride..(i + 1) * stride]
-                    .iter_mut()
-                    .zip(&difference)
-                {
-                    *o += SEAM_WEIGHT * w * d;
-                }
+        for ((o, v), w) in out.iter_mut().zip(x).zip(&weight) {
+            *o = w * v;
+        }
+        for (row, taps) in rows.iter().zip(&local) {
+            let lookup: f64 = taps.iter().map(|&(i, w)| w * x[i]).sum();
+            for &(i, w) in taps {
+                out[i] += row.weight * w * lookup;
             }
         }
     };
-    let x = conjugate_gradients(apply, &baked, n * stride);
-    for (k, &t) in texels.iter().enumerate() {
-        for c in 0..stride {
-            image[t * stride + c] = x[k * stride + c] as f32;
+    let precondition = |r: &[f64], z: &mut [f64]| {
+        for ((z, r), d) in z.iter_mut().zip(r).zip(&diagonal) {
+            *z = r / d;
+        }
+    };
+    // The same matrix for every coefficient: one solve per coefficient, in parallel.
+    let solved: Vec<Vec<f64>> = (0..stride)
+        .into_par_iter()
+        .map(|c| {
+            let start: Vec<f64> = texels
+                .iter()
+                .map(|&t| image[t * stride + c] as f64)
+                .collect();
+            let rhs: Vec<f64> = start.iter().zip(&weight).map(|(v, w)| v * w).collect();
+            conjugate_gradients(apply, precondition, &rhs, &start)
+        })
+        .collect();
+    for (c, x) in solved.iter().enumerate() {
+        for (&t, &v) in texels.iter().zip(x) {
+            image[t * stride + c] = v as f32;
         }
     }
 }
 
-/// Solves `A x = b` for the symmetric positive definite `A` given as `apply`, from `x = b`
-/// (the baked values: near the answer where the seams nearly agree already).
-fn conjugate_gradients(apply: impl Fn(&[f64], &mut [f64]), b: &[f64], n: usize) -> Vec<f64> {
-    let mut x = b.to_vec();
+/// Solves `A x = b` for the symmetric positive definite `A` given as `apply`, preconditioned
+/// by `precondition` (an approximate inverse), from `start`.
+fn conjugate_gradients(
+    apply: impl Fn(&[f64], &mut [f64]),
+    precondition: impl Fn(&[f64], &mut [f64]),
+    b: &[f64],
+    start: &[f64],
+) -> Vec<f64> {
+    let n = b.len();
+    let mut x = start.to_vec();
     let mut product = vec![0.0; n];
     apply(&x, &mut product);
     let mut residual: Vec<f64> = b.iter().zip(&product).map(|(b, p)| b - p).collect();
-    let mut direction = residual.clone();
+    let mut z = vec![0.0; n];
+    precondition(&residual, &mut z);
+    let mut direction = z.clone();
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| a * b).sum::<f64>();
-    let mut rr = dot(&residual, &residual);
-    let floor = 1e-20 * dot(b, b).max(f64::MIN_POSITIVE);
+    let mut rz = dot(&residual, &z);
+    // A thousandth of the right-hand side.
+    let floor = TOLERANCE * TOLERANCE * dot(b, b).max(f64::MIN_POSITIVE);
     for _ in 0..MAX_STEPS {
-        if rr <= floor {
+        if dot(&residual, &residual) <= floor {
             break;
         }
         apply(&direction, &mut product);
-        let alpha = rr / dot(&direction, &product);
+        let alpha = rz / dot(&direction, &product);
         for i in 0..n {
             x[i] += alpha * direction[i];
             residual[i] -= alpha * product[i];
         }
-        let next = dot(&residual, &residual);
-        let beta = next / rr;
-        rr = next;
+        precondition(&residual, &mut z);
+        let next = dot(&residual, &z);
+        let beta = next / rz;
+        rz = next;
         for i in 0..n {
-            direction[i] = residual[i] + beta * direction[i];
+            direction[i] = z[i] + beta * direction[i];
         }
     }
     x
@@ -228,6 +286,13 @@ mod tests {
         let grid = builtin::grid_plane(Vec3::ZERO, Vec3::X, Vec3::Z, 4, Vec3::ONE);
         let grid = prepare(grid).unwrap().0;
         assert!(seams(&grid, &generate_atlas(&grid, 10.0).unwrap()).is_empty());
+        // A box's six charts meet along creases of 90 degrees: no seams to stitch.
+        let cube = prepare(builtin::closed_box(Vec3::ZERO, Vec3::ONE, 3))
+            .unwrap()
+            .0;
+        let atlas = generate_atlas(&cube, 10.0).unwrap();
+        assert_eq!(atlas.chart_count(), 6);
+        assert!(seams(&cube, &atlas).is_empty());
     }
 
     fn sphere_edges_between_charts(scene: &Scene, atlas: &Atlas) -> usize {
@@ -255,11 +320,12 @@ mod tests {
         image: &[f32],
         stride: usize,
     ) -> f64 {
-        let rows = rows(seams, width, height);
+        let rows = seam_rows(width, height, seams);
         let mut sum = 0.0;
         for row in &rows {
             for c in 0..stride {
                 let d: f64 = row
+                    .taps
                     .iter()
                     .map(|&(t, w)| w * image[t * stride + c] as f64)
                     .sum();
@@ -271,11 +337,9 @@ mod tests {
 
     #[test]
     fn stitching_makes_the_sides_agree_and_leaves_other_texels() {
-        let cube = prepare(builtin::closed_box(Vec3::ZERO, Vec3::ONE, 2))
-            .unwrap()
-            .0;
-        let atlas = generate_atlas(&cube, 12.0).unwrap();
-        let found = seams(&cube, &atlas);
+        let sphere = prepare(builtin::icosphere(Vec3::ZERO, 1.0, 2)).unwrap().0;
+        let atlas = generate_atlas(&sphere, 12.0).unwrap();
+        let found = seams(&sphere, &atlas);
         let (w, h) = (atlas.width, atlas.height);
         // Two coefficients a texel: each chart's own constant, and a ramp across the atlas.
         let texels = crate::receivers::texels::rasterize(&atlas);
@@ -290,20 +354,20 @@ mod tests {
         crate::receivers::texels::dilate(w, h, &mut image, 2, &mut valid, 4).unwrap();
         let before = seam_difference(&found, w, h, &image, 2);
         let baked = image.clone();
-        stitch(w, h, &mut image, 2, &found);
+        solve((w, h), &mut image, 2, &seam_rows(w, h, &found), &[]);
         let after = seam_difference(&found, w, h, &image, 2);
         assert!(before > 0.5, "{before}");
         assert!(after < 0.1 * before, "{before} -> {after}");
         // Texels no lookup reads keep their values; deterministic.
-        let read: std::collections::HashSet<usize> = rows(&found, w, h)
+        let read: std::collections::HashSet<usize> = seam_rows(w, h, &found)
             .iter()
-            .flat_map(|row| row.map(|(t, _)| t))
+            .flat_map(|row| row.taps.map(|(t, _)| t))
             .collect();
         for t in (0..(w * h) as usize).filter(|t| !read.contains(t)) {
             assert_eq!(image[2 * t..2 * t + 2], baked[2 * t..2 * t + 2]);
         }
         let mut again = baked.clone();
-        stitch(w, h, &mut again, 2, &found);
+        solve((w, h), &mut again, 2, &seam_rows(w, h, &found), &[]);
         assert_eq!(again, image);
     }
 }

@@ -1,6 +1,7 @@
 //! Per-texel transfer (lightmaps, as D3DX's per-texel PRT and the SH lightmaps of Godot and
 //! Bakery): the texels of a generated atlas (`receivers::atlas`) baked as surface points, their
-//! leaks marked, the map dilated so that bilinear filtering never reads an unbaked texel.
+//! leaks marked, the map dilated (each texel from the chart it is nearest) so that bilinear
+//! filtering never reads an unbaked texel, and its seams stitched (`receivers::seams`).
 //!
 //! A texel whose rays mostly reach the back of a surface sits inside other geometry (a floor
 //! under a wall, an intersecting box): its value would be dark and, filtered, bleed into the

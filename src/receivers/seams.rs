@@ -6,9 +6,10 @@
 //!
 //! [`seam_rows`] asks that lookups on the two sides agree at points along every seam edge
 //! (lightmappers' seam stitching), and [`solve`] finds the texel values, least squares:
-//! minimise `sum_t anchor_t |x_t - x0_t|^2 + sum_rows weight |lookup_a(x) - lookup_b(x)|^2`, the same
-//! weights for every coefficient. The normal equations are symmetric positive definite and
-//! solved by Jacobi-preconditioned conjugate gradients, every coefficient at once.
+//! minimise `sum_t anchor_t |x_t - x0_t|^2 + sum_rows weight |lookup_a(x) - lookup_b(x)|^2`,
+//! the same weights for every coefficient. The normal equations are symmetric positive
+//! definite and solved by Jacobi-preconditioned conjugate gradients, one solve per
+//! coefficient, in parallel.
 
 use std::collections::HashMap;
 

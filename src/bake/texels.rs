@@ -307,7 +307,7 @@ fn texel_length(scene: &Scene, atlas: &Atlas) -> f32 {
 /// the whole chart from a neighbouring chart (its rings cross the gutter within two passes),
 /// where keeping its own bake is what a leak too wide to fill should do.
 fn keep_charts_with_no_valid_texel(atlas: &Atlas, points: &[SurfacePoint], leaking: &mut [bool]) {
-    let charts = atlas.chart_of.iter().max().map_or(0, |&c| c as usize + 1);
+    let charts = atlas.chart_count();
     let mut any_valid = vec![false; charts];
     for (p, &leak) in points.iter().zip(leaking.iter()) {
         any_valid[atlas.chart_of[p.triangle as usize] as usize] |= !leak;

@@ -190,22 +190,6 @@ pub fn face_normal(positions: &[Vec3], corners: [u32; 3]) -> Vec3 {
     (b - a).cross(c - a)
 }
 
-/// Per vertex of `scene`, the index of the first vertex at its position: vertices joined by
-/// position, where a prepared scene keeps apart copies whose attributes differ.
-pub fn weld_by_position(scene: &Scene) -> Vec<u32> {
-    let mut first: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
-    scene
-        .positions
-        .iter()
-        .enumerate()
-        .map(|(v, p)| {
-            // +0.0 and -0.0 are one position.
-            let key = p.to_array().map(|c| (c + 0.0).to_bits());
-            *first.entry(key).or_insert(v as u32)
-        })
-        .collect()
-}
-
 /// The area of every triangle.
 pub fn triangle_areas(scene: &Scene) -> Vec<f64> {
     scene

@@ -34,7 +34,7 @@ pub struct Surface {
 
 impl Surface {
     pub fn of(scene: &Scene) -> Surface {
-        let welded = crate::receivers::weld_by_position(scene);
+        let welded = weld_by_position(scene);
         let mut normals = Vec::with_capacity(scene.triangles.len());
         let mut areas = Vec::with_capacity(scene.triangles.len());
         for t in &scene.triangles {
@@ -51,6 +51,22 @@ impl Surface {
             neighbours,
         }
     }
+}
+
+/// Per vertex of `scene`, the index of the first vertex at its position: vertices joined by
+/// position, where a prepared scene keeps apart copies whose attributes differ.
+fn weld_by_position(scene: &Scene) -> Vec<u32> {
+    let mut first: HashMap<[u32; 3], u32> = HashMap::new();
+    scene
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(v, p)| {
+            // +0.0 and -0.0 are one position.
+            let key = p.to_array().map(|c| (c + 0.0).to_bits());
+            *first.entry(key).or_insert(v as u32)
+        })
+        .collect()
 }
 
 /// Per triangle, the triangles sharing an edge with it where exactly two triangles share that

@@ -328,6 +328,67 @@ pub fn tangent_frame(n: Vec3) -> [Vec3; 3] {
     [tangent, bitangent, n]
 }
 
+/// Each receiver's own turn of a tangent-frame set about its normal: neighbouring receivers
+/// (a lightmap's texels) then cast different directions, so that their errors are independent
+/// and a denoiser averages them out, where a set shared in one frame gives neighbours the same
+/// error. A turn about the normal keeps the cosine density and each 16-sample cone of the Morton
+/// order, and, the set's own azimuthal shift being uniform, keeps every estimate unbiased.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReceiverTurns {
+    /// The bake's seed, mixed to 32 bits.
+    pub seed: u32,
+    /// The receiver number of the inputs' first receiver: a part of a bake keeps the turns
+    /// its receivers have in the whole.
+    pub first: u32,
+}
+
+impl ReceiverTurns {
+    pub fn new(seed: u64) -> Self {
+        let (low, high) = (seed as u32, (seed >> 32) as u32);
+        ReceiverTurns {
+            seed: pcg_hash(low ^ pcg_hash(high ^ TURN_STREAM)),
+            first: 0,
+        }
+    }
+
+    /// `(cos a, sin a)` of the turn of the inputs' receiver `receiver`.
+    pub fn of(self, receiver: u32) -> [f32; 2] {
+        receiver_turn(self.seed, self.first.wrapping_add(receiver))
+    }
+
+    /// The turns of the inputs' receivers from `offset` on.
+    pub fn skipping(self, offset: u32) -> Self {
+        ReceiverTurns {
+            first: self.first.wrapping_add(offset),
+            ..self
+        }
+    }
+}
+
+/// Keeps the turns' hash apart from the sample set's stream of the same seed.
+const TURN_STREAM: u32 = 0x7475_726e;
+
+/// `(cos a, sin a)` of receiver `receiver`'s turn: the rational parametrisation
+/// `((1 - t^2) / (1 + t^2), 2t / (1 + t^2))` of `a = 2 atan t`, t uniform in [-1, 1) from the
+/// hash's top 24 bits, and the half turn `a + pi` where its low bit is set. No trigonometry, so
+/// WGSL (wgsl/samples.wgsl's `receiver_turn`) gives the same bits.
+pub fn receiver_turn(seed: u32, receiver: u32) -> [f32; 2] {
+    let bits = pcg_hash(receiver ^ seed);
+    let t = (bits >> 8) as f32 * (2.0 / 16_777_216.0) - 1.0;
+    let t2 = t * t;
+    let (cos, sin) = ((1.0 - t2) / (1.0 + t2), (2.0 * t) / (1.0 + t2));
+    if bits & 1 == 1 {
+        [-cos, -sin]
+    } else {
+        [cos, sin]
+    }
+}
+
+/// The frame `(t, b, n)` turned about `n` by `(cos a, sin a)`.
+pub fn turned_frame([t, b, n]: [Vec3; 3], [cos, sin]: [f32; 2]) -> [Vec3; 3] {
+    [t * cos + b * sin, b * cos - t * sin, n]
+}
+
 /// Maps a set's sample directions to world directions for one vertex: the identity for world
 /// sets, the vertex's tangent frame (worked out once, not per sample) for tangent sets.
 #[derive(Clone, Copy, Debug)]
@@ -340,6 +401,22 @@ impl VertexDirections {
         VertexDirections {
             axes: (frame == DirectionFrame::Tangent).then(|| tangent_frame(n)),
         }
+    }
+
+    /// [`VertexDirections::new`], a tangent frame turned by `turn` where there is one.
+    pub fn turned(frame: DirectionFrame, n: Vec3, turn: Option<[f32; 2]>) -> Self {
+        let plain = Self::new(frame, n);
+        VertexDirections {
+            axes: plain.axes.map(|axes| match turn {
+                Some(turn) => turned_frame(axes, turn),
+                None => axes,
+            }),
+        }
+    }
+
+    /// The tangent frame `(t, b, n)`, for tangent sets.
+    pub fn axes(&self) -> Option<[Vec3; 3]> {
+        self.axes
     }
 
     /// World direction of sample `d`.
@@ -429,6 +506,31 @@ mod tests {
         // Stratification makes this far smaller than the 1/sqrt(N) of plain Monte Carlo.
         assert!(mean.length() < 0.01, "{mean}");
         assert!((set.weight * set.len() as f64 - 4.0 * std::f64::consts::PI).abs() < 1e-12);
+    }
+
+    #[test]
+    fn receiver_turns_are_rotations_spread_over_the_whole_circle() {
+        let turns = ReceiverTurns::new(3);
+        assert_ne!(turns.seed, ReceiverTurns::new(4).seed);
+        assert_eq!(turns.skipping(10).of(5), turns.of(15));
+        let mut octants = [0u32; 8];
+        for receiver in 0..80_000 {
+            let [cos, sin] = turns.of(receiver);
+            assert!((cos * cos + sin * sin - 1.0).abs() < 1e-6, "{cos}, {sin}");
+            let angle = sin.atan2(cos).rem_euclid(std::f32::consts::TAU);
+            octants[(angle / std::f32::consts::FRAC_PI_4) as usize % 8] += 1;
+        }
+        // a = 2 atan t, t uniform, has density (1 + t^2) / 4 over its half turn: from 0.79
+        // to 1.57 times the even density, so no octant is far from an eighth.
+        for count in octants {
+            assert!((7_000..13_000).contains(&count), "{octants:?}");
+        }
+        // A turned frame is still right-handed and orthonormal, about the same normal.
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let [t, b, m] = turned_frame(tangent_frame(n), turns.of(7));
+        assert_eq!(m, n);
+        assert!(t.dot(b).abs() < 1e-6 && t.dot(n).abs() < 1e-6 && b.dot(n).abs() < 1e-6);
+        assert!((t.cross(b) - n).length() < 1e-5);
     }
 
     #[test]

@@ -19,6 +19,15 @@ pub const ESTIMATOR_BLOCKED: u32 = 1;
 /// sum carries no cosine factor (`sampling::DirectionFrame::Tangent`).
 pub const ESTIMATOR_TANGENT: u32 = 2;
 
+/// `VisibilityParams::frames` and `HorizonParams::frames`: sample directions are world
+/// directions (`sampling::DirectionFrame::World`).
+pub const FRAMES_WORLD: u32 = 0;
+/// Directions are in each receiver's tangent frame (`sampling::tangent_frame`).
+pub const FRAMES_TANGENT: u32 = 1;
+/// Directions are in each receiver's tangent frame turned by its own angle
+/// (`sampling::ReceiverTurns`).
+pub const FRAMES_TURNED: u32 = 2;
+
 const BVH_WGSL: &str = include_str!("../wgsl/bvh.wgsl");
 const SAMPLES_WGSL: &str = include_str!("../wgsl/samples.wgsl");
 const HORIZON_WGSL: &str = include_str!("../wgsl/horizon.wgsl");
@@ -31,6 +40,10 @@ const COMPRESSED_PROJECT_WGSL: &str = include_str!("../wgsl/compressed_project.w
 const COMPRESSED_RESPOND_WGSL: &str = include_str!("../wgsl/compressed_respond.wgsl");
 const PROBES_RELIGHT_WGSL: &str = include_str!("../wgsl/probes_relight.wgsl");
 const CPCA_ASSIGN_WGSL: &str = include_str!("../wgsl/cpca_assign.wgsl");
+const DENOISE_WGSL: &str = include_str!("../wgsl/denoise.wgsl");
+
+/// Coefficients one invocation of the denoising kernel sums (its private array's length).
+pub const COEFFS_PER_INVOCATION: u32 = 64;
 
 /// Constants every kernel sees. `{:?}` prints the shortest decimal that parses back to the
 /// same f32, so WGSL gets the exact Rust values.
@@ -48,7 +61,9 @@ fn prelude() -> String {
          const LAST_IN_LEAF: u32 = {LAST_IN_LEAF}u;\n\
          const NO_SAMPLE: u32 = {NO_SAMPLE}u;\n\
          const ESTIMATOR_BLOCKED: u32 = {ESTIMATOR_BLOCKED}u;\n\
-         const ESTIMATOR_TANGENT: u32 = {ESTIMATOR_TANGENT}u;\n\n"
+         const ESTIMATOR_TANGENT: u32 = {ESTIMATOR_TANGENT}u;\n\
+         const FRAMES_TANGENT: u32 = {FRAMES_TANGENT}u;\n\
+         const FRAMES_TURNED: u32 = {FRAMES_TURNED}u;\n\n"
     )
 }
 
@@ -120,6 +135,21 @@ pub fn cpca_assign_kernel() -> String {
     format!("{}{CPCA_ASSIGN_WGSL}", prelude())
 }
 
+/// The lightmap denoising kernel (`bake::gpu::denoise`), with the filter's constants.
+pub fn denoise_kernel() -> String {
+    use crate::receivers::denoise::{
+        DENOISE_RADIUS, NORMAL_POWER_SQUARINGS, NO_CHART, RANGE_SIGMAS,
+    };
+    format!(
+        "{}const DENOISE_RADIUS: u32 = {DENOISE_RADIUS}u;\n\
+         const NO_CHART: u32 = {NO_CHART}u;\n\
+         const NORMAL_POWER_SQUARINGS: u32 = {NORMAL_POWER_SQUARINGS}u;\n\
+         const COEFFS_PER_INVOCATION: u32 = {COEFFS_PER_INVOCATION}u;\n\
+         const RANGE_SIGMAS: f32 = {RANGE_SIGMAS:?};\n\n{DENOISE_WGSL}",
+        prelude()
+    )
+}
+
 /// The preview renderer's vertex and fragment shaders.
 pub fn render_shader() -> String {
     format!("{}{RENDER_WGSL}", prelude())
@@ -129,6 +159,7 @@ pub fn render_shader() -> String {
 mod tests {
     use super::*;
     use crate::bake::bounce::Hit;
+    use crate::bake::gpu::denoise::DenoiseParams;
     use crate::bake::gpu::{GatherParams, HorizonParams, ProjectParams, VisibilityParams};
     use crate::bvh::gpu::GpuNode;
     use crate::bvh::BvhTriangle;
@@ -196,6 +227,7 @@ mod tests {
             gather_kernel(),
             render_shader(),
             cpca_assign_kernel(),
+            denoise_kernel(),
         ] {
             assert!(
                 !kernel.contains("rounded("),
@@ -216,6 +248,7 @@ mod tests {
         parse(&compressed_respond_kernel());
         parse(&cpca_assign_kernel());
         parse(&probes_relight_kernel());
+        parse(&denoise_kernel());
     }
 
     #[test]
@@ -299,10 +332,10 @@ mod tests {
                 record_hits,
                 grid_origin,
                 grid_step,
-                tangent_frames,
-                pad0,
-                pad1,
-                pad2
+                frames,
+                turn_seed,
+                turn_first,
+                pad0
             )
         );
         assert_eq!(
@@ -317,10 +350,10 @@ mod tests {
                 vertex_count,
                 sample_offset,
                 sample_count,
-                tangent_frames,
+                frames,
                 record_hits,
-                pad0,
-                pad1
+                turn_seed,
+                turn_first
             )
         );
         assert_eq!(
@@ -335,6 +368,20 @@ mod tests {
                 accumulate,
                 pad0,
                 pad1
+            )
+        );
+        assert_eq!(
+            wgsl_layout(&parse(&denoise_kernel()), "DenoiseParams"),
+            rust_layout!(
+                DenoiseParams,
+                width,
+                height,
+                stride,
+                row_first,
+                row_count,
+                input_row_first,
+                texel_length,
+                pad0
             )
         );
         assert_eq!(
@@ -402,6 +449,8 @@ mod tests {
                         "NO_SAMPLE" => NO_SAMPLE,
                         "ESTIMATOR_BLOCKED" => ESTIMATOR_BLOCKED,
                         "ESTIMATOR_TANGENT" => ESTIMATOR_TANGENT,
+                        "FRAMES_TANGENT" => FRAMES_TANGENT,
+                        "FRAMES_TURNED" => FRAMES_TURNED,
                         other => panic!("unexpected u32 constant {other:?}"),
                     },
                 ),
@@ -410,6 +459,6 @@ mod tests {
             assert_eq!(value, expected, "{name}");
             checked += 1;
         }
-        assert_eq!(checked, 12, "expected twelve generated constants");
+        assert_eq!(checked, 14, "expected fourteen generated constants");
     }
 }

@@ -129,6 +129,9 @@ pub struct ReceiverSpec {
     /// Left out of the JSON when unset, so specs written before it hash as they did.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lightmap_uv: Option<u32>,
+    /// Denoise the lightmap's texels (`receivers::denoise`). Left out of the JSON when off.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub denoise: bool,
 }
 
 /// What transfer is computed, and from how many samples.
@@ -214,6 +217,7 @@ impl Default for BakeSpec {
                 fit_points: PointDensity::default().per_vertex,
                 lightmap: None,
                 lightmap_uv: None,
+                denoise: false,
             },
             transfer: TransferSpec {
                 bands: Bands::Fixed(4),
@@ -259,6 +263,8 @@ impl BakeSpec {
             lightmap: self.receivers.lightmap,
             target_error: transfer.target_error,
             storage: self.storage.channels,
+            denoise: self.receivers.denoise,
+            turns: false,
         }
     }
 

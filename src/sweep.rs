@@ -41,6 +41,8 @@ pub struct SweepOptions {
     /// Lightmap sizes: every strategy and count of the point fit is also baked per texel at
     /// each.
     pub lightmap_sizes: Vec<u32>,
+    /// Each lightmap of a cosine-sampled bake is also baked denoised (`bake --denoise`).
+    pub denoise: bool,
     /// Error targets: each strategy is also baked to each (on the CPU backend, point fit).
     pub target_errors: Vec<f64>,
 }
@@ -58,6 +60,7 @@ impl Default for SweepOptions {
             fits: vec![Fit::Point, Fit::LeastSquares],
             surface_points: 0,
             lightmap_sizes: Vec::new(),
+            denoise: false,
             target_errors: Vec::new(),
         }
     }
@@ -71,6 +74,8 @@ pub struct SweepPoint {
     /// Per-texel bakes: the lightmap's size (the vertex errors are then those of its vertices,
     /// baked with `fit`).
     pub lightmap: Option<u32>,
+    /// Per-texel bakes: whether the lightmap was denoised.
+    pub denoised: bool,
     /// Error-targeted bakes: the target (`samples` is then the mean over receivers).
     pub target_error: Option<f64>,
     /// "cpu" or "gpu".
@@ -190,12 +195,13 @@ pub fn run(
                     fit,
                     ..base.clone()
                 };
-                let (label, sizes) = (label.as_str(), &options.lightmap_sizes[..]);
+                let label = label.as_str();
+                let lightmaps = (&options.lightmap_sizes[..], options.denoise);
                 points.extend(measure(
                     scene,
                     &point_options,
                     (label, backend.as_ref()),
-                    sizes,
+                    lightmaps,
                     &references,
                 )?);
                 progress.advance(1);
@@ -255,7 +261,13 @@ fn measure_targets(
                 ..base.clone()
             };
             let cpu: (&str, &dyn Backend) = ("cpu", &CpuBackend);
-            points.extend(measure(scene, &point_options, cpu, &[], references)?);
+            points.extend(measure(
+                scene,
+                &point_options,
+                cpu,
+                (&[], false),
+                references,
+            )?);
         }
     }
     Ok(points)
@@ -273,12 +285,13 @@ struct References<'a> {
 }
 
 /// One bake of the sweep with `options` on a labelled backend, measured: its vertices, and a
-/// lightmap of each of `lightmap_sizes` baked from them.
+/// lightmap of each of `lightmap_sizes` baked from them (and denoised too where
+/// `also_denoised` and the strategy allows).
 fn measure(
     scene: &Scene,
     options: &BakeOptions,
     (label, backend): (&str, &dyn Backend),
-    lightmap_sizes: &[u32],
+    (lightmap_sizes, also_denoised): (&[u32], bool),
     references: &References,
 ) -> Result<Vec<SweepPoint>> {
     let light = references.light;
@@ -289,6 +302,7 @@ fn measure(
         sampling: options.sampling,
         fit: options.fit,
         lightmap: None,
+        denoised: false,
         target_error: options.target_error.map(|t| t.relative),
         backend: label.to_string(),
         samples: report
@@ -309,18 +323,31 @@ fn measure(
     } else {
         &[]
     };
-    for &size in lightmap_sizes {
+    let denoising: &[bool] = if also_denoised && options.sampling == Sampling::Cosine {
+        &[false, true]
+    } else {
+        &[false]
+    };
+    for (&size, &denoise) in lightmap_sizes
+        .iter()
+        .flat_map(|s| denoising.iter().map(move |d| (s, d)))
+    {
         let started = Instant::now();
         let (texels, texel_report) = bake_texels(
             &baked.scene,
             &baked.transfer,
-            options,
+            &BakeOptions {
+                lightmap: Some(size),
+                denoise,
+                ..options.clone()
+            },
             size,
             backend,
             &NoProgress,
         )?;
         points.push(SweepPoint {
             lightmap: Some(size),
+            denoised: denoise,
             seconds: seconds + started.elapsed().as_secs_f64(),
             rays: report.rays_cast + texel_report.rays_cast,
             surface_rms: texel_surface_rms(references.surface, &texels, light)?,
@@ -338,6 +365,7 @@ radiance_rms,surface_rms,target_error";
 /// How a point represents the transfer between vertices: the fit's name, or `texels-SIZE`.
 pub fn representation(point: &SweepPoint) -> String {
     match point.lightmap {
+        Some(size) if point.denoised => format!("texels-{size}-denoised"),
         Some(size) => format!("texels-{size}"),
         None => point.fit.name().to_string(),
     }
@@ -618,6 +646,7 @@ mod tests {
             sampling,
             fit: Fit::Point,
             lightmap: None,
+            denoised: false,
             target_error: None,
             backend: backend.to_string(),
             samples,

@@ -322,3 +322,123 @@ fn closest_hits_agree_on_coincident_faces() {
         assert!(hits as u64 > rays / 2, "too few hits to test anything");
     }
 }
+
+/// Texels to be denoised cast the cosine set turned about their normals by their own angles
+/// (`sampling::ReceiverTurns`): the GPU turns each receiver's frame as the CPU does, in whole
+/// and in chunks (whose receivers keep the turns they have in the whole), ray for ray with the
+/// emulated division; the turns change the rays cast.
+#[test]
+fn turned_frames_cast_the_cpus_rays() {
+    use prt_gpu::bake::gpu::Division;
+    use prt_gpu::bake::BakeOptions;
+    use prt_gpu::receivers::Receivers;
+    let Some(context) = prt_gpu::device::any_adapter_or_skip() else {
+        return;
+    };
+    let baker = GpuBaker::dividing(context, Division::Emulated).unwrap();
+    let (scene, _) = prepare(builtin::default_scene()).unwrap();
+    let options = BakeOptions {
+        bands: 4,
+        samples: 256,
+        sampling: Sampling::Cosine,
+        seed: 7,
+        turns: true,
+        ..BakeOptions::default()
+    };
+    let receivers = Receivers::vertices(&scene);
+    let turned = BakeInputs::for_receivers(&scene, &receivers, &options);
+    assert!(turned.turns.is_some());
+    let small = Chunking {
+        max_vertices: Some(37),
+        max_samples: Some(64),
+        max_steps: None,
+    };
+    for chunking in [Chunking::default(), small] {
+        let (rays, differing) = compare(&baker, &turned, Mode::Shadowed, chunking, "turned");
+        assert!(rays > 0);
+        assert_eq!(
+            differing, 0,
+            "{chunking:?}: {differing} of {rays} rays differ"
+        );
+    }
+    let plain = BakeInputs::for_receivers(
+        &scene,
+        &receivers,
+        &BakeOptions {
+            turns: false,
+            ..options
+        },
+    );
+    let turned_bits = cpu::visibility_bits(&turned.view(), Mode::Shadowed);
+    let plain_bits = cpu::visibility_bits(&plain.view(), Mode::Shadowed);
+    let words = cpu::words_per_vertex(256);
+    let changed = turned_bits
+        .chunks(words)
+        .zip(plain_bits.chunks(words))
+        .filter(|(a, b)| a != b)
+        .count();
+    let vertices = turned.origins.len();
+    assert!(
+        changed * 2 > vertices,
+        "the turns changed the rays of {changed} of {vertices} vertices"
+    );
+}
+
+/// The lightmap denoiser on the GPU (wgsl/denoise.wgsl) against the CPU's
+/// (`receivers::denoise`): on a bumpy surface cut into charts with invalid texels, at 3 and 8
+/// bands (the second in two coefficient groups), whole and in bands of 5 rows, within f32
+/// rounding of the sums.
+#[test]
+fn denoising_agrees() {
+    use prt_gpu::bake::gpu::denoise::{denoise, denoise_in_bands};
+    use prt_gpu::receivers::denoise::{self as reference, DenoiseGuide, NO_CHART};
+    use prt_gpu::sampling::Pcg32;
+    let Some(baker) = common::gpu_baker() else {
+        return;
+    };
+    let (width, height) = (37u32, 29u32);
+    let mut rng = Pcg32::new(11);
+    let (mut positions, mut normals, mut charts) = (Vec::new(), Vec::new(), Vec::new());
+    for i in 0..width * height {
+        let (x, y) = ((i % width) as f32, (i / width) as f32);
+        let slope = glam::Vec2::new((0.3 * x).cos(), -(0.2 * y).sin()) * 0.8;
+        positions.push(glam::Vec3::new(
+            x,
+            y,
+            0.8 * (0.3 * x).sin() + 0.8 * (0.2 * y).cos(),
+        ));
+        normals.push(glam::Vec3::new(-slope.x, -slope.y, 1.0).normalize());
+        let chart = (x as u32 / 9) + 5 * (y as u32 / 11);
+        charts.push(if rng.next_f32() < 0.1 {
+            NO_CHART
+        } else {
+            chart
+        });
+    }
+    let levels = (0..width * height).map(|_| rng.next_f32()).collect();
+    let noise = (0..width * height)
+        .map(|_| 0.05 + 0.2 * rng.next_f32())
+        .collect();
+    let geometry = (positions, normals);
+    let guide = DenoiseGuide::new((width, height), geometry, charts, (levels, noise));
+    for bands in [3usize, 8] {
+        let stride = 3 * bands * bands;
+        let image: Vec<f32> = (0..(width * height) as usize * stride)
+            .map(|_| rng.next_f32() - 0.3)
+            .collect();
+        let cpu = reference::denoise(&guide, &image, stride);
+        assert_ne!(cpu, image);
+        for gpu in [
+            denoise(baker, &guide, &image, stride).unwrap(),
+            denoise_in_bands(baker, &guide, (&image, stride), 5).unwrap(),
+        ] {
+            assert_eq!(gpu.len(), cpu.len());
+            for (i, (c, g)) in cpu.iter().zip(&gpu).enumerate() {
+                assert!(
+                    (c - g).abs() <= 1e-5,
+                    "{bands} bands, float {i}: cpu {c}, gpu {g}"
+                );
+            }
+        }
+    }
+}

@@ -34,6 +34,7 @@ fn estimate_with_error(
         table: &table,
         estimator: Estimator::Visible,
         tangent_to_world: &EulerShRotation::new(bands),
+        turns: None,
     };
     let n = coeff_count(bands);
     let (transfer, _) = backend

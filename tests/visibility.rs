@@ -219,6 +219,7 @@ fn gpu_escapes(baker: &GpuBaker, bvh: &Bvh, origins: &[Vec3], directions: Vec<Ve
         table: &table,
         estimator: Estimator::Visible,
         tangent_to_world: &EulerShRotation::new(1),
+        turns: None,
     };
     let (bits, _) =
         visibility_bits_and_transfer(baker, &inputs, Mode::Shadowed, Chunking::default()).unwrap();

@@ -14,12 +14,14 @@ struct HorizonParams {
     vertex_count: u32,
     sample_offset: u32,
     sample_count: u32,
-    // 1: directions are in each vertex's tangent frame (cosine-weighted sampling).
-    tangent_frames: u32,
+    // FRAMES_*: world directions, each vertex's tangent frame (cosine-weighted sampling), or
+    // that frame turned by the vertex's own angle.
+    frames: u32,
     // 1: the visibility pass records hits; write NO_HIT for the samples left out.
     record_hits: u32,
-    pad0: u32,
-    pad1: u32,
+    // Vertex v turns by receiver_turn(turn_seed, turn_first + v).
+    turn_seed: u32,
+    turn_first: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: HorizonParams;
@@ -49,8 +51,9 @@ fn main(@builtin(local_invocation_index) lane: u32, @builtin(workgroup_id) group
     if (local_vertex >= params.vertex_count) {
         return;
     }
-    let normal = normals[params.vertex_offset + local_vertex].xyz;
-    let frame = tangent_frame(normal);
+    let vertex = params.vertex_offset + local_vertex;
+    let normal = normals[vertex].xyz;
+    let frame = receiver_frame(normal, params.frames, params.turn_seed, params.turn_first + vertex);
     let row = local_vertex * params.sample_count;
     var count = 0u;
     for (var first = 0u; first < params.sample_count; first += WORKGROUP_SIZE) {
@@ -58,7 +61,7 @@ fn main(@builtin(local_invocation_index) lane: u32, @builtin(workgroup_id) group
         var above = false;
         if (sample < params.sample_count) {
             var direction = directions[params.sample_offset + sample].xyz;
-            if (params.tangent_frames != 0u) {
+            if (params.frames != 0u) {
                 direction = to_world(frame, direction);
             }
             above = above_horizon(normal, direction);

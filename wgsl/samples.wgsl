@@ -20,6 +20,40 @@ fn tangent_frame(n: vec3<f32>) -> mat3x3<f32> {
     return mat3x3<f32>(tangent, bitangent, n);
 }
 
+// Rust twin: sampling::pcg_hash.
+fn pcg_hash(input: u32) -> u32 {
+    let state = input * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+// Rust twin: sampling::receiver_turn, step for step: (cos a, sin a) of a = 2 atan t, with no
+// trigonometry, so that both give the same bits.
+fn receiver_turn(seed: u32, receiver: u32) -> vec2<f32> {
+    let bits = pcg_hash(receiver ^ seed);
+    let t = f32(bits >> 8u) * (2.0 / 16777216.0) - 1.0;
+    let t2 = rounded(t * t);
+    let turn = vec2<f32>(divide_rounded(1.0 - t2, 1.0 + t2), divide_rounded(2.0 * t, 1.0 + t2));
+    return select(turn, -turn, (bits & 1u) == 1u);
+}
+
+// Rust twin: sampling::turned_frame.
+fn turned_frame(frame: mat3x3<f32>, turn: vec2<f32>) -> mat3x3<f32> {
+    let tangent = rounded3(frame[0] * turn.x) + rounded3(frame[1] * turn.y);
+    let bitangent = rounded3(frame[1] * turn.x) - rounded3(frame[0] * turn.y);
+    return mat3x3<f32>(tangent, bitangent, frame[2]);
+}
+
+// The frame a receiver casts a tangent set in (`frames` is FRAMES_TANGENT or FRAMES_TURNED).
+// Rust twin: bake::DirectInputs::directions_of.
+fn receiver_frame(n: vec3<f32>, frames: u32, turn_seed: u32, receiver: u32) -> mat3x3<f32> {
+    let frame = tangent_frame(n);
+    if (frames == FRAMES_TURNED) {
+        return turned_frame(frame, receiver_turn(turn_seed, receiver));
+    }
+    return frame;
+}
+
 // Rust twin: sampling::VertexDirections::world.
 fn to_world(frame: mat3x3<f32>, d: vec3<f32>) -> vec3<f32> {
     return rounded3(frame[0] * d.x) + rounded3(frame[1] * d.y) + rounded3(frame[2] * d.z);

@@ -20,11 +20,13 @@ struct VisibilityParams {
     // The grid of the node boxes: world = grid_origin + q * grid_step.
     grid_origin: vec3<f32>,
     grid_step: f32,
-    // 1: directions are in each vertex's tangent frame (cosine-weighted sampling).
-    tangent_frames: u32,
+    // FRAMES_*: world directions, each vertex's tangent frame (cosine-weighted sampling), or
+    // that frame turned by the vertex's own angle.
+    frames: u32,
+    // Vertex v turns by receiver_turn(turn_seed, turn_first + v).
+    turn_seed: u32,
+    turn_first: u32,
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: VisibilityParams;
@@ -61,8 +63,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let vertex = params.vertex_offset + local_vertex;
     let normal = normals[vertex].xyz;
     var direction = directions[params.sample_offset + local_sample].xyz;
-    if (params.tangent_frames != 0u) {
-        let frame = tangent_frame(normal);
+    if (params.frames != 0u) {
+        let frame = receiver_frame(normal, params.frames, params.turn_seed, params.turn_first + vertex);
         direction = to_world(frame, direction);
     }
     var visible = true;

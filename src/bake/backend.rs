@@ -11,6 +11,7 @@ use super::{cpu, gpu, DirectInputs, DirectPass, Mode, Progress};
 use crate::device::GpuContext;
 use crate::error::Result;
 use crate::ray::blend_at;
+use crate::receivers::denoise::{self, DenoiseGuide};
 use crate::scene::Scene;
 use crate::sh::coeff_count;
 
@@ -77,6 +78,10 @@ pub trait Backend: Sync {
         progress: &dyn Progress,
     ) -> Result<Vec<Vec<(u32, Hit)>>>;
 
+    /// The lightmap `image` (`stride` floats a texel) filtered under `guide`
+    /// ([`crate::receivers::denoise`]).
+    fn denoise(&self, guide: &DenoiseGuide, image: &[f32], stride: usize) -> Result<Vec<f32>>;
+
     /// The direct pass over the receivers of `inputs`: albedo-free transfer, and in
     /// interreflected mode the gather matrix of the rays' closest hits.
     fn direct_pass(
@@ -123,6 +128,10 @@ impl Backend for CpuBackend {
 
     fn gpu_context(&self) -> Option<&GpuContext> {
         None
+    }
+
+    fn denoise(&self, guide: &DenoiseGuide, image: &[f32], stride: usize) -> Result<Vec<f32>> {
+        Ok(denoise::denoise(guide, image, stride))
     }
 
     fn direct_transfer(
@@ -246,6 +255,10 @@ impl Backend for GpuBackend<'_> {
 
     fn gpu_context(&self) -> Option<&GpuContext> {
         Some(&self.baker.context)
+    }
+
+    fn denoise(&self, guide: &DenoiseGuide, image: &[f32], stride: usize) -> Result<Vec<f32>> {
+        gpu::denoise::denoise(self.baker, guide, image, stride)
     }
 
     fn direct_transfer(

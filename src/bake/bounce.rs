@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use super::{cpu, DirectInputs, Mode, Progress};
 use crate::ray::{barycentrics, blend_at, NO_HIT};
-use crate::sampling::{DirectionFrame, VertexDirections};
+use crate::sampling::DirectionFrame;
 use crate::sh::coeff_count;
 
 /// The closest hit of one ray, 12 bytes; WGSL twin `Hit` in wgsl/samples.wgsl. `u`, `v`:
@@ -91,7 +91,7 @@ impl GatherMatrix {
 /// the number of distinct vertices the rays land near, not three per ray.
 pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> Vec<(u32, f32)> {
     let normal = inputs.normals[vertex];
-    let to_world = VertexDirections::new(inputs.samples.frame, normal);
+    let to_world = inputs.directions_of(vertex);
     let scale = cpu::transfer_scale(inputs);
     let mut entries: Vec<(u32, f64)> = Vec::with_capacity(hits.len() * 3);
     for &(sample, hit) in hits {
@@ -287,7 +287,7 @@ mod tests {
             let mut entries = 0;
             for v in 0..inputs.origins.len() {
                 let normal = inputs.normals[v];
-                let to_world = VertexDirections::new(inputs.samples.frame, normal);
+                let to_world = inputs.directions_of(v);
                 let hits: Vec<(u32, Hit)> = (0..inputs.samples.len())
                     .filter_map(|s| {
                         let direction = to_world.world(inputs.samples.directions[s]);

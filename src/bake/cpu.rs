@@ -16,7 +16,7 @@ use super::bounce::Hit;
 use super::{DirectInputs, Mode, Progress};
 use crate::packet::{self, lane_mask, FanPacket, LaneMask, PacketOrigins, RayPacket, LANES};
 use crate::ray::{intersect_triangle, Ray, TriangleHit, RAY_T_MAX};
-use crate::sampling::{tangent_frame, DirectionFrame, Estimator, VertexDirections};
+use crate::sampling::{DirectionFrame, Estimator};
 use crate::sh::{coeff_count, unshadowed_transfer};
 
 /// Vertices handed to one rayon task: large enough to amortise scheduling, small enough for
@@ -36,7 +36,7 @@ pub fn trace_visibility(inputs: &DirectInputs, mode: Mode, vertex: usize, bits: 
     let origin = inputs.origins[vertex];
     let mut rays = 0;
     bits.fill(0);
-    let to_world = VertexDirections::new(inputs.samples.frame, normal);
+    let to_world = inputs.directions_of(vertex);
     for (s, &sample) in inputs.samples.directions.iter().enumerate() {
         let direction = to_world.world(sample);
         if normal.dot(direction) <= 0.0 {
@@ -101,7 +101,7 @@ pub fn trace_visibility_fans(
     const _: () = assert!(32 % LANES == 0);
     let normal = inputs.normals[vertex];
     let origin = inputs.origins[vertex];
-    let to_world = VertexDirections::new(inputs.samples.frame, normal);
+    let to_world = inputs.directions_of(vertex);
     let mut rays = 0;
     bits.fill(0);
     let mut world = [glam::Vec3::ZERO; LANES];
@@ -235,8 +235,8 @@ pub fn finish_transfer(inputs: &DirectInputs, vertex: usize, sums: &mut [f64]) {
     let bands = inputs.table.bands;
     let normal = inputs.normals[vertex];
     sums.iter_mut().for_each(|t| *t *= scale);
-    if inputs.samples.frame == DirectionFrame::Tangent {
-        let [t, b, n] = tangent_frame(normal).map(|axis| axis.as_dvec3());
+    if let Some(axes) = inputs.directions_of(vertex).axes() {
+        let [t, b, n] = axes.map(|axis| axis.as_dvec3());
         let frame = glam::DMat3::from_cols(t, b, n);
         inputs.tangent_to_world.apply(&frame, sums);
     }
@@ -388,9 +388,8 @@ pub fn visit_closest_hits(
     samples: &[u32],
     mut visit: impl FnMut(u32, u32, TriangleHit),
 ) {
-    let normal = inputs.normals[vertex];
     let origin = inputs.origins[vertex];
-    let to_world = VertexDirections::new(inputs.samples.frame, normal);
+    let to_world = inputs.directions_of(vertex);
     let direction = |s: u32| to_world.world(inputs.samples.directions[s as usize]);
     if inputs.samples.frame == DirectionFrame::World {
         for &s in samples {
@@ -437,7 +436,7 @@ pub fn closest_hits_of(inputs: &DirectInputs, vertex: usize, samples: &[u32]) ->
 /// The samples of `vertex` above its horizon, in order.
 pub fn samples_above_horizon(inputs: &DirectInputs, vertex: usize) -> Vec<u32> {
     let normal = inputs.normals[vertex];
-    let to_world = VertexDirections::new(inputs.samples.frame, normal);
+    let to_world = inputs.directions_of(vertex);
     (0..inputs.samples.len() as u32)
         .filter(|&s| normal.dot(to_world.world(inputs.samples.directions[s as usize])) > 0.0)
         .collect()
@@ -536,7 +535,7 @@ mod tests {
         let mut blocked = 0;
         for (v, own) in hits.iter().enumerate() {
             let normal = inputs.normals[v];
-            let to_world = VertexDirections::new(inputs.samples.frame, normal);
+            let to_world = inputs.directions_of(v);
             let expected: Vec<u32> = (0..inputs.samples.len() as u32)
                 .filter(|&s| {
                     let above = normal.dot(to_world.world(inputs.samples.directions[s as usize]));

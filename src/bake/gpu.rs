@@ -19,10 +19,11 @@ use crate::bvh::gpu::{GpuBvh, LEAF_FLAG};
 use crate::device::{self, DeviceChoice, GpuContext};
 use crate::error::{Error, Result};
 use crate::ray::NO_HIT;
-use crate::sampling::DirectionFrame;
+use crate::sampling::{DirectionFrame, ReceiverTurns};
 use crate::sh::coeff_count;
-use crate::shaders::{self, WORKGROUP_SIZE};
+use crate::shaders::{self, FRAMES_TANGENT, FRAMES_TURNED, FRAMES_WORLD, WORKGROUP_SIZE};
 
+pub mod denoise;
 mod division;
 mod gather;
 mod horizon;
@@ -480,15 +481,16 @@ impl RunBuffers {
     ) -> Result<()> {
         let ctx = &baker.context;
         let inputs = spec.inputs;
-        let tangent_frames = (inputs.samples.frame == DirectionFrame::Tangent) as u32;
+        let (frames, turns) = frame_params(inputs);
         let horizon = HorizonParams {
             vertex_offset: chunk.vertex_offset,
             vertex_count: chunk.vertices,
             sample_offset: chunk.sample_offset,
             sample_count: chunk.samples,
-            tangent_frames,
+            frames,
             record_hits: spec.record_hits() as u32,
-            ..Default::default()
+            turn_seed: turns.seed,
+            turn_first: turns.first,
         };
         ctx.queue
             .write_buffer(&self.horizon_params, 0, bytemuck::bytes_of(&horizon));
@@ -509,7 +511,9 @@ impl RunBuffers {
             record_hits: spec.record_hits() as u32,
             grid_origin: self.grid_origin,
             grid_step: self.grid_step,
-            tangent_frames,
+            frames,
+            turn_seed: turns.seed,
+            turn_first: turns.first,
             ..Default::default()
         };
         let project = ProjectParams {
@@ -651,6 +655,17 @@ impl RunOutput {
         }
         Ok(())
     }
+}
+
+/// The kernels' `frames` flag for the inputs' sample set, and the turns they read with it.
+fn frame_params(inputs: &DirectInputs) -> (u32, ReceiverTurns) {
+    let frames = match (inputs.samples.frame, inputs.turns) {
+        (DirectionFrame::World, _) => FRAMES_WORLD,
+        (DirectionFrame::Tangent, None) => FRAMES_TANGENT,
+        (DirectionFrame::Tangent, Some(_)) => FRAMES_TURNED,
+    };
+    let turns = inputs.turns.unwrap_or(ReceiverTurns { seed: 0, first: 0 });
+    (frames, turns)
 }
 
 /// Transfer from the kernels' raw sums, finished per vertex as the CPU finishes its own.

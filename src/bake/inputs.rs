@@ -22,6 +22,27 @@ pub struct DirectInputs<'a> {
     pub estimator: Estimator,
     /// Turns a tangent set's sums into the world, vertex by vertex (`table.bands` bands).
     pub tangent_to_world: &'a EulerShRotation,
+    /// Each receiver's own turn of a tangent set about its normal, where receivers are to
+    /// be denoised; `None`: every receiver casts the set in its plain tangent frame.
+    pub turns: Option<ReceiverTurns>,
+}
+
+impl DirectInputs<'_> {
+    /// How receiver `receiver` turns sample directions into world directions.
+    pub fn directions_of(&self, receiver: usize) -> VertexDirections {
+        let turn = self.turns.map(|turns| turns.of(receiver as u32));
+        VertexDirections::turned(self.samples.frame, self.normals[receiver], turn)
+    }
+
+    /// The receivers `range`, each keeping its turn.
+    pub fn part(&self, range: std::ops::Range<usize>) -> Self {
+        DirectInputs {
+            origins: &self.origins[range.clone()],
+            normals: &self.normals[range.clone()],
+            turns: self.turns.map(|turns| turns.skipping(range.start as u32)),
+            ..*self
+        }
+    }
 }
 
 /// The arrays [`DirectInputs`] borrows, built from a prepared scene: what both backends read.
@@ -35,6 +56,7 @@ pub struct BakeInputs {
     pub table: ShTable,
     pub estimator: Estimator,
     pub tangent_to_world: EulerShRotation,
+    pub turns: Option<ReceiverTurns>,
 }
 
 impl BakeInputs {
@@ -51,14 +73,8 @@ impl BakeInputs {
 
     /// What a bake with `options` at `receivers` on `scene` reads.
     pub fn for_receivers(scene: &Scene, receivers: &Receivers, options: &BakeOptions) -> Self {
-        Self::at_receivers(
-            scene,
-            receivers,
-            options.bands,
-            options.samples_used(),
-            options.seed,
-            options.sampling,
-        )
+        let bvh = Bvh::build(&scene.positions, &scene.triangles);
+        Self::with_tree(scene, receivers, bvh, options)
     }
 
     /// `samples` must come from [`Sampling::samples_used`].
@@ -86,7 +102,9 @@ impl BakeInputs {
             options.seed,
             options.sampling,
         );
-        Self::assemble(scene, receivers, bvh, sampling)
+        let mut inputs = Self::assemble(scene, receivers, bvh, sampling);
+        inputs.turns = options.turns.then(|| ReceiverTurns::new(options.seed));
+        inputs
     }
 
     fn at_receivers(
@@ -121,6 +139,7 @@ impl BakeInputs {
             table,
             estimator: sampling.estimator(),
             tangent_to_world: EulerShRotation::new(bands),
+            turns: None,
         }
     }
 
@@ -135,6 +154,7 @@ impl BakeInputs {
             table: &self.table,
             estimator: self.estimator,
             tangent_to_world: &self.tangent_to_world,
+            turns: self.turns,
         }
     }
 }

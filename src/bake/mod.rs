@@ -34,7 +34,9 @@ use crate::receivers;
 use crate::receivers::fit::{fit_vertices, FitOptions, FitReport};
 use crate::receivers::uv_set::UvSet;
 use crate::receivers::{spread_points, PointDensity, Receivers, SurfacePoint};
-use crate::sampling::{Estimator, SampleSet, Sampling, MAX_SAMPLES};
+use crate::sampling::{
+    Estimator, ReceiverTurns, SampleSet, Sampling, VertexDirections, MAX_SAMPLES,
+};
 use crate::scene::prepare::{kept_triangles, prepare_mapped, PrepareReport, VertexMap};
 use crate::scene::Scene;
 use crate::sh::rotation::EulerShRotation;
@@ -435,11 +437,7 @@ pub(super) fn direct_or_adaptive(
 ) -> Result<DirectPass> {
     let Some(target) = &options.target_error else {
         let view = owned.view();
-        let part = DirectInputs {
-            origins: &view.origins[range.clone()],
-            normals: &view.normals[range],
-            ..view
-        };
+        let part = view.part(range);
         return backend.direct_pass(&part, options.mode, progress);
     };
     progress.stage("transfer", range.len() as u64);

@@ -89,6 +89,11 @@ pub struct BakeOptions {
     /// Cast samples per receiver until this error is reached (instead of `samples` each).
     pub target_error: Option<adaptive::TargetError>,
     pub storage: Storage,
+    /// Denoise the lightmap (`receivers::denoise`), its texels cast with their own turns.
+    pub denoise: bool,
+    /// Each receiver turns a tangent-frame sample set about its normal by its own angle
+    /// (`sampling::ReceiverTurns`): set for the texels of a lightmap to be denoised.
+    pub turns: bool,
 }
 
 /// How the transfer is stored.
@@ -120,11 +125,18 @@ impl Default for BakeOptions {
             lightmap: None,
             target_error: None,
             storage: Storage::Rgb,
+            denoise: false,
+            turns: false,
         }
     }
 }
 
 impl BakeOptions {
+    /// These options with receivers' turns on or off.
+    pub fn with_turns(self, turns: bool) -> Self {
+        BakeOptions { turns, ..self }
+    }
+
     pub fn validate(&self) -> Result<()> {
         if self.mode == Mode::Local {
             return Err(Error::Options(
@@ -173,6 +185,19 @@ impl BakeOptions {
                         .into(),
                 ));
             }
+        }
+        if self.denoise && self.lightmap.is_none() {
+            return Err(Error::Options(
+                "--denoise filters a lightmap's texels; ask for one with --lightmap SIZE".into(),
+            ));
+        }
+        if (self.denoise || self.turns) && self.sampling != Sampling::Cosine {
+            return Err(Error::Options(format!(
+                "--denoise needs texels that cast their own directions, which cosine \
+                 sampling gives by turning its set about each texel's normal; --sampling {} \
+                 shares one set among all",
+                self.sampling.name()
+            )));
         }
         if self.storage == Storage::Lean && self.lightmap.is_some() {
             return Err(Error::Options(

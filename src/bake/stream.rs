@@ -19,7 +19,7 @@ use super::bounce::{self, GatherMatrix};
 use super::spill::Spill;
 use super::{
     direct_or_adaptive, metadata_for, plan, tint_by_albedo, Backend, BakeMetadata, BakeOptions,
-    BounceStat, DirectInputs, Fit, Mode, Progress, Storage, Transfer,
+    BounceStat, Fit, Mode, Progress, Storage, Transfer,
 };
 use crate::error::{Error, Result};
 use crate::scene::Scene;
@@ -357,11 +357,7 @@ impl StreamedBake {
         progress.stage("transfer", receivers as u64);
         for range in &ranges {
             let view = self.planned.inputs.view();
-            let part = DirectInputs {
-                origins: &view.origins[range.clone()],
-                normals: &view.normals[range.clone()],
-                ..view
-            };
+            let part = view.part(range.clone());
             let direct = backend.direct_pass(&part, Mode::Interreflected, &Advancing(progress))?;
             let matrix = direct.matrix.expect("an interreflected pass gathers");
             let tinted = tint_by_albedo(&direct.scalar, &albedo[range.clone()], bands);

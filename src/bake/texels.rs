@@ -18,6 +18,7 @@ use crate::bvh::Bvh;
 use crate::error::Result;
 use crate::ray::{offset_ray_origin, Ray, RAY_T_MAX};
 use crate::receivers::atlas::{atlas_for_size, Atlas, GUTTER};
+use crate::receivers::denoise::{texel_level, DenoiseGuide, NO_CHART};
 use crate::receivers::face_normal;
 use crate::receivers::texels::{
     bilinear_taps, dilate_by_owner, nearest_owner, rasterize, TexelPoints,
@@ -63,6 +64,8 @@ pub struct TexelReport {
     pub seams: usize,
     /// Covered texels found inside geometry and refilled from their neighbours.
     pub leaking: usize,
+    /// Whether the texels were denoised (`receivers::denoise`).
+    pub denoised: bool,
     pub rays_cast: u64,
     pub seconds: f64,
 }
@@ -134,22 +137,26 @@ fn bake_atlas_stitched(
     let mut leaking = leaking_or_covered_in(scene, &bvh, &receivers, cover);
     keep_charts_with_no_valid_texel(atlas, &texels.points, &mut leaking);
     let at = (&receivers, bvh);
+    // Texels to be denoised each turn their samples by their own angle, so that their errors
+    // are independent and the filter averages them out.
+    let turned = options.clone().with_turns(options.denoise);
     let (at_texels, rays_cast) =
-        bake_at_in(scene, at, options, backend, Some(vertex_transfer), progress)?;
+        bake_at_in(scene, at, &turned, backend, Some(vertex_transfer), progress)?;
     let stride = at_texels.channels() as usize * at_texels.coeffs_per_channel();
     let mut image = texels.scatter(at_texels.coeffs(), stride)?;
     let mut valid = texels.valid_mask(&leaking)?;
     let (width, height) = (atlas.width, atlas.height);
-    let owner = chart_owners(atlas, &texels);
-    // Texels baked at their own centres hold firm when seams are stitched; texels baked at a
-    // point on a chart's edge, and those dilation fills, take what stitching gives them.
-    let mut anchor: Vec<f32> = valid
-        .iter()
-        .map(|&baked| if baked { 1.0 } else { FILLED_ANCHOR })
-        .collect();
-    for texel in off_centre_texels(atlas, &texels) {
-        anchor[texel] = FILLED_ANCHOR;
+    if options.denoise {
+        let guide = denoise_guide(
+            (atlas, &texels, &receivers),
+            (&image, stride),
+            options,
+            &valid,
+        );
+        image = backend.denoise(&guide, &image, stride)?;
     }
+    let owner = chart_owners(atlas, &texels);
+    let anchor = seam_anchors(atlas, &texels, &valid);
     dilate_by_owner(
         width,
         height,
@@ -192,6 +199,7 @@ fn bake_atlas_stitched(
         seams: seams.len(),
         stretch: atlas.stretch(scene),
         leaking: leaking.iter().filter(|&&l| l).count(),
+        denoised: options.denoise,
         rays_cast,
         seconds: started.elapsed().as_secs_f64(),
     };
@@ -224,6 +232,49 @@ fn chart_owners(atlas: &Atlas, texels: &TexelPoints) -> Vec<u32> {
         })
         .collect();
     nearest_owner(atlas.width, atlas.height, &seeds)
+}
+
+/// What guides the denoiser at each texel of `atlas`: where its receiver lies, its normal, its
+/// level and noise (from `image` as baked, `stride` floats a texel, and the `samples` each
+/// cast), and its chart where it is `valid` ([`NO_CHART`] elsewhere: neither read nor written).
+fn denoise_guide(
+    (atlas, texels, receivers): (&Atlas, &TexelPoints, &Receivers),
+    (image, stride): (&[f32], usize),
+    options: &BakeOptions,
+    valid: &[bool],
+) -> DenoiseGuide {
+    let count = (atlas.width * atlas.height) as usize;
+    let (mut positions, mut normals) = (vec![Vec3::ZERO; count], vec![Vec3::Z; count]);
+    let (mut levels, mut noise) = (vec![0.0; count], vec![1.0; count]);
+    let mut charts = vec![NO_CHART; count];
+    let per_channel = stride / 3;
+    for (i, (&(x, y), point)) in texels.texels.iter().zip(&texels.points).enumerate() {
+        let at = (y * atlas.width + x) as usize;
+        positions[at] = receivers.positions[i];
+        normals[at] = receivers.normals[i];
+        let dc = Vec3::from_array([0, 1, 2].map(|c| image[at * stride + c * per_channel]));
+        let albedo = options.albedo.unwrap_or(receivers.albedo[i]);
+        (levels[at], noise[at]) = texel_level(dc, albedo, options.samples_used());
+        if valid[at] {
+            charts[at] = atlas.chart_of[point.triangle as usize];
+        }
+    }
+    let size = (atlas.width, atlas.height);
+    DenoiseGuide::new(size, (positions, normals), charts, (levels, noise))
+}
+
+/// How firmly each texel keeps its value when seams are stitched: texels baked at their own
+/// centres hold firm; texels baked at a point on a chart's edge, and those dilation fills
+/// (not `valid` before it), take what stitching gives them.
+fn seam_anchors(atlas: &Atlas, texels: &TexelPoints, valid: &[bool]) -> Vec<f32> {
+    let mut anchor: Vec<f32> = valid
+        .iter()
+        .map(|&baked| if baked { 1.0 } else { FILLED_ANCHOR })
+        .collect();
+    for texel in off_centre_texels(atlas, texels) {
+        anchor[texel] = FILLED_ANCHOR;
+    }
+    anchor
 }
 
 /// The texels baked at a point of their chart's edge rather than at their centre (a chart

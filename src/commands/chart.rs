@@ -65,6 +65,10 @@ pub(crate) struct ChartArgs {
     /// each, for the surface panel (the vertex errors of these points are their vertices').
     #[arg(long, value_delimiter = ',', value_name = "SIZES")]
     lightmap: Vec<u32>,
+    /// With --lightmap: each cosine-sampled lightmap is also baked denoised (`bake --denoise`),
+    /// as its own line.
+    #[arg(long, requires = "lightmap")]
+    denoise: bool,
     /// Error targets, comma-separated: each strategy is also baked to each (`bake
     /// --target-error`, on the CPU backend, at most 16,384 samples a receiver).
     #[arg(long, value_delimiter = ',', value_name = "ERRORS")]
@@ -211,6 +215,7 @@ fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
         },
         surface_points: args.surface_points,
         lightmap_sizes: args.lightmap.clone(),
+        denoise: args.denoise,
         target_errors: args.target_error.clone(),
     };
     if options.reference_samples == 0 || options.reference_samples > MAX_SAMPLES {

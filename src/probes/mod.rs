@@ -388,6 +388,7 @@ impl<'s> Sight<'s> {
             table: &self.table,
             estimator: Estimator::Visible,
             tangent_to_world: &self.rotation,
+            turns: None,
         };
         let halves = backend.closest_hits(&inputs, &crate::bake::NoProgress)?;
         if halves.len() != origins.len() {

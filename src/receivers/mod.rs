@@ -9,6 +9,7 @@
 //! tracer's rule: a direction below the face's own plane hits the face and is blocked.
 
 pub mod atlas;
+pub mod denoise;
 pub mod fit;
 pub mod seams;
 pub mod texels;

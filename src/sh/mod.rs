@@ -27,6 +27,9 @@ theta from +Z, phi from +X towards +Y (world space, Y up)";
 /// The largest band count the baker accepts.
 pub const MAX_BANDS: u32 = 32;
 
+/// `y_0`, the constant band's basis function: `1 / (2 sqrt(pi))`.
+pub const Y00: f64 = 0.282_094_791_773_878_14;
+
 /// `Ok` for a band count the baker supports (1 to [`MAX_BANDS`]).
 pub fn check_bands(bands: u32) -> crate::Result<()> {
     if bands == 0 || bands > MAX_BANDS {

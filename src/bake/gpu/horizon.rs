@@ -13,12 +13,13 @@ pub struct HorizonParams {
     pub vertex_count: u32,
     pub sample_offset: u32,
     pub sample_count: u32,
-    /// 1: sample directions are in each vertex's tangent frame (`sampling::tangent_frame`).
-    pub tangent_frames: u32,
+    /// `shaders::FRAMES_*`, as [`super::VisibilityParams::frames`].
+    pub frames: u32,
     /// 1: the visibility pass records hits, and the samples left out get NO_HIT.
     pub record_hits: u32,
-    pub pad0: u32,
-    pub pad1: u32,
+    /// As [`super::VisibilityParams::turn_seed`] and `turn_first`.
+    pub turn_seed: u32,
+    pub turn_first: u32,
 }
 
 #[cfg(test)]

@@ -25,11 +25,14 @@ pub struct VisibilityParams {
     /// The grid of the node boxes ([`GpuBvh`]): world = grid_origin + q * grid_step.
     pub grid_origin: [f32; 3],
     pub grid_step: f32,
-    /// 1: sample directions are in each vertex's tangent frame (`sampling::tangent_frame`).
-    pub tangent_frames: u32,
+    /// `shaders::FRAMES_*`: world directions, each vertex's tangent frame, or that frame
+    /// turned by the vertex's own angle.
+    pub frames: u32,
+    /// [`crate::sampling::ReceiverTurns`]: vertex `v` turns by
+    /// `receiver_turn(turn_seed, turn_first + v)`.
+    pub turn_seed: u32,
+    pub turn_first: u32,
     pub pad0: u32,
-    pub pad1: u32,
-    pub pad2: u32,
 }
 
 /// Uniforms of the projection kernel, 32 bytes; WGSL twin in wgsl/project.wgsl.

@@ -76,6 +76,12 @@ pub(crate) struct BakeArgs {
     /// With --lightmap on a glTF scene: the TEXCOORD_n set to bake it on.
     #[arg(long, value_name = "N")]
     pub(crate) lightmap_uv: Option<u32>,
+    /// With --lightmap: each texel casts its samples turned by its own angle, and an
+    /// edge-aware filter (guided by position, normal and chart; the same weights for every
+    /// coefficient) averages each texel with those of its chart within 3 texels. Off by
+    /// default (docs/accuracy.md shows where it pays).
+    #[arg(long)]
+    pub(crate) denoise: bool,
     /// Relightable probes for what moves through the scene: a grid this far apart (scene
     /// units) over its bounds. Each probe maps the light's SH to the SH of the radiance
     /// arriving there, shadowed by the scene and, when interreflected, with its bounced light;

@@ -70,6 +70,7 @@ pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeS
             fit_points: args.fit_points,
             lightmap: args.lightmap,
             lightmap_uv: args.lightmap_uv,
+            denoise: args.denoise,
         },
         transfer: TransferSpec {
             bands: match args.transfer.bands {

@@ -101,7 +101,7 @@ pub(super) fn print_stage_lines(report: &BakeReport, output: &Path) {
     if let Some(texels) = &report.texels {
         eprintln!(
             "lightmap: {}x{} texels, {} charts ({} seam edges), {} covered ({:.1}% of the \
-             atlas; stretch {:.3}; {} inside geometry, refilled), {} rays in {:.2} s -> {}",
+             atlas; stretch {:.3}; {} inside geometry, refilled){}, {} rays in {:.2} s -> {}",
             texels.width,
             texels.height,
             texels.charts,
@@ -110,6 +110,7 @@ pub(super) fn print_stage_lines(report: &BakeReport, output: &Path) {
             100.0 * texels.covered as f64 / (texels.width as f64 * texels.height as f64),
             texels.stretch,
             texels.leaking,
+            if texels.denoised { ", denoised" } else { "" },
             texels.rays_cast,
             texels.seconds,
             output

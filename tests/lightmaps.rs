@@ -11,10 +11,11 @@ use std::process::Output;
 use common::pixels::Difference;
 use common::prt_gpu;
 use glam::Vec3;
-use prt_gpu::bake::texels::bake_texels;
+use prt_gpu::bake::texels::{bake_texels, plan_atlas};
 use prt_gpu::bake::{bake, BakeOptions, CpuBackend, NoProgress};
 use prt_gpu::glb::{lightmap_file_name, read_glb, Stored};
 use prt_gpu::lightmap::read_lightmap;
+use prt_gpu::receivers::uv_set::UvSet;
 use prt_gpu::scene::{builtin, Scene};
 use prt_gpu::testing::{entries, lightmap_reader_output};
 
@@ -539,11 +540,59 @@ fn uv_sphere(rings: u32, segments: u32) -> Scene {
     }
 }
 
+/// A latitude-longitude sphere of `rings` x `segments` cells whose vertices are written once
+/// per texture coordinate, as a glTF file holds them (the meridian at u = 0 twice, each pole
+/// once per segment), with its normals, and the coordinates (u along the segments, v down
+/// the rings, a texel's margin inside [0, 1]).
+fn uv_mapped_sphere(rings: u32, segments: u32) -> (Scene, Vec<[f32; 2]>) {
+    let (mut positions, mut uvs) = (Vec::new(), Vec::new());
+    for r in 0..=rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
+        // The poles exactly on the axis, so that their copies lie at one point.
+        let (radius, height) = match r {
+            0 => (0.0, 1.0),
+            r if r == rings => (0.0, -1.0),
+            _ => (theta.sin(), theta.cos()),
+        };
+        for s in 0..=segments {
+            let phi = std::f32::consts::TAU * (s % segments) as f32 / segments as f32;
+            positions.push(Vec3::new(radius * phi.cos(), height, -radius * phi.sin()));
+            let margin = 1.0 / 128.0;
+            let along = |i: u32, n: u32| margin + (1.0 - 2.0 * margin) * i as f32 / n as f32;
+            uvs.push([along(s, segments), along(r, rings)]);
+        }
+    }
+    let at = |r: u32, s: u32| r * (segments + 1) + s;
+    let mut triangles = Vec::new();
+    for r in 0..rings {
+        for s in 0..segments {
+            let (a, b, c, d) = (at(r, s), at(r, s + 1), at(r + 1, s), at(r + 1, s + 1));
+            if r > 0 {
+                triangles.push([a, c, b]);
+            }
+            if r + 1 < rings {
+                triangles.push([b, c, d]);
+            }
+        }
+    }
+    let scene = Scene {
+        albedo: vec![Vec3::splat(0.8); positions.len()],
+        normals: Some(positions.clone()),
+        positions,
+        triangles,
+    };
+    (scene, uvs)
+}
+
 /// The seams' disagreement and the texels' noise, each as an RMS over the seams' lookup points
 /// relative to the RMS radiance there: `(stitched, unstitched, noise)`, radiance under a fixed
 /// SH light.
-fn seam_figures(input: &Scene, size: u32, samples: u32) -> (f64, f64, f64, usize) {
-    use prt_gpu::bake::texels::{bake_atlas, bake_atlas_seams_as_baked, plan_atlas};
+fn seam_figures(
+    input: &Scene,
+    atlas_of: impl Fn(&Scene) -> prt_gpu::receivers::atlas::Atlas,
+    samples: u32,
+) -> (f64, f64, f64, usize) {
+    use prt_gpu::bake::texels::{bake_atlas, bake_atlas_seams_as_baked};
     use prt_gpu::receivers::seams::seams;
     use prt_gpu::receivers::texels::bilinear_taps;
     let options = |seed| BakeOptions {
@@ -553,7 +602,7 @@ fn seam_figures(input: &Scene, size: u32, samples: u32) -> (f64, f64, f64, usize
     };
     let (baked, _) = bake(input.clone(), &options(1), &CpuBackend, &NoProgress).unwrap();
     let scene = baked.scene.clone();
-    let atlas = plan_atlas(&scene, size).unwrap();
+    let atlas = atlas_of(&scene);
     let found = seams(&scene, &atlas);
     assert!(found.len() > 20, "{} seam edges", found.len());
     let light: Vec<f32> = (0..16)
@@ -618,6 +667,10 @@ fn seam_figures(input: &Scene, size: u32, samples: u32) -> (f64, f64, f64, usize
     )
 }
 
+/// The radiance across every seam edge, looked up on both sides at the same surface points,
+/// agrees within the texels' own noise once stitched, and not as baked: across the charts of
+/// generated atlases (a UV sphere, the dragon) and across the cut of a scene's own UV set (a
+/// sphere written as a glTF file holds it, baked on its coordinates per triangle corner).
 #[test]
 fn seams_agree_within_the_texels_own_noise() {
     let dragon = prt_gpu::scene::load(Path::new(concat!(
@@ -625,11 +678,35 @@ fn seams_agree_within_the_texels_own_noise() {
         "/tests/data/dragon_vrip_res3.ply.gz"
     )))
     .unwrap();
-    for (name, scene, size) in [
-        ("UV sphere", uv_sphere(24, 48), 128),
-        ("dragon", dragon, 512),
-    ] {
-        let (stitched, unstitched, noise, points) = seam_figures(&scene, size, 64);
+    let generated = |size| move |scene: &Scene| plan_atlas(scene, size).unwrap();
+    let (mapped_sphere, uvs) = uv_mapped_sphere(24, 48);
+    // Coordinates per triangle corner, as a glTF bake in place keeps them whatever prepare
+    // welds (the copies along the cut are identical but for their coordinates).
+    let own_set = {
+        let set = UvSet::from_vertices(1, &uvs, &mapped_sphere.triangles);
+        let kept = prt_gpu::scene::prepare::kept_triangles(&mapped_sphere);
+        move |_: &Scene| set.kept(&kept).atlas(128)
+    };
+    type AtlasOf = Box<dyn Fn(&Scene) -> prt_gpu::receivers::atlas::Atlas>;
+    let cases: [(&str, Scene, u32, AtlasOf); 3] = [
+        (
+            "UV sphere",
+            uv_sphere(24, 48),
+            128,
+            Box::new(generated(128)),
+        ),
+        ("dragon", dragon, 512, Box::new(generated(512))),
+        // Its own UV set, cut along a meridian (the vertices there written twice, as a
+        // glTF file holds them) and at the poles.
+        (
+            "UV sphere on its own UV set",
+            mapped_sphere,
+            128,
+            Box::new(own_set),
+        ),
+    ];
+    for (name, scene, size, atlas_of) in cases {
+        let (stitched, unstitched, noise, points) = seam_figures(&scene, atlas_of, 64);
         println!(
             "{name} at {size}: across the seams {:.3}% stitched, {:.3}% as baked; texels' noise \
              {:.3}% ({points} points)",
@@ -651,7 +728,7 @@ fn seams_agree_within_the_texels_own_noise() {
 /// `--denoise` at equal rays (64 cosine samples, the same vertex bake and atlas), against a
 /// high-sample bake of the held-out surface points the chart uses (`prt-gpu chart --denoise`):
 /// the denoised lightmap's relit error is lower on the built-in scene (128 texels) and on the
-/// teapot (256). At 64 samples the texels' own noise dominates; docs/accuracy.md charts the
+/// teapot (256). At 64 samples the texels' own noise dominates; docs/performance.md charts the
 /// counts where the filter's blur costs more than it saves.
 #[test]
 fn denoising_lowers_the_error_at_equal_rays() {

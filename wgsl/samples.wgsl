@@ -45,7 +45,7 @@ fn turned_frame(frame: mat3x3<f32>, turn: vec2<f32>) -> mat3x3<f32> {
 }
 
 // The frame a receiver casts a tangent set in (`frames` is FRAMES_TANGENT or FRAMES_TURNED).
-// Rust twin: bake::DirectInputs::directions_of.
+// Rust twin: bake::inputs::DirectInputs::directions_of.
 fn receiver_frame(n: vec3<f32>, frames: u32, turn_seed: u32, receiver: u32) -> mat3x3<f32> {
     let frame = tangent_frame(n);
     if (frames == FRAMES_TURNED) {

@@ -67,6 +67,9 @@ pub struct TexelReport {
     /// Whether the texels were denoised (`receivers::denoise`).
     pub denoised: bool,
     pub rays_cast: u64,
+    /// Seconds the texels' transfer took (their rays, and the gather where light bounces),
+    /// of the stage's `seconds`.
+    pub transfer_seconds: f64,
     pub seconds: f64,
 }
 
@@ -140,8 +143,10 @@ fn bake_atlas_stitched(
     // Texels to be denoised each turn their samples by their own angle, so that their errors
     // are independent and the filter averages them out.
     let turned = options.clone().with_turns(options.denoise);
+    let casting = Instant::now();
     let (at_texels, rays_cast) =
         bake_at_in(scene, at, &turned, backend, Some(vertex_transfer), progress)?;
+    let transfer_seconds = casting.elapsed().as_secs_f64();
     let stride = at_texels.channels() as usize * at_texels.coeffs_per_channel();
     let mut image = texels.scatter(at_texels.coeffs(), stride)?;
     let mut valid = texels.valid_mask(&leaking)?;
@@ -201,6 +206,7 @@ fn bake_atlas_stitched(
         leaking: leaking.iter().filter(|&&l| l).count(),
         denoised: options.denoise,
         rays_cast,
+        transfer_seconds,
         seconds: started.elapsed().as_secs_f64(),
     };
     let bake = TexelBake {

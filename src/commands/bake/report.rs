@@ -101,7 +101,8 @@ pub(super) fn print_stage_lines(report: &BakeReport, output: &Path) {
     if let Some(texels) = &report.texels {
         eprintln!(
             "lightmap: {}x{} texels, {} charts ({} seam edges), {} covered ({:.1}% of the \
-             atlas; stretch {:.3}; {} inside geometry, refilled){}, {} rays in {:.2} s -> {}",
+             atlas; stretch {:.3}; {} inside geometry, refilled){}, {} rays in {:.2} s ({:.2} M \
+             rays/s), {:.2} s in all -> {}",
             texels.width,
             texels.height,
             texels.charts,
@@ -112,6 +113,8 @@ pub(super) fn print_stage_lines(report: &BakeReport, output: &Path) {
             texels.leaking,
             if texels.denoised { ", denoised" } else { "" },
             texels.rays_cast,
+            texels.transfer_seconds,
+            texels.rays_cast as f64 / texels.transfer_seconds.max(1e-9) / 1e6,
             texels.seconds,
             output
                 .with_file_name(glb::lightmap_file_name(output))

@@ -253,6 +253,7 @@ fn denoise_guide(
     let (mut positions, mut normals) = (vec![Vec3::ZERO; count], vec![Vec3::Z; count]);
     let (mut levels, mut noise) = (vec![0.0; count], vec![1.0; count]);
     let mut charts = vec![NO_CHART; count];
+    // Texel transfer is RGB (`tint_by_albedo`): three channels of `stride / 3` coefficients.
     let per_channel = stride / 3;
     for (i, (&(x, y), point)) in texels.texels.iter().zip(&texels.points).enumerate() {
         let at = (y * atlas.width + x) as usize;

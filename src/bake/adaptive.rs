@@ -176,6 +176,10 @@ pub fn adaptive_direct_transfer(
             table: &table,
             // The control variate: what is open is exact, only what is blocked is estimated.
             estimator: Estimator::Blocked,
+            // A batch holds the receivers still short of their target, not a range of them,
+            // so it casts in the plain frames ([`DirectInputs::turns`] numbers a range); its
+            // own fresh set decorrelates neighbours anyway.
+            turns: None,
             ..view
         };
         let (sums, batch_rays) = backend.projected_sums(&batch, mode, &NoProgress)?;
@@ -201,6 +205,8 @@ pub fn adaptive_direct_transfer(
         samples: &samples,
         table: &table,
         estimator: Estimator::Blocked,
+        // The frames the batches were cast in.
+        turns: None,
         ..view
     };
     let mut transfer = vec![0.0f32; receivers.len() * n];
@@ -327,6 +333,31 @@ mod tests {
         unique.dedup();
         assert_eq!(unique.len(), 100);
         assert!(!seeds.contains(&7));
+    }
+
+    #[test]
+    fn a_target_casts_in_plain_frames_whatever_turns_the_inputs_carry() {
+        use crate::bake::{BakeOptions, CpuBackend, NoProgress};
+        use crate::receivers::Receivers;
+        use crate::scene::{builtin, prepare::prepare};
+        let scene = prepare(builtin::default_scene()).unwrap().0;
+        let options = BakeOptions::default();
+        let receivers = Receivers::vertices(&scene);
+        let plain = BakeInputs::for_receivers(&scene, &receivers, &options);
+        let turned =
+            BakeInputs::for_receivers(&scene, &receivers, &options.clone().with_turns(true));
+        assert!(turned.turns.is_some());
+        let target = TargetError {
+            relative: 0.05,
+            max_samples: 1024,
+        };
+        let run = |inputs: &BakeInputs| {
+            let how = (options.sampling, options.seed, Mode::Shadowed);
+            adaptive_direct_transfer(&CpuBackend, inputs, 100..400, how, &target, &NoProgress)
+                .unwrap()
+                .0
+        };
+        assert_eq!(run(&plain), run(&turned));
     }
 
     #[test]

@@ -26,7 +26,7 @@ use glam::Vec3;
 use super::cpu::{finish_transfer, transfer_scale};
 use super::{Backend, BakeInputs, DirectInputs, Mode, NoProgress, Progress};
 use crate::error::{Error, Result};
-use crate::sampling::{Estimator, Sampling};
+use crate::sampling::{Estimator, SampleSet, Sampling};
 use crate::sh::{coeff_count, unshadowed_transfer, ShTable};
 
 /// Samples in one batch.
@@ -196,23 +196,40 @@ pub fn adaptive_direct_transfer(
         }
         first_batch.get_or_insert((samples, table));
     }
-    let (samples, table) = first_batch.expect("a target has batches");
-    // Batches are summed as projected (for a tangent-frame set, in the receiver's own frame)
-    // and finished once, on their mean: finishing is affine (a scale, a rotation, for the
-    // control variate a closed form minus the sum), so the mean of finished batches is the
-    // finished mean, and the rotation keeps the L2 norm the error is measured in.
+    let first_batch = first_batch.expect("a target has batches");
+    let transfer = finish_means(&view, first_batch, &receivers, n);
+    let receivers = ReceiverErrors {
+        samples: receivers.iter().map(|r| r.count * BATCH_SAMPLES).collect(),
+        errors: receivers.iter().map(|r| r.error / open_norm).collect(),
+    };
+    Ok((transfer, rays, receivers))
+}
+
+/// Every receiver's transfer from the mean of its batches' projected sums, `[receiver][k]`
+/// (`n` coefficients), finished with the first batch's `(samples, table)`.
+///
+/// Batches are summed as projected (for a tangent-frame set, in the receiver's own frame)
+/// and finished once, on their mean: finishing is affine (a scale, a rotation, for the
+/// control variate a closed form minus the sum), so the mean of finished batches is the
+/// finished mean, and the rotation keeps the L2 norm the error is measured in.
+fn finish_means(
+    view: &DirectInputs,
+    (samples, table): (SampleSet, ShTable),
+    receivers: &[ReceiverBatches],
+    n: usize,
+) -> Vec<f32> {
     let finishing = DirectInputs {
         samples: &samples,
         table: &table,
         estimator: Estimator::Blocked,
         // The frames the batches were cast in.
         turns: None,
-        ..view
+        ..*view
     };
     let mut transfer = vec![0.0f32; receivers.len() * n];
     transfer
         .par_chunks_mut(n)
-        .zip(&receivers)
+        .zip(receivers)
         .for_each(|(out, receiver)| {
             let mut mean: Vec<f64> = receiver
                 .sum
@@ -222,11 +239,7 @@ pub fn adaptive_direct_transfer(
             finish_transfer(&finishing, receiver.index, &mut mean);
             out.iter_mut().zip(&mean).for_each(|(o, m)| *o = *m as f32);
         });
-    let receivers = ReceiverErrors {
-        samples: receivers.iter().map(|r| r.count * BATCH_SAMPLES).collect(),
-        errors: receivers.iter().map(|r| r.error / open_norm).collect(),
-    };
-    Ok((transfer, rays, receivers))
+    transfer
 }
 
 /// One receiver's batches so far: the sums and sums of squares of its projected estimates.

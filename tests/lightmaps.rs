@@ -592,7 +592,7 @@ fn seam_figures(
     atlas_of: impl Fn(&Scene) -> prt_gpu::receivers::atlas::Atlas,
     samples: u32,
 ) -> (f64, f64, f64, usize) {
-    use prt_gpu::bake::texels::{bake_atlas, bake_atlas_seams_as_baked};
+    use prt_gpu::bake::texels::{bake_atlas_with_seams, Seams};
     use prt_gpu::receivers::seams::seams;
     use prt_gpu::receivers::texels::bilinear_taps;
     let options = |seed| BakeOptions {
@@ -609,20 +609,14 @@ fn seam_figures(
         .map(|k| [1.0, 0.7, 0.9, -0.4][k % 4] / (1 + k / 4) as f32)
         .collect();
     let radiance_at = |seed: u64, stitched: bool| -> Vec<(f64, f64)> {
-        let bake_one = if stitched {
-            bake_atlas
+        let stitching = if stitched {
+            Seams::Stitched
         } else {
-            bake_atlas_seams_as_baked
+            Seams::AsBaked
         };
-        let (texels, _) = bake_one(
-            &scene,
-            &baked.transfer,
-            &options(seed),
-            &atlas,
-            &CpuBackend,
-            &NoProgress,
-        )
-        .unwrap();
+        let at = (&scene, &baked.transfer, &atlas);
+        let (texels, _) =
+            bake_atlas_with_seams(at, &options(seed), &CpuBackend, &NoProgress, stitching).unwrap();
         let coeffs = texels.transfer.coeffs();
         let stride = (texels.transfer.channels() * texels.transfer.bands().pow(2)) as usize;
         let k = texels.transfer.bands().pow(2) as usize;

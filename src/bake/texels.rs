@@ -109,28 +109,24 @@ pub fn bake_atlas(
     progress: &dyn Progress,
 ) -> Result<(TexelBake, TexelReport)> {
     let at = (scene, vertex_transfer, atlas);
-    bake_atlas_stitched(at, options, backend, progress, true)
+    bake_atlas_with_seams(at, options, backend, progress, Seams::Stitched)
 }
 
-/// [`bake_atlas`] with the seams as baked: what stitching changes, measured.
-pub fn bake_atlas_seams_as_baked(
-    scene: &Scene,
-    vertex_transfer: &Transfer,
-    options: &BakeOptions,
-    atlas: &Atlas,
-    backend: &dyn Backend,
-    progress: &dyn Progress,
-) -> Result<(TexelBake, TexelReport)> {
-    let at = (scene, vertex_transfer, atlas);
-    bake_atlas_stitched(at, options, backend, progress, false)
+/// Whether a texel bake stitches its seams ([`crate::receivers::seams`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Seams {
+    Stitched,
+    /// As baked: what stitching changes, measured.
+    AsBaked,
 }
 
-fn bake_atlas_stitched(
+/// [`bake_atlas`] with its seams stitched or left as baked.
+pub fn bake_atlas_with_seams(
     (scene, vertex_transfer, atlas): (&Scene, &Transfer, &Atlas),
     options: &BakeOptions,
     backend: &dyn Backend,
     progress: &dyn Progress,
-    stitch: bool,
+    stitching: Seams,
 ) -> Result<(TexelBake, TexelReport)> {
     let started = Instant::now();
     let texels = rasterize(atlas);
@@ -186,7 +182,7 @@ fn bake_atlas_stitched(
         }
     }
     let seams = seams::seams(scene, atlas);
-    if stitch {
+    if stitching == Seams::Stitched {
         let rows = seams::seam_rows(width, height, &seams);
         seams::solve((width, height), &mut image, stride, &rows, &anchor);
     }

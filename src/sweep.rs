@@ -9,7 +9,7 @@ use std::time::Instant;
 use crate::bake::adaptive::TargetError;
 use crate::bake::bounce::Hit;
 use crate::bake::gpu::{Chunking, GpuBaker, GpuRun};
-use crate::bake::texels::bake_texels;
+use crate::bake::texels::{bake_atlas, plan_atlas};
 use crate::bake::Transfer;
 use crate::bake::{
     bake, cpu, gpu, Backend, BakeOptions, CpuBackend, DirectInputs, Fit, Mode, NoProgress, Progress,
@@ -328,31 +328,34 @@ fn measure(
     } else {
         &[false]
     };
-    for (&size, &denoise) in lightmap_sizes
-        .iter()
-        .flat_map(|s| denoising.iter().map(move |d| (s, d)))
-    {
-        let started = Instant::now();
-        let (texels, texel_report) = bake_texels(
-            &baked.scene,
-            &baked.transfer,
-            &BakeOptions {
+    for &size in lightmap_sizes {
+        // One atlas for the plain and the denoised map; each point's time includes planning it.
+        let planning = Instant::now();
+        let atlas = plan_atlas(&baked.scene, size)?;
+        let planned = planning.elapsed().as_secs_f64();
+        for &denoise in denoising {
+            let started = Instant::now();
+            let (texels, texel_report) = bake_atlas(
+                &baked.scene,
+                &baked.transfer,
+                &BakeOptions {
+                    lightmap: Some(size),
+                    denoise,
+                    ..options.clone()
+                },
+                &atlas,
+                backend,
+                &NoProgress,
+            )?;
+            points.push(SweepPoint {
                 lightmap: Some(size),
-                denoise,
-                ..options.clone()
-            },
-            size,
-            backend,
-            &NoProgress,
-        )?;
-        points.push(SweepPoint {
-            lightmap: Some(size),
-            denoised: denoise,
-            seconds: seconds + started.elapsed().as_secs_f64(),
-            rays: report.rays_cast + texel_report.rays_cast,
-            surface_rms: texel_surface_rms(references.surface, &texels, light)?,
-            ..vertex_point.clone()
-        });
+                denoised: denoise,
+                seconds: seconds + planned + started.elapsed().as_secs_f64(),
+                rays: report.rays_cast + texel_report.rays_cast,
+                surface_rms: texel_surface_rms(references.surface, &texels, light)?,
+                ..vertex_point.clone()
+            });
+        }
     }
     points.push(vertex_point);
     Ok(points)

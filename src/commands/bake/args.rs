@@ -77,9 +77,9 @@ pub(crate) struct BakeArgs {
     #[arg(long, value_name = "N")]
     pub(crate) lightmap_uv: Option<u32>,
     /// With --lightmap: each texel casts its samples turned by its own angle, and an
-    /// edge-aware filter (guided by position, normal and chart; the same weights for every
-    /// coefficient) averages each texel with those of its chart within 3 texels. Off by
-    /// default (docs/accuracy.md shows where it pays).
+    /// edge-aware filter (guided by position, normal, chart and each texel's noise; the same
+    /// weights for every coefficient) averages each texel with those of its chart within 2
+    /// texels. Off by default (docs/performance.md, "Denoised lightmaps", shows where it pays).
     #[arg(long)]
     pub(crate) denoise: bool,
     /// Relightable probes for what moves through the scene: a grid this far apart (scene

@@ -45,5 +45,6 @@ pub mod sweep;
 pub mod testing;
 pub mod view;
 pub mod x3d;
+pub mod zonal;
 
 pub use error::{Error, Result};

@@ -21,6 +21,7 @@ use crate::receivers::uv_set::{self, UvSet};
 use crate::scene::gltf::GltfScene;
 use crate::scene::Scene;
 use crate::spec::{BakeSpec, Bands, Compression, Container, Layout, AUTO_MAX_BANDS};
+use crate::zonal::{ZonalFit, ZonalTransfer};
 use crate::{glb, light, render, Result};
 
 /// A bake done and shaped as its spec stores it, not yet written.
@@ -39,6 +40,8 @@ pub struct Baked {
     /// The probes the spec asks for, baked around the scene, and the seconds they took.
     pub probes: Option<ProbeSet>,
     pub probe_seconds: f64,
+    /// The zonal transfer the spec asks for, fitted to the stored bands, and what it costs.
+    pub zonal: Option<(ZonalTransfer, ZonalFit)>,
 }
 
 /// Bakes `scene` as `spec` asks, its direct pass from `source`, on `backend`; `gltf` is the
@@ -146,6 +149,17 @@ impl Planned<'_> {
             Bands::Auto { threshold } => Some(choose_auto_bands(&mut mesh, threshold)),
             Bands::Fixed(_) => None,
         };
+        let zonal = match spec.storage.zonal {
+            Some(zonal) => {
+                let normals = mesh.scene.normals.as_deref().unwrap_or_default();
+                Some(crate::zonal::fit_and_measure(
+                    &mesh.transfer,
+                    normals,
+                    zonal,
+                )?)
+            }
+            None => None,
+        };
         let probes_started = Instant::now();
         let probes = match &spec.probes {
             Some(probes) => {
@@ -182,6 +196,7 @@ impl Planned<'_> {
             notes,
             probes,
             probe_seconds,
+            zonal,
         })
     }
 
@@ -334,9 +349,11 @@ pub fn plan_memory(
     if need.whole() <= budget {
         return Ok(whole);
     }
-    let streamable = bake::stream::streams(&options) && spec.storage.layout == Layout::PerVertex;
+    let streamable = bake::stream::streams(&options)
+        && spec.storage.layout == Layout::PerVertex
+        && spec.storage.zonal.is_none();
     let why_not = "only bakes at the vertices (no least-squares fit or lightmap), without \
-                   --compress, stream in chunks";
+                   --compress or --zonal, stream in chunks";
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;
@@ -395,7 +412,8 @@ pub fn write(
 ) -> Result<Option<glb::scene::SceneWrite>> {
     check_container(spec, gltf)?;
     let stored = glb::Stored::new(&baked.mesh, baked.cpca.as_ref(), spec.storage.precision)?
-        .with_probes(baked.probes.as_ref())?;
+        .with_probes(baked.probes.as_ref())?
+        .with_zonal(baked.zonal.as_ref().map(|(zonal, _)| zonal))?;
     match gltf {
         Some(gltf) => Ok(Some(glb::scene::write_scene_glb(
             path,

@@ -180,6 +180,39 @@ pub struct StorageSpec {
     pub channels: Storage,
     pub precision: Precision,
     pub layout: Layout,
+    /// Zonal-harmonic transfer stored beside the SH transfer (`--zonal`), for meshes that
+    /// deform. Left out of the JSON when unset, so specs written before it hash as they did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zonal: Option<ZonalSpec>,
+}
+
+/// Local, deformable PRT (`zonal::ZonalTransfer`): per receiver and channel, `bands` zonal
+/// coefficients about one axis, which a runtime turns with the surface.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZonalSpec {
+    pub bands: u32,
+    pub axis: ZonalAxis,
+}
+
+/// The axis each receiver's zonal lobe is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum ZonalAxis {
+    /// The shading normal: nothing more is stored, and a runtime needs only its normals.
+    Normal,
+    /// The axis that keeps most of the transfer's energy (Sloan, Luna & Snyder's optimal
+    /// "shading normal"): stored per vertex, and turned by a runtime as it turns normals.
+    Fitted,
+}
+
+impl ZonalAxis {
+    pub fn name(self) -> &'static str {
+        match self {
+            ZonalAxis::Normal => "normal",
+            ZonalAxis::Fitted => "fitted",
+        }
+    }
 }
 
 /// Per-vertex transfer as it is, or compressed by clustered PCA.
@@ -234,6 +267,7 @@ impl Default for BakeSpec {
                 channels: Storage::Rgb,
                 precision: Precision::F32,
                 layout: Layout::PerVertex,
+                zonal: None,
             },
             container: Container::Mesh,
             local: None,
@@ -305,7 +339,31 @@ impl BakeSpec {
             }
         }
         self.check_storage_fits_container()?;
+        self.check_zonal()?;
         self.check_probes()
+    }
+
+    /// Zonal transfer: at least one band and no more than the transfer has, and only where
+    /// the file stores per-vertex transfer of a baked mesh.
+    fn check_zonal(&self) -> Result<()> {
+        let Some(zonal) = self.storage.zonal else {
+            return Ok(());
+        };
+        let baked = self.transfer.bands.baked();
+        if !(1..=baked).contains(&zonal.bands) {
+            return Err(Error::Options(format!(
+                "--zonal {}: zonal bands run from 1 to the transfer's bands ({baked})",
+                zonal.bands
+            )));
+        }
+        if self.container == Container::GltfInPlace {
+            return Err(Error::Options(
+                "--zonal stores zonal transfer at a baked mesh's vertices; a glTF scene baked \
+                 in place does not hold it (bake the mesh, or leave out --zonal)"
+                    .into(),
+            ));
+        }
+        Ok(())
     }
 
     /// Probes: valid, and only where there is occlusion for them to see (unshadowed transfer
@@ -353,6 +411,7 @@ impl BakeSpec {
                 "a glTF scene baked in place",
             ),
             (self.probes.is_some(), "--probes"),
+            (self.storage.zonal.is_some(), "--zonal"),
         ];
         if let Some((_, what)) = asked.iter().find(|(given, _)| *given) {
             return Err(Error::Options(format!(

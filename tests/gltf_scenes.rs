@@ -10,6 +10,7 @@ use std::process::Command;
 
 use base64::Engine;
 use common::gltf_builder::{ground_and_card_gltf, GltfBuilder};
+use common::vec3_accessor;
 use glam::{Mat3, Mat4, Quat, Vec3};
 use prt_gpu::bake::{
     bake, Backend, BakeOptions, BakeReport, BakedMesh, CpuBackend, Mode, NoProgress,
@@ -1339,26 +1340,6 @@ fn a_gltf_lightmap_on_its_own_uv_set_bakes_alike_on_the_cpu_and_the_gpu() {
         let error = prt_gpu::compress::radiance_error(&relit[0], gpu);
         assert!(error < 1e-4, "CPU and GPU lightmaps differ by {error:.2e}");
     }
-}
-
-/// The float `VEC3` values of accessor `index` in a .glb's BIN chunk (tightly packed).
-fn vec3_accessor(bytes: &[u8], doc: &Value, index: u64) -> Vec<[f32; 3]> {
-    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    let bin = &bytes[28 + json_len..];
-    let accessor = &doc["accessors"][index as usize];
-    assert_eq!(accessor["type"], "VEC3");
-    assert_eq!(accessor["componentType"], 5126);
-    let view = &doc["bufferViews"][accessor["bufferView"].as_u64().unwrap() as usize];
-    assert!(view.get("byteStride").is_none_or(|s| s == 12));
-    let start = view["byteOffset"].as_u64().unwrap_or(0) as usize
-        + accessor["byteOffset"].as_u64().unwrap_or(0) as usize;
-    let count = accessor["count"].as_u64().unwrap() as usize;
-    bin[start..start + 12 * count]
-        .chunks_exact(12)
-        .map(|v| {
-            std::array::from_fn(|c| f32::from_le_bytes(v[4 * c..4 * c + 4].try_into().unwrap()))
-        })
-        .collect()
 }
 
 /// `render SCENE -o relit.glb` on a glTF scene baked in place: every baked primitive carries

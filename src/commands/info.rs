@@ -107,6 +107,14 @@ pub(crate) fn run_info(path: &Path) -> Result<()> {
     if let Some(probes) = glb::probes::read_probes(path)? {
         lines.push(format!("probes:       {}", probes.describe()));
     }
+    if let Some(zonal) = glb::zonal::read_zonal(path)? {
+        lines.push(format!(
+            "zonal:        {} bands x {} channel(s) about the {} axis (_PRT_ZH_*)",
+            zonal.bands(),
+            zonal.channels(),
+            zonal.axis().name()
+        ));
+    }
     lines.push(format!("backend:      {}", metadata.backend));
     lines.push(format!(
         "made by:      {} {}",

@@ -84,6 +84,10 @@ pub(crate) struct RenderArgs {
     /// (trilinear on the grid). Repeatable.
     #[arg(long, value_name = "X,Y,Z[,R]", value_parser = parse_sphere, allow_hyphen_values = true)]
     pub(crate) probe_sphere: Vec<(Vec3, Option<f32>)>,
+    /// Bakes with zonal transfer (bake --zonal): relight from it, each vertex's lobe about its
+    /// stored axis (the rest pose), as an LDPRT runtime does, instead of from the SH transfer.
+    #[arg(long)]
+    pub(crate) zonal: bool,
     /// Output: an image, .png (tone-mapped sRGB) or .exr (linear HDR); or .glb: a copy of the
     /// (one) baked file with each vertex's relit radiance as its COLOR_0.
     #[arg(short, long, default_value = "preview.png")]
@@ -131,10 +135,15 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
         let camera = args
             .camera
             .unwrap_or_else(|| Camera::framing_scene(&baked.scene));
-        let mut panel = match &cpca {
-            _ if !args.probe_sphere.is_empty() => {
-                let (scene, radiance) =
-                    with_probe_spheres(path, &baked, cpca.as_ref(), &light, &args.probe_sphere)?;
+        let mut panel = match (&cpca, args.zonal) {
+            // Relit on the CPU as a run-time would, then drawn; else the preview's own way
+            // (which draws a lightmap by its texels).
+            (_, zonal) if zonal || cpca.is_some() || !args.probe_sphere.is_empty() => {
+                let radiance = vertex_radiance(path, &baked, (cpca.as_ref(), zonal), &light)?;
+                let (scene, radiance) = match &args.probe_sphere[..] {
+                    [] => (baked.scene.clone(), radiance),
+                    spheres => with_probe_spheres(path, &baked, radiance, &light, spheres)?,
+                };
                 render::render(
                     &context,
                     &scene,
@@ -144,16 +153,7 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
                     args.height,
                 )?
             }
-            // As a run-time would: the light dotted into each cluster once, then per vertex.
-            Some(cpca) => render::render(
-                &context,
-                &baked.scene,
-                &render::apply_albedo(&baked, cpca.relight(&light)?),
-                &camera,
-                args.width,
-                args.height,
-            )?,
-            None => render::preview(
+            _ => render::preview(
                 &context,
                 &baked,
                 &light,
@@ -188,12 +188,40 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// The baked scene relit per vertex (its clusters', when compressed) with `spheres` added,
-/// lit by the probes of the file at `path`.
+/// The exit radiance at `baked`'s vertices (read from `path`) under `light`, albedo applied:
+/// from its zonal transfer about the rest pose's axes where `zonal` asks (as an LDPRT run-time
+/// relights), from its clusters where it is compressed (the light dotted into each cluster
+/// once, then per vertex), else from its SH transfer.
+fn vertex_radiance(
+    path: &Path,
+    baked: &prt_gpu::bake::BakedMesh,
+    (cpca, zonal): (Option<&prt_gpu::compress::Cpca>, bool),
+    light: &light::ShLight,
+) -> Result<Vec<[f32; 3]>> {
+    if zonal {
+        let zonal = glb::zonal::read_zonal(path)?.ok_or_else(|| {
+            Error::Options(format!(
+                "--zonal: {} holds no zonal transfer (bake it with --zonal BANDS)",
+                path.display()
+            ))
+        })?;
+        return Ok(render::apply_albedo(
+            baked,
+            zonal.relight(zonal.axes(), light)?,
+        ));
+    }
+    match cpca {
+        Some(cpca) => Ok(render::apply_albedo(baked, cpca.relight(light)?)),
+        None => render::relight_baked(baked, light),
+    }
+}
+
+/// `radiance` of the baked scene's vertices with `spheres` added, lit by the probes of the
+/// file at `path`.
 fn with_probe_spheres(
     path: &Path,
     baked: &prt_gpu::bake::BakedMesh,
-    cpca: Option<&prt_gpu::compress::Cpca>,
+    radiance: Vec<[f32; 3]>,
     light: &light::ShLight,
     spheres: &[(Vec3, Option<f32>)],
 ) -> Result<(prt_gpu::scene::Scene, Vec<[f32; 3]>)> {
@@ -203,10 +231,6 @@ fn with_probe_spheres(
             path.display()
         ))
     })?;
-    let relit = match cpca {
-        Some(cpca) => cpca.relight(light)?,
-        None => render::relight_baked(baked, light)?,
-    };
     let default_radius = render::default_sphere_radius(&baked.scene);
     let spheres: Vec<render::ProbeSphere> = spheres
         .iter()
@@ -215,7 +239,6 @@ fn with_probe_spheres(
             radius: radius.unwrap_or(default_radius),
         })
         .collect();
-    let radiance = render::apply_albedo(baked, relit);
     render::with_probe_spheres(&baked.scene, radiance, &probes, &spheres, light)
 }
 
@@ -232,10 +255,7 @@ fn write_relit_distant(args: &RenderArgs) -> Result<()> {
     }
     let (baked, cpca) = glb::read_glb_compressed(path)?;
     let (light, name) = relit_light(args, baked.metadata.bands)?;
-    let radiance = match &cpca {
-        Some(cpca) => render::apply_albedo(&baked, cpca.relight(&light)?),
-        None => render::relight_baked(&baked, &light)?,
-    };
+    let radiance = vertex_radiance(path, &baked, (cpca.as_ref(), args.zonal), &light)?;
     let lightmap = match &baked.lightmap {
         Some(texels) => {
             let relit = render::relight(&texels.transfer, &light)?;
@@ -405,10 +425,10 @@ fn over_albedo(radiance: f32, albedo: f32) -> f32 {
 const MAX_FRAMES: u32 = 10_000;
 
 fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
-    if args.light.is_some() || args.sky || !args.probe_sphere.is_empty() {
+    if args.light.is_some() || args.sky || !args.probe_sphere.is_empty() || args.zonal {
         return Err(Error::Options(
-            "--light, --sky and --probe-sphere are distant light; a local-lights bake takes \
-             --point-light and --spot-light"
+            "--light, --sky, --probe-sphere and --zonal are distant light; a local-lights bake \
+             takes --point-light and --spot-light"
                 .into(),
         ));
     }

@@ -20,11 +20,19 @@ pub(super) fn encode_valid(stored: Stored, lightmap_uri: Option<&str>) -> Result
             append_view(&mut bin, &mut views, |bin| bin.extend(bytes))
         })
     });
+    let zonal = stored.zonal().map(|zonal| {
+        zonal::encode(zonal, |bytes, stride| {
+            let index = append_view(&mut bin, &mut views, |bin| bin.extend(bytes));
+            views[index].byte_stride = stride;
+            index
+        })
+    });
     bin.resize(bin.len().next_multiple_of(4), 0);
     let shape = Shape::of(baked);
     let extras = Extras {
         cpca: cpca_extras,
         probes,
+        zonal,
     };
     let json = encode_json(shape, lightmap_uri, extras, views, bin.len(), precision)?;
     glb_container(json, bin)
@@ -35,6 +43,7 @@ pub(super) fn encode_valid(stored: Stored, lightmap_uri: Option<&str>) -> Result
 pub(super) struct Extras {
     pub(super) cpca: Option<CpcaExtras>,
     pub(super) probes: Option<probes::ProbesExtras>,
+    pub(super) zonal: Option<zonal::ZonalExtras>,
 }
 
 /// The JSON chunk of `baked` with the BIN chunk's `views` (`bin_len` bytes in all).
@@ -44,13 +53,18 @@ pub(super) fn encode_json(
     Extras {
         cpca: cpca_extras,
         probes,
+        zonal,
     }: Extras,
     views: Vec<BufferViewJson>,
     bin_len: usize,
     precision: Precision,
 ) -> Result<Vec<u8>> {
     let attributes_hold_transfer = cpca_extras.is_none() && precision == Precision::F32;
-    let accessors = accessors_and_attributes(shape, attributes_hold_transfer);
+    let mut accessors = accessors_and_attributes(shape, attributes_hold_transfer);
+    if let Some(zonal) = &zonal {
+        let vertices = shape.scene.positions.len();
+        zonal::add_accessors(zonal, vertices, (&mut accessors.0, &mut accessors.1));
+    }
     let extras = MeshExtras {
         prt: PrtExtras {
             metadata: shape.metadata,
@@ -63,6 +77,7 @@ pub(super) fn encode_json(
             transfer_precision: (precision == Precision::F16).then_some(FLOAT16),
             cpca: cpca_extras,
             probes,
+            zonal,
             lightmap: shape.lightmap.map(|texels| LightmapExtras {
                 uri: lightmap_uri.unwrap_or(DEFAULT_LIGHTMAP_URI).to_string(),
                 width: texels.width,

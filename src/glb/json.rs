@@ -146,6 +146,8 @@ pub(super) struct PrtExtras<'a> {
     pub(super) cpca: Option<CpcaExtras>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(super) probes: Option<probes::ProbesExtras>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) zonal: Option<zonal::ZonalExtras>,
 }
 
 #[derive(Deserialize)]

@@ -45,6 +45,7 @@ pub mod relit;
 pub mod scene;
 mod stored;
 pub mod stream;
+pub mod zonal;
 
 // The steps of the file, each in its own module; their items are the whole module's.
 use crate::scene::Scene;
@@ -634,6 +635,7 @@ mod tests {
             (compressed::PYTHON_READER, "glb::compressed::PYTHON_READER"),
             (local::PYTHON_READER, "glb::local::PYTHON_READER"),
             (probes::PYTHON_READER, "glb::probes::PYTHON_READER"),
+            (zonal::PYTHON_READER, "glb::zonal::PYTHON_READER"),
         ] {
             assert!(
                 readme.contains(reader),

@@ -4,6 +4,7 @@
 
 use super::*;
 use crate::probes::ProbeSet;
+use crate::zonal::ZonalTransfer;
 
 /// A bake as a file stores it: its transfer at a precision, compressed or not (the compressed
 /// form then replaces the per-vertex one), its lightmap beside.
@@ -13,6 +14,7 @@ pub struct Stored<'a> {
     cpca: Option<&'a Cpca>,
     precision: Precision,
     probes: Option<&'a ProbeSet>,
+    zonal: Option<&'a ZonalTransfer>,
 }
 
 impl<'a> Stored<'a> {
@@ -43,6 +45,7 @@ impl<'a> Stored<'a> {
             cpca,
             precision,
             probes: None,
+            zonal: None,
         })
     }
 
@@ -60,6 +63,7 @@ impl<'a> Stored<'a> {
             cpca: None,
             precision,
             probes: None,
+            zonal: None,
         }
     }
 
@@ -69,6 +73,29 @@ impl<'a> Stored<'a> {
             return Err(Error::Geometry(why.into()));
         }
         Ok(Stored { probes, ..self })
+    }
+
+    /// The same, with `zonal` (fitted to this mesh's transfer) in the file beside it.
+    pub fn with_zonal(self, zonal: Option<&'a ZonalTransfer>) -> Result<Stored<'a>> {
+        if let Some(zonal) = zonal {
+            let (vertices, channels) = (
+                self.baked.scene.positions.len(),
+                self.baked.transfer.channels(),
+            );
+            if zonal.vertex_count() != vertices || zonal.channels() != channels {
+                return Err(Error::Geometry(format!(
+                    "zonal transfer of {} vertices and {} channels for a mesh of {vertices} \
+                     and {channels}",
+                    zonal.vertex_count(),
+                    zonal.channels()
+                )));
+            }
+        }
+        Ok(Stored { zonal, ..self })
+    }
+
+    pub fn zonal(&self) -> Option<&'a ZonalTransfer> {
+        self.zonal
     }
 
     pub fn probes(&self) -> Option<&'a ProbeSet> {

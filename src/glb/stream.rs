@@ -71,7 +71,11 @@ impl GlbStream {
         });
         tail.resize(tail.len().next_multiple_of(4), 0);
         let bin_len = tail_start + tail.len();
-        let extras = super::encode::Extras { cpca: None, probes };
+        let extras = super::encode::Extras {
+            cpca: None,
+            probes,
+            zonal: None,
+        };
         let json = encode_json(shape, None, extras, views, bin_len, precision)?;
         let head = glb_head(json, bin_len)?;
         let total = head.len() + bin_len;

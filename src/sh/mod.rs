@@ -19,6 +19,7 @@ use glam::DVec3;
 pub mod legendre;
 pub mod rotation;
 pub mod window;
+pub mod zonal;
 
 /// The basis in one line, for file metadata and `prt-gpu info`.
 pub const CONVENTION: &str = "real orthonormal SH, k = l(l+1)+m, Condon-Shortley phase, \

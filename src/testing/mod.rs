@@ -52,6 +52,12 @@ pub fn probes_reader_output(path: &Path) -> Option<serde_json::Value> {
     python_output(crate::glb::probes::PYTHON_READER, path)
 }
 
+/// What the numpy reader of zonal transfer (`glb::zonal::PYTHON_READER`) prints for `path`,
+/// as [`numpy_reader_output`] does.
+pub fn zonal_reader_output(path: &Path) -> Option<serde_json::Value> {
+    python_output(crate::glb::zonal::PYTHON_READER, path)
+}
+
 fn python_output(script: &str, path: &Path) -> Option<serde_json::Value> {
     python_with_numpy().then(|| python_json(script, path))
 }

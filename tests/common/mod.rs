@@ -183,3 +183,23 @@ pub fn nearest_point_on_ground(
     }
     panic!("{at} is not on the ground");
 }
+
+/// The float `VEC3` values of accessor `index` in a .glb's BIN chunk (tightly packed).
+pub fn vec3_accessor(bytes: &[u8], doc: &serde_json::Value, index: u64) -> Vec<[f32; 3]> {
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let bin = &bytes[28 + json_len..];
+    let accessor = &doc["accessors"][index as usize];
+    assert_eq!(accessor["type"], "VEC3");
+    assert_eq!(accessor["componentType"], 5126);
+    let view = &doc["bufferViews"][accessor["bufferView"].as_u64().unwrap() as usize];
+    assert!(view.get("byteStride").is_none_or(|s| s == 12));
+    let start = view["byteOffset"].as_u64().unwrap_or(0) as usize
+        + accessor["byteOffset"].as_u64().unwrap_or(0) as usize;
+    let count = accessor["count"].as_u64().unwrap() as usize;
+    bin[start..start + 12 * count]
+        .chunks_exact(12)
+        .map(|v| {
+            std::array::from_fn(|c| f32::from_le_bytes(v[4 * c..4 * c + 4].try_into().unwrap()))
+        })
+        .collect()
+}

@@ -95,6 +95,18 @@ pub(crate) struct BakeArgs {
     /// irradiance needs (the first three bands, cosine-convolved). Default: radiance.
     #[arg(long, value_enum, value_name = "FORM")]
     pub(crate) probe_form: Option<ProbeForm>,
+    /// Also store local, deformable transfer (LDPRT; Sloan, Luna & Snyder 2005): per vertex
+    /// and channel, BANDS zonal-harmonic coefficients about one axis that best fit its SH
+    /// transfer, for meshes that bend or are skinned: a runtime turns the axis with the
+    /// surface (README, "Zonal transfer"). The fit's energy left out and relit error are
+    /// reported.
+    #[arg(long, value_name = "BANDS")]
+    pub(crate) zonal: Option<u32>,
+    /// With --zonal: the axis each lobe is about, the shading `normal` (nothing more stored)
+    /// or the `fitted` axis that keeps most of the transfer (stored per vertex; turn it as
+    /// normals are turned). Default: normal.
+    #[arg(long, value_enum, value_name = "AXIS")]
+    pub(crate) zonal_axis: Option<spec::ZonalAxis>,
     /// Override every material's albedo, as linear R,G,B in [0, 1].
     #[arg(long, value_parser = parse_rgb)]
     pub(crate) albedo: Option<Vec3>,

@@ -95,6 +95,7 @@ pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeS
             channels: args.storage,
             precision: args.precision,
             layout: args.compress.map_or(Layout::PerVertex, Layout::Cpca),
+            zonal: zonal_spec(args)?,
         },
         container: match mesh {
             Some(path) if scene::is_gltf(path) => Container::GltfInPlace,
@@ -103,6 +104,21 @@ pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeS
         probes: probe_spec(args)?,
         ..defaults
     })
+}
+
+/// The zonal transfer `--zonal` and `--zonal-axis` ask for.
+fn zonal_spec(args: &BakeArgs) -> Result<Option<spec::ZonalSpec>> {
+    match (args.zonal, args.zonal_axis) {
+        (Some(bands), axis) => Ok(Some(spec::ZonalSpec {
+            bands,
+            axis: axis.unwrap_or(spec::ZonalAxis::Normal),
+        })),
+        (None, Some(axis)) => Err(Error::Options(format!(
+            "--zonal-axis {} says what zonal transfer is about; ask for it with --zonal BANDS",
+            axis.name()
+        ))),
+        (None, None) => Ok(None),
+    }
 }
 
 /// The probes `--probes`, `--probe-points` and `--probe-form` ask for.

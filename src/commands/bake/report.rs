@@ -14,6 +14,9 @@ pub(super) fn print_shaping_lines(baked: &pipeline::Baked) {
     if let Some(compressed) = &baked.compressed {
         eprintln!("{compressed}");
     }
+    if let Some((_, fit)) = &baked.zonal {
+        eprintln!("{fit}");
+    }
     print_probes_line(baked.probes.as_ref(), baked.probe_seconds);
 }
 

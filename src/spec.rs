@@ -7,6 +7,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::bake::adaptive::TargetError;
+pub use crate::bake::subsurface::SubsurfaceMaterial;
 use crate::bake::{BakeOptions, Fit, Mode, Storage, DEFAULT_SAMPLES, DEFAULT_SAMPLING};
 use crate::precision::Precision;
 use crate::receivers::PointDensity;
@@ -152,6 +153,11 @@ pub struct TransferSpec {
     pub bounce_tolerance: f64,
     /// Samples cast per receiver until this error is reached, instead of `samples` each.
     pub target_error: Option<TargetError>,
+    /// A translucent medium whose subsurface scattering replaces the diffuse reflection
+    /// (`bake::subsurface`). Left out of the JSON when unset, so specs written before it hash
+    /// as they did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subsurface: Option<SubsurfaceMaterial>,
 }
 
 /// The band count: given, or the fewest (up to [`AUTO_MAX_BANDS`]) that leave less than
@@ -262,6 +268,7 @@ impl Default for BakeSpec {
                 bounces: 3,
                 bounce_tolerance: 0.0,
                 target_error: None,
+                subsurface: None,
             },
             storage: StorageSpec {
                 channels: Storage::Rgb,
@@ -340,7 +347,34 @@ impl BakeSpec {
         }
         self.check_storage_fits_container()?;
         self.check_zonal()?;
+        self.check_subsurface()?;
         self.check_probes()
+    }
+
+    /// Subsurface scattering: a valid medium, under shadowed or unshadowed transfer at the
+    /// vertices, stored RGB (its colour is the medium's, per channel).
+    fn check_subsurface(&self) -> Result<()> {
+        let Some(material) = &self.transfer.subsurface else {
+            return Ok(());
+        };
+        material.validate()?;
+        let refuse = |why: &str| Err(Error::Options(format!("--subsurface {why}")));
+        if self.transfer.mode == Mode::Interreflected {
+            return refuse(
+                "with --mode interreflected: the bounces would gather a diffuse reflection the \
+                 medium replaces (bake shadowed or unshadowed)",
+            );
+        }
+        if self.receivers.lightmap.is_some() {
+            return refuse("with --lightmap: subsurface transfer is computed at the vertices");
+        }
+        if self.storage.channels == Storage::Lean {
+            return refuse(
+                "with --storage lean: subsurface transfer is RGB (each channel scatters as far \
+                 as the medium lets it)",
+            );
+        }
+        Ok(())
     }
 
     /// Zonal transfer: at least one band and no more than the transfer has, and only where
@@ -412,6 +446,7 @@ impl BakeSpec {
             ),
             (self.probes.is_some(), "--probes"),
             (self.storage.zonal.is_some(), "--zonal"),
+            (self.transfer.subsurface.is_some(), "--subsurface"),
         ];
         if let Some((_, what)) = asked.iter().find(|(given, _)| *given) {
             return Err(Error::Options(format!(

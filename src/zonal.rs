@@ -8,7 +8,7 @@
 use std::fmt;
 use std::time::Instant;
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Quat, Vec3};
 use rayon::prelude::*;
 
 use crate::bake::Transfer;
@@ -197,6 +197,44 @@ impl ZonalTransfer {
             )));
         }
         Ok(())
+    }
+}
+
+/// A bend of a mesh along its height (+Y) in the x-y plane, the deformation `render --bend`
+/// and the viewer show zonal transfer under: height `y` above the mesh's lowest point turns by
+/// `angle * y / height` about a line parallel to +Z, `height / angle` beside the mesh's middle
+/// (towards +X), so the top turns by `angle`. Every point turns by its height's angle about +Z
+/// (clockwise), and so do the normals and axes there. `assets/viewer/mesh.vert` mirrors it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bend {
+    /// The top's turn, in radians.
+    pub angle: f32,
+    /// The middle of the mesh in x at its lowest y.
+    pub origin: Vec3,
+    pub height: f32,
+}
+
+impl Bend {
+    /// The bend of the mesh whose bounds are `(low, high)` by `degrees` at its top.
+    pub fn of_bounds((low, high): (Vec3, Vec3), degrees: f32) -> Bend {
+        Bend {
+            angle: degrees.to_radians(),
+            origin: Vec3::new(0.5 * (low.x + high.x), low.y, 0.0),
+            height: high.y - low.y,
+        }
+    }
+
+    /// Where `position` goes, and the turn of the surface there.
+    pub fn place(&self, position: Vec3) -> (Vec3, Quat) {
+        if self.angle == 0.0 || self.height <= 0.0 {
+            return (position, Quat::IDENTITY);
+        }
+        let local = position - self.origin;
+        let radius = self.height / self.angle;
+        let angle = local.y / radius;
+        let arm = radius - local.x;
+        let bent = Vec3::new(radius - arm * angle.cos(), arm * angle.sin(), local.z);
+        (self.origin + bent, Quat::from_rotation_z(-angle))
     }
 }
 

@@ -167,6 +167,65 @@ fn page_matches_render_for_each_file_camera_exposure_and_tone_map() {
     );
 }
 
+/// Zonal transfer and a bent mesh: the page with the teapot bent by 60 degrees and relit from
+/// its zonal transfer about the turned axes matches `render --zonal --bend 60` of the same bake
+/// and camera; bent and drawn from its SH transfer as baked (static PRT), it matches `render
+/// --bend 60`, and unbent from its zonal transfer, `render --zonal`. The bent zonal and the
+/// bent SH images differ far beyond the tolerance: the comparison sees the axes turn.
+#[test]
+fn page_bends_and_relights_zonal_transfer_as_render_does() {
+    let Some(chromium) = chromium_and_adapter() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let baked = bake_teapot(
+        dir.path(),
+        "zonal.glb",
+        4,
+        &["--zonal", "4", "--zonal-axis", "fitted"],
+    );
+    write_light(dir.path(), "light.json", 4, &[]);
+    run_ok(
+        &[
+            "view",
+            "zonal.glb",
+            "--light",
+            "light.json",
+            "-o",
+            "viewer.html",
+        ],
+        dir.path(),
+    );
+    let page = dir.path().join("viewer.html");
+    let camera = another_camera(&baked);
+    let camera_query = format!("cam={camera}&sky=0");
+    let base = ["--light", "light.json", "--camera", &camera];
+    let mut shots = Vec::new();
+    for (query, extra) in [
+        ("zonal=1&bend=60", &["--zonal", "--bend", "60"][..]),
+        ("bend=60", &["--bend", "60"][..]),
+        ("zonal=1", &["--zonal"][..]),
+    ] {
+        let options: Vec<&str> = base.iter().chain(extra).copied().collect();
+        let expected = render(dir.path(), &baked, &options);
+        assert!(has_contrast(&expected), "{query}: the render shows nothing");
+        let shot = chromium.screenshot(
+            &page_url(&page, &format!("{camera_query}&{query}")),
+            WIDTH,
+            HEIGHT,
+        );
+        let difference = Difference::of(&shot, &expected);
+        println!("{query}: {difference:?}");
+        assert!(difference.within_tolerance(), "{query}: {difference:?}");
+        shots.push(shot);
+    }
+    let difference = Difference::of(&shots[0], &shots[1]);
+    assert!(
+        difference.mean > 10.0 * MAX_MEAN_DIFFERENCE,
+        "{difference:?}"
+    );
+}
+
 /// A lightmapped file: the page relights the four texels around each pixel's lightmap
 /// coordinates and blends them bilinearly, as render looks its relit texels up.
 #[test]

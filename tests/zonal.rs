@@ -16,7 +16,7 @@ use prt_gpu::light::{preview_light, ShLight};
 use prt_gpu::scene::{builtin, Scene};
 use prt_gpu::sh::rotation::ShRotation;
 use prt_gpu::spec::BakeSpec;
-use prt_gpu::zonal::{sh_radiance, ZonalAxis, ZonalSpec, ZonalTransfer};
+use prt_gpu::zonal::{sh_radiance, Bend, ZonalAxis, ZonalSpec, ZonalTransfer};
 use prt_gpu::{glb, pipeline};
 
 const BANDS: u32 = 4;
@@ -73,20 +73,6 @@ fn ribbed_tube(radius: f32, height: f32, ribs: u32) -> Scene {
     }
 }
 
-/// The tube bent in the x-y plane about a line parallel to +Z at x = `bend_radius`: height
-/// `y` goes to the angle `y / bend_radius`. Returns each point's turn too.
-fn bend(position: Vec3, bend_radius: f32) -> (Vec3, Quat) {
-    let angle = position.y / bend_radius;
-    let arm = bend_radius - position.x;
-    let bent = Vec3::new(
-        bend_radius - arm * angle.cos(),
-        arm * angle.sin(),
-        position.z,
-    );
-    // The tube's axis (+Y) turns to (sin, cos): clockwise about +Z.
-    (bent, Quat::from_rotation_z(-angle))
-}
-
 /// Lights that differ in where their light comes from: the preview sky and sun, and it turned
 /// about three axes.
 fn lights() -> Vec<ShLight> {
@@ -135,7 +121,6 @@ fn turned_transfer(transfer: &Transfer, turns: &[Quat]) -> Transfer {
 #[test]
 fn a_bent_tube_relit_from_zonal_transfer_follows_its_normals() {
     let (radius, height) = (0.3, 3.0);
-    let bend_radius = height / (PI / 2.0);
     let mut mean_zonal_errors = Vec::new();
     for axis in [ZonalAxis::Normal, ZonalAxis::Fitted] {
         // The mean over the lights: bent zonal, rest SH.
@@ -144,11 +129,9 @@ fn a_bent_tube_relit_from_zonal_transfer_follows_its_normals() {
         let rest = bake(&spec(Some(zonal_spec)), ribbed_tube(radius, height, 12));
         let (zonal, _) = rest.zonal.as_ref().expect("zonal transfer");
         let rest_scene = &rest.mesh.scene;
-        let (bent_positions, turns): (Vec<Vec3>, Vec<Quat>) = rest_scene
-            .positions
-            .iter()
-            .map(|&p| bend(p, bend_radius))
-            .unzip();
+        let bend = Bend::of_bounds(rest_scene.bounds(), 90.0);
+        let (bent_positions, turns): (Vec<Vec3>, Vec<Quat>) =
+            rest_scene.positions.iter().map(|&p| bend.place(p)).unzip();
         let bent_scene = Scene {
             positions: bent_positions,
             normals: None,
@@ -380,7 +363,7 @@ fn bad_zonal_options_are_refused_in_one_line() {
                 "-o",
                 "o.glb",
             ],
-            expect: "without --compress or --zonal",
+            expect: "without --compress, --zonal or --subsurface",
         },
     ] {
         assert_clean_failure(&input);

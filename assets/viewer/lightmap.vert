@@ -1,5 +1,6 @@
 // Per-texel PRT: the lightmap coordinates are interpolated across the triangle, and the
-// fragment shader relights the texels around them.
+// fragment shader relights the texels around them. bend.glsl places the vertex (the texels'
+// transfer does not turn: that is what static PRT shows of a bent mesh).
 uniform mat4 clip_from_world;
 
 in vec3 position;
@@ -8,5 +9,6 @@ out vec2 lightmap_uv;
 
 void main() {
     lightmap_uv = texcoord;
-    gl_Position = clip_from_world * vec4(position, 1.0);
+    float turn;
+    gl_Position = clip_from_world * vec4(bend(position, turn), 1.0);
 }

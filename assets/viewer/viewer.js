@@ -54,7 +54,15 @@ function initialState(params) {
     sky: skyChoice(params.get("sky")),
     sphere: sphereChoice(params.get("sphere")),
     fly: params.get("fly") === "1",
+    zonal: params.get("zonal") === "1",
+    bend: bendChoice(params.get("bend")),
   };
+}
+
+// The bend of the mesh at its top, in degrees (render --bend): from -360 to 360, else 0.
+function bendChoice(text) {
+  const degrees = Number(text ?? 0);
+  return Number.isFinite(degrees) && Math.abs(degrees) <= 360 ? degrees : 0;
 }
 
 // What is drawn behind the model: "map" (the environment map, where the page holds one),
@@ -69,7 +77,8 @@ function stateQuery(state) {
   const c = state.camera;
   return `?cam=${[...c.eye, ...c.target, c.fov].map(round).join(",")}` +
     `&rot=${state.rotation.map(round).join(",")}&exposure=${round(state.exposure)}` +
-    `&tone=${state.tone}&file=${state.file}&sky=${state.sky}` + sphereQuery(state, round);
+    `&tone=${state.tone}&file=${state.file}&sky=${state.sky}` + sphereQuery(state, round) +
+    (state.zonal ? "&zonal=1" : "") + (state.bend ? `&bend=${round(state.bend)}` : "");
 }
 
 function sphereQuery(state, round) {
@@ -104,12 +113,45 @@ function cameraBasis(camera) {
   return { forward, right, up };
 }
 
-// The box of what is drawn: the file's mesh and the test sphere (render merges the two).
-function drawnBounds(bake, sphere) {
-  if (!sphere) return [bake.boundsMin, bake.boundsMax];
+// The box of what is drawn: the file's mesh (`bounds`, bent as it is drawn) and the test
+// sphere (render merges the two).
+function drawnBounds(bounds, sphere) {
+  if (!sphere) return bounds;
   const low = sphere.centre.map((c) => c - sphere.radius);
   const high = sphere.centre.map((c) => c + sphere.radius);
-  return [bake.boundsMin.map((v, a) => Math.min(v, low[a])), bake.boundsMax.map((v, a) => Math.max(v, high[a]))];
+  return [bounds[0].map((v, a) => Math.min(v, low[a])), bounds[1].map((v, a) => Math.max(v, high[a]))];
+}
+
+// The bend of a file's mesh by `degrees` at its top, as bend.glsl and zonal::Bend take it.
+function bendOf(bake, degrees) {
+  return {
+    angle: (degrees * Math.PI) / 180,
+    origin: [0.5 * (bake.boundsMin[0] + bake.boundsMax[0]), bake.boundsMin[1], 0],
+    height: bake.boundsMax[1] - bake.boundsMin[1],
+  };
+}
+
+// Where `bend` puts a point (bend.glsl's bend()).
+function bendPoint(bend, p) {
+  if (bend.angle === 0 || bend.height <= 0) return p;
+  const local = sub(p, bend.origin);
+  const radius = bend.height / bend.angle;
+  const turn = local[1] / radius;
+  const arm = radius - local[0];
+  return add(bend.origin, [radius - arm * Math.cos(turn), arm * Math.sin(turn), local[2]]);
+}
+
+// The bounds of a file's mesh bent by `degrees`.
+function bentBounds(bake, positions, degrees) {
+  if (!degrees) return [bake.boundsMin, bake.boundsMax];
+  const bend = bendOf(bake, degrees);
+  const low = [Infinity, Infinity, Infinity];
+  const high = [-Infinity, -Infinity, -Infinity];
+  for (let i = 0; i < positions.length; i += 3) {
+    const p = bendPoint(bend, [positions[i], positions[i + 1], positions[i + 2]]);
+    for (let a = 0; a < 3; a++) [low[a], high[a]] = [Math.min(low[a], p[a]), Math.max(high[a], p[a])];
+  }
+  return [low, high];
 }
 
 // Near and far planes hugging the bounding sphere of `[low, high]` (render's depth_range).
@@ -180,10 +222,14 @@ function compile(gl, defines, parts) {
 // channel (the file stores each receiver's channels one after the other: channel-major).
 // A receiver is a vertex, or a lightmap texel for a lightmapped file.
 function transferTexture(gl, bake, stored, receivers) {
-  const coeffs = bake.bands * bake.bands;
+  return receiverTexture(gl, stored, receivers, bake.bands * bake.bands, bake.channels);
+}
+
+// `coeffs` values of `channels` channels per receiver (channel-major in `stored`) as a float
+// texture: texel receiver * coeffs + k holds value k of every channel.
+function receiverTexture(gl, stored, receivers, coeffs, channels) {
   const texels = receivers * coeffs;
   const height = Math.ceil(texels / TRANSFER_WIDTH);
-  const channels = bake.channels;
   const data = new Float32Array(TRANSFER_WIDTH * height * channels);
   for (let r = 0; r < receivers; r++) {
     for (let c = 0; c < channels; c++) {
@@ -202,14 +248,16 @@ function transferTexture(gl, bake, stored, receivers) {
 }
 
 // The program, vertex arrays and transfer texture of one file: relit per vertex (mesh.vert),
-// or per texel of its lightmap (lightmap.vert, lightmap.frag).
-function meshResources(gl, bake) {
-  const lightmap = bake.lightmap;
+// from its zonal transfer where `zonal` asks (zonal.glsl), or per texel of its lightmap
+// (lightmap.vert, lightmap.frag).
+function meshResources(gl, bake, zonal) {
+  const lightmap = !zonal && bake.lightmap;
   const defines = `#define COEFFS ${bake.bands * bake.bands}\n#define CHANNELS ${bake.channels}\n` +
-    `#define TRANSFER_WIDTH ${TRANSFER_WIDTH}`;
+    `#define TRANSFER_WIDTH ${TRANSFER_WIDTH}` + (zonal ? `\n#define ZONAL_BANDS ${zonal.bands}` : "");
+  const perVertex = zonal ? ["bend-function", "zonal-relight", "mesh-vertex"] : ["bend-function", "transfer", "mesh-vertex"];
   const program = lightmap
-    ? compile(gl, defines, { vertex: ["lightmap-vertex"], fragment: ["tone-map", "transfer", "lightmap-fragment"] })
-    : compile(gl, defines, { vertex: ["transfer", "mesh-vertex"], fragment: ["tone-map", "mesh-fragment"] });
+    ? compile(gl, defines, { vertex: ["bend-function", "lightmap-vertex"], fragment: ["tone-map", "transfer", "lightmap-fragment"] })
+    : compile(gl, defines, { vertex: perVertex, fragment: ["tone-map", "mesh-fragment"] });
   const vao = gl.createVertexArray();
   gl.bindVertexArray(vao);
   const attribute = (name, values, size) => {
@@ -220,17 +268,21 @@ function meshResources(gl, bake) {
     gl.enableVertexAttribArray(location);
     gl.vertexAttribPointer(location, size, gl.FLOAT, false, 0, 0);
   };
-  attribute("position", decodeBase64(bake.positions, Float32Array), 3);
+  const positions = decodeBase64(bake.positions, Float32Array);
+  attribute("position", positions, 3);
   attribute("albedo", bake.albedo ? decodeBase64(bake.albedo, Float32Array) : null, 3);
+  if (zonal) attribute("axis", decodeBase64(zonal.axes, Float32Array), 3);
   if (lightmap) attribute("texcoord", decodeBase64(lightmap.texcoords, Float32Array), 2);
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, gl.createBuffer());
   gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, decodeBase64(bake.indices, Uint32Array), gl.STATIC_DRAW);
   gl.bindVertexArray(null);
-  const texture = lightmap
-    ? transferTexture(gl, bake, decodeBase64(lightmap.transfer, Float32Array), lightmap.width * lightmap.height)
-    : transferTexture(gl, bake, decodeBase64(bake.transfer, Float32Array), bake.vertices);
+  const texture = zonal
+    ? receiverTexture(gl, decodeBase64(zonal.coeffs, Float32Array), bake.vertices, zonal.bands, zonal.channels)
+    : lightmap
+      ? transferTexture(gl, bake, decodeBase64(lightmap.transfer, Float32Array), lightmap.width * lightmap.height)
+      : transferTexture(gl, bake, decodeBase64(bake.transfer, Float32Array), bake.vertices);
   const albedoLocation = gl.getAttribLocation(program, "albedo");
-  return { program, vao, texture, albedoLocation, hasAlbedo: !!bake.albedo };
+  return { program, vao, texture, albedoLocation, hasAlbedo: !!bake.albedo, positions, bounds: new Map() };
 }
 
 function uniforms(gl, program) {
@@ -271,9 +323,24 @@ class Viewer {
     this.skyMap = null;
   }
 
+  // A file's drawing resources, relit from its zonal transfer where the state asks and it
+  // has one.
   mesh(index) {
-    if (!this.meshes.has(index)) this.meshes.set(index, meshResources(this.gl, DATA.bakes[index]));
-    return this.meshes.get(index);
+    const bake = DATA.bakes[index];
+    const zonal = this.state.zonal && bake.zonal ? bake.zonal : null;
+    const key = `${index}:${!!zonal}`;
+    if (!this.meshes.has(key)) this.meshes.set(key, meshResources(this.gl, bake, zonal));
+    return this.meshes.get(key);
+  }
+
+  // The bounds of the current file's mesh as drawn (bent).
+  meshBounds() {
+    const { state } = this;
+    const mesh = this.mesh(state.file);
+    if (!mesh.bounds.has(state.bend)) {
+      mesh.bounds.set(state.bend, bentBounds(DATA.bakes[state.file], mesh.positions, state.bend));
+    }
+    return mesh.bounds.get(state.bend);
   }
 
   skyProgram() {
@@ -317,7 +384,7 @@ class Viewer {
     else if (state.sky !== "0") this.drawSky(light, width, height);
     const sphere = activeSphere(state);
     const clip = clipFromWorld(state.camera, width / height,
-      ...depthRange(state.camera, drawnBounds(DATA.bakes[state.file], sphere)));
+      ...depthRange(state.camera, drawnBounds(this.meshBounds(), sphere)));
     this.drawMesh(light, clip);
     this.drawSphere(light, clip, sphere);
   }
@@ -408,6 +475,11 @@ class Viewer {
     gl.activeTexture(gl.TEXTURE0);
     gl.bindTexture(gl.TEXTURE_2D, mesh.texture);
     gl.uniform1i(at("transfer"), 0);
+    gl.uniform1i(at("zonal"), 0);
+    const bend = bendOf(bake, state.bend);
+    gl.uniform1f(at("bend_angle"), bend.angle);
+    gl.uniform3fv(at("bend_origin"), bend.origin);
+    gl.uniform1f(at("bend_height"), bend.height);
     setToneMap(gl, at, state);
     if (!mesh.hasAlbedo && mesh.albedoLocation >= 0) gl.vertexAttrib3f(mesh.albedoLocation, 1, 1, 1);
     if (bake.lightmap) gl.uniform2i(at("lightmap_size"), bake.lightmap.width, bake.lightmap.height);
@@ -479,13 +551,19 @@ function connectInput(viewer, redraw) {
     redraw();
   }, { passive: false });
   const fileSelect = document.getElementById("file");
-  DATA.bakes.forEach((bake, i) => fileSelect.add(new Option(`${i + 1}: ${bake.name} (${bake.mode}, ${bake.bands} bands${bake.probes ? ", probes" : ""})`, i)));
+  DATA.bakes.forEach((bake, i) => fileSelect.add(new Option(`${i + 1}: ${bake.name} (${bake.mode}, ${bake.bands} bands${bake.probes ? ", probes" : ""}${bake.zonal ? ", zonal" : ""})`, i)));
   const exposure = document.getElementById("exposure");
   const tone = document.getElementById("tone");
   const sky = document.getElementById("sky");
   const sphere = document.getElementById("sphere");
   const fly = document.getElementById("fly");
+  const zonal = document.getElementById("zonal");
+  const bend = document.getElementById("bend");
   const show = () => {
+    document.getElementById("zonal-control").hidden = !DATA.bakes[state.file].zonal;
+    zonal.checked = state.zonal;
+    bend.value = state.bend;
+    document.getElementById("bend-value").textContent = state.bend.toFixed(0);
     document.getElementById("probe-controls").hidden = !DATA.bakes[state.file].probes;
     sphere.checked = state.sphere !== "off";
     fly.checked = state.fly;
@@ -502,6 +580,8 @@ function connectInput(viewer, redraw) {
   sky.addEventListener("change", () => { state.sky = sky.value; redraw(); });
   sphere.addEventListener("change", () => { state.sphere = sphere.checked ? "default" : "off"; redraw(); });
   fly.addEventListener("change", () => { state.fly = fly.checked; redraw(); });
+  zonal.addEventListener("change", () => { state.zonal = zonal.checked; redraw(); });
+  bend.addEventListener("input", () => { state.bend = Number(bend.value); redraw(); });
   window.addEventListener("keydown", (e) => {
     const index = Number(e.key) - 1;
     if (index >= 0 && index < DATA.bakes.length) { state.file = index; redraw(); }

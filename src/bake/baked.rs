@@ -192,6 +192,18 @@ pub struct BakeMetadata {
     /// being the vertex colour (`COLOR_0`).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub albedo_free: bool,
+    /// The translucent medium whose subsurface scattering replaces the diffuse reflection
+    /// (`bake --subsurface`), and how far under the surface the bake followed its light.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subsurface: Option<SubsurfaceMetadata>,
+}
+
+/// `extras.prt.subsurface`: the medium, and the reach the profile was cut at (scene units).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SubsurfaceMetadata {
+    #[serde(flatten)]
+    pub material: super::subsurface::SubsurfaceMaterial,
+    pub reach: f64,
 }
 
 /// The meaning of the coefficients, for file metadata.
@@ -222,6 +234,7 @@ pub(super) fn metadata_for(
         fit_points,
         target_error: options.target_error.map(|t| t.relative),
         albedo_free: false,
+        subsurface: None,
     }
 }
 

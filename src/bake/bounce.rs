@@ -62,7 +62,7 @@ impl GatherMatrix {
             .unwrap_or(0)
     }
 
-    fn from_rows(rows: Vec<Vec<(u32, f32)>>) -> Self {
+    pub(crate) fn from_rows(rows: Vec<Vec<(u32, f32)>>) -> Self {
         // Sized once: grown by doubling, the two arrays would briefly take three times their
         // size, which a bake in bounded memory cannot spare.
         let entries = rows.iter().map(Vec::len).sum();

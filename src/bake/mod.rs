@@ -12,6 +12,7 @@ mod options;
 mod shard;
 pub mod spill;
 pub mod stream;
+pub mod subsurface;
 pub mod texels;
 
 // The bake's parts, each in its own file; their items are the module's.

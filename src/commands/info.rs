@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use super::local::print_local_info;
+use prt_gpu::bake::BakeMetadata;
 use prt_gpu::device;
 use prt_gpu::glb::Precision;
 use prt_gpu::{glb, Error, Result};
@@ -36,6 +37,32 @@ pub(crate) fn run_devices() -> Result<()> {
 }
 
 /// Prints a baked file's description; a reader that stops early (`| head`) ends it quietly.
+/// What a baked file holds beside its transfer, one line each: probes, the subsurface
+/// medium its transfer was baked in, zonal transfer.
+fn beside_the_transfer(path: &Path, metadata: &BakeMetadata) -> Result<Vec<String>> {
+    let mut lines = Vec::new();
+    if let Some(probes) = glb::probes::read_probes(path)? {
+        lines.push(format!("probes:       {}", probes.describe()));
+    }
+    if let Some(subsurface) = &metadata.subsurface {
+        let m = &subsurface.material;
+        lines.push(format!(
+            "subsurface:   ior {}, absorption {:?}, reduced scattering {:?} per mm, {} mm a \
+             unit; followed {:.4} units",
+            m.ior, m.absorption, m.reduced_scattering, m.mm_per_unit, subsurface.reach
+        ));
+    }
+    if let Some(zonal) = glb::zonal::read_zonal(path)? {
+        lines.push(format!(
+            "zonal:        {} bands x {} channel(s) about the {} axis (_PRT_ZH_*)",
+            zonal.bands(),
+            zonal.channels(),
+            zonal.axis().name()
+        ));
+    }
+    Ok(lines)
+}
+
 pub(crate) fn run_info(path: &Path) -> Result<()> {
     use std::io::Write;
     let (local, scene) = {
@@ -104,17 +131,7 @@ pub(crate) fn run_info(path: &Path) -> Result<()> {
             cpca.clusters, cpca.components
         ));
     }
-    if let Some(probes) = glb::probes::read_probes(path)? {
-        lines.push(format!("probes:       {}", probes.describe()));
-    }
-    if let Some(zonal) = glb::zonal::read_zonal(path)? {
-        lines.push(format!(
-            "zonal:        {} bands x {} channel(s) about the {} axis (_PRT_ZH_*)",
-            zonal.bands(),
-            zonal.channels(),
-            zonal.axis().name()
-        ));
-    }
+    lines.extend(beside_the_transfer(path, &metadata)?);
     lines.push(format!("backend:      {}", metadata.backend));
     lines.push(format!(
         "made by:      {} {}",

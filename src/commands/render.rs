@@ -13,6 +13,7 @@ use prt_gpu::light::{self, Mapping};
 use prt_gpu::local::lights::{self as local_lights, LocalLight};
 use prt_gpu::local::{self, OperatorForm, Shadows};
 use prt_gpu::render::{self, Camera, ToneMap};
+use prt_gpu::zonal::Bend;
 use prt_gpu::{fs, glb, Error, Result};
 
 #[derive(clap::Args)]
@@ -88,6 +89,11 @@ pub(crate) struct RenderArgs {
     /// stored axis (the rest pose), as an LDPRT runtime does, instead of from the SH transfer.
     #[arg(long)]
     pub(crate) zonal: bool,
+    /// Bend the mesh along its height (+Y) by DEG at its top, as a deforming mesh would
+    /// (`zonal::Bend`): with --zonal, each vertex's lobe turns with the surface there (LDPRT);
+    /// without, the SH transfer is drawn as baked, as static PRT would show it.
+    #[arg(long, value_name = "DEG", value_parser = parse_bend, allow_hyphen_values = true)]
+    pub(crate) bend: Option<f32>,
     /// Output: an image, .png (tone-mapped sRGB) or .exr (linear HDR); or .glb: a copy of the
     /// (one) baked file with each vertex's relit radiance as its COLOR_0.
     #[arg(short, long, default_value = "preview.png")]
@@ -132,16 +138,20 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
             None => light::preview_light(bands)?,
         };
         let light = shape(light, &args.shaping);
-        let camera = args
-            .camera
-            .unwrap_or_else(|| Camera::framing_scene(&baked.scene));
-        let mut panel = match (&cpca, args.zonal) {
+        let bend = args
+            .bend
+            .map(|degrees| Bend::of_bounds(baked.scene.bounds(), degrees));
+        let drawn = bent(&baked.scene, bend);
+        let camera = args.camera.unwrap_or_else(|| Camera::framing_scene(&drawn));
+        let relit_on_cpu = args.zonal || cpca.is_some() || !args.probe_sphere.is_empty();
+        let mut panel = match &cpca {
             // Relit on the CPU as a run-time would, then drawn; else the preview's own way
             // (which draws a lightmap by its texels).
-            (_, zonal) if zonal || cpca.is_some() || !args.probe_sphere.is_empty() => {
-                let radiance = vertex_radiance(path, &baked, (cpca.as_ref(), zonal), &light)?;
+            _ if relit_on_cpu || bend.is_some() => {
+                let how = (cpca.as_ref(), args.zonal, bend);
+                let radiance = vertex_radiance(path, &baked, how, &light)?;
                 let (scene, radiance) = match &args.probe_sphere[..] {
-                    [] => (baked.scene.clone(), radiance),
+                    [] => (drawn, radiance),
                     spheres => with_probe_spheres(path, &baked, radiance, &light, spheres)?,
                 };
                 render::render(
@@ -188,14 +198,36 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
+/// `--bend DEG`: a finite angle of at most a whole turn either way.
+fn parse_bend(text: &str) -> std::result::Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(degrees) if degrees.is_finite() && degrees.abs() <= 360.0 => Ok(degrees),
+        _ => Err(format!(
+            "\"{text}\" is not an angle from -360 to 360 degrees"
+        )),
+    }
+}
+
+/// `scene` bent by `bend`, where there is one.
+fn bent(scene: &prt_gpu::scene::Scene, bend: Option<Bend>) -> prt_gpu::scene::Scene {
+    let mut drawn = scene.clone();
+    if let Some(bend) = bend {
+        drawn
+            .positions
+            .iter_mut()
+            .for_each(|p| *p = bend.place(*p).0);
+    }
+    drawn
+}
+
 /// The exit radiance at `baked`'s vertices (read from `path`) under `light`, albedo applied:
-/// from its zonal transfer about the rest pose's axes where `zonal` asks (as an LDPRT run-time
-/// relights), from its clusters where it is compressed (the light dotted into each cluster
-/// once, then per vertex), else from its SH transfer.
+/// from its zonal transfer where `zonal` asks (as an LDPRT run-time relights), each axis
+/// turned by `bend` at its vertex; from its clusters where it is compressed (the light dotted
+/// into each cluster once, then per vertex); else from its SH transfer.
 fn vertex_radiance(
     path: &Path,
     baked: &prt_gpu::bake::BakedMesh,
-    (cpca, zonal): (Option<&prt_gpu::compress::Cpca>, bool),
+    (cpca, zonal, bend): (Option<&prt_gpu::compress::Cpca>, bool, Option<Bend>),
     light: &light::ShLight,
 ) -> Result<Vec<[f32; 3]>> {
     if zonal {
@@ -205,10 +237,13 @@ fn vertex_radiance(
                 path.display()
             ))
         })?;
-        return Ok(render::apply_albedo(
-            baked,
-            zonal.relight(zonal.axes(), light)?,
-        ));
+        let axes: Vec<Vec3> = match bend {
+            Some(bend) => (zonal.axes().iter().zip(&baked.scene.positions))
+                .map(|(axis, &p)| bend.place(p).1 * *axis)
+                .collect(),
+            None => zonal.axes().to_vec(),
+        };
+        return Ok(render::apply_albedo(baked, zonal.relight(&axes, light)?));
     }
     match cpca {
         Some(cpca) => Ok(render::apply_albedo(baked, cpca.relight(light)?)),
@@ -255,7 +290,7 @@ fn write_relit_distant(args: &RenderArgs) -> Result<()> {
     }
     let (baked, cpca) = glb::read_glb_compressed(path)?;
     let (light, name) = relit_light(args, baked.metadata.bands)?;
-    let radiance = vertex_radiance(path, &baked, (cpca.as_ref(), args.zonal), &light)?;
+    let radiance = vertex_radiance(path, &baked, (cpca.as_ref(), args.zonal, None), &light)?;
     let lightmap = match &baked.lightmap {
         Some(texels) => {
             let relit = render::relight(&texels.transfer, &light)?;
@@ -425,10 +460,11 @@ fn over_albedo(radiance: f32, albedo: f32) -> f32 {
 const MAX_FRAMES: u32 = 10_000;
 
 fn run_local_render(args: &RenderArgs, path: &Path) -> Result<()> {
-    if args.light.is_some() || args.sky || !args.probe_sphere.is_empty() || args.zonal {
+    let distant = args.light.is_some() || args.sky || !args.probe_sphere.is_empty();
+    if distant || args.zonal || args.bend.is_some() {
         return Err(Error::Options(
-            "--light, --sky, --probe-sphere and --zonal are distant light; a local-lights bake \
-             takes --point-light and --spot-light"
+            "--light, --sky, --probe-sphere, --zonal and --bend are distant light; a \
+             local-lights bake takes --point-light and --spot-light"
                 .into(),
         ));
     }
@@ -575,6 +611,13 @@ fn frame_count(args: &RenderArgs, path: &Path) -> Result<u32> {
 /// baked file reads, in a directory that exists. (The frames of a sequence are checked once
 /// the file is known to be a local-lights bake.)
 fn check_render_outputs(args: &RenderArgs) -> Result<()> {
+    if args.bend.is_some() && is_glb(&args.output) {
+        return Err(Error::Options(
+            "--bend draws a bent mesh into an image; -o .glb writes a relit copy of the mesh \
+             as baked"
+                .into(),
+        ));
+    }
     if !args.probe_sphere.is_empty() && is_glb(&args.output) {
         return Err(Error::Options(
             "--probe-sphere draws test spheres into an image; -o .glb writes a relit copy of \

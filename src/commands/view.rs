@@ -76,8 +76,11 @@ pub(crate) fn run_view(args: ViewArgs) -> Result<()> {
     )?;
     let mut bakes = Vec::new();
     for path in &args.baked {
-        let probes = glb::probes::read_probes(path)?;
-        bakes.push((path.display().to_string(), glb::read_glb(path)?, probes));
+        let extras = (
+            glb::probes::read_probes(path)?,
+            glb::zonal::read_zonal(path)?,
+        );
+        bakes.push((path.display().to_string(), glb::read_glb(path)?, extras));
     }
     let bands = bakes
         .iter()
@@ -93,10 +96,11 @@ pub(crate) fn run_view(args: ViewArgs) -> Result<()> {
     });
     let inputs: Vec<view::ViewerBake> = bakes
         .iter()
-        .map(|(name, baked, probes)| view::ViewerBake {
+        .map(|(name, baked, (probes, zonal))| view::ViewerBake {
             name: stem_name(name),
             baked,
             probes: probes.as_ref(),
+            zonal: zonal.as_ref(),
         })
         .collect();
     view::write_viewer(&args.output, &inputs, &light, sky.as_ref())?;

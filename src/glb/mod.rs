@@ -394,6 +394,7 @@ mod tests {
                 fit_points: None,
                 target_error: None,
                 albedo_free: false,
+                subsurface: None,
             },
             lightmap: None,
         }

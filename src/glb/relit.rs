@@ -445,6 +445,7 @@ mod tests {
                 fit_points: None,
                 target_error: None,
                 albedo_free: false,
+                subsurface: None,
             },
             scene,
             lightmap: None,

@@ -26,6 +26,7 @@ use crate::light::sky::latlong_copy;
 use crate::light::{EnvImage, Mapping, ShLight};
 use crate::probes::ProbeSet;
 use crate::render::{bounds, Camera};
+use crate::zonal::ZonalTransfer;
 
 mod probes;
 
@@ -39,7 +40,7 @@ const VIEWER_SCRIPT: &str = include_str!("../../assets/viewer/viewer.js");
 /// The probes' lookup and the test sphere they light.
 const PROBES_SCRIPT: &str = include_str!("../../assets/viewer/probes.js");
 /// The shaders, each embedded as a `<script type="x-shader/...">` element of this id.
-const SHADERS: [(&str, &str); 11] = [
+const SHADERS: [(&str, &str); 13] = [
     (
         "tone-map",
         include_str!("../../assets/viewer/tone_map.glsl"),
@@ -47,6 +48,14 @@ const SHADERS: [(&str, &str); 11] = [
     (
         "transfer",
         include_str!("../../assets/viewer/transfer.glsl"),
+    ),
+    (
+        "bend-function",
+        include_str!("../../assets/viewer/bend.glsl"),
+    ),
+    (
+        "zonal-relight",
+        include_str!("../../assets/viewer/zonal.glsl"),
     ),
     ("mesh-vertex", include_str!("../../assets/viewer/mesh.vert")),
     (
@@ -92,6 +101,9 @@ pub struct ViewerBake<'a> {
     pub name: String,
     pub baked: &'a BakedMesh,
     pub probes: Option<&'a ProbeSet>,
+    /// Its zonal transfer, where it has one (the page then relights from it on request, and
+    /// bends the mesh).
+    pub zonal: Option<&'a ZonalTransfer>,
 }
 
 /// The page's data: what `viewer.js` reads from the `prt-data` element.
@@ -155,6 +167,18 @@ struct PageBake {
     /// Per-texel transfer, where the file has a lightmap: it replaces `transfer` in the page.
     lightmap: Option<PageLightmap>,
     probes: Option<probes::PageProbes>,
+    zonal: Option<PageZonal>,
+}
+
+/// Zonal transfer (`bake --zonal`) for the page's LDPRT relighting.
+#[derive(Serialize)]
+struct PageZonal {
+    bands: u32,
+    channels: u32,
+    /// Base64 of little-endian f32 x, y, z per vertex: each lobe's axis in the rest pose.
+    axes: String,
+    /// Base64 of little-endian f32, `channels * bands` per vertex, channel-major.
+    coeffs: String,
 }
 
 #[derive(Serialize)]
@@ -300,6 +324,18 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
         Ok(probes) => probes,
         Err(why) => return refuse(why),
     };
+    let zonal = match bake.zonal {
+        Some(zonal) if zonal.vertex_count() != transfer.vertex_count() => {
+            return refuse("its zonal transfer does not match its vertices".into())
+        }
+        Some(zonal) => Some(PageZonal {
+            bands: zonal.bands(),
+            channels: zonal.channels(),
+            axes: base64_f32(zonal.axes().iter().flat_map(Vec3::to_array)),
+            coeffs: base64_f32(zonal.coeffs().iter().copied()),
+        }),
+        None => None,
+    };
     let (min, max) = bounds(&baked.scene.positions);
     let albedo = baked
         .metadata
@@ -320,6 +356,7 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
         albedo,
         lightmap,
         probes,
+        zonal,
     })
 }
 
@@ -420,6 +457,7 @@ mod tests {
                 name,
                 baked: &baked,
                 probes: None,
+                zonal: None,
             }],
             &light,
             None,
@@ -449,6 +487,7 @@ mod tests {
                 name: "x.glb".into(),
                 baked,
                 probes: None,
+                zonal: None,
             };
             viewer_html(&[bake], light, None)
         };
@@ -486,6 +525,7 @@ mod tests {
                 name: "p.glb".into(),
                 baked: &baked,
                 probes: Some(probes),
+                zonal: None,
             };
             viewer_html(&[bake], &light, None)
         };

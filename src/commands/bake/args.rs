@@ -107,6 +107,26 @@ pub(crate) struct BakeArgs {
     /// normals are turned). Default: normal.
     #[arg(long, value_enum, value_name = "AXIS")]
     pub(crate) zonal_axis: Option<spec::ZonalAxis>,
+    /// Translucent: subsurface scattering (the dipole of Jensen et al. 2001) replaces the
+    /// diffuse reflection, light entering the surface leaving it elsewhere. A measured medium
+    /// (apple, ketchup, marble, skim-milk, skin1, skin2, whole-milk; coefficients per mm from the
+    /// paper) or `custom` with --sss-absorption and --sss-scattering. Shadowed or unshadowed,
+    /// at the vertices, RGB (README, "Subsurface scattering").
+    #[arg(long, value_name = "MEDIUM")]
+    pub(crate) subsurface: Option<String>,
+    /// With --subsurface: the absorption coefficient per mm, R,G,B (replaces the medium's).
+    #[arg(long, value_name = "R,G,B", value_parser = parse_rgb)]
+    pub(crate) sss_absorption: Option<Vec3>,
+    /// With --subsurface: the reduced scattering coefficient per mm, R,G,B.
+    #[arg(long, value_name = "R,G,B", value_parser = parse_rgb)]
+    pub(crate) sss_scattering: Option<Vec3>,
+    /// With --subsurface: the index of refraction relative to the outside (default: the
+    /// medium's; 1.3 for custom).
+    #[arg(long, value_name = "ETA")]
+    pub(crate) sss_ior: Option<f32>,
+    /// With --subsurface: millimetres per scene unit (default 1000: the scene is in metres).
+    #[arg(long, value_name = "MM")]
+    pub(crate) sss_mm_per_unit: Option<f32>,
     /// Override every material's albedo, as linear R,G,B in [0, 1].
     #[arg(long, value_parser = parse_rgb)]
     pub(crate) albedo: Option<Vec3>,

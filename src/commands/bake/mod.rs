@@ -90,6 +90,7 @@ pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeS
                 relative,
                 max_samples: args.max_samples,
             }),
+            subsurface: subsurface_material(args)?,
         },
         storage: StorageSpec {
             channels: args.storage,
@@ -104,6 +105,56 @@ pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeS
         probes: probe_spec(args)?,
         ..defaults
     })
+}
+
+/// The medium `--subsurface` and the `--sss-*` options ask for.
+fn subsurface_material(args: &BakeArgs) -> Result<Option<spec::SubsurfaceMaterial>> {
+    use prt_gpu::bake::subsurface::PRESETS;
+    let Some(name) = &args.subsurface else {
+        let given = args.sss_absorption.is_some()
+            || args.sss_scattering.is_some()
+            || args.sss_ior.is_some()
+            || args.sss_mm_per_unit.is_some();
+        return match given {
+            true => Err(Error::Options(
+                "--sss-absorption, --sss-scattering, --sss-ior and --sss-mm-per-unit describe \
+                 a medium; ask for subsurface scattering with --subsurface MEDIUM"
+                    .into(),
+            )),
+            false => Ok(None),
+        };
+    };
+    let names = || PRESETS.map(|(n, _)| n).join(", ");
+    let mut material = match name.as_str() {
+        "custom" => match (args.sss_absorption, args.sss_scattering) {
+            (Some(_), Some(_)) => spec::SubsurfaceMaterial {
+                ior: 1.3,
+                absorption: [0.0; 3],
+                reduced_scattering: [0.0; 3],
+                mm_per_unit: 1000.0,
+            },
+            _ => {
+                return Err(Error::Options(
+                    "--subsurface custom needs --sss-absorption and --sss-scattering".into(),
+                ))
+            }
+        },
+        name => spec::SubsurfaceMaterial::preset(name).ok_or_else(|| {
+            Error::Options(format!(
+                "--subsurface {name}: not a medium this tool knows ({}, or custom)",
+                names()
+            ))
+        })?,
+    };
+    if let Some(absorption) = args.sss_absorption {
+        material.absorption = absorption.to_array();
+    }
+    if let Some(scattering) = args.sss_scattering {
+        material.reduced_scattering = scattering.to_array();
+    }
+    material.ior = args.sss_ior.unwrap_or(material.ior);
+    material.mm_per_unit = args.sss_mm_per_unit.unwrap_or(material.mm_per_unit);
+    Ok(Some(material))
 }
 
 /// The zonal transfer `--zonal` and `--zonal-axis` ask for.

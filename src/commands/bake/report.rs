@@ -14,6 +14,22 @@ pub(super) fn print_shaping_lines(baked: &pipeline::Baked) {
     if let Some(compressed) = &baked.compressed {
         eprintln!("{compressed}");
     }
+    if let (Some(stored), Some(pass)) = (&baked.mesh.metadata.subsurface, &baked.subsurface) {
+        let m = &stored.material;
+        eprintln!(
+            "subsurface: ior {}, absorption {:?} and reduced scattering {:?} per mm, {} mm a \
+             unit; light followed {:.4} scene units under the surface (all but {} of its \
+             reflectance), {} matrix entries a channel, in {:.2} s",
+            m.ior,
+            m.absorption,
+            m.reduced_scattering,
+            m.mm_per_unit,
+            pass.reach,
+            prt_gpu::bake::subsurface::TAIL,
+            pass.entries,
+            pass.seconds
+        );
+    }
     if let Some((_, fit)) = &baked.zonal {
         eprintln!("{fit}");
     }

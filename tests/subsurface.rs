@@ -274,6 +274,30 @@ fn bad_subsurface_options_are_refused_in_one_line() {
             expect: "index of refraction 0.5",
         },
         BadInput {
+            case: "light through the whole scene",
+            file: None,
+            args: &[
+                "bake",
+                concat!(
+                    env!("CARGO_MANIFEST_DIR"),
+                    "/tests/data/dragon_vrip_res3.ply.gz"
+                ),
+                "--samples",
+                "16",
+                "--subsurface",
+                "custom",
+                "--sss-absorption",
+                "0",
+                "--sss-scattering",
+                "0.001",
+                "--sss-mm-per-unit",
+                "1",
+                "-o",
+                "o.glb",
+            ],
+            expect: "matrix entries: the light travels",
+        },
+        BadInput {
             case: "scale",
             file: None,
             args: &[

@@ -37,7 +37,7 @@ use crate::scene::Scene;
 pub const TAIL: f64 = 1e-2;
 
 /// The most matrix entries (per channel) a subsurface bake builds.
-pub const MAX_ENTRIES: usize = 1 << 27;
+pub const MAX_ENTRIES: usize = 1 << 25;
 
 /// The most lattice steps along a triangle's edge: past it, the diffusion length is so much
 /// shorter than the triangle that each point's own disc holds all it gives its neighbours.
@@ -317,8 +317,8 @@ fn surface_samples(scene: &Scene, spacing: f64) -> Result<Vec<SurfaceSample>> {
         if lattice.len() > MAX_POINTS {
             return Err(Error::Options(format!(
                 "--subsurface: the surface needs more than {MAX_POINTS} points at a spacing of \
-                 {spacing:.3e} scene units (a quarter of the diffusion length); give \
-                 --sss-mm-per-unit a smaller scale, or a medium that scatters less"
+                 {spacing:.3e} scene units (a quarter of the diffusion length; a smaller \
+                 --sss-mm-per-unit makes the object smaller and the spacing wider)"
             )));
         }
     }
@@ -370,21 +370,27 @@ pub fn subsurface_matrices(
         .min(reach);
     let samples = surface_samples(scene, 0.25 * diffusion_length)?;
     let grid = PointGrid::new(&samples, reach);
+    // Counted as the rows are made, so a matrix too big to hold stops being built.
+    let entries = std::sync::atomic::AtomicUsize::new(0);
     let rows: Vec<Vec<(u32, [f32; 3])>> = scene
         .positions
         .par_iter()
         .zip(&samples[..scene.vertex_count()])
         .map(|(receiver, own)| {
+            if entries.load(std::sync::atomic::Ordering::Relaxed) > MAX_ENTRIES {
+                return Vec::new();
+            }
             let receiver = (receiver.as_dvec3(), own.piece);
-            subsurface_row(receiver, &samples, &grid, (&dipoles, reach))
+            let row = subsurface_row(receiver, &samples, &grid, (&dipoles, reach));
+            entries.fetch_add(row.len(), std::sync::atomic::Ordering::Relaxed);
+            row
         })
         .collect();
-    let entries: usize = rows.iter().map(Vec::len).sum();
-    if entries > MAX_ENTRIES {
+    if entries.into_inner() > MAX_ENTRIES {
         return Err(Error::Options(format!(
-            "--subsurface: {entries} matrix entries (more than {MAX_ENTRIES}): the light \
-             travels {reach:.3e} scene units under the surface, most of the mesh; give \
-             --sss-mm-per-unit a smaller scale"
+            "--subsurface: more than {MAX_ENTRIES} matrix entries: the light travels \
+             {reach:.3e} scene units under the surface, through most of the mesh (a larger \
+             --sss-mm-per-unit makes the object bigger and the way shorter)"
         )));
     }
     let matrices = std::array::from_fn(|c| {

@@ -100,6 +100,38 @@ pub fn path_trace(
     run_job(scene, points, light, query, samples)
 }
 
+/// A homogeneous medium behind a smooth dielectric boundary (the mesh's surface), its
+/// coefficients per scene unit, scattering isotropic.
+#[derive(Clone, Copy, Debug)]
+pub struct OracleMedium {
+    pub absorption: Vec3,
+    pub scattering: Vec3,
+    pub ior: f32,
+}
+
+/// Exit radiance at `points` of `scene`, the boundary of `medium`, under `light`: volumetric
+/// path tracing of the light that enters, scatters and leaves (and of what the smooth surface
+/// reflects), up to `events` scattering and surface events a path (Russian roulette past 64),
+/// `samples` paths per point. `None` where [`available`] is false.
+pub fn path_trace_medium(
+    scene: &Scene,
+    points: &[SurfacePoint],
+    light: &OracleLight,
+    (medium, events): (OracleMedium, u32),
+    samples: u32,
+) -> Option<OracleRadiance> {
+    let query = serde_json::json!({
+        "query": "exit",
+        "bounces": events,
+        "medium": {
+            "sigma_a": medium.absorption.to_array(),
+            "sigma_s": medium.scattering.to_array(),
+            "ior": medium.ior,
+        },
+    });
+    run_job(scene, points, light, query, samples)
+}
+
 /// Irradiance at free points of space (a probe's, not on the surface) for surfaces of the
 /// given normals (`SurfacePoint::face` unused), from `samples` cosine-distributed paths each:
 /// the sky seen directly, plus light the scene reflects up to `reflections` times on its way

@@ -108,7 +108,7 @@ pub fn assert_clean_failure(input: &BadInput) {
     let before = prt_gpu::testing::entries(dir.path());
     let out = prt_gpu(input.args, dir.path());
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{case}: succeeded");
+    assert!(!out.status.success(), "{case}: succeeded: {stderr}");
     assert!(!stderr.contains("panicked"), "{case}: panicked: {stderr}");
     // Informational notes (e.g. which backend bakes) may precede the error.
     let lines: Vec<&str> = stderr

@@ -24,7 +24,11 @@ JOB_DIR (float32 unless said otherwise):
       "reflections": R,               # irradiance: surface reflections a path may have
                                       # (0: the sky alone, the scene a black occluder)
       "samples": S,                   # paths per point
-      "seed": 1
+      "seed": 1,
+      "medium": {"sigma_a": [r, g, b],   # optional (exit only): the mesh is the boundary of
+                 "sigma_s": [r, g, b],   # a homogeneous medium (isotropic phase function,
+                 "ior": eta}             # per scene unit) behind a smooth dielectric; the
+                                         # volumetric path tracer follows its light
     }
 
 Writes JOB_DIR/radiance.f32 (N x 3, the mean) and JOB_DIR/stderr.f32 (N x 3, the standard
@@ -164,9 +168,26 @@ def build_scene(mi, job, job_dir):
     triangles = read(job_dir, job["triangles"], "<u4", (F, 3))
     props = mi.Properties()
     props["face_normals"] = False
-    props["bsdf"] = mi.load_dict(
-        {"type": "diffuse", "reflectance": {"type": "mesh_attribute", "name": "vertex_color"}}
-    )
+    medium = job.get("medium")
+    if medium:
+        props["bsdf"] = mi.load_dict(
+            {"type": "dielectric", "int_ior": float(medium["ior"]), "ext_ior": 1.0}
+        )
+        sigma_t = [a + s for a, s in zip(medium["sigma_a"], medium["sigma_s"])]
+        albedo_v = [s / t for s, t in zip(medium["sigma_s"], sigma_t)]
+        # RGB values are read as reflectances (at most 1): sigma_t as a fraction of `scale`.
+        scale = max(sigma_t)
+        props["interior"] = mi.load_dict({
+            "type": "homogeneous",
+            "sigma_t": {"type": "rgb", "value": [t / scale for t in sigma_t]},
+            "scale": scale,
+            "albedo": {"type": "rgb", "value": albedo_v},
+            "phase": {"type": "isotropic"},
+        })
+    else:
+        props["bsdf"] = mi.load_dict(
+            {"type": "diffuse", "reflectance": {"type": "mesh_attribute", "name": "vertex_color"}}
+        )
     mesh = mi.Mesh("scene", V, F, props=props, has_vertex_normals=True)
     params = mi.traverse(mesh)
     # The buffers' own types: Dr.Jit arrays in the LLVM variant, dynamic arrays in scalar.
@@ -209,12 +230,15 @@ def query_rays(job, job_dir, positions, triangles, extent):
     return origin, direction
 
 
-def render(mi, variant, scene, origin, direction, bounces, samples, seed):
+def render(mi, variant, scene, origin, direction, bounces, samples, seed, medium=False):
     """Mean and standard error of the path integrator's radiance along each ray, `samples`
     paths per ray (max_depth 2 + bounces: depth 2 is direct light only, no Russian roulette
-    within these depths)."""
+    within these depths). In a medium, the volumetric path tracer, `bounces` scattering and
+    surface events at most (Russian roulette after 64, unbiased)."""
     integrator = mi.load_dict(
-        {"type": "path", "max_depth": 2 + bounces, "rr_depth": 1000, "hide_emitters": True}
+        {"type": "volpath", "max_depth": bounces, "rr_depth": 64, "hide_emitters": True}
+        if medium
+        else {"type": "path", "max_depth": 2 + bounces, "rr_depth": 1000, "hide_emitters": True}
     )
     return mean_and_error(
         mi, variant, scene, integrator, origin.shape[0], samples, seed,
@@ -326,7 +350,7 @@ def main():
         origin, direction = query_rays(job, job_dir, positions, triangles, extent)
         mean, error = render(
             mi, variant, scene, origin, direction, job["bounces"], job["samples"],
-            job.get("seed", 1),
+            job.get("seed", 1), medium=bool(job.get("medium")),
         )
     mean.astype("<f4").tofile(os.path.join(job_dir, "radiance.f32"))
     error.astype("<f4").tofile(os.path.join(job_dir, "stderr.f32"))

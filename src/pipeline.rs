@@ -42,8 +42,6 @@ pub struct Baked {
     pub probe_seconds: f64,
     /// The zonal transfer the spec asks for, fitted to the stored bands, and what it costs.
     pub zonal: Option<(ZonalTransfer, ZonalFit)>,
-    /// What the subsurface pass did, where the spec asks for one.
-    pub subsurface: Option<bake::subsurface::SubsurfaceReport>,
 }
 
 /// Bakes `scene` as `spec` asks, its direct pass from `source`, on `backend`; `gltf` is the
@@ -147,10 +145,6 @@ impl Planned<'_> {
         let options = spec.options();
         let (mut mesh, report) =
             bake::bake_from(scene, &options, backend, source, uv_set.as_ref(), progress)?;
-        let subsurface = match &spec.transfer.subsurface {
-            Some(material) => Some(scatter_under_the_surface(&mut mesh, material, backend)?),
-            None => None,
-        };
         let bands_chosen = match spec.transfer.bands {
             Bands::Auto { threshold } => Some(choose_auto_bands(&mut mesh, threshold)),
             Bands::Fixed(_) => None,
@@ -203,7 +197,6 @@ impl Planned<'_> {
             probes,
             probe_seconds,
             zonal,
-            subsurface,
         })
     }
 
@@ -391,30 +384,6 @@ pub fn plan_memory(
             )),
         }),
     }
-}
-
-/// `mesh`'s transfer replaced by its subsurface transfer in `material` (`bake::subsurface`),
-/// the medium and its reach recorded in its metadata.
-fn scatter_under_the_surface(
-    mesh: &mut BakedMesh,
-    material: &bake::subsurface::SubsurfaceMaterial,
-    backend: &dyn Backend,
-) -> Result<bake::subsurface::SubsurfaceReport> {
-    let albedo = (!mesh.metadata.albedo_free).then_some(&mesh.scene.albedo[..]);
-    let (transfer, report) = bake::subsurface::subsurface_transfer(
-        &mesh.scene,
-        &mesh.transfer,
-        albedo,
-        material,
-        backend,
-    )?;
-    mesh.transfer = transfer;
-    mesh.metadata.channels = 3;
-    mesh.metadata.subsurface = Some(bake::SubsurfaceMetadata {
-        material: *material,
-        reach: report.reach,
-    });
-    Ok(report)
 }
 
 /// Refuses a container without what it needs: the scene in place needs its document, and a

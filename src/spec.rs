@@ -306,6 +306,7 @@ impl BakeSpec {
             storage: self.storage.channels,
             denoise: self.receivers.denoise,
             turns: false,
+            subsurface: self.transfer.subsurface,
         }
     }
 
@@ -351,20 +352,14 @@ impl BakeSpec {
         self.check_probes()
     }
 
-    /// Subsurface scattering: a valid medium, under shadowed or unshadowed transfer at the
-    /// vertices, stored RGB (its colour is the medium's, per channel).
+    /// Subsurface scattering: a valid medium, transfer at the vertices, stored RGB (its colour
+    /// is the medium's, per channel).
     fn check_subsurface(&self) -> Result<()> {
         let Some(material) = &self.transfer.subsurface else {
             return Ok(());
         };
         material.validate()?;
         let refuse = |why: &str| Err(Error::Options(format!("--subsurface {why}")));
-        if self.transfer.mode == Mode::Interreflected {
-            return refuse(
-                "with --mode interreflected: the bounces would gather a diffuse reflection the \
-                 medium replaces (bake shadowed or unshadowed)",
-            );
-        }
         if self.receivers.lightmap.is_some() {
             return refuse("with --lightmap: subsurface transfer is computed at the vertices");
         }

@@ -206,6 +206,20 @@ pub struct SubsurfaceMetadata {
     pub reach: f64,
 }
 
+impl SubsurfaceMetadata {
+    /// What a bake in `material` records, where its subsurface pass ran.
+    pub fn of(
+        material: Option<super::subsurface::SubsurfaceMaterial>,
+        pass: Option<super::subsurface::SubsurfaceReport>,
+    ) -> Option<SubsurfaceMetadata> {
+        let (material, pass) = material.zip(pass)?;
+        Some(SubsurfaceMetadata {
+            material,
+            reach: pass.reach,
+        })
+    }
+}
+
 /// The meaning of the coefficients, for file metadata.
 pub const RADIOMETRY: &str = "exit radiance L_o = sum_k l_k t_k per channel, \
 l_k = integral L_in(w) y_k(w) dw, t_k = (albedo/pi) integral V(w) max(0, n.w) y_k(w) dw";
@@ -265,6 +279,8 @@ pub struct BakeReport {
     /// Non-zero entries of the gather matrix (interreflected mode).
     pub gather_entries: usize,
     pub backend: String,
+    /// What the subsurface pass did, where the options ask for one.
+    pub subsurface: Option<super::subsurface::SubsurfaceReport>,
 }
 
 /// What one bounce added and what it cost.

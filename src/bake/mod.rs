@@ -192,17 +192,7 @@ pub fn bake_from(
     let set = uv_set.as_ref().map(|set| set.set);
 
     let started = Instant::now();
-    let (direct, ran_on) = match source {
-        DirectSource::Compute => {
-            let all = 0..planned.receivers.len();
-            let direct = direct_or_adaptive(&planned.inputs, all, options, backend, progress)?;
-            (direct, backend.describe())
-        }
-        DirectSource::Given { direct, ran_on } => {
-            check_given(&direct, &planned.receivers, options)?;
-            (direct, ran_on)
-        }
-    };
+    let (direct, ran_on) = direct_pass(source, &planned, options, backend, progress)?;
     let adaptive_report = options
         .target_error
         .zip(direct.adaptive.as_ref())
@@ -213,7 +203,13 @@ pub fn bake_from(
     let fitted = vertex_transfer(
         scene, receivers, points, &direct, options, backend, progress,
     )?;
-    let (transfer, bounces, fit_report, seconds_fit) = fitted;
+    let VertexTransfer {
+        transfer,
+        bounces,
+        fit_report,
+        seconds_fit,
+        subsurface,
+    } = fitted;
     let (transfer, albedo_free) = stored(transfer, &direct.scalar, scene, points, options)?;
     let scene = std::mem::take(&mut planned.scene);
     let (scene, transfer, lightmap, texel_report) = match &atlas {
@@ -230,6 +226,7 @@ pub fn bake_from(
         channels: transfer.channels(),
         albedo_free,
         backend: ran_on,
+        subsurface: SubsurfaceMetadata::of(options.subsurface, subsurface),
         ..metadata_for(options, samples, bounces.len(), fit_points)
     };
     let report = BakeReport {
@@ -248,6 +245,7 @@ pub fn bake_from(
         bounces,
         gather_entries: direct.matrix.map_or(0, |m| m.columns.len()),
         backend: backend.describe(),
+        subsurface,
     };
     Ok((
         BakedMesh {
@@ -258,6 +256,28 @@ pub fn bake_from(
         },
         report,
     ))
+}
+
+/// The direct pass of `planned`'s receivers, computed on `backend` or given (and checked), and
+/// what it ran on.
+fn direct_pass(
+    source: DirectSource,
+    planned: &Planned,
+    options: &BakeOptions,
+    backend: &dyn Backend,
+    progress: &dyn Progress,
+) -> Result<(DirectPass, String)> {
+    match source {
+        DirectSource::Compute => {
+            let all = 0..planned.receivers.len();
+            let direct = direct_or_adaptive(&planned.inputs, all, options, backend, progress)?;
+            Ok((direct, backend.describe()))
+        }
+        DirectSource::Given { direct, ran_on } => {
+            check_given(&direct, &planned.receivers, options)?;
+            Ok((direct, ran_on))
+        }
+    }
 }
 
 /// Refuses a given direct pass that is not one of these receivers' (wrong count, or no
@@ -374,7 +394,7 @@ fn vertex_transfer(
     options: &BakeOptions,
     backend: &dyn Backend,
     progress: &dyn Progress,
-) -> Result<(Transfer, Vec<BounceStat>, Option<FitReport>, f64)> {
+) -> Result<VertexTransfer> {
     let started = Instant::now();
     let columns = 3 * coeff_count(options.bands);
     let mut fit_report = None;
@@ -388,7 +408,29 @@ fn vertex_transfer(
         fit_report.get_or_insert(report);
         Ok(fitted)
     };
-    let at_receivers = tint_by_albedo(&direct.scalar, &receivers.albedo, options.bands);
+    // In a translucent medium, the receivers reflect as white diffuse surfaces, and the
+    // medium's scattering, from vertex to vertex, replaces their albedo.
+    let scatter = match &options.subsurface {
+        Some(material) => Some(subsurface::Scatter::new(scene, material)?),
+        None => None,
+    };
+    let white;
+    let albedo = match scatter {
+        Some(_) => {
+            white = vec![Vec3::ONE; receivers.len()];
+            &white[..]
+        }
+        None => &receivers.albedo[..],
+    };
+    let bands = options.bands;
+    let mut to_vertices = |values: Vec<f32>| -> Result<Vec<f32>> {
+        let values = to_vertices(values)?;
+        match &scatter {
+            Some(scatter) => scatter.apply(&values, bands, backend),
+            None => Ok(values),
+        }
+    };
+    let at_receivers = tint_by_albedo(&direct.scalar, albedo, options.bands);
     let mut transfer = Transfer::new(
         options.bands,
         3,
@@ -402,7 +444,7 @@ fn vertex_transfer(
     };
     let bounces = match &direct.matrix {
         Some(matrix) => {
-            let (albedo, to_vertices) = (&receivers.albedo, &mut to_vertices);
+            let to_vertices = &mut to_vertices;
             let gather = Gather {
                 matrix,
                 albedo,
@@ -412,7 +454,23 @@ fn vertex_transfer(
         }
         None => Vec::new(),
     };
-    Ok((transfer, bounces, fit_report, seconds_fit))
+    let subsurface = scatter.map(|scatter| scatter.report);
+    Ok(VertexTransfer {
+        transfer,
+        bounces,
+        fit_report,
+        seconds_fit,
+        subsurface,
+    })
+}
+
+/// What [`vertex_transfer`] made.
+struct VertexTransfer {
+    transfer: Transfer,
+    bounces: Vec<BounceStat>,
+    fit_report: Option<FitReport>,
+    seconds_fit: f64,
+    subsurface: Option<subsurface::SubsurfaceReport>,
 }
 
 /// The scene prepared for the bake, its albedo replaced where the options say so.

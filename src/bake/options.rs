@@ -94,6 +94,9 @@ pub struct BakeOptions {
     /// Each receiver turns a tangent-frame sample set about its normal by its own angle
     /// (`sampling::ReceiverTurns`): set for the texels of a lightmap to be denoised.
     pub turns: bool,
+    /// A translucent medium whose subsurface scattering replaces the diffuse reflection, of
+    /// the direct light and of every bounce (`subsurface`).
+    pub subsurface: Option<super::subsurface::SubsurfaceMaterial>,
 }
 
 /// How the transfer is stored.
@@ -127,6 +130,7 @@ impl Default for BakeOptions {
             storage: Storage::Rgb,
             denoise: false,
             turns: false,
+            subsurface: None,
         }
     }
 }
@@ -144,6 +148,16 @@ impl BakeOptions {
                  transfer: its spec runs through pipeline::run_local"
                     .into(),
             ));
+        }
+        if let Some(material) = &self.subsurface {
+            material.validate()?;
+            if self.lightmap.is_some() {
+                return Err(Error::Options(
+                    "--subsurface with --lightmap: subsurface transfer is computed at the \
+                     vertices"
+                        .into(),
+                ));
+            }
         }
         if self.bands == 0 || self.bands > MAX_BANDS {
             return Err(Error::Options(format!(

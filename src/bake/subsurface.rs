@@ -18,7 +18,9 @@
 //! surface gives back more than it receives.
 //!
 //! The integral is a sparse matrix from vertices to vertices per channel, applied through the
-//! backend's gatherer, so the CPU and the GPU run the same operation.
+//! backend's gatherer (so the CPU and the GPU run the same operation) to the direct light and,
+//! interreflected, to each bounce's light as it arrives: as in Direct3D's sequence, the
+//! bounces gather the scattered light, and what they bring scatters in turn.
 
 use std::collections::HashMap;
 use std::f64::consts::PI;
@@ -29,7 +31,6 @@ use serde::{Deserialize, Serialize};
 
 use super::backend::Backend;
 use super::bounce::GatherMatrix;
-use super::Transfer;
 use crate::error::{Error, Result};
 use crate::scene::Scene;
 
@@ -509,67 +510,49 @@ pub struct SubsurfaceReport {
     pub seconds: f64,
 }
 
-/// Subsurface transfer of `scene` from its shadowed transfer `transfer` (`albedo` per vertex
-/// where the transfer holds it, `None` where it is albedo-free), on `backend`: RGB,
-/// `(1/pi) sum_j W_c[p][j] t_E[j]`, with `t_E = pi t / albedo` the irradiance transfer.
-pub fn subsurface_transfer(
-    scene: &Scene,
-    transfer: &Transfer,
-    albedo: Option<&[Vec3]>,
-    material: &SubsurfaceMaterial,
-    backend: &dyn Backend,
-) -> Result<(Transfer, SubsurfaceReport)> {
-    let started = std::time::Instant::now();
-    let irradiance = irradiance_transfer(transfer, albedo);
-    let (matrices, reach) = subsurface_matrices(scene, material)?;
-    let bands = transfer.bands();
-    let coeffs = transfer.coeffs_per_channel();
-    let mut sum = vec![0.0f32; scene.vertex_count() * 3 * coeffs];
-    for (c, matrix) in matrices.iter().enumerate() {
-        let mut mask = Vec3::ZERO;
-        mask[c] = (1.0 / PI) as f32;
-        let only = vec![mask; scene.vertex_count()];
-        let gathered = backend
-            .gatherer(matrix, &only, bands)?
-            .gather(&irradiance)?;
-        sum.iter_mut().zip(gathered).for_each(|(s, g)| *s += g);
-    }
-    let transfer = Transfer::new(bands, 3, scene.vertex_count(), sum)
-        .map_err(|e| Error::Geometry(e.to_string()))?;
-    let report = SubsurfaceReport {
-        reach,
-        entries: matrices[0].columns.len(),
-        seconds: started.elapsed().as_secs_f64(),
-    };
-    Ok((transfer, report))
+/// The subsurface matrices of a scene in a medium, built once: what replaces the diffuse
+/// reflection of the direct light and of each bounce.
+pub struct Scatter {
+    matrices: [GatherMatrix; 3],
+    /// Channel `c`'s selector: `e_c` at every vertex (the gather's per-row albedo).
+    only: [Vec<Vec3>; 3],
+    pub report: SubsurfaceReport,
 }
 
-/// `pi t / albedo` in the gather's layout `[vertex][3][coeffs]`, the same in every channel:
-/// the geometric part of the transfer, from the channel with the largest albedo (all zero
-/// where every albedo is).
-fn irradiance_transfer(transfer: &Transfer, albedo: Option<&[Vec3]>) -> Vec<f32> {
-    let coeffs = transfer.coeffs_per_channel();
-    let mut out = Vec::with_capacity(transfer.vertex_count() * 3 * coeffs);
-    for v in 0..transfer.vertex_count() {
-        let (channel, scale) = match albedo {
-            None => (0, PI as f32),
-            Some(albedo) => {
-                let a = albedo[v];
-                let c = (0..3).fold(0, |best, c| if a[c] > a[best] { c } else { best });
-                let channel = c.min(transfer.channels() as usize - 1);
-                (channel, if a[c] > 0.0 { PI as f32 / a[c] } else { 0.0 })
-            }
+impl Scatter {
+    pub fn new(scene: &Scene, material: &SubsurfaceMaterial) -> Result<Scatter> {
+        let started = std::time::Instant::now();
+        let (matrices, reach) = subsurface_matrices(scene, material)?;
+        let only = std::array::from_fn(|c| {
+            let mut unit = Vec3::ZERO;
+            unit[c] = 1.0;
+            vec![unit; scene.vertex_count()]
+        });
+        let report = SubsurfaceReport {
+            reach,
+            entries: matrices[0].columns.len(),
+            seconds: started.elapsed().as_secs_f64(),
         };
-        let geometric: Vec<f32> = transfer
-            .vertex_channel(v, channel)
-            .iter()
-            .map(|t| t * scale)
-            .collect();
-        for _ in 0..3 {
-            out.extend_from_slice(&geometric);
-        }
+        Ok(Scatter {
+            matrices,
+            only,
+            report,
+        })
     }
-    out
+
+    /// The light a surface sends back from the albedo-free transfer `values` (RGB,
+    /// `[vertex][3][coeffs]`, what a white diffuse surface would send back), scattered under
+    /// it: channel by channel `W_c values_c`. For a white diffuse surface, `values` is
+    /// `1/pi` times the irradiance transfer, and `W_c` holds the profile's exitance, so this
+    /// is `(1/pi) integral R_d E dA` per unit light.
+    pub fn apply(&self, values: &[f32], bands: u32, backend: &dyn Backend) -> Result<Vec<f32>> {
+        let mut sum = vec![0.0f32; values.len()];
+        for (matrix, only) in self.matrices.iter().zip(&self.only) {
+            let gathered = backend.gatherer(matrix, only, bands)?.gather(values)?;
+            sum.iter_mut().zip(gathered).for_each(|(s, g)| *s += g);
+        }
+        Ok(sum)
+    }
 }
 
 #[cfg(test)]

@@ -362,6 +362,7 @@ fn streamed_report(
         bounces: bounce_stats,
         gather_entries,
         backend: backend.describe(),
+        subsurface: None,
     }
 }
 

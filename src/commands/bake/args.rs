@@ -110,8 +110,8 @@ pub(crate) struct BakeArgs {
     /// Translucent: subsurface scattering (the dipole of Jensen et al. 2001) replaces the
     /// diffuse reflection, light entering the surface leaving it elsewhere. A measured medium
     /// (apple, ketchup, marble, skim-milk, skin1, skin2, whole-milk; coefficients per mm from the
-    /// paper) or `custom` with --sss-absorption and --sss-scattering. Shadowed or unshadowed,
-    /// at the vertices, RGB (README, "Subsurface scattering").
+    /// paper) or `custom` with --sss-absorption and --sss-scattering. It scatters the direct
+    /// light and every bounce; at the vertices, RGB (README, "Subsurface scattering").
     #[arg(long, value_name = "MEDIUM")]
     pub(crate) subsurface: Option<String>,
     /// With --subsurface: the absorption coefficient per mm, R,G,B (replaces the medium's).

@@ -14,12 +14,13 @@ pub(super) fn print_shaping_lines(baked: &pipeline::Baked) {
     if let Some(compressed) = &baked.compressed {
         eprintln!("{compressed}");
     }
-    if let (Some(stored), Some(pass)) = (&baked.mesh.metadata.subsurface, &baked.subsurface) {
+    if let (Some(stored), Some(pass)) = (&baked.mesh.metadata.subsurface, &baked.report.subsurface)
+    {
         let m = &stored.material;
         eprintln!(
             "subsurface: ior {}, absorption {:?} and reduced scattering {:?} per mm, {} mm a \
              unit; light followed {:.4} scene units under the surface (all but {} of its \
-             reflectance), {} matrix entries a channel, in {:.2} s",
+             reflectance), {} matrix entries a channel, built in {:.2} s",
             m.ior,
             m.absorption,
             m.reduced_scattering,

@@ -11,9 +11,10 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use prt_gpu::bake::{self, BakeOptions, CpuBackend, NoProgress};
+use prt_gpu::compress;
 use prt_gpu::light::preview_light;
 use prt_gpu::scene;
-use prt_gpu::zonal::{sh_radiance, ZonalAxis, ZonalSpec, ZonalTransfer};
+use prt_gpu::zonal::{ZonalAxis, ZonalSpec, ZonalTransfer};
 
 /// The dragon baked shadowed at `bands` bands from 16 samples (the values do not matter).
 fn dragon(bands: u32) -> bake::BakedMesh {
@@ -40,7 +41,7 @@ fn relight_and_fit(c: &mut Criterion) {
         group.measurement_time(Duration::from_secs(5));
         group.throughput(Throughput::Elements(baked.transfer.vertex_count() as u64));
         group.bench_function("relight SH transfer", |b| {
-            b.iter(|| sh_radiance(&baked.transfer, &light))
+            b.iter(|| compress::radiance(&baked.transfer, &light))
         });
         for axis in [ZonalAxis::Normal, ZonalAxis::Fitted] {
             let spec = ZonalSpec { bands, axis };

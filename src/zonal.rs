@@ -175,12 +175,8 @@ impl ZonalTransfer {
             .flat_map_iter(|(vertex, axis)| {
                 let y = basis(self.bands, axis.as_dvec3().normalize());
                 (0..self.channels as usize).flat_map(move |c| {
-                    let lobe: Vec<f64> = self
-                        .vertex_channel(vertex, c)
-                        .iter()
-                        .map(|&z| z as f64)
-                        .collect();
-                    zonal::lobe_coeffs(&lobe, &y).into_iter().map(|x| x as f32)
+                    let lobe = self.vertex_channel(vertex, c);
+                    zonal::lobe_coeffs(lobe, &y).into_iter().map(|x| x as f32)
                 })
             })
             .collect();
@@ -204,7 +200,8 @@ impl ZonalTransfer {
 /// and the viewer show zonal transfer under: height `y` above the mesh's lowest point turns by
 /// `angle * y / height` about a line parallel to +Z, `height / angle` beside the mesh's middle
 /// (towards +X), so the top turns by `angle`. Every point turns by its height's angle about +Z
-/// (clockwise), and so do the normals and axes there. `assets/viewer/mesh.vert` mirrors it.
+/// (clockwise), and so do the normals and axes there. `assets/viewer/bend.glsl` (drawing) and
+/// `bendPoint` in `viewer.js` (the bent bounds) mirror it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bend {
     /// The top's turn, in radians.
@@ -303,27 +300,8 @@ pub fn energy_outside(transfer: &Transfer, zonal: &ZonalTransfer) -> f64 {
 /// transfer's, over the RMS of the latter.
 pub fn relit_error(transfer: &Transfer, zonal: &ZonalTransfer, light: &ShLight) -> Result<f64> {
     let approximate = zonal.relight(&zonal.axes, light)?;
-    let exact = sh_radiance(transfer, light);
+    let exact = crate::compress::radiance(transfer, light);
     Ok(crate::compress::radiance_error(&exact, &approximate))
-}
-
-/// `transfer`'s radiance under `light`: `sum_k t_ck l_kc` per vertex and channel.
-pub fn sh_radiance(transfer: &Transfer, light: &ShLight) -> Vec<[f32; 3]> {
-    let channels = transfer.channels() as usize;
-    (0..transfer.vertex_count())
-        .into_par_iter()
-        .with_min_len(1024)
-        .map(|vertex| {
-            std::array::from_fn(|c| {
-                let coeffs = transfer.vertex_channel(vertex, c.min(channels - 1));
-                coeffs
-                    .iter()
-                    .zip(&light.coeffs)
-                    .map(|(t, l)| t * l[c])
-                    .sum()
-            })
-        })
-        .collect()
 }
 
 #[cfg(test)]

@@ -20,12 +20,12 @@ use common::sky::sky;
 use glam::Vec3;
 use prt_gpu::bake::subsurface::SubsurfaceMaterial;
 use prt_gpu::bake::{CpuBackend, DirectSource, Mode, NoProgress};
+use prt_gpu::compress;
 use prt_gpu::light::ShLight;
 use prt_gpu::pipeline;
 use prt_gpu::scene::{builtin, Scene};
 use prt_gpu::spec::BakeSpec;
 use prt_gpu::testing::oracle::{self, OracleMedium, SurfacePoint};
-use prt_gpu::zonal::sh_radiance;
 
 /// Scattering and surface events a path may have: far past what a path that leaves the
 /// medium takes at these albedos (the mean is about 1 / (1 - albedo)).
@@ -48,7 +48,7 @@ fn bake(scene: Scene, material: SubsurfaceMaterial, light: &ShLight) -> (Scene, 
         &NoProgress,
     )
     .unwrap();
-    let radiance = sh_radiance(&baked.mesh.transfer, light);
+    let radiance = compress::radiance(&baked.mesh.transfer, light);
     (baked.mesh.scene, radiance)
 }
 

@@ -10,12 +10,12 @@ use common::{assert_clean_failure, backends, BadInput};
 use glam::Vec3;
 use prt_gpu::bake::subsurface::{Dipole, SubsurfaceMaterial};
 use prt_gpu::bake::{Backend, CpuBackend, DirectSource, Mode, NoProgress};
+use prt_gpu::compress;
 use prt_gpu::compress::radiance_error;
 use prt_gpu::light::{analytic, ShLight};
 use prt_gpu::pipeline;
 use prt_gpu::scene::{builtin, Scene};
 use prt_gpu::spec::BakeSpec;
-use prt_gpu::zonal::sh_radiance;
 
 const BANDS: u32 = 3;
 
@@ -80,7 +80,7 @@ fn a_white_slab_that_does_not_absorb_returns_no_more_than_it_receives() {
         &CpuBackend,
     );
     let sky = ShLight::constant(BANDS, [1.0; 3]);
-    let radiance = sh_radiance(&baked.mesh.transfer, &sky);
+    let radiance = compress::radiance(&baked.mesh.transfer, &sky);
     let most = radiance.iter().flatten().fold(0.0f32, |a, &b| a.max(b));
     assert!(most <= 1.0 + 1e-4, "{most}");
     let middle = top_vertices(&baked.mesh.scene, 15.0);
@@ -106,7 +106,7 @@ fn a_thin_slab_lit_from_behind_glows_where_a_thick_one_does_not() {
             slab(40.0, thickness, 20),
             &CpuBackend,
         );
-        let radiance = sh_radiance(&baked.mesh.transfer, &below);
+        let radiance = compress::radiance(&baked.mesh.transfer, &below);
         let top = top_vertices(&baked.mesh.scene, 14.0);
         top.iter().map(|&v| radiance[v][1] as f64).sum::<f64>() / top.len() as f64
     };
@@ -135,8 +135,8 @@ fn as_the_diffusion_length_vanishes_it_is_shadowed_transfer_with_the_mediums_alb
     let plain = bake(&plain_spec, scene(), &CpuBackend);
     let light = prt_gpu::light::preview_light(BANDS).unwrap();
     let error = radiance_error(
-        &sh_radiance(&plain.mesh.transfer, &light),
-        &sh_radiance(&scattered.mesh.transfer, &light),
+        &compress::radiance(&plain.mesh.transfer, &light),
+        &compress::radiance(&scattered.mesh.transfer, &light),
     );
     eprintln!("albedo {albedo:?}: {error:.2e}");
     assert!(error < 1e-4, "{error}");
@@ -155,7 +155,7 @@ fn bounces_gather_the_scattered_light() {
     let sky = ShLight::constant(BANDS, [1.0; 3]);
     let radiance = |mode: Mode, scene: Scene| {
         let baked = bake(&spec(mode, Some(material)), scene, &CpuBackend);
-        let relit = sh_radiance(&baked.mesh.transfer, &sky);
+        let relit = compress::radiance(&baked.mesh.transfer, &sky);
         (baked, relit)
     };
     let (_, shadowed) = radiance(Mode::Shadowed, slab(10.0, 2.0, 8));
@@ -200,7 +200,7 @@ fn cpu_and_gpu_agree() {
                 slab(10.0, 2.0, 8),
                 builtin::closed_box(Vec3::new(-5.0, 1.0, -5.0), Vec3::new(5.0, 3.0, 5.0), 8),
             ]);
-            sh_radiance(&bake(&spec, scene, backend.as_ref()).mesh.transfer, &light)
+            compress::radiance(&bake(&spec, scene, backend.as_ref()).mesh.transfer, &light)
         })
         .collect();
     for other in &relit[1..] {

@@ -86,6 +86,16 @@ fn another_camera(baked: &Path) -> String {
     format!("{},{},{},{},{},{},35", eye.x, eye.y, eye.z, t.x, t.y, t.z)
 }
 
+/// The page at `url`, its screenshot checked to match `expected` (`render`'s image) within
+/// the tolerance of `common::pixels`.
+fn shot_matching(chromium: &Chromium, url: &str, expected: &RgbImage) -> RgbImage {
+    let shot = chromium.screenshot(url, WIDTH, HEIGHT);
+    let difference = Difference::of(&shot, expected);
+    println!("{url}: {difference:?}");
+    assert!(difference.within_tolerance(), "{url}: {difference:?}");
+    shot
+}
+
 fn chromium_and_adapter() -> Option<Chromium> {
     let chromium = Chromium::find_or_skip()?;
     prt_gpu::device::any_adapter_or_skip()?;
@@ -152,10 +162,7 @@ fn page_matches_render_for_each_file_camera_exposure_and_tone_map() {
         options.extend(["--light", "light.json"]);
         let expected = render(dir.path(), baked, &options);
         assert!(has_contrast(&expected), "{query}: the render shows nothing");
-        let shot = chromium.screenshot(&page_url(&page, query), WIDTH, HEIGHT);
-        let difference = Difference::of(&shot, &expected);
-        println!("{query}: {difference:?}");
-        assert!(difference.within_tolerance(), "{query}: {difference:?}");
+        shot_matching(&chromium, &page_url(&page, query), &expected);
     }
     // The comparison can tell: a stop of exposure more is far outside the tolerance.
     let expected = render(dir.path(), &rgb, &["--sky", "--light", "light.json"]);
@@ -209,14 +216,8 @@ fn page_bends_and_relights_zonal_transfer_as_render_does() {
         let options: Vec<&str> = base.iter().chain(extra).copied().collect();
         let expected = render(dir.path(), &baked, &options);
         assert!(has_contrast(&expected), "{query}: the render shows nothing");
-        let shot = chromium.screenshot(
-            &page_url(&page, &format!("{camera_query}&{query}")),
-            WIDTH,
-            HEIGHT,
-        );
-        let difference = Difference::of(&shot, &expected);
-        println!("{query}: {difference:?}");
-        assert!(difference.within_tolerance(), "{query}: {difference:?}");
+        let url = page_url(&page, &format!("{camera_query}&{query}"));
+        let shot = shot_matching(&chromium, &url, &expected);
         shots.push(shot);
     }
     let difference = Difference::of(&shots[0], &shots[1]);
@@ -260,10 +261,7 @@ fn lightmapped_page_matches_render() {
         options.extend(["--light", "light.json"]);
         let expected = render(dir.path(), &baked, &options);
         assert!(has_contrast(&expected));
-        let shot = chromium.screenshot(&page_url(&page, &query), WIDTH, HEIGHT);
-        let difference = Difference::of(&shot, &expected);
-        println!("lightmap {query}: {difference:?}");
-        assert!(difference.within_tolerance(), "{query}: {difference:?}");
+        shot_matching(&chromium, &page_url(&page, &query), &expected);
     }
     // X3D carries per-vertex transfer only.
     assert_refused(
@@ -295,10 +293,7 @@ fn light_turned_in_the_page_matches_light_rotate() {
     );
     let page = dir.path().join("viewer.html");
     let expected = render(dir.path(), &baked, &["--sky", "--light", "turned.json"]);
-    let shot = chromium.screenshot(&page_url(&page, "rot=70,-35,20"), WIDTH, HEIGHT);
-    let difference = Difference::of(&shot, &expected);
-    println!("rotated: {difference:?}");
-    assert!(difference.within_tolerance(), "{difference:?}");
+    shot_matching(&chromium, &page_url(&page, "rot=70,-35,20"), &expected);
     // Unturned, the page is far from the turned render: the rotation is what agrees.
     let unturned = chromium.screenshot(&page_url(&page, ""), WIDTH, HEIGHT);
     assert!(!Difference::of(&unturned, &expected).within_tolerance());

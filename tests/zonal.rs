@@ -11,12 +11,13 @@ use std::f32::consts::PI;
 use common::{assert_clean_failure, prt_gpu, validate_gltf, BadInput};
 use glam::{DMat3, Quat, Vec3};
 use prt_gpu::bake::{CpuBackend, DirectSource, Mode, NoProgress, Transfer};
+use prt_gpu::compress;
 use prt_gpu::compress::radiance_error;
 use prt_gpu::light::{preview_light, ShLight};
 use prt_gpu::scene::{builtin, Scene};
 use prt_gpu::sh::rotation::ShRotation;
 use prt_gpu::spec::BakeSpec;
-use prt_gpu::zonal::{sh_radiance, Bend, ZonalAxis, ZonalSpec, ZonalTransfer};
+use prt_gpu::zonal::{Bend, ZonalAxis, ZonalSpec, ZonalTransfer};
 use prt_gpu::{glb, pipeline};
 
 const BANDS: u32 = 4;
@@ -148,10 +149,11 @@ fn a_bent_tube_relit_from_zonal_transfer_follows_its_normals() {
             .map(|(a, turn)| *turn * *a)
             .collect();
         for (light, name) in lights().iter().zip(["preview", "yaw", "pitch", "tilted"]) {
-            let truth = in_given_order(&sh_radiance(&bent.mesh.transfer, light), map);
+            let truth = in_given_order(&compress::radiance(&bent.mesh.transfer, light), map);
             let relit = zonal.relight(&axes, light).unwrap();
-            let rest_relit = sh_radiance(&rest.mesh.transfer, light);
-            let turned_sh = sh_radiance(&turned_transfer(&rest.mesh.transfer, &turns), light);
+            let rest_relit = compress::radiance(&rest.mesh.transfer, light);
+            let turned_sh =
+                compress::radiance(&turned_transfer(&rest.mesh.transfer, &turns), light);
             let zonal_error = radiance_error(&truth, &relit);
             let static_error = radiance_error(&truth, &rest_relit);
             let rigid_error = radiance_error(&truth, &turned_sh);
@@ -210,11 +212,11 @@ fn a_rigid_turn_relights_like_a_bake_of_the_turned_scene() {
         let map = &turned.report.vertex_map;
         let axes: Vec<Vec3> = zonal.axes().iter().map(|&a| turn * a).collect();
         for light in lights() {
-            let truth = in_given_order(&sh_radiance(&turned.mesh.transfer, &light), map);
+            let truth = in_given_order(&compress::radiance(&turned.mesh.transfer, &light), map);
             let relit = zonal.relight(&axes, &light).unwrap();
             // The unturned scene under the light turned back sees what the turned one sees.
             let back = light.rotated(0.0, -pitch_deg as f64, 0.0);
-            let rest_truth = sh_radiance(&rest.mesh.transfer, &back);
+            let rest_truth = compress::radiance(&rest.mesh.transfer, &back);
             let fit_error =
                 radiance_error(&rest_truth, &zonal.relight(zonal.axes(), &back).unwrap());
             let noise = radiance_error(&truth, &rest_truth);
@@ -404,7 +406,7 @@ fn render_relights_from_the_zonal_transfer() {
     let zonal = glb::zonal::read_zonal(&path).unwrap().unwrap();
     let light = preview_light(4).unwrap();
     let expected = zonal.relight(zonal.axes(), &light).unwrap();
-    let sh = sh_radiance(&glb::read_glb(&path).unwrap().transfer, &light);
+    let sh = compress::radiance(&glb::read_glb(&path).unwrap().transfer, &light);
     let relit = relit_radiance(&dir.path().join("relit.glb"));
     assert!(radiance_error(&expected, &relit) < 1e-6);
     assert!(

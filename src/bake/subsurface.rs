@@ -32,6 +32,7 @@ use serde::{Deserialize, Serialize};
 use super::backend::Backend;
 use super::bounce::GatherMatrix;
 use crate::error::{Error, Result};
+use crate::scene::joined::Joined;
 use crate::scene::Scene;
 
 /// The fraction of the total diffuse reflectance the cut-off at the reach may leave out.
@@ -250,30 +251,20 @@ struct SurfaceSample {
 /// are one piece (the vertices a mesh splits along a crease stay one object; two objects that
 /// only touch, or come close, are two).
 fn pieces(scene: &Scene) -> Vec<u32> {
-    fn root(parent: &mut [u32], mut v: u32) -> u32 {
-        while parent[v as usize] != v {
-            parent[v as usize] = parent[parent[v as usize] as usize];
-            v = parent[v as usize];
-        }
-        v
-    }
-    let mut parent: Vec<u32> = (0..scene.vertex_count() as u32).collect();
-    let join = |parent: &mut Vec<u32>, a: u32, b: u32| {
-        let (ra, rb) = (root(parent, a), root(parent, b));
-        parent[ra.max(rb) as usize] = ra.min(rb);
-    };
+    let mut sets = Joined::new(scene.vertex_count());
     for t in &scene.triangles {
-        join(&mut parent, t[0], t[1]);
-        join(&mut parent, t[1], t[2]);
+        sets.join(t[0], t[1]);
+        sets.join(t[0], t[2]);
     }
     let mut first_at: HashMap<[u32; 3], u32> = HashMap::new();
     for (v, p) in scene.positions.iter().enumerate() {
-        let key = p.to_array().map(f32::to_bits);
-        let first = *first_at.entry(key).or_insert(v as u32);
-        join(&mut parent, first, v as u32);
+        let first = *first_at
+            .entry(p.to_array().map(f32::to_bits))
+            .or_insert(v as u32);
+        sets.join(first, v as u32);
     }
     (0..scene.vertex_count() as u32)
-        .map(|v| root(&mut parent, v))
+        .map(|v| sets.root(v))
         .collect()
 }
 
@@ -349,8 +340,8 @@ fn lattice_touching(i: usize, j: usize, steps: usize) -> f64 {
 }
 
 /// The subsurface matrices of `scene` for `material`, one per channel: row `p`, column `j`,
-/// the weight of vertex `j`'s irradiance transfer in vertex `p`'s exitance (before `1/pi`).
-/// Also the reach it cut at.
+/// the weight of what vertex `j` would send back as a white diffuse surface in what vertex
+/// `p` sends back through the medium ([`Scatter::apply`]). Also the reach it cut at.
 pub fn subsurface_matrices(
     scene: &Scene,
     material: &SubsurfaceMaterial,

@@ -517,13 +517,18 @@ pub fn relit_error(original: &Transfer, cpca: &Cpca, light: &ShLight) -> Result<
             original.vertex_count()
         )));
     }
-    let per_vertex = original.channels() as usize * original.coeffs_per_channel();
-    let exact: Vec<[f32; 3]> = original
+    Ok(radiance_error(&radiance(original, light), &approximate))
+}
+
+/// Every vertex's radiance from `transfer` (one or three channels) under `light`, summed in
+/// f64: the reference the compressed and the zonal forms are measured against.
+pub fn radiance(transfer: &Transfer, light: &ShLight) -> Vec<[f32; 3]> {
+    let per_vertex = transfer.channels() as usize * transfer.coeffs_per_channel();
+    transfer
         .coeffs()
         .par_chunks_exact(per_vertex.max(1))
-        .map(|t| vector_radiance(t, original.channels() as usize, light))
-        .collect();
-    Ok(radiance_error(&exact, &approximate))
+        .map(|t| vector_radiance(t, transfer.channels() as usize, light))
+        .collect()
 }
 
 /// RMS over vertices and channels of `approximate - reference`, over the RMS of `reference`.

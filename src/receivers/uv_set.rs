@@ -13,6 +13,7 @@ use glam::{DVec2, Vec2};
 use super::atlas::{Atlas, MAX_ATLAS_SIZE};
 use crate::error::{Error, Result};
 use crate::scene::gltf::{self, GltfScene};
+use crate::scene::joined::Joined;
 
 /// The set engines put lightmap coordinates in (three.js, Bevy, Unity's UV2, Godot's UV2).
 pub const LIGHTMAP_SET: u32 = 1;
@@ -160,30 +161,17 @@ impl UvSet {
 /// Per triangle, the smallest triangle index of its connected component (by shared vertices),
 /// renumbered densely in order of first appearance.
 fn charts(vertices: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
-    let mut parent: Vec<u32> = (0..vertices as u32).collect();
-    fn root(parent: &mut [u32], mut i: u32) -> u32 {
-        while parent[i as usize] != i {
-            let up = parent[parent[i as usize] as usize];
-            parent[i as usize] = up;
-            i = up;
-        }
-        i
-    }
+    let mut sets = Joined::new(vertices);
     for t in triangles {
-        let a = root(&mut parent, t[0]);
-        for &corner in &t[1..] {
-            let b = root(&mut parent, corner);
-            let (low, high) = (a.min(b), a.max(b));
-            parent[high as usize] = low;
-        }
-        let _ = root(&mut parent, t[0]);
+        sets.join(t[0], t[1]);
+        sets.join(t[0], t[2]);
     }
     let mut number = vec![u32::MAX; vertices];
     let mut next = 0;
     triangles
         .iter()
         .map(|t| {
-            let r = root(&mut parent, t[0]) as usize;
+            let r = sets.root(t[0]) as usize;
             if number[r] == u32::MAX {
                 number[r] = next;
                 next += 1;

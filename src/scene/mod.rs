@@ -7,6 +7,7 @@
 pub mod batch;
 pub mod builtin;
 pub mod gltf;
+pub mod joined;
 pub mod obj;
 pub mod ply;
 pub mod prepare;

@@ -182,16 +182,7 @@ pub fn clamped_cosine_zonal(l: u32) -> f64 {
 /// Coefficients of a zonal function (zonal coefficients `zonal[l]` about +Z) turned so that its
 /// axis points along `axis`: `sqrt(4 pi / (2l+1)) zonal[l] y_lm(axis)` (Funk–Hecke).
 pub fn rotate_zonal(zonal: &[f64], axis: DVec3) -> Vec<f64> {
-    let bands = zonal.len() as u32;
-    let y = basis(bands, axis.normalize());
-    let mut out = vec![0.0; coeff_count(bands)];
-    for l in 0..bands as i32 {
-        let scale = (4.0 * std::f64::consts::PI / (2 * l + 1) as f64).sqrt() * zonal[l as usize];
-        for m in -l..=l {
-            out[index(l, m)] = scale * y[index(l, m)];
-        }
-    }
-    out
+    zonal::lobe_coeffs(zonal, &basis(zonal.len() as u32, axis.normalize()))
 }
 
 /// Exact unshadowed diffuse transfer for a surface with normal `normal` and albedo 1:

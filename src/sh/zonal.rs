@@ -158,13 +158,14 @@ fn tangents(axis: DVec3) -> (DVec3, DVec3) {
 
 /// The SH coefficients (`zonal.len()^2`) of the zonal lobe `zonal` turned to the axis whose
 /// basis values are `axis_basis`.
-pub fn lobe_coeffs(zonal: &[f64], axis_basis: &[f64]) -> Vec<f64> {
+pub fn lobe_coeffs<Z: Copy + Into<f64>>(zonal: &[Z], axis_basis: &[f64]) -> Vec<f64> {
     let bands = zonal.len() as u32;
     let mut out = vec![0.0; coeff_count(bands)];
-    for (l, z) in zonal.iter().enumerate() {
+    for (l, &z) in zonal.iter().enumerate() {
+        let scale = z.into() * lobe_scale(l as u32);
         let l = l as i32;
         for m in -l..=l {
-            out[index(l, m)] = z * lobe_scale(l as u32) * axis_basis[index(l, m)];
+            out[index(l, m)] = scale * axis_basis[index(l, m)];
         }
     }
     out

@@ -10,7 +10,8 @@ use std::time::Instant;
 use glam::Vec3;
 
 use crate::bake::stream::{format_bytes, MemoryNeed};
-use crate::bake::{self, Backend, BakeReport, BakedMesh, DirectSource, Progress};
+use crate::bake::subsurface::SceneMedia;
+use crate::bake::{self, Backend, BakeOptions, BakeReport, BakedMesh, DirectSource, Progress};
 use crate::compress::{self, Cpca, CpcaOptions};
 use crate::device::GpuContext;
 use crate::error::Error;
@@ -18,6 +19,7 @@ use crate::local::{self, LocalBake, LocalReport};
 use crate::precision::Precision;
 use crate::probes::{self, ProbeSet};
 use crate::receivers::uv_set::{self, UvSet};
+use crate::scene::gltf::volume::scattering_volumes;
 use crate::scene::gltf::GltfScene;
 use crate::scene::Scene;
 use crate::spec::{BakeSpec, Bands, Compression, Container, Layout, AUTO_MAX_BANDS};
@@ -90,6 +92,8 @@ pub struct Planned<'s> {
     spec: &'s BakeSpec,
     scene: Scene,
     uv_set: Option<UvSet>,
+    /// The media of a glTF scene's translucent materials, where the spec bakes them.
+    scene_media: Option<SceneMedia>,
     notes: Vec<String>,
 }
 
@@ -115,10 +119,12 @@ pub fn plan<'s>(spec: &'s BakeSpec, scene: Scene, gltf: Option<&GltfScene>) -> R
         }
         _ => None,
     };
+    let scene_media = gltf.and_then(|gltf| scene_media(spec, (&scene, gltf), &mut notes));
     Ok(Planned {
         spec,
         scene,
         uv_set,
+        scene_media,
         notes,
     })
 }
@@ -140,9 +146,13 @@ impl Planned<'_> {
             spec,
             scene,
             uv_set,
+            scene_media,
             mut notes,
         } = self;
-        let options = spec.options();
+        let options = BakeOptions {
+            scene_media,
+            ..spec.options()
+        };
         let (mut mesh, report) =
             bake::bake_from(scene, &options, backend, source, uv_set.as_ref(), progress)?;
         let bands_chosen = match spec.transfer.bands {
@@ -349,12 +359,16 @@ pub fn plan_memory(
     if need.whole() <= budget {
         return Ok(whole);
     }
+    let translucent =
+        gltf.is_some_and(|gltf| scene_media(spec, (scene, gltf), &mut Vec::new()).is_some());
     let streamable = bake::stream::streams(&options)
         && spec.storage.layout == Layout::PerVertex
         && spec.storage.zonal.is_none()
-        && spec.transfer.subsurface.is_none();
+        && spec.transfer.subsurface.is_none()
+        && !translucent;
     let why_not = "only bakes at the vertices (no least-squares fit or lightmap), without \
-                   --compress, --zonal or --subsurface, stream in chunks";
+                   --compress, --zonal, --subsurface or translucent glTF materials, stream in \
+                   chunks";
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;
@@ -383,6 +397,55 @@ pub fn plan_memory(
                 format_bytes(budget)
             )),
         }),
+    }
+}
+
+/// The media of `gltf`'s scattering volumes (`scene` as `gltf::load` made it), where `spec`
+/// bakes subsurface transfer from them: not where `--subsurface` gives the whole scene one
+/// medium, nor in a lightmap or one channel (the materials are then baked opaque, with a
+/// note). `notes` get a line for each volume left opaque.
+fn scene_media(
+    spec: &BakeSpec,
+    (scene, gltf): (&Scene, &GltfScene),
+    notes: &mut Vec<String>,
+) -> Option<SceneMedia> {
+    if spec.transfer.subsurface.is_some() {
+        return None;
+    }
+    let volumes = scattering_volumes(gltf, scene.vertex_count())?;
+    notes.extend(volumes.notes.iter().cloned());
+    let (media, opaque) = SceneMedia::of_volumes(&volumes);
+    notes.extend(opaque);
+    let media = media?;
+    let why_not = if spec.receivers.lightmap.is_some() {
+        Some("subsurface transfer is computed at the vertices, and --lightmap bakes texels")
+    } else if spec.storage.channels == bake::Storage::Lean {
+        Some("--storage lean keeps one channel, and each colour scatters as far as its own")
+    } else {
+        None
+    };
+    let labels: Vec<&str> = volumes
+        .volumes
+        .iter()
+        .filter(|v| media.media.iter().any(|m| m.material == v.material))
+        .map(|v| v.label.as_str())
+        .collect();
+    match why_not {
+        Some(why) => {
+            notes.push(format!(
+                "translucent material(s) {} baked opaque: {why}",
+                labels.join(", ")
+            ));
+            None
+        }
+        None => {
+            notes.push(format!(
+                "material(s) {} scatter light under the surface (KHR_materials_volume_scatter): \
+                 baked with subsurface transfer",
+                labels.join(", ")
+            ));
+            Some(media)
+        }
     }
 }
 

@@ -307,6 +307,7 @@ impl BakeSpec {
             denoise: self.receivers.denoise,
             turns: false,
             subsurface: self.transfer.subsurface,
+            scene_media: None,
         }
     }
 

@@ -365,7 +365,7 @@ fn bad_zonal_options_are_refused_in_one_line() {
                 "-o",
                 "o.glb",
             ],
-            expect: "without --compress, --zonal or --subsurface",
+            expect: "without --compress, --zonal, --subsurface or translucent glTF materials",
         },
     ] {
         assert_clean_failure(&input);

@@ -198,25 +198,52 @@ pub struct BakeMetadata {
     pub subsurface: Option<SubsurfaceMetadata>,
 }
 
-/// `extras.prt.subsurface`: the medium, and the reach the profile was cut at (scene units).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// `extras.prt.subsurface`: the medium of the whole scene (`--subsurface`), or those of the
+/// scene's own glTF materials, and the farthest reach a profile was cut at (scene units).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SubsurfaceMetadata {
     #[serde(flatten)]
-    pub material: super::subsurface::SubsurfaceMaterial,
+    pub material: Option<super::subsurface::SubsurfaceMaterial>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub materials: Vec<super::subsurface::MaterialMedium>,
     pub reach: f64,
 }
 
 impl SubsurfaceMetadata {
-    /// What a bake in `material` records, where its subsurface pass ran.
+    /// What a bake with `options` records, where its subsurface pass ran.
     pub fn of(
-        material: Option<super::subsurface::SubsurfaceMaterial>,
+        options: &super::BakeOptions,
         pass: Option<super::subsurface::SubsurfaceReport>,
     ) -> Option<SubsurfaceMetadata> {
-        let (material, pass) = material.zip(pass)?;
+        let pass = pass?;
+        let materials = match (&options.subsurface, &options.scene_media) {
+            (None, Some(media)) => media.media.clone(),
+            _ => Vec::new(),
+        };
         Some(SubsurfaceMetadata {
-            material,
+            material: options.subsurface,
+            materials,
             reach: pass.reach,
         })
+    }
+
+    /// The media, for a line of text: the whole scene's, or each glTF material's.
+    pub fn describe(&self) -> String {
+        let medium = |m: &super::subsurface::SubsurfaceMaterial| {
+            format!(
+                "ior {}, absorption {:?} and reduced scattering {:?} per mm, {} mm a unit",
+                m.ior, m.absorption, m.reduced_scattering, m.mm_per_unit
+            )
+        };
+        match &self.material {
+            Some(m) => medium(m),
+            None => self
+                .materials
+                .iter()
+                .map(|m| format!("material {}: {}", m.material, medium(&m.medium)))
+                .collect::<Vec<_>>()
+                .join("; "),
+        }
     }
 }
 

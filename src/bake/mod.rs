@@ -200,8 +200,9 @@ pub fn bake_from(
     let seconds_transfer = started.elapsed().as_secs_f64();
 
     let (scene, receivers, points) = (&planned.scene, &planned.receivers, &planned.points);
+    let on_scene = (scene, &planned.vertex_map[..]);
     let fitted = vertex_transfer(
-        scene, receivers, points, &direct, options, backend, progress,
+        on_scene, receivers, points, &direct, options, backend, progress,
     )?;
     let VertexTransfer {
         transfer,
@@ -226,7 +227,7 @@ pub fn bake_from(
         channels: transfer.channels(),
         albedo_free,
         backend: ran_on,
-        subsurface: SubsurfaceMetadata::of(options.subsurface, subsurface),
+        subsurface: SubsurfaceMetadata::of(options, subsurface),
         ..metadata_for(options, samples, bounces.len(), fit_points)
     };
     let report = BakeReport {
@@ -387,7 +388,7 @@ fn add_lightmap(
 /// Vertex transfer from the direct pass at the receivers (fitted, for the least-squares fit)
 /// and its bounces; what each bounce added, the first fit's report and the direct fit's time.
 fn vertex_transfer(
-    scene: &Scene,
+    (scene, vertex_map): (&Scene, &[u32]),
     receivers: &Receivers,
     points: &[SurfacePoint],
     direct: &DirectPass,
@@ -410,10 +411,7 @@ fn vertex_transfer(
     };
     // In a translucent medium, the receivers reflect as white diffuse surfaces, and the
     // medium's scattering, from vertex to vertex, replaces their albedo.
-    let scatter = match &options.subsurface {
-        Some(material) => Some(subsurface::Scatter::new(scene, material)?),
-        None => None,
-    };
+    let scatter = scatter_of(scene, vertex_map, options)?;
     let white;
     let albedo = match scatter {
         Some(_) => {
@@ -462,6 +460,29 @@ fn vertex_transfer(
         seconds_fit,
         subsurface,
     })
+}
+
+/// The scattering of the prepared `scene` in the medium the options give it, or in its own
+/// materials' (`vertex_map` giving the prepared vertex each loaded one became); `None` where
+/// it has neither.
+fn scatter_of(
+    scene: &Scene,
+    vertex_map: &[u32],
+    options: &BakeOptions,
+) -> Result<Option<subsurface::Scatter>> {
+    let vertices = scene.vertex_count();
+    let scatter = match (&options.subsurface, &options.scene_media) {
+        (Some(material), _) => {
+            let everywhere = vec![0; vertices];
+            subsurface::Scatter::new(scene, (std::slice::from_ref(material), &everywhere))?
+        }
+        (None, Some(media)) => {
+            let of_vertex = media.on_prepared(vertex_map, vertices);
+            subsurface::Scatter::new(scene, (&media.materials(), &of_vertex))?
+        }
+        (None, None) => return Ok(None),
+    };
+    Ok(Some(scatter))
 }
 
 /// What [`vertex_transfer`] made.

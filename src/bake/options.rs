@@ -97,6 +97,9 @@ pub struct BakeOptions {
     /// A translucent medium whose subsurface scattering replaces the diffuse reflection, of
     /// the direct light and of every bounce (`subsurface`).
     pub subsurface: Option<super::subsurface::SubsurfaceMaterial>,
+    /// Without `subsurface`: the media of the scene's own materials (a glTF scene's
+    /// scattering volumes), each on its vertices; the other vertices stay opaque.
+    pub scene_media: Option<super::subsurface::SceneMedia>,
 }
 
 /// How the transfer is stored.
@@ -131,6 +134,7 @@ impl Default for BakeOptions {
             denoise: false,
             turns: false,
             subsurface: None,
+            scene_media: None,
         }
     }
 }
@@ -151,13 +155,13 @@ impl BakeOptions {
         }
         if let Some(material) = &self.subsurface {
             material.validate()?;
-            if self.lightmap.is_some() {
-                return Err(Error::Options(
-                    "--subsurface with --lightmap: subsurface transfer is computed at the \
-                     vertices"
-                        .into(),
-                ));
-            }
+        }
+        let translucent = self.subsurface.is_some() || self.scene_media.is_some();
+        if translucent && self.lightmap.is_some() {
+            return Err(Error::Options(
+                "--subsurface with --lightmap: subsurface transfer is computed at the vertices"
+                    .into(),
+            ));
         }
         if self.bands == 0 || self.bands > MAX_BANDS {
             return Err(Error::Options(format!(

@@ -45,11 +45,10 @@ fn beside_the_transfer(path: &Path, metadata: &BakeMetadata) -> Result<Vec<Strin
         lines.push(format!("probes:       {}", probes.describe()));
     }
     if let Some(subsurface) = &metadata.subsurface {
-        let m = &subsurface.material;
         lines.push(format!(
-            "subsurface:   ior {}, absorption {:?}, reduced scattering {:?} per mm, {} mm a \
-             unit; followed {:.4} units",
-            m.ior, m.absorption, m.reduced_scattering, m.mm_per_unit, subsurface.reach
+            "subsurface:   {}; followed {:.4} units",
+            subsurface.describe(),
+            subsurface.reach
         ));
     }
     if let Some(zonal) = glb::zonal::read_zonal(path)? {

@@ -16,15 +16,10 @@ pub(super) fn print_shaping_lines(baked: &pipeline::Baked) {
     }
     if let (Some(stored), Some(pass)) = (&baked.mesh.metadata.subsurface, &baked.report.subsurface)
     {
-        let m = &stored.material;
         eprintln!(
-            "subsurface: ior {}, absorption {:?} and reduced scattering {:?} per mm, {} mm a \
-             unit; light followed {:.4} scene units under the surface (all but {} of its \
-             reflectance), {} matrix entries a channel, built in {:.2} s",
-            m.ior,
-            m.absorption,
-            m.reduced_scattering,
-            m.mm_per_unit,
+            "subsurface: {}; light followed {:.4} scene units under the surface (all but {} \
+             of its reflectance), {} matrix entries a channel, built in {:.2} s",
+            stored.describe(),
             pass.reach,
             prt_gpu::bake::subsurface::TAIL,
             pass.entries,

@@ -7,11 +7,12 @@
 //! TRS; triangle lists, strips and fans (points and lines are skipped with a note); accessors of
 //! every component type, normalized or not, interleaved or sparse (`accessor`); the albedo
 //! `baseColorFactor × baseColorTexture × COLOR_0`, the texture averaged around each vertex
-//! (`albedo`). Skinned and morphing meshes are baked in their rest pose, with a note.
+//! (`albedo`); the materials' scattering volumes, for subsurface transfer (`volume`). Skinned and morphing meshes are baked in their rest pose, with a note.
 
 pub mod accessor;
 mod albedo;
 mod resource;
+pub mod volume;
 
 use std::path::Path;
 
@@ -33,6 +34,8 @@ const READABLE_EXTENSIONS: &[&str] = &[
     "KHR_materials_specular",
     "KHR_materials_transmission",
     "KHR_materials_volume",
+    "KHR_materials_volume_scatter",
+    "KHR_materials_diffuse_transmission",
     "KHR_materials_clearcoat",
     "KHR_materials_sheen",
     "KHR_lights_punctual",

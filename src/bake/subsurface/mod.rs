@@ -20,7 +20,10 @@
 //! The integral is a sparse matrix from vertices to vertices per channel, applied through the
 //! backend's gatherer (so the CPU and the GPU run the same operation) to the direct light and,
 //! interreflected, to each bounce's light as it arrives: as in Direct3D's sequence, the
-//! bounces gather the scattered light, and what they bring scatters in turn.
+
+mod medium;
+
+pub use medium::*;
 
 use std::collections::HashMap;
 use std::f64::consts::PI;
@@ -32,11 +35,10 @@ use serde::{Deserialize, Serialize};
 use super::backend::Backend;
 use super::bounce::GatherMatrix;
 use crate::error::{Error, Result};
+use crate::scene::gltf::volume::SceneVolumes;
 use crate::scene::joined::Joined;
+use crate::scene::prepare::DROPPED;
 use crate::scene::Scene;
-
-/// The fraction of the total diffuse reflectance the cut-off at the reach may leave out.
-pub const TAIL: f64 = 1e-2;
 
 /// The most matrix entries (per channel) a subsurface bake builds.
 pub const MAX_ENTRIES: usize = 1 << 25;
@@ -47,192 +49,6 @@ pub const MAX_STEPS: usize = 8;
 
 /// The most lattice points the triangles get besides the vertices.
 pub const MAX_POINTS: usize = 1 << 22;
-
-/// A homogeneous translucent medium: its index of refraction relative to the outside, and its
-/// absorption and reduced scattering coefficients per colour channel, per millimetre;
-/// `mm_per_unit` says how many millimetres a scene unit is.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SubsurfaceMaterial {
-    pub ior: f32,
-    pub absorption: [f32; 3],
-    pub reduced_scattering: [f32; 3],
-    pub mm_per_unit: f32,
-}
-
-/// Measured media (Jensen et al. 2001, figure 5: `sigma_s'` and `sigma_a` in mm^-1, R G B),
-/// with the index of refraction the paper uses for them (1.3; 1.5 for marble).
-pub const PRESETS: [(&str, SubsurfaceMaterial); 7] = [
-    (
-        "apple",
-        preset(1.3, [0.0030, 0.0034, 0.046], [2.29, 2.39, 1.97]),
-    ),
-    (
-        "ketchup",
-        preset(1.3, [0.061, 0.97, 1.45], [0.18, 0.07, 0.03]),
-    ),
-    (
-        "marble",
-        preset(1.5, [0.0021, 0.0041, 0.0071], [2.19, 2.62, 3.00]),
-    ),
-    (
-        "skim-milk",
-        preset(1.3, [0.0014, 0.0025, 0.0142], [0.70, 1.22, 1.90]),
-    ),
-    (
-        "skin1",
-        preset(1.3, [0.032, 0.17, 0.48], [0.74, 0.88, 1.01]),
-    ),
-    (
-        "skin2",
-        preset(1.3, [0.013, 0.070, 0.145], [1.09, 1.59, 1.79]),
-    ),
-    (
-        "whole-milk",
-        preset(1.3, [0.0011, 0.0024, 0.014], [2.55, 3.21, 3.77]),
-    ),
-];
-
-const fn preset(
-    ior: f32,
-    absorption: [f32; 3],
-    reduced_scattering: [f32; 3],
-) -> SubsurfaceMaterial {
-    SubsurfaceMaterial {
-        ior,
-        absorption,
-        reduced_scattering,
-        mm_per_unit: 1000.0,
-    }
-}
-
-impl SubsurfaceMaterial {
-    /// The preset named `name`.
-    pub fn preset(name: &str) -> Option<SubsurfaceMaterial> {
-        PRESETS.iter().find(|(n, _)| *n == name).map(|(_, m)| *m)
-    }
-
-    /// Refuses a medium the dipole does not describe: an index of refraction outside
-    /// [1, 3], negative or non-finite coefficients, a channel with neither absorption nor
-    /// scattering, a scale that is not a positive length.
-    pub fn validate(&self) -> Result<()> {
-        let refuse = |why: String| Err(Error::Options(format!("--subsurface: {why}")));
-        if !(1.0..=3.0).contains(&self.ior) {
-            return refuse(format!("index of refraction {} (1 to 3)", self.ior));
-        }
-        let coefficients = self.absorption.iter().chain(&self.reduced_scattering);
-        if !coefficients.into_iter().all(|c| c.is_finite() && *c >= 0.0) {
-            return refuse("absorption and scattering must be finite and not negative".into());
-        }
-        if (0..3).any(|c| self.absorption[c] + self.reduced_scattering[c] <= 0.0) {
-            return refuse("every channel needs absorption or scattering (or both)".into());
-        }
-        if !(self.mm_per_unit.is_finite() && self.mm_per_unit > 0.0) {
-            return refuse(format!(
-                "{} mm per scene unit: the scale must be a positive length",
-                self.mm_per_unit
-            ));
-        }
-        Ok(())
-    }
-
-    /// The dipole of channel `c`, its lengths in scene units.
-    pub fn dipole(&self, c: usize) -> Dipole {
-        let per_unit = self.mm_per_unit as f64;
-        Dipole::new(
-            self.ior as f64,
-            self.absorption[c] as f64 * per_unit,
-            self.reduced_scattering[c] as f64 * per_unit,
-        )
-    }
-}
-
-/// The dipole diffusion profile of one channel (Jensen et al. 2001, eq. 4 and 5).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Dipole {
-    /// The reduced albedo `sigma_s' / sigma_t'`.
-    pub albedo: f64,
-    /// The effective transport coefficient `sqrt(3 sigma_a sigma_t')`.
-    pub sigma_tr: f64,
-    /// Depths of the real and the virtual source.
-    pub z_real: f64,
-    pub z_virtual: f64,
-}
-
-impl Dipole {
-    pub fn new(ior: f64, absorption: f64, reduced_scattering: f64) -> Dipole {
-        let sigma_t = absorption + reduced_scattering;
-        // Diffuse Fresnel reflectance (Egan and Hilgeman's fit) and the boundary term A.
-        let fdr = -1.440 / (ior * ior) + 0.710 / ior + 0.668 + 0.0636 * ior;
-        let boundary = (1.0 + fdr) / (1.0 - fdr);
-        let z_real = 1.0 / sigma_t;
-        Dipole {
-            albedo: reduced_scattering / sigma_t,
-            sigma_tr: (3.0 * absorption * sigma_t).sqrt(),
-            z_real,
-            z_virtual: z_real * (1.0 + 4.0 * boundary / 3.0),
-        }
-    }
-
-    /// `R_d(r)`: exitance at distance `r` per unit incident flux.
-    pub fn profile(&self, r: f64) -> f64 {
-        let term = |z: f64| {
-            let d = (r * r + z * z).sqrt();
-            z * (1.0 + self.sigma_tr * d) * (-self.sigma_tr * d).exp() / (d * d * d)
-        };
-        self.albedo / (4.0 * PI) * (term(self.z_real) + term(self.z_virtual))
-    }
-
-    /// `integral_0^r R_d(s) 2 pi s ds`, in closed form: with `d = sqrt(s^2 + z^2)`,
-    /// `z (1 + sigma d) e^(-sigma d) / d^3 s ds = -z d(e^(-sigma d) / d)`.
-    pub fn within(&self, r: f64) -> f64 {
-        let term = |z: f64| {
-            let d = (r * r + z * z).sqrt();
-            (-self.sigma_tr * z).exp() - z * (-self.sigma_tr * d).exp() / d
-        };
-        self.albedo / 2.0 * (term(self.z_real) + term(self.z_virtual))
-    }
-
-    /// The total diffuse reflectance, `within(infinity)`: at most 1, and 1 for a medium that
-    /// does not absorb.
-    pub fn total(&self) -> f64 {
-        let term = |z: f64| (-self.sigma_tr * z).exp();
-        self.albedo / 2.0 * (term(self.z_real) + term(self.z_virtual))
-    }
-
-    /// The smallest distance beyond which the plane's exitance is at most `tail` of the total
-    /// (bisection on [`Self::within`], to a part in a thousand).
-    pub fn reach(&self, tail: f64) -> f64 {
-        let total = self.total();
-        let enough = |r: f64| total - self.within(r) <= tail * total;
-        let mut high = self.z_virtual.max(1e-30);
-        while !enough(high) {
-            high *= 2.0;
-        }
-        let mut low = 0.0;
-        while high - low > 1e-3 * high {
-            let mid = 0.5 * (low + high);
-            if enough(mid) {
-                high = mid;
-            } else {
-                low = mid;
-            }
-        }
-        high
-    }
-
-    /// `R_d` averaged over the ring from `r - radius` to `r + radius` (the disc of `radius`
-    /// where `r <= radius`): what a point at distance `r` standing for a disc of that radius
-    /// receives per unit area.
-    pub fn ring_mean(&self, r: f64, radius: f64) -> f64 {
-        let (inner, outer) = ((r - radius).max(0.0), r + radius);
-        let area = PI * (outer * outer - inner * inner);
-        if area <= 0.0 {
-            return self.profile(r);
-        }
-        (self.within(outer) - self.within(inner)) / area
-    }
-}
 
 /// A surface point the integral runs over: where it is, the area it stands for, and how its
 /// irradiance transfer comes from the vertices (up to three, by barycentric weight).
@@ -247,20 +63,23 @@ struct SurfaceSample {
     piece: u32,
 }
 
-/// Each vertex's piece of `scene`: vertices joined by a triangle, or at the same position,
-/// are one piece (the vertices a mesh splits along a crease stay one object; two objects that
-/// only touch, or come close, are two).
-fn pieces(scene: &Scene) -> Vec<u32> {
+/// Each vertex's piece of `scene`: vertices in one medium (`of_vertex`) joined by a triangle,
+/// or at the same position, are one piece (the vertices a mesh splits along a crease stay one
+/// object; two objects that only touch, or come close, are two, and so are two media that
+/// share an edge).
+fn pieces(scene: &Scene, of_vertex: &[u32]) -> Vec<u32> {
     let mut sets = Joined::new(scene.vertex_count());
     for t in &scene.triangles {
-        sets.join(t[0], t[1]);
-        sets.join(t[0], t[2]);
+        for other in [t[1], t[2]] {
+            if of_vertex[t[0] as usize] == of_vertex[other as usize] {
+                sets.join(t[0], other);
+            }
+        }
     }
-    let mut first_at: HashMap<[u32; 3], u32> = HashMap::new();
+    let mut first_at: HashMap<([u32; 3], u32), u32> = HashMap::new();
     for (v, p) in scene.positions.iter().enumerate() {
-        let first = *first_at
-            .entry(p.to_array().map(f32::to_bits))
-            .or_insert(v as u32);
+        let key = (p.to_array().map(f32::to_bits), of_vertex[v]);
+        let first = *first_at.entry(key).or_insert(v as u32);
         sets.join(first, v as u32);
     }
     (0..scene.vertex_count() as u32)
@@ -268,16 +87,20 @@ fn pieces(scene: &Scene) -> Vec<u32> {
         .collect()
 }
 
-/// The points of `scene` about `spacing` apart: every vertex, and on each triangle with an edge
-/// longer than `spacing`, a lattice of up to [`MAX_STEPS`] steps per edge. Each lattice point
-/// stands for a third of the area of the lattice's sub-triangles it is a corner of; the
-/// corners' shares go to the vertices.
-fn surface_samples(scene: &Scene, spacing: f64) -> Result<Vec<SurfaceSample>> {
+/// The points of `scene` about `spacing` apart (per medium; infinite where opaque): every
+/// vertex, and on each triangle with an edge longer than its medium's spacing, a lattice of up
+/// to [`MAX_STEPS`] steps per edge. Each lattice point stands for a third of the area of the
+/// lattice's sub-triangles it is a corner of; the corners' shares go to the vertices.
+fn surface_samples(
+    scene: &Scene,
+    (of_vertex, spacing): (&[u32], &dyn Fn(u32) -> f64),
+) -> Result<Vec<SurfaceSample>> {
     let position = |v: u32| scene.positions[v as usize].as_dvec3();
-    let piece = pieces(scene);
+    let piece = pieces(scene, of_vertex);
     let mut vertex_area = vec![0.0f64; scene.vertex_count()];
     let mut lattice = Vec::new();
     for &corners in &scene.triangles {
+        let spacing = spacing(of_vertex[corners[0] as usize]);
         let [a, b, c] = corners.map(position);
         let area = 0.5 * (b - a).cross(c - a).length();
         let longest = [(b - a), (c - b), (a - c)]
@@ -339,28 +162,60 @@ fn lattice_touching(i: usize, j: usize, steps: usize) -> f64 {
     count as f64
 }
 
-/// The subsurface matrices of `scene` for `material`, one per channel: row `p`, column `j`,
-/// the weight of what vertex `j` would send back as a white diffuse surface in what vertex
-/// `p` sends back through the medium ([`Scatter::apply`]). Also the reach it cut at.
+/// A vertex in no medium: an opaque diffuse surface, its own albedo.
+pub const OPAQUE: u32 = u32::MAX;
+
+/// One medium's profiles, how far they reach, and the spacing of the points its surface
+/// needs (a quarter of its shortest diffusion length).
+struct MediumProfiles {
+    dipoles: [Dipole; 3],
+    reach: f64,
+    spacing: f64,
+}
+
+impl MediumProfiles {
+    fn new(material: &SubsurfaceMaterial) -> Result<MediumProfiles> {
+        material.validate()?;
+        let dipoles: [Dipole; 3] = std::array::from_fn(|c| material.dipole(c));
+        let reach = dipoles.iter().map(|d| d.reach(TAIL)).fold(0.0, f64::max);
+        let diffusion_length = dipoles
+            .iter()
+            .map(|d| {
+                if d.sigma_tr > 0.0 {
+                    1.0 / d.sigma_tr
+                } else {
+                    d.z_virtual
+                }
+            })
+            .fold(f64::INFINITY, f64::min)
+            .min(reach);
+        Ok(MediumProfiles {
+            dipoles,
+            reach,
+            spacing: 0.25 * diffusion_length,
+        })
+    }
+}
+
+/// The subsurface matrices of `scene`, its vertices in `media` (`of_vertex` indexes them, or
+/// is [`OPAQUE`]), one per channel: row `p`, column `j`, the weight of what vertex `j` would
+/// send back as a white diffuse surface in what vertex `p` sends back through its medium
+/// ([`Scatter::apply`]); an opaque vertex's row is its own albedo. Also the farthest reach
+/// it cut at.
 pub fn subsurface_matrices(
     scene: &Scene,
-    material: &SubsurfaceMaterial,
+    (media, of_vertex): (&[SubsurfaceMaterial], &[u32]),
 ) -> Result<([GatherMatrix; 3], f64)> {
-    material.validate()?;
-    let dipoles: [Dipole; 3] = std::array::from_fn(|c| material.dipole(c));
-    let reach = dipoles.iter().map(|d| d.reach(TAIL)).fold(0.0, f64::max);
-    let diffusion_length = dipoles
+    let profiles = media
         .iter()
-        .map(|d| {
-            if d.sigma_tr > 0.0 {
-                1.0 / d.sigma_tr
-            } else {
-                d.z_virtual
-            }
-        })
-        .fold(f64::INFINITY, f64::min)
-        .min(reach);
-    let samples = surface_samples(scene, 0.25 * diffusion_length)?;
+        .map(MediumProfiles::new)
+        .collect::<Result<Vec<_>>>()?;
+    let reach = profiles.iter().map(|p| p.reach).fold(0.0, f64::max);
+    let spacing = |medium: u32| match profiles.get(medium as usize) {
+        Some(profiles) => profiles.spacing,
+        None => f64::INFINITY,
+    };
+    let samples = surface_samples(scene, (of_vertex, &spacing))?;
     let grid = PointGrid::new(&samples, reach);
     // Counted as the rows are made, so a matrix too big to hold stops being built.
     let entries = std::sync::atomic::AtomicUsize::new(0);
@@ -368,12 +223,17 @@ pub fn subsurface_matrices(
         .positions
         .par_iter()
         .zip(&samples[..scene.vertex_count()])
-        .map(|(receiver, own)| {
+        .enumerate()
+        .map(|(v, (receiver, own))| {
             if entries.load(std::sync::atomic::Ordering::Relaxed) > MAX_ENTRIES {
                 return Vec::new();
             }
+            let Some(medium) = profiles.get(of_vertex[v] as usize) else {
+                return vec![(v as u32, scene.albedo[v].to_array())];
+            };
             let receiver = (receiver.as_dvec3(), own.piece);
-            let row = subsurface_row(receiver, &samples, &grid, (&dipoles, reach));
+            let profile = (&medium.dipoles, medium.reach);
+            let row = subsurface_row(receiver, &samples, &grid, profile);
             entries.fetch_add(row.len(), std::sync::atomic::Ordering::Relaxed);
             row
         })
@@ -492,6 +352,74 @@ impl PointGrid {
     }
 }
 
+/// A glTF material's medium, as the file's metadata records it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MaterialMedium {
+    /// The index of the glTF material it is the volume of.
+    pub material: usize,
+    #[serde(flatten)]
+    pub medium: SubsurfaceMaterial,
+}
+
+/// The media of a scene's own materials (a glTF scene's scattering volumes), and per vertex
+/// of the scene as loaded, its index among them or [`OPAQUE`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneMedia {
+    pub media: Vec<MaterialMedium>,
+    pub of_vertex: Vec<u32>,
+}
+
+impl SceneMedia {
+    /// The media `volumes` describe (`None` where none does), and a line for each volume
+    /// that describes none, saying why.
+    pub fn of_volumes(volumes: &SceneVolumes) -> (Option<SceneMedia>, Vec<String>) {
+        let mut media = Vec::new();
+        let mut notes = Vec::new();
+        let renumbered: Vec<u32> = volumes
+            .volumes
+            .iter()
+            .map(|volume| match SubsurfaceMaterial::of_volume(volume) {
+                Ok(medium) => {
+                    media.push(MaterialMedium {
+                        material: volume.material,
+                        medium,
+                    });
+                    media.len() as u32 - 1
+                }
+                Err(why) => {
+                    notes.push(format!("material {} is baked opaque: {why}", volume.label));
+                    OPAQUE
+                }
+            })
+            .collect();
+        let of_vertex = volumes
+            .of_vertex
+            .iter()
+            .map(|&v| renumbered.get(v as usize).copied().unwrap_or(OPAQUE))
+            .collect();
+        let found = (!media.is_empty()).then_some(SceneMedia { media, of_vertex });
+        (found, notes)
+    }
+
+    /// The medium of each of the `vertices` of the prepared scene, `map` giving the prepared
+    /// vertex each loaded one became ([`DROPPED`] where none): a prepared vertex welded from
+    /// vertices in two media takes the first's.
+    pub fn on_prepared(&self, map: &[u32], vertices: usize) -> Vec<u32> {
+        let mut of_prepared = vec![OPAQUE; vertices];
+        for (&prepared, &medium) in map.iter().zip(&self.of_vertex) {
+            if prepared != DROPPED && of_prepared[prepared as usize] == OPAQUE {
+                of_prepared[prepared as usize] = medium;
+            }
+        }
+        of_prepared
+    }
+
+    /// The media, in the order `of_vertex` indexes them.
+    pub fn materials(&self) -> Vec<SubsurfaceMaterial> {
+        self.media.iter().map(|m| m.medium).collect()
+    }
+}
+
 /// What a subsurface pass did: how far it followed the light, the matrix entries per
 /// channel, its seconds.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -511,9 +439,11 @@ pub struct Scatter {
 }
 
 impl Scatter {
-    pub fn new(scene: &Scene, material: &SubsurfaceMaterial) -> Result<Scatter> {
+    /// The scattering of `scene`'s vertices in `media` (`of_vertex` indexes them, or is
+    /// [`OPAQUE`]).
+    pub fn new(scene: &Scene, media: (&[SubsurfaceMaterial], &[u32])) -> Result<Scatter> {
         let started = std::time::Instant::now();
-        let (matrices, reach) = subsurface_matrices(scene, material)?;
+        let (matrices, reach) = subsurface_matrices(scene, media)?;
         let only = std::array::from_fn(|c| {
             let mut unit = Vec3::ZERO;
             unit[c] = 1.0;
@@ -550,69 +480,6 @@ impl Scatter {
 mod tests {
     use super::*;
 
-    fn media() -> [Dipole; 3] {
-        [
-            Dipole::new(1.3, 0.032, 0.74),
-            Dipole::new(1.5, 0.0, 2.0),
-            Dipole::new(1.0, 1.0, 0.1),
-        ]
-    }
-
-    /// The closed form of the profile's integral is the integral (against a midpoint rule),
-    /// its limit is Jensen's total diffuse reflectance, which is 1 without absorption, and the
-    /// reach leaves out what it says.
-    #[test]
-    fn the_profiles_integral_is_its_closed_form() {
-        for dipole in media() {
-            let r_max = 20.0 * dipole.z_virtual;
-            let steps = 200_000;
-            let dr = r_max / steps as f64;
-            let numeric: f64 = (0..steps)
-                .map(|i| {
-                    let r = (i as f64 + 0.5) * dr;
-                    dipole.profile(r) * 2.0 * PI * r * dr
-                })
-                .sum();
-            let closed = dipole.within(r_max);
-            assert!(
-                (numeric - closed).abs() < 1e-6 * closed.max(1e-3),
-                "{numeric} against {closed}"
-            );
-            let one_minus = (3.0 * (1.0 - dipole.albedo)).sqrt();
-            let boundary = (dipole.z_virtual / dipole.z_real - 1.0) * 3.0 / 4.0;
-            let jensen = dipole.albedo / 2.0
-                * (1.0 + (-4.0 / 3.0 * boundary * one_minus).exp())
-                * (-one_minus).exp();
-            assert!(
-                (dipole.total() - jensen).abs() < 1e-12,
-                "{} against {jensen}",
-                dipole.total()
-            );
-            assert!(dipole.total() <= 1.0);
-            let reach = dipole.reach(TAIL);
-            let left = dipole.total() - dipole.within(reach);
-            assert!(left <= TAIL * dipole.total() * (1.0 + 1e-9), "{left}");
-            assert!(dipole.total() - dipole.within(0.99 * reach) > 0.9 * TAIL * dipole.total());
-        }
-        assert!(
-            (media()[1].total() - 1.0).abs() < 1e-12,
-            "no absorption returns everything"
-        );
-    }
-
-    /// A ring's mean times its area is the profile's integral over it; the disc about a point
-    /// holds what is within its radius.
-    #[test]
-    fn ring_means_integrate_the_profile() {
-        let dipole = media()[0];
-        for (r, radius) in [(0.0f64, 0.5f64), (0.2, 0.5), (3.0, 0.25)] {
-            let (inner, outer) = ((r - radius).max(0.0), r + radius);
-            let area = PI * (outer * outer - inner * inner);
-            let mass = dipole.ring_mean(r, radius) * area;
-            assert!((mass - (dipole.within(outer) - dipole.within(inner))).abs() < 1e-12);
-        }
-    }
-
     /// Every lattice has `3 steps^2` corner incidences: the sub-triangles' areas are shared
     /// out whole, and so a triangle's samples (and a mesh's) stand for all of its area.
     #[test]
@@ -629,7 +496,8 @@ mod tests {
         let scene = crate::scene::builtin::icosphere(Vec3::ZERO, 1.0, 2);
         let area: f64 = crate::receivers::triangle_areas(&scene).iter().sum();
         for spacing in [10.0, 0.3, 0.05] {
-            let samples = surface_samples(&scene, spacing).unwrap();
+            let one_medium = vec![0; scene.vertex_count()];
+            let samples = surface_samples(&scene, (&one_medium, &|_| spacing)).unwrap();
             let total: f64 = samples.iter().map(|s| s.area).sum();
             assert!(
                 (total - area).abs() < 1e-6 * area,

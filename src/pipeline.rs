@@ -402,8 +402,7 @@ pub fn plan_memory(
 
 /// The media of `gltf`'s scattering volumes (`scene` as `gltf::load` made it), where `spec`
 /// bakes subsurface transfer from them: not where `--subsurface` gives the whole scene one
-/// medium, nor in a lightmap or one channel (the materials are then baked opaque, with a
-/// note). `notes` get a line for each volume left opaque.
+/// medium, nor in one channel (the materials are then baked opaque, with a note). `notes` get a line for each volume left opaque.
 fn scene_media(
     spec: &BakeSpec,
     (scene, gltf): (&Scene, &GltfScene),
@@ -417,13 +416,8 @@ fn scene_media(
     let (media, opaque) = SceneMedia::of_volumes(&volumes);
     notes.extend(opaque);
     let media = media?;
-    let why_not = if spec.receivers.lightmap.is_some() {
-        Some("subsurface transfer is computed at the vertices, and --lightmap bakes texels")
-    } else if spec.storage.channels == bake::Storage::Lean {
-        Some("--storage lean keeps one channel, and each colour scatters as far as its own")
-    } else {
-        None
-    };
+    let why_not = (spec.storage.channels == bake::Storage::Lean)
+        .then_some("--storage lean keeps one channel, and each colour scatters as far as its own");
     let labels: Vec<&str> = volumes
         .volumes
         .iter()

@@ -353,17 +353,14 @@ impl BakeSpec {
         self.check_probes()
     }
 
-    /// Subsurface scattering: a valid medium, transfer at the vertices, stored RGB (its colour
-    /// is the medium's, per channel).
+    /// Subsurface scattering: a valid medium, stored RGB (its colour is the medium's, per
+    /// channel).
     fn check_subsurface(&self) -> Result<()> {
         let Some(material) = &self.transfer.subsurface else {
             return Ok(());
         };
         material.validate()?;
         let refuse = |why: &str| Err(Error::Options(format!("--subsurface {why}")));
-        if self.receivers.lightmap.is_some() {
-            return refuse("with --lightmap: subsurface transfer is computed at the vertices");
-        }
         if self.storage.channels == Storage::Lean {
             return refuse(
                 "with --storage lean: subsurface transfer is RGB (each channel scatters as far \

@@ -268,20 +268,6 @@ fn bad_subsurface_options_are_refused_in_one_line() {
             expect: "--subsurface with --storage lean",
         },
         BadInput {
-            case: "lightmap",
-            file: None,
-            args: &[
-                "bake",
-                "--subsurface",
-                "marble",
-                "--lightmap",
-                "64",
-                "-o",
-                "o.glb",
-            ],
-            expect: "--subsurface with --lightmap",
-        },
-        BadInput {
             case: "negative absorption",
             file: None,
             args: &[
@@ -621,4 +607,163 @@ fn the_command_line_bakes_a_scenes_translucent_materials() {
         stderr.contains("\"wax\") baked opaque: --storage lean keeps one channel"),
         "{stderr}"
     );
+}
+
+/// Radiance under `light` of a bake's lightmap, texel by texel.
+fn texel_radiance(baked: &pipeline::Baked, light: &ShLight) -> Vec<[f32; 3]> {
+    let lightmap = baked.mesh.lightmap.as_ref().expect("a lightmap");
+    compress::radiance(&lightmap.transfer, light)
+}
+
+/// Lightmap texels in a medium whose light goes nowhere (a diffusion length of 10^-4 units,
+/// texels about 10^-1 wide) each send back their own irradiance times the medium's total
+/// diffuse reflectance: the plain lightmap with that albedo, its shadows as sharp.
+#[test]
+fn a_lightmap_in_a_medium_whose_light_goes_nowhere_is_the_plain_one_with_its_albedo() {
+    let material = medium([1e3, 3e3, 1e4], [1e4; 3]);
+    let albedo: [f32; 3] = std::array::from_fn(|c| material.dipole(c).total() as f32);
+    let mut scattered_spec = spec(Mode::Shadowed, Some(material));
+    scattered_spec.receivers.lightmap = Some(64);
+    let scattered = bake(&scattered_spec, builtin::default_scene(), &CpuBackend);
+    let mut plain_spec = spec(Mode::Shadowed, None);
+    plain_spec.receivers.lightmap = Some(64);
+    plain_spec.transfer.albedo = Some(albedo);
+    let plain = bake(&plain_spec, builtin::default_scene(), &CpuBackend);
+    let light = prt_gpu::light::preview_light(BANDS).unwrap();
+    let error = radiance_error(
+        &texel_radiance(&plain, &light),
+        &texel_radiance(&scattered, &light),
+    );
+    eprintln!("texels against the plain lightmap with the medium's albedo: {error:.2e}");
+    assert!(error < 1e-5, "{error}");
+}
+
+/// A 1 mm slab lit only from below glows on its top in its lightmap as at its vertices: the
+/// lightmap looked up at the top's vertices gives what they give, within 5% on average, and
+/// no texel sends back more than a white sky would.
+#[test]
+fn a_lightmap_in_a_medium_glows_like_the_vertices() {
+    let material = medium([0.05; 3], [1.0; 3]);
+    let mut thin = spec(Mode::Shadowed, Some(material));
+    thin.receivers.lightmap = Some(96);
+    let baked = bake(&thin, slab(40.0, 1.0, 20), &CpuBackend);
+    let below = analytic::hemisphere(BANDS, [0.0; 3], [1.0; 3]).unwrap();
+    let texels = texel_radiance(&baked, &below);
+    let lightmap = baked.mesh.lightmap.as_ref().unwrap();
+    let flat: Vec<f32> = texels.iter().flatten().copied().collect();
+    let vertices = compress::radiance(&baked.mesh.transfer, &below);
+    let top = top_vertices(&baked.mesh.scene, 14.0);
+    let (mut from_texels, mut from_vertices) = (0.0f64, 0.0f64);
+    for &v in &top {
+        let uv = lightmap.texcoords[v];
+        let looked_up =
+            prt_gpu::bake::texels::sample_bilinear(&flat, 3, lightmap.width, lightmap.height, uv);
+        from_texels += looked_up[1] as f64;
+        from_vertices += vertices[v][1] as f64;
+    }
+    let (from_texels, from_vertices) = (
+        from_texels / top.len() as f64,
+        from_vertices / top.len() as f64,
+    );
+    eprintln!("top under light from below: texels {from_texels:.4}, vertices {from_vertices:.4}");
+    assert!(from_vertices > 0.05, "{from_vertices}");
+    assert!(
+        (from_texels - from_vertices).abs() < 0.05 * from_vertices,
+        "{from_texels} against {from_vertices}"
+    );
+    let sky = ShLight::constant(BANDS, [1.0; 3]);
+    let most = texel_radiance(&baked, &sky)
+        .iter()
+        .flatten()
+        .fold(0.0f32, |a, &b| a.max(b));
+    assert!(most <= 1.0 + 1e-3, "{most}");
+}
+
+/// The texels' scattering runs through the backend's gather too: CPU and GPU give the same
+/// lightmap, interreflected, in a scene half translucent.
+#[test]
+fn cpu_and_gpu_agree_on_a_lightmap_in_a_medium() {
+    let material = medium([0.05, 0.1, 0.2], [1.0, 0.8, 0.6]);
+    let mut spec = spec(Mode::Interreflected, Some(material));
+    spec.receivers.lightmap = Some(48);
+    let light = prt_gpu::light::preview_light(BANDS).unwrap();
+    let relit: Vec<Vec<[f32; 3]>> = backends()
+        .iter()
+        .map(|backend| {
+            let scene = builtin::merge(&[
+                slab(10.0, 2.0, 6),
+                builtin::closed_box(Vec3::new(-5.0, 1.0, -5.0), Vec3::new(5.0, 3.0, 5.0), 6),
+            ]);
+            texel_radiance(&bake(&spec, scene, backend.as_ref()), &light)
+        })
+        .collect();
+    for other in &relit[1..] {
+        let error = radiance_error(&relit[0], other);
+        assert!(error < 1e-5, "{error}");
+    }
+}
+
+/// In a scene whose own materials put one part in a medium, the opaque part's texels are the
+/// plain lightmap's: looked up at its vertices, the same to float rounding.
+#[test]
+fn opaque_parts_of_a_translucent_scene_keep_their_plain_texels() {
+    use prt_gpu::bake::subsurface::{MaterialMedium, SceneMedia, OPAQUE};
+    use prt_gpu::bake::BakeOptions;
+    let translucent = slab(10.0, 2.0, 6);
+    let opaque = builtin::closed_box(Vec3::new(6.0, -2.0, -2.0), Vec3::new(10.0, 2.0, 2.0), 6);
+    let scene = builtin::merge(&[translucent.clone(), opaque]);
+    let of_vertex = (0..scene.vertex_count())
+        .map(|v| {
+            if v < translucent.vertex_count() {
+                0
+            } else {
+                OPAQUE
+            }
+        })
+        .collect();
+    let medium = MaterialMedium {
+        material: 0,
+        medium: medium([0.05, 0.1, 0.2], [1.0, 0.8, 0.6]),
+    };
+    let plain = BakeOptions {
+        samples: 64,
+        bands: BANDS,
+        lightmap: Some(64),
+        ..BakeOptions::default()
+    };
+    let in_media = BakeOptions {
+        scene_media: Some(SceneMedia {
+            media: vec![medium],
+            of_vertex,
+        }),
+        ..plain.clone()
+    };
+    let light = prt_gpu::light::preview_light(BANDS).unwrap();
+    let at_box_vertices = |options: &BakeOptions| {
+        let (baked, _) =
+            prt_gpu::bake::bake(scene.clone(), options, &CpuBackend, &NoProgress).unwrap();
+        let lightmap = baked.lightmap.as_ref().unwrap();
+        let texels: Vec<f32> = compress::radiance(&lightmap.transfer, &light)
+            .into_iter()
+            .flatten()
+            .collect();
+        let (width, height) = (lightmap.width, lightmap.height);
+        (0..baked.scene.vertex_count())
+            .filter(|&v| baked.scene.positions[v].x >= 6.0)
+            .map(|v| {
+                let looked_up = prt_gpu::bake::texels::sample_bilinear(
+                    &texels,
+                    3,
+                    width,
+                    height,
+                    lightmap.texcoords[v],
+                );
+                [looked_up[0], looked_up[1], looked_up[2]]
+            })
+            .collect::<Vec<[f32; 3]>>()
+    };
+    let (expected, got) = (at_box_vertices(&plain), at_box_vertices(&in_media));
+    assert!(expected.len() > 50, "{}", expected.len());
+    let error = radiance_error(&expected, &got);
+    assert!(error < 1e-5, "{error}");
 }

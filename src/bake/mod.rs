@@ -210,12 +210,16 @@ pub fn bake_from(
         fit_report,
         seconds_fit,
         subsurface,
+        scattered,
     } = fitted;
     let (transfer, albedo_free) = stored(transfer, &direct.scalar, scene, points, options)?;
     let scene = std::mem::take(&mut planned.scene);
     let (scene, transfer, lightmap, texel_report) = match &atlas {
         None => (scene, transfer, None, None),
-        Some(atlas) => add_lightmap(scene, transfer, atlas, set, options, backend, progress)?,
+        Some(atlas) => {
+            let at = (atlas, set, scattered.as_ref());
+            add_lightmap(scene, transfer, at, options, backend, progress)?
+        }
     };
     let fit_points = (options.fit == Fit::LeastSquares).then_some(planned.points.len() as u32);
     let samples_used = planned.inputs.samples.len();
@@ -364,8 +368,7 @@ fn stored(
 fn add_lightmap(
     scene: Scene,
     transfer: Transfer,
-    atlas: &receivers::atlas::Atlas,
-    set: Option<u32>,
+    (atlas, set, scattered): (&receivers::atlas::Atlas, Option<u32>, Option<&Scattered>),
     options: &BakeOptions,
     backend: &dyn Backend,
     progress: &dyn Progress,
@@ -375,8 +378,14 @@ fn add_lightmap(
     Option<TexelBake>,
     Option<texels::TexelReport>,
 )> {
+    let at = (&scene, &transfer, atlas);
+    let scatter = scattered.map(|s| subsurface::PointScatter {
+        media: &s.materials,
+        of_vertex: &s.of_vertex,
+        incoming: &s.incoming,
+    });
     let (mut lightmap, report) =
-        texels::bake_atlas(&scene, &transfer, options, atlas, backend, progress)?;
+        texels::bake_atlas_in(at, scatter.as_ref(), options, backend, progress)?;
     lightmap.set = set.unwrap_or(0);
     let (scene, transfer) = match set {
         None => texels::split_corners(&scene, &transfer),
@@ -411,7 +420,17 @@ fn vertex_transfer(
     };
     // In a translucent medium, the receivers reflect as white diffuse surfaces, and the
     // medium's scattering, from vertex to vertex, replaces their albedo.
-    let scatter = scatter_of(scene, vertex_map, options)?;
+    let media = media_of(scene, vertex_map, options);
+    let scatter = match &media {
+        Some((materials, of_vertex)) => {
+            Some(subsurface::Scatter::new(scene, (materials, of_vertex))?)
+        }
+        None => None,
+    };
+    // What arrives at the vertices, summed over the direct light and the bounces: a
+    // lightmap's texels scatter it too.
+    let mut incoming: Option<Vec<f32>> = None;
+    let keep_incoming = options.lightmap.is_some();
     let white;
     let albedo = match scatter {
         Some(_) => {
@@ -423,10 +442,16 @@ fn vertex_transfer(
     let bands = options.bands;
     let mut to_vertices = |values: Vec<f32>| -> Result<Vec<f32>> {
         let values = to_vertices(values)?;
-        match &scatter {
-            Some(scatter) => scatter.apply(&values, bands, backend),
-            None => Ok(values),
+        let Some(scatter) = &scatter else {
+            return Ok(values);
+        };
+        if keep_incoming {
+            match &mut incoming {
+                Some(sum) => sum.iter_mut().zip(&values).for_each(|(s, v)| *s += v),
+                None => incoming = Some(values.clone()),
+            }
         }
+        scatter.apply(&values, bands, backend)
     };
     let at_receivers = tint_by_albedo(&direct.scalar, albedo, options.bands);
     let mut transfer = Transfer::new(
@@ -453,36 +478,44 @@ fn vertex_transfer(
         None => Vec::new(),
     };
     let subsurface = scatter.map(|scatter| scatter.report);
+    let scattered = media
+        .zip(incoming)
+        .map(|((materials, of_vertex), incoming)| Scattered {
+            materials,
+            of_vertex,
+            incoming,
+        });
     Ok(VertexTransfer {
         transfer,
         bounces,
         fit_report,
         seconds_fit,
         subsurface,
+        scattered,
     })
 }
 
-/// The scattering of the prepared `scene` in the medium the options give it, or in its own
-/// materials' (`vertex_map` giving the prepared vertex each loaded one became); `None` where
-/// it has neither.
-fn scatter_of(
+/// The media of the prepared `scene`'s vertices: the one the options give it, or its own
+/// materials' (`vertex_map` giving the prepared vertex each loaded one became), and each
+/// vertex's index among them or [`subsurface::OPAQUE`]; `None` where it has neither.
+fn media_of(
     scene: &Scene,
     vertex_map: &[u32],
     options: &BakeOptions,
-) -> Result<Option<subsurface::Scatter>> {
+) -> Option<(Vec<subsurface::SubsurfaceMaterial>, Vec<u32>)> {
     let vertices = scene.vertex_count();
-    let scatter = match (&options.subsurface, &options.scene_media) {
-        (Some(material), _) => {
-            let everywhere = vec![0; vertices];
-            subsurface::Scatter::new(scene, (std::slice::from_ref(material), &everywhere))?
-        }
-        (None, Some(media)) => {
-            let of_vertex = media.on_prepared(vertex_map, vertices);
-            subsurface::Scatter::new(scene, (&media.materials(), &of_vertex))?
-        }
-        (None, None) => return Ok(None),
-    };
-    Ok(Some(scatter))
+    match (&options.subsurface, &options.scene_media) {
+        (Some(material), _) => Some((vec![*material], vec![0; vertices])),
+        (None, Some(media)) => Some((media.materials(), media.on_prepared(vertex_map, vertices))),
+        (None, None) => None,
+    }
+}
+
+/// What a lightmap's texels scatter: the vertices' media and the light arriving at them.
+struct Scattered {
+    materials: Vec<subsurface::SubsurfaceMaterial>,
+    of_vertex: Vec<u32>,
+    incoming: Vec<f32>,
 }
 
 /// What [`vertex_transfer`] made.
@@ -492,6 +525,8 @@ struct VertexTransfer {
     fit_report: Option<FitReport>,
     seconds_fit: f64,
     subsurface: Option<subsurface::SubsurfaceReport>,
+    /// Where a lightmap is baked in a medium: what its texels scatter.
+    scattered: Option<Scattered>,
 }
 
 /// The scene prepared for the bake, its albedo replaced where the options say so.

@@ -156,13 +156,6 @@ impl BakeOptions {
         if let Some(material) = &self.subsurface {
             material.validate()?;
         }
-        let translucent = self.subsurface.is_some() || self.scene_media.is_some();
-        if translucent && self.lightmap.is_some() {
-            return Err(Error::Options(
-                "--subsurface with --lightmap: subsurface transfer is computed at the vertices"
-                    .into(),
-            ));
-        }
         if self.bands == 0 || self.bands > MAX_BANDS {
             return Err(Error::Options(format!(
                 "--bands {} is out of range (1 to {MAX_BANDS})",

@@ -13,7 +13,7 @@ use std::time::Instant;
 use glam::{DVec2, Vec3};
 use rayon::prelude::*;
 
-use super::{bake_at_in, Backend, BakeOptions, Progress, TexelBake, Transfer};
+use super::{bake_at_in, subsurface, Backend, BakeOptions, Progress, TexelBake, Transfer};
 use crate::bvh::Bvh;
 use crate::error::Result;
 use crate::ray::{offset_ray_origin, Ray, RAY_T_MAX};
@@ -122,7 +122,30 @@ pub enum Seams {
 
 /// [`bake_atlas`] with its seams stitched or left as baked.
 pub fn bake_atlas_with_seams(
-    (scene, vertex_transfer, atlas): (&Scene, &Transfer, &Atlas),
+    at: (&Scene, &Transfer, &Atlas),
+    options: &BakeOptions,
+    backend: &dyn Backend,
+    progress: &dyn Progress,
+    stitching: Seams,
+) -> Result<(TexelBake, TexelReport)> {
+    let at = (at, None);
+    bake_atlas_scattering(at, options, backend, progress, stitching)
+}
+
+/// [`bake_atlas`], the texels in a translucent medium where `scatter` says (the surface
+/// scatters the light they receive, [`subsurface::PointScatter`]).
+pub fn bake_atlas_in(
+    at: (&Scene, &Transfer, &Atlas),
+    scatter: Option<&subsurface::PointScatter>,
+    options: &BakeOptions,
+    backend: &dyn Backend,
+    progress: &dyn Progress,
+) -> Result<(TexelBake, TexelReport)> {
+    bake_atlas_scattering((at, scatter), options, backend, progress, Seams::Stitched)
+}
+
+fn bake_atlas_scattering(
+    ((scene, vertex_transfer, atlas), scatter): TexelsOf,
     options: &BakeOptions,
     backend: &dyn Backend,
     progress: &dyn Progress,
@@ -137,12 +160,26 @@ pub fn bake_atlas_with_seams(
     keep_charts_with_no_valid_texel(atlas, &texels.points, &mut leaking);
     let at = (&receivers, bvh);
     // Texels to be denoised each turn their samples by their own angle, so that their errors
-    // are independent and the filter averages them out.
-    let turned = options.clone().with_turns(options.denoise);
+    // are independent and the filter averages them out. In a medium they receive as white
+    // surfaces, and the medium's scattering replaces their albedo.
+    let mut turned = options.clone().with_turns(options.denoise);
+    if scatter.is_some() {
+        turned.albedo = Some(Vec3::ONE);
+    }
     let casting = Instant::now();
     let (at_texels, rays_cast) =
         bake_at_in(scene, at, &turned, backend, Some(vertex_transfer), progress)?;
     let transfer_seconds = casting.elapsed().as_secs_f64();
+    let at_texels = match scatter {
+        Some(scatter) => {
+            let points = scatter_points((scene, atlas), &texels.points, &receivers, options);
+            let own = (at_texels.coeffs(), at_texels.bands());
+            let coeffs = scatter.at_points(scene, &points, own, backend)?;
+            Transfer::new(at_texels.bands(), 3, points.len(), coeffs)
+                .expect("one row of coefficients for every texel")
+        }
+        None => at_texels,
+    };
     let stride = at_texels.channels() as usize * at_texels.coeffs_per_channel();
     let mut image = texels.scatter(at_texels.coeffs(), stride)?;
     let mut valid = texels.valid_mask(&leaking)?;
@@ -219,6 +256,41 @@ pub fn bake_atlas_with_seams(
         .expect("one row of coefficients for every texel"),
     };
     Ok((bake, report))
+}
+
+/// A texel bake's scene, vertex transfer and atlas, and the medium its texels are in.
+type TexelsOf<'a> = (
+    (&'a Scene, &'a Transfer, &'a Atlas),
+    Option<&'a subsurface::PointScatter<'a>>,
+);
+
+/// The texels at `points` of `atlas` as points of the surface to scatter at: each stands for
+/// the disc of one texel's area in the scene (its triangle's area over its area in the atlas),
+/// its albedo the options' or the receivers'.
+fn scatter_points(
+    (scene, atlas): (&Scene, &Atlas),
+    points: &[SurfacePoint],
+    receivers: &Receivers,
+    options: &BakeOptions,
+) -> Vec<subsurface::ScatterPoint> {
+    points
+        .iter()
+        .enumerate()
+        .map(|(i, point)| {
+            let triangle = scene.triangles[point.triangle as usize];
+            let [a, b, c] = triangle.map(|v| scene.positions[v as usize].as_dvec3());
+            let area = 0.5 * (b - a).cross(c - a).length();
+            let [p, q, r] = atlas.corners[point.triangle as usize].map(|c| c.as_dvec2());
+            let texels = 0.5 * (q - p).perp_dot(r - p).abs();
+            let texel_area = if texels > 0.0 { area / texels } else { 0.0 };
+            subsurface::ScatterPoint {
+                position: receivers.positions[i],
+                vertex: triangle[0],
+                own_radius: (texel_area / std::f64::consts::PI).sqrt(),
+                albedo: options.albedo.unwrap_or(receivers.albedo[i]),
+            }
+        })
+        .collect()
 }
 
 /// Per texel of the atlas, the chart whose covered texels are nearest: gutter texels take the

@@ -276,12 +276,22 @@ impl Dipole {
     /// where `r <= radius`): what a point at distance `r` standing for a disc of that radius
     /// receives per unit area.
     pub fn ring_mean(&self, r: f64, radius: f64) -> f64 {
+        self.ring_mean_outside(r, radius, 0.0)
+    }
+
+    /// [`Self::ring_mean`] of the part of the ring outside the disc of radius `own` about the
+    /// receiver (whose light the receiver takes from its own irradiance): the ring's mass out
+    /// there, over the whole ring's area.
+    pub fn ring_mean_outside(&self, r: f64, radius: f64, own: f64) -> f64 {
         let (inner, outer) = ((r - radius).max(0.0), r + radius);
         let area = PI * (outer * outer - inner * inner);
+        if outer <= own {
+            return 0.0;
+        }
         if area <= 0.0 {
             return self.profile(r);
         }
-        (self.within(outer) - self.within(inner)) / area
+        (self.within(outer) - self.within(inner.max(own))) / area
     }
 }
 

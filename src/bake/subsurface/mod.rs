@@ -197,6 +197,145 @@ impl MediumProfiles {
     }
 }
 
+/// The surface a subsurface integral runs over: its media's profiles, its points (with each
+/// vertex's piece), a grid over them, and the farthest reach.
+struct Surface {
+    profiles: Vec<MediumProfiles>,
+    samples: Vec<SurfaceSample>,
+    grid: PointGrid,
+    reach: f64,
+}
+
+/// Where a row is made for: a point, its piece, its medium, and the radius of the disc about
+/// it whose light is its own (integrated exactly, the rest from the surface's points).
+#[derive(Clone, Copy, Debug)]
+struct RowReceiver {
+    position: DVec3,
+    piece: u32,
+    medium: u32,
+    own_radius: f64,
+}
+
+/// A receiver's row (per column: a vertex, and its weight per channel) and the weight of its
+/// own disc's light, per channel.
+type Row = (Vec<(u32, [f32; 3])>, [f32; 3]);
+
+impl Surface {
+    /// The surface of `scene`, its vertices in `media` (`of_vertex` indexes them, or is
+    /// [`OPAQUE`]).
+    fn new(scene: &Scene, (media, of_vertex): (&[SubsurfaceMaterial], &[u32])) -> Result<Surface> {
+        let profiles = media
+            .iter()
+            .map(MediumProfiles::new)
+            .collect::<Result<Vec<_>>>()?;
+        let reach = profiles.iter().map(|p| p.reach).fold(0.0, f64::max);
+        let spacing = |medium: u32| match profiles.get(medium as usize) {
+            Some(profiles) => profiles.spacing,
+            None => f64::INFINITY,
+        };
+        let samples = surface_samples(scene, (of_vertex, &spacing))?;
+        let grid = PointGrid::new(&samples, reach);
+        Ok(Surface {
+            profiles,
+            samples,
+            grid,
+            reach,
+        })
+    }
+
+    /// The piece vertex `v` lies on.
+    fn piece(&self, v: u32) -> u32 {
+        self.samples[v as usize].piece
+    }
+
+    /// The rows of `receivers`; `opaque(i)` the own weight (its albedo) of receiver `i` in no
+    /// medium. Stops, with the advice, as the rows pass [`MAX_ENTRIES`].
+    fn rows(
+        &self,
+        receivers: impl IndexedParallelIterator<Item = RowReceiver>,
+        opaque: impl Fn(usize) -> Row + Sync,
+    ) -> Result<Vec<Row>> {
+        // Counted as the rows are made, so a matrix too big to hold stops being built.
+        let entries = std::sync::atomic::AtomicUsize::new(0);
+        let rows: Vec<Row> = receivers
+            .enumerate()
+            .map(|(i, receiver)| {
+                if entries.load(std::sync::atomic::Ordering::Relaxed) > MAX_ENTRIES {
+                    return (Vec::new(), [0.0; 3]);
+                }
+                let Some(medium) = self.profiles.get(receiver.medium as usize) else {
+                    return opaque(i);
+                };
+                let row = self.row(receiver, medium);
+                entries.fetch_add(row.0.len(), std::sync::atomic::Ordering::Relaxed);
+                row
+            })
+            .collect();
+        if entries.into_inner() > MAX_ENTRIES {
+            return Err(Error::Options(format!(
+                "--subsurface: more than {MAX_ENTRIES} matrix entries: the light travels \
+                 {:.3e} scene units under the surface, through most of the mesh (a larger \
+                 --sss-mm-per-unit makes the object bigger and the way shorter)",
+                self.reach
+            )));
+        }
+        Ok(rows)
+    }
+
+    /// One receiver's row: every sample of its piece within its medium's reach, the profile's
+    /// mass over the sample's ring outside the receiver's own disc spread over the sample's
+    /// corners, and the disc's own mass; the sum per channel held to the plane's total.
+    fn row(&self, receiver: RowReceiver, medium: &MediumProfiles) -> Row {
+        let RowReceiver {
+            position,
+            piece,
+            own_radius,
+            ..
+        } = receiver;
+        let (dipoles, reach) = (&medium.dipoles, medium.reach);
+        let mut entries: Vec<(u32, [f64; 3])> = Vec::new();
+        let own: [f64; 3] = std::array::from_fn(|c| dipoles[c].within(own_radius));
+        let mut sums = own;
+        self.grid.within(position, reach, |s| {
+            let sample = &self.samples[s];
+            let r = sample.position.distance(position);
+            if r > reach || sample.area <= 0.0 || sample.piece != piece {
+                return;
+            }
+            let radius = (sample.area / PI).sqrt();
+            let weight: [f64; 3] = std::array::from_fn(|c| {
+                sample.area * dipoles[c].ring_mean_outside(r, radius, own_radius)
+            });
+            for c in 0..3 {
+                sums[c] += weight[c];
+            }
+            for (&corner, &share) in sample.corners.iter().zip(&sample.weights) {
+                if share > 0.0 {
+                    entries.push((corner, weight.map(|w| share * w)));
+                }
+            }
+        });
+        let scale: [f64; 3] = std::array::from_fn(|c| {
+            let total = dipoles[c].total();
+            if sums[c] > total {
+                total / sums[c]
+            } else {
+                1.0
+            }
+        });
+        entries.sort_unstable_by_key(|&(j, _)| j);
+        let mut row: Vec<(u32, [f32; 3])> = Vec::new();
+        for (j, weight) in entries {
+            let scaled: [f32; 3] = std::array::from_fn(|c| (weight[c] * scale[c]) as f32);
+            match row.last_mut() {
+                Some((last, sum)) if *last == j => (0..3).for_each(|c| sum[c] += scaled[c]),
+                _ => row.push((j, scaled)),
+            }
+        }
+        (row, std::array::from_fn(|c| (own[c] * scale[c]) as f32))
+    }
+}
+
 /// The subsurface matrices of `scene`, its vertices in `media` (`of_vertex` indexes them, or
 /// is [`OPAQUE`]), one per channel: row `p`, column `j`, the weight of what vertex `j` would
 /// send back as a white diffuse surface in what vertex `p` sends back through its medium
@@ -206,101 +345,32 @@ pub fn subsurface_matrices(
     scene: &Scene,
     (media, of_vertex): (&[SubsurfaceMaterial], &[u32]),
 ) -> Result<([GatherMatrix; 3], f64)> {
-    let profiles = media
-        .iter()
-        .map(MediumProfiles::new)
-        .collect::<Result<Vec<_>>>()?;
-    let reach = profiles.iter().map(|p| p.reach).fold(0.0, f64::max);
-    let spacing = |medium: u32| match profiles.get(medium as usize) {
-        Some(profiles) => profiles.spacing,
-        None => f64::INFINITY,
-    };
-    let samples = surface_samples(scene, (of_vertex, &spacing))?;
-    let grid = PointGrid::new(&samples, reach);
-    // Counted as the rows are made, so a matrix too big to hold stops being built.
-    let entries = std::sync::atomic::AtomicUsize::new(0);
-    let rows: Vec<Vec<(u32, [f32; 3])>> = scene
+    let surface = Surface::new(scene, (media, of_vertex))?;
+    // A vertex's own point stands for its own area: no disc besides.
+    let receivers = scene
         .positions
         .par_iter()
-        .zip(&samples[..scene.vertex_count()])
         .enumerate()
-        .map(|(v, (receiver, own))| {
-            if entries.load(std::sync::atomic::Ordering::Relaxed) > MAX_ENTRIES {
-                return Vec::new();
-            }
-            let Some(medium) = profiles.get(of_vertex[v] as usize) else {
-                return vec![(v as u32, scene.albedo[v].to_array())];
-            };
-            let receiver = (receiver.as_dvec3(), own.piece);
-            let profile = (&medium.dipoles, medium.reach);
-            let row = subsurface_row(receiver, &samples, &grid, profile);
-            entries.fetch_add(row.len(), std::sync::atomic::Ordering::Relaxed);
-            row
-        })
-        .collect();
-    if entries.into_inner() > MAX_ENTRIES {
-        return Err(Error::Options(format!(
-            "--subsurface: more than {MAX_ENTRIES} matrix entries: the light travels \
-             {reach:.3e} scene units under the surface, through most of the mesh (a larger \
-             --sss-mm-per-unit makes the object bigger and the way shorter)"
-        )));
-    }
-    let matrices = std::array::from_fn(|c| {
-        GatherMatrix::from_rows(
-            rows.iter()
-                .map(|row| row.iter().map(|&(j, w)| (j, w[c])).collect())
-                .collect(),
-        )
-    });
-    Ok((matrices, reach))
+        .map(|(v, p)| RowReceiver {
+            position: p.as_dvec3(),
+            piece: surface.piece(v as u32),
+            medium: of_vertex[v],
+            own_radius: 0.0,
+        });
+    let opaque = |v: usize| (vec![(v as u32, scene.albedo[v].to_array())], [0.0; 3]);
+    let rows = surface.rows(receivers, opaque)?;
+    Ok((per_channel(&rows), surface.reach))
 }
 
-/// One receiver's row: every sample of its piece within `reach`, its ring-averaged profile
-/// times its area, spread over its corners; the row's sum per channel held to the plane's
-/// total.
-fn subsurface_row(
-    (receiver, piece): (DVec3, u32),
-    samples: &[SurfaceSample],
-    grid: &PointGrid,
-    (dipoles, reach): (&[Dipole; 3], f64),
-) -> Vec<(u32, [f32; 3])> {
-    let mut row: HashMap<u32, [f64; 3]> = HashMap::new();
-    let mut sums = [0.0f64; 3];
-    grid.within(receiver, reach, |s| {
-        let sample = &samples[s];
-        let r = sample.position.distance(receiver);
-        if r > reach || sample.area <= 0.0 || sample.piece != piece {
-            return;
-        }
-        let radius = (sample.area / PI).sqrt();
-        let weight: [f64; 3] =
-            std::array::from_fn(|c| sample.area * dipoles[c].ring_mean(r, radius));
-        for c in 0..3 {
-            sums[c] += weight[c];
-        }
-        for (&corner, &share) in sample.corners.iter().zip(&sample.weights) {
-            if share > 0.0 {
-                let entry = row.entry(corner).or_insert([0.0; 3]);
-                for c in 0..3 {
-                    entry[c] += share * weight[c];
-                }
-            }
-        }
-    });
-    let scale: [f32; 3] = std::array::from_fn(|c| {
-        let total = dipoles[c].total();
-        (if sums[c] > total {
-            total / sums[c]
-        } else {
-            1.0
-        }) as f32
-    });
-    let mut row: Vec<(u32, [f32; 3])> = row
-        .into_iter()
-        .map(|(j, w)| (j, std::array::from_fn(|c| w[c] as f32 * scale[c])))
-        .collect();
-    row.sort_unstable_by_key(|&(j, _)| j);
-    row
+/// The rows' matrices, channel by channel.
+fn per_channel(rows: &[Row]) -> [GatherMatrix; 3] {
+    std::array::from_fn(|c| {
+        GatherMatrix::from_rows(
+            rows.iter()
+                .map(|(row, _)| row.iter().map(|&(j, w)| (j, w[c])).collect())
+                .collect(),
+        )
+    })
 }
 
 /// A uniform grid of cells `cell` wide over the samples, for the samples near a point.
@@ -444,11 +514,7 @@ impl Scatter {
     pub fn new(scene: &Scene, media: (&[SubsurfaceMaterial], &[u32])) -> Result<Scatter> {
         let started = std::time::Instant::now();
         let (matrices, reach) = subsurface_matrices(scene, media)?;
-        let only = std::array::from_fn(|c| {
-            let mut unit = Vec3::ZERO;
-            unit[c] = 1.0;
-            vec![unit; scene.vertex_count()]
-        });
+        let only = channel_selectors(scene.vertex_count());
         let report = SubsurfaceReport {
             reach,
             entries: matrices[0].columns.len(),
@@ -467,12 +533,95 @@ impl Scatter {
     /// `1/pi` times the irradiance transfer, and `W_c` holds the profile's exitance, so this
     /// is `(1/pi) integral R_d E dA` per unit light.
     pub fn apply(&self, values: &[f32], bands: u32, backend: &dyn Backend) -> Result<Vec<f32>> {
-        let mut sum = vec![0.0f32; values.len()];
-        for (matrix, only) in self.matrices.iter().zip(&self.only) {
-            let gathered = backend.gatherer(matrix, only, bands)?.gather(values)?;
-            sum.iter_mut().zip(gathered).for_each(|(s, g)| *s += g);
+        gather_channels(&self.matrices, &self.only, (values, bands), backend)
+    }
+}
+
+/// Channel `c`'s selector for `rows` rows: `e_c` at every row (the gather's per-row albedo).
+fn channel_selectors(rows: usize) -> [Vec<Vec3>; 3] {
+    std::array::from_fn(|c| {
+        let mut unit = Vec3::ZERO;
+        unit[c] = 1.0;
+        vec![unit; rows]
+    })
+}
+
+/// `sum_c W_c values_c`: each channel's matrix applied to that channel of `values` (RGB,
+/// `[column][3][coeffs]`), on the backend.
+fn gather_channels(
+    matrices: &[GatherMatrix; 3],
+    only: &[Vec<Vec3>; 3],
+    (values, bands): (&[f32], u32),
+    backend: &dyn Backend,
+) -> Result<Vec<f32>> {
+    let stride = 3 * crate::sh::coeff_count(bands);
+    let mut sum = vec![0.0f32; matrices[0].rows() * stride];
+    for (matrix, only) in matrices.iter().zip(only) {
+        if matrix.columns.is_empty() {
+            continue;
         }
-        Ok(sum)
+        let gathered = backend.gatherer(matrix, only, bands)?.gather(values)?;
+        sum.iter_mut().zip(gathered).for_each(|(s, g)| *s += g);
+    }
+    Ok(sum)
+}
+
+/// A point of the surface where subsurface light is wanted (a lightmap's texel): where it is,
+/// a vertex of its triangle (whose piece and medium it shares), the radius of the disc it
+/// stands for, and its albedo, should its material be opaque.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScatterPoint {
+    pub position: Vec3,
+    pub vertex: u32,
+    pub own_radius: f64,
+    pub albedo: Vec3,
+}
+
+/// Subsurface transfer at points of a scene's surface besides its vertices: its media, and
+/// the light that arrives at its vertices as a white diffuse surface would send it back (RGB,
+/// `[vertex][3][coeffs]`: what [`Scatter::apply`] scattered, summed over the direct light and
+/// the bounces).
+pub struct PointScatter<'a> {
+    pub media: &'a [SubsurfaceMaterial],
+    pub of_vertex: &'a [u32],
+    pub incoming: &'a [f32],
+}
+
+impl PointScatter<'_> {
+    /// The transfer at `points`, from what arrives at each point's own disc (`own`, laid out
+    /// as `incoming`: the point's own rays see detail finer than the vertices) and, through
+    /// the profile beyond that disc, at the surface's points; an opaque point's is its own
+    /// times its albedo.
+    pub fn at_points(
+        &self,
+        scene: &Scene,
+        points: &[ScatterPoint],
+        (own, bands): (&[f32], u32),
+        backend: &dyn Backend,
+    ) -> Result<Vec<f32>> {
+        let surface = Surface::new(scene, (self.media, self.of_vertex))?;
+        let receivers = points.par_iter().map(|point| RowReceiver {
+            position: point.position.as_dvec3(),
+            piece: surface.piece(point.vertex),
+            medium: self.of_vertex[point.vertex as usize],
+            own_radius: point.own_radius,
+        });
+        let opaque = |i: usize| (Vec::new(), points[i].albedo.to_array());
+        let rows = surface.rows(receivers, opaque)?;
+        let only = channel_selectors(points.len());
+        let values = (self.incoming, bands);
+        let mut transfer = gather_channels(&per_channel(&rows), &only, values, backend)?;
+        let coeffs = crate::sh::coeff_count(bands);
+        let per_point = transfer
+            .chunks_exact_mut(3 * coeffs)
+            .zip(own.chunks_exact(3 * coeffs));
+        for ((out, own), (_, weight)) in per_point.zip(&rows) {
+            let channels = out.chunks_exact_mut(coeffs).zip(own.chunks_exact(coeffs));
+            for ((out, own), &weight) in channels.zip(weight) {
+                out.iter_mut().zip(own).for_each(|(o, &t)| *o += weight * t);
+            }
+        }
+        Ok(transfer)
     }
 }
 

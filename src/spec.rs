@@ -370,8 +370,7 @@ impl BakeSpec {
         Ok(())
     }
 
-    /// Zonal transfer: at least one band and no more than the transfer has, and only where
-    /// the file stores per-vertex transfer of a baked mesh.
+    /// Zonal transfer: at least one band and no more than the transfer has.
     fn check_zonal(&self) -> Result<()> {
         let Some(zonal) = self.storage.zonal else {
             return Ok(());
@@ -382,13 +381,6 @@ impl BakeSpec {
                 "--zonal {}: zonal bands run from 1 to the transfer's bands ({baked})",
                 zonal.bands
             )));
-        }
-        if self.container == Container::GltfInPlace {
-            return Err(Error::Options(
-                "--zonal stores zonal transfer at a baked mesh's vertices; a glTF scene baked \
-                 in place does not hold it (bake the mesh, or leave out --zonal)"
-                    .into(),
-            ));
         }
         Ok(())
     }

@@ -14,6 +14,7 @@ use rayon::prelude::*;
 use crate::bake::Transfer;
 use crate::error::{Error, Result};
 use crate::light::{self, ShLight};
+use crate::scene::prepare::DROPPED;
 use crate::sh::{basis, coeff_count, eval_basis, zonal};
 pub use crate::spec::{ZonalAxis, ZonalSpec};
 
@@ -120,6 +121,32 @@ impl ZonalTransfer {
 
     pub fn vertex_count(&self) -> usize {
         self.axes.len()
+    }
+
+    /// The zonal transfer of the vertices `map` names, in its order: a vertex that is
+    /// [`DROPPED`] (in no baked triangle) gets zero coefficients about the z axis.
+    pub fn select(&self, map: &[u32]) -> ZonalTransfer {
+        let per_vertex = (self.channels * self.bands) as usize;
+        let mut coeffs = Vec::with_capacity(map.len() * per_vertex);
+        let mut axes = Vec::with_capacity(map.len());
+        for &vertex in map {
+            match vertex {
+                DROPPED => {
+                    coeffs.extend(std::iter::repeat_n(0.0, per_vertex));
+                    axes.push(Vec3::Z);
+                }
+                v => {
+                    let v = v as usize;
+                    coeffs.extend_from_slice(&self.coeffs[v * per_vertex..(v + 1) * per_vertex]);
+                    axes.push(self.axes[v]);
+                }
+            }
+        }
+        ZonalTransfer {
+            axes,
+            coeffs,
+            ..*self
+        }
     }
 
     /// Each vertex's axis in the rest pose.

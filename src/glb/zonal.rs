@@ -71,7 +71,7 @@ pub(super) fn encode(
 }
 
 /// Four bands a group.
-fn groups_of(bands: usize) -> usize {
+pub(crate) fn groups_of(bands: usize) -> usize {
     bands.div_ceil(4)
 }
 
@@ -111,8 +111,13 @@ pub fn read_zonal(path: &Path) -> Result<Option<ZonalTransfer>> {
     decode_zonal(&bytes, path)
 }
 
-/// [`read_zonal`] of a file's bytes; `path` names it in errors.
+/// [`read_zonal`] of a file's bytes; `path` names it in errors. A glTF scene baked in place
+/// is read from `path` ([`scene::read_scene_zonal`]): every placement's, in the order of its
+/// vertices as read.
 pub fn decode_zonal(bytes: &[u8], path: &Path) -> Result<Option<ZonalTransfer>> {
+    if is_scene_file(bytes) {
+        return scene::read_scene_zonal(path);
+    }
     let (json, bin) = split_chunks(bytes, path)?;
     let doc = parse_document(json, path)?;
     let bad = |message: String| Error::baked(path, message);

@@ -35,9 +35,10 @@ mod read;
 pub mod stream;
 
 pub(crate) use read::stored_references;
-pub use read::{is_baked_in_place, read_scene_glb, read_scene_vertices};
+pub use read::{is_baked_in_place, read_scene_glb, read_scene_vertices, read_scene_zonal};
 
 use super::compressed::{self, CpcaExtras};
+use super::zonal::{groups_of, zonal_attribute_name, ZonalExtras, AXIS_ATTRIBUTE};
 use super::{
     glb_container, groups, transfer_attribute_name, LightmapExtras, Stored, FLOAT16,
     TRANSFER_LAYOUT, TRANSFER_LAYOUT_F16,
@@ -50,6 +51,7 @@ use crate::precision::Precision;
 use crate::scene::gltf::accessor::{component_size, dense, Dense};
 use crate::scene::gltf::{self, GltfScene};
 use crate::scene::prepare::DROPPED;
+use crate::zonal::ZonalTransfer;
 
 /// What writing a scene did, for the report line.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -541,14 +543,25 @@ fn add_transfer(
         root.nodes[instance.node].mesh = Some(Index::new(mesh as u32));
         let mut first_primitive = None;
         let mut first_cpca = None;
+        let mut first_zonal = None;
         for span in &instance.primitives {
             let vertices = span.first..span.first + span.count;
             let map = &vertex_map[vertices.clone()];
+            let zonal = stored.zonal().map(|zonal| {
+                let primitive = &mut root.meshes[mesh].primitives[span.primitive];
+                add_zonal(bin, &mut root.accessors, primitive, &zonal.select(map))
+            });
+            if let Some(zonal) = &zonal {
+                first_zonal.get_or_insert(zonal.clone());
+            }
             if let Some((cpca, means, bases)) = shared {
                 let extras = push_clusters(bin, cpca, (means, bases), map, precision);
                 let mut prt = json!({ "vertices": span.count, "cpca": extras });
                 if precision == Precision::F16 {
                     prt["transfer_precision"] = json!(FLOAT16);
+                }
+                if let Some(zonal) = &zonal {
+                    prt["zonal"] = json!(zonal);
                 }
                 let primitive = &mut root.meshes[mesh].primitives[span.primitive];
                 primitive.extras = raw(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
@@ -572,17 +585,21 @@ fn add_transfer(
                 ),
                 Precision::F16 => prt["transfer_precision"] = json!(FLOAT16),
             }
+            if let Some(zonal) = &zonal {
+                prt["zonal"] = json!(zonal);
+            }
             primitive.extras = raw(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
             first_primitive.get_or_insert((span.count, view));
             report.primitives_baked += 1;
         }
-        if let Some((vertices, view)) = first_primitive {
-            let stored = StoredAt::Planar(view);
-            root.meshes[mesh].extras = mesh_extras(&baked.metadata, vertices, stored, precision)?;
-        }
-        if let Some((vertices, cpca)) = first_cpca {
-            let stored = StoredAt::Clusters(cpca);
-            root.meshes[mesh].extras = mesh_extras(&baked.metadata, vertices, stored, precision)?;
+        let first = match (first_primitive, first_cpca) {
+            (Some((vertices, view)), _) => Some((vertices, StoredAt::Planar(view))),
+            (None, Some((vertices, cpca))) => Some((vertices, StoredAt::Clusters(cpca))),
+            (None, None) => None,
+        };
+        if let Some((vertices, stored)) = first {
+            let at = (vertices, stored, first_zonal);
+            root.meshes[mesh].extras = mesh_extras(&baked.metadata, at, precision)?;
         }
     }
     Ok(report)
@@ -594,15 +611,19 @@ enum StoredAt {
     Clusters(CpcaExtras),
 }
 
+/// A baked mesh's `extras.prt`: the bake's metadata, and where its first primitive keeps its
+/// `vertices`' transfer and zonal transfer.
 fn mesh_extras(
     metadata: &BakeMetadata,
-    vertices: usize,
-    stored: StoredAt,
+    (vertices, stored, zonal): (usize, StoredAt, Option<ZonalExtras>),
     precision: Precision,
 ) -> std::result::Result<gltf_json::Extras, String> {
     let mut prt = serde_json::to_value(metadata).map_err(|e| e.to_string())?;
     if let Value::Object(fields) = &mut prt {
         fields.insert("vertices".into(), json!(vertices));
+        if let Some(zonal) = zonal {
+            fields.insert("zonal".into(), json!(zonal));
+        }
         if precision == Precision::F16 {
             fields.insert("transfer_precision".into(), json!(FLOAT16));
         }
@@ -728,26 +749,71 @@ fn add_attributes(
     for channel in 0..transfer.channels() {
         for group in 0..groups {
             let block = channel as usize * groups + group;
-            accessors.push(gltf_json::Accessor {
-                buffer_view: Some(Index::new(view)),
-                byte_offset: Some(USize64((block * vertices * 16) as u64)),
-                count: USize64(vertices as u64),
-                component_type: Checked::Valid(GenericComponentType(ComponentType::F32)),
-                extensions: None,
-                extras: None,
-                type_: Checked::Valid(Type::Vec4),
-                min: None,
-                max: None,
-                name: None,
-                normalized: false,
-                sparse: None,
-            });
             let name = transfer_attribute_name(transfer.channels(), channel, group);
-            let semantic = Semantic::Extras(name.trim_start_matches('_').to_string());
-            primitive.attributes.insert(
-                Checked::Valid(semantic),
-                Index::new((accessors.len() - 1) as u32),
-            );
+            let at = (view, block * vertices * 16, vertices);
+            add_attribute((accessors, primitive), &name, at, Type::Vec4);
         }
     }
+}
+
+/// The views of `zonal` (a primitive's vertices) in `bin`, and the primitive's `_PRT_ZH_*`
+/// attributes over them, as in the single-mesh format; what its `extras.prt.zonal` says.
+fn add_zonal(
+    bin: &mut Bin,
+    accessors: &mut Vec<gltf_json::Accessor>,
+    primitive: &mut gltf_json::mesh::Primitive,
+    zonal: &ZonalTransfer,
+) -> ZonalExtras {
+    let target = Some(Target::ArrayBuffer);
+    let extras = super::zonal::encode(zonal, |bytes, stride| {
+        bin.push(&bytes, stride.map(|s| s as usize), target) as usize
+    });
+    let vertices = zonal.vertex_count();
+    let groups = groups_of(extras.bands as usize);
+    for channel in 0..extras.channels {
+        for group in 0..groups {
+            let block = channel as usize * groups + group;
+            let name = zonal_attribute_name(extras.channels, channel, group);
+            let view = extras.coefficients_buffer_view as u32;
+            let at = (view, block * vertices * 16, vertices);
+            add_attribute((accessors, primitive), &name, at, Type::Vec4);
+        }
+    }
+    if let Some(view) = extras.axes_buffer_view {
+        let at = (view as u32, 0, vertices);
+        add_attribute((accessors, primitive), AXIS_ATTRIBUTE, at, Type::Vec3);
+    }
+    extras
+}
+
+/// A float accessor of `count` elements of `kind` at `offset` in `view`, and the primitive's
+/// attribute `name` (`_`-prefixed, as glTF's application-specific attributes are) naming it.
+fn add_attribute(
+    (accessors, primitive): (
+        &mut Vec<gltf_json::Accessor>,
+        &mut gltf_json::mesh::Primitive,
+    ),
+    name: &str,
+    (view, offset, count): (u32, usize, usize),
+    kind: Type,
+) {
+    accessors.push(gltf_json::Accessor {
+        buffer_view: Some(Index::new(view)),
+        byte_offset: Some(USize64(offset as u64)),
+        count: USize64(count as u64),
+        component_type: Checked::Valid(GenericComponentType(ComponentType::F32)),
+        extensions: None,
+        extras: None,
+        type_: Checked::Valid(kind),
+        min: None,
+        max: None,
+        name: None,
+        normalized: false,
+        sparse: None,
+    });
+    let semantic = Semantic::Extras(name.trim_start_matches('_').to_string());
+    primitive.attributes.insert(
+        Checked::Valid(semantic),
+        Index::new((accessors.len() - 1) as u32),
+    );
 }

@@ -11,11 +11,15 @@ use serde_json::{json, Value};
 use crate::bake::{BakeMetadata, BakedMesh, Transfer};
 use crate::error::{Error, Result};
 use crate::glb::compressed::{self, CpcaExtras};
+use crate::glb::zonal::{
+    groups_of, zonal_attribute_name, ZonalExtras, AXIS_ATTRIBUTE, ZONAL_LAYOUT,
+};
 use crate::glb::{groups, transfer_attribute_name, LightmapExtras, References, FLOAT16};
 use crate::precision::Precision;
 use crate::scene::gltf::accessor::{dense, view_bytes};
 use crate::scene::gltf::{self, GltfScene};
 use crate::scene::Scene;
+use crate::zonal::{ZonalAxis, ZonalTransfer};
 
 /// Whether `root` is a scene written by [`write_scene_glb`](super::write_scene_glb).
 pub fn is_baked_in_place(root: &Root) -> bool {
@@ -313,4 +317,129 @@ fn attribute_blocks(
         }
     }
     Ok(planar)
+}
+
+/// The zonal transfer of a scene written by [`write_scene_glb`](super::write_scene_glb) with
+/// `--zonal`, every placement's, in the order of [`read_scene_vertices`]' vertices: each baked
+/// primitive's `_PRT_ZH_*` attributes (and `_PRT_ZH_AXIS`, or its normals) as its
+/// `extras.prt.zonal` describes them. `None` where the scene has none.
+pub fn read_scene_zonal(path: &Path) -> Result<Option<ZonalTransfer>> {
+    let (gltf, baked) = read_scene_vertices(path)?;
+    let bad = |message: String| Error::baked(path, message);
+    let normals = baked.scene.normals.as_deref().unwrap_or_default();
+    let mut shape: Option<ZonalExtras> = None;
+    let (mut axes, mut coeffs) = (Vec::new(), Vec::new());
+    for instance in &gltf.instances {
+        let mesh = &gltf.root.meshes[instance.mesh];
+        for span in &instance.primitives {
+            let primitive = &mesh.primitives[span.primitive];
+            let in_mesh = |why: String| bad(format!("mesh {}: {why}", instance.mesh));
+            let Some(extras) = primitive_zonal(primitive).map_err(in_mesh)? else {
+                if shape.is_some() {
+                    return Err(in_mesh("a baked primitive has no extras.prt.zonal".into()));
+                }
+                continue;
+            };
+            let first = shape.get_or_insert_with(|| extras.clone());
+            if (first.bands, first.channels, &first.axis)
+                != (extras.bands, extras.channels, &extras.axis)
+            {
+                return Err(in_mesh(
+                    "primitives with zonal transfer of different shapes".into(),
+                ));
+            }
+            let span_normals = &normals[span.first..span.first + span.count];
+            let (span_axes, span_coeffs) =
+                primitive_zonal_values(&gltf, primitive, &extras, span_normals).map_err(in_mesh)?;
+            axes.extend(span_axes);
+            coeffs.extend(span_coeffs);
+        }
+    }
+    let Some(shape) = shape else {
+        return Ok(None);
+    };
+    if axes.len() != baked.scene.vertex_count() {
+        return Err(bad("zonal transfer on some baked primitives only".into()));
+    }
+    let axis = match shape.axis.as_str() {
+        "fitted" => ZonalAxis::Fitted,
+        _ => ZonalAxis::Normal,
+    };
+    ZonalTransfer::new((shape.bands, shape.channels, axis), axes, coeffs)
+        .map(Some)
+        .map_err(bad)
+}
+
+/// A primitive's `extras.prt.zonal`, if any.
+fn primitive_zonal(
+    primitive: &gltf_json::mesh::Primitive,
+) -> std::result::Result<Option<ZonalExtras>, String> {
+    let Some(raw) = &primitive.extras else {
+        return Ok(None);
+    };
+    let extras: Value = serde_json::from_str(raw.get()).map_err(|e| e.to_string())?;
+    let zonal = &extras["prt"]["zonal"];
+    if zonal.is_null() {
+        return Ok(None);
+    }
+    let zonal: ZonalExtras = serde_json::from_value(zonal.clone())
+        .map_err(|e| format!("invalid extras.prt.zonal: {e}"))?;
+    if zonal.layout != ZONAL_LAYOUT {
+        return Err(format!("unsupported zonal layout \"{}\"", zonal.layout));
+    }
+    crate::sh::check_bands(zonal.bands).map_err(|e| e.to_string())?;
+    if !matches!(zonal.channels, 1 | 3) {
+        return Err(format!(
+            "zonal transfer of {} channels (1 or 3)",
+            zonal.channels
+        ));
+    }
+    Ok(Some(zonal))
+}
+
+/// A primitive's zonal axes (its `_PRT_ZH_AXIS`, or `normals` about the normal) and
+/// coefficients, `[vertex][channel][l]`, from its attributes.
+fn primitive_zonal_values(
+    gltf: &GltfScene,
+    primitive: &gltf_json::mesh::Primitive,
+    extras: &ZonalExtras,
+    normals: &[glam::Vec3],
+) -> std::result::Result<(Vec<glam::Vec3>, Vec<f32>), String> {
+    let vertices = normals.len();
+    let attribute = |name: &str| {
+        let semantic = Semantic::Extras(name.trim_start_matches('_').to_string());
+        primitive
+            .attributes
+            .get(&Checked::Valid(semantic))
+            .ok_or_else(|| format!("no attribute {name}"))
+            .and_then(|accessor| dense(&gltf.root, &gltf.buffers, accessor.value()))
+    };
+    let (bands, channels) = (extras.bands as usize, extras.channels as usize);
+    let mut coeffs = vec![0.0f32; vertices * channels * bands];
+    for channel in 0..channels {
+        for group in 0..groups_of(bands) {
+            let name = zonal_attribute_name(extras.channels, channel as u32, group);
+            let values = attribute(&name)?.vectors::<4>(&name)?;
+            if values.len() != vertices {
+                return Err(format!("{name} has the wrong length"));
+            }
+            for (vertex, lanes) in values.iter().enumerate() {
+                for (lane, &value) in lanes.iter().enumerate().take(bands - 4 * group) {
+                    coeffs[(vertex * channels + channel) * bands + 4 * group + lane] = value;
+                }
+            }
+        }
+    }
+    let axes = match extras.axis.as_str() {
+        "fitted" => {
+            let axes = attribute(AXIS_ATTRIBUTE)?.vectors::<3>(AXIS_ATTRIBUTE)?;
+            if axes.len() != vertices {
+                return Err(format!("{AXIS_ATTRIBUTE} has the wrong length"));
+            }
+            axes.into_iter().map(glam::Vec3::from_array).collect()
+        }
+        "normal" => normals.to_vec(),
+        other => return Err(format!("extras.prt.zonal: axis \"{other}\"")),
+    };
+    Ok((axes, coeffs))
 }

@@ -322,7 +322,8 @@ fn attribute_blocks(
 /// The zonal transfer of a scene written by [`write_scene_glb`](super::write_scene_glb) with
 /// `--zonal`, every placement's, in the order of [`read_scene_vertices`]' vertices: each baked
 /// primitive's `_PRT_ZH_*` attributes (and `_PRT_ZH_AXIS`, or its normals) as its
-/// `extras.prt.zonal` describes them. `None` where the scene has none.
+/// `extras.prt.zonal` describes them; split at the corners, as [`read_scene_glb`] reads it,
+/// where the scene has a lightmap. `None` where the scene has none.
 pub fn read_scene_zonal(path: &Path) -> Result<Option<ZonalTransfer>> {
     let (gltf, baked) = read_scene_vertices(path)?;
     let bad = |message: String| Error::baked(path, message);
@@ -365,9 +366,21 @@ pub fn read_scene_zonal(path: &Path) -> Result<Option<ZonalTransfer>> {
         "fitted" => ZonalAxis::Fitted,
         _ => ZonalAxis::Normal,
     };
-    ZonalTransfer::new((shape.bands, shape.channels, axis), axes, coeffs)
-        .map(Some)
-        .map_err(bad)
+    let zonal =
+        ZonalTransfer::new((shape.bands, shape.channels, axis), axes, coeffs).map_err(bad)?;
+    // A lightmapped scene is read split at its corners (`read_scene_glb`): so is its zonal
+    // transfer, each corner its vertex's.
+    let root_extras: Value = match &gltf.root.extras {
+        Some(raw) => serde_json::from_str(raw.get()).map_err(|e| bad(e.to_string()))?,
+        None => Value::Null,
+    };
+    let lightmapped = lightmap_extras(&json!({ "extras": root_extras }))
+        .map_err(bad)?
+        .is_some();
+    Ok(Some(match lightmapped {
+        true => zonal.select(baked.scene.triangles.as_flattened()),
+        false => zonal,
+    }))
 }
 
 /// A primitive's `extras.prt.zonal`, if any.

@@ -416,8 +416,13 @@ fn scene_media(
     let (media, opaque) = SceneMedia::of_volumes(&volumes);
     notes.extend(opaque);
     let media = media?;
-    let why_not = (spec.storage.channels == bake::Storage::Lean)
-        .then_some("--storage lean keeps one channel, and each colour scatters as far as its own");
+    let why_not = if !spec.transfer.materials_scatter {
+        Some("--subsurface none")
+    } else if spec.storage.channels == bake::Storage::Lean {
+        Some("--storage lean keeps one channel, and each colour scatters as far as its own")
+    } else {
+        None
+    };
     let labels: Vec<&str> = volumes
         .volumes
         .iter()

@@ -158,6 +158,19 @@ pub struct TransferSpec {
     /// as they did.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub subsurface: Option<SubsurfaceMaterial>,
+    /// Without `subsurface`: whether a glTF scene's materials with a scattering volume scatter
+    /// in their media (`--subsurface none`: no, every material is opaque). Left out of the
+    /// JSON when true, so specs written before it hash as they did.
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub materials_scatter: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn is_true(value: &bool) -> bool {
+    *value
 }
 
 /// The band count: given, or the fewest (up to [`AUTO_MAX_BANDS`]) that leave less than
@@ -269,6 +282,7 @@ impl Default for BakeSpec {
                 bounce_tolerance: 0.0,
                 target_error: None,
                 subsurface: None,
+                materials_scatter: true,
             },
             storage: StorageSpec {
                 channels: Storage::Rgb,

@@ -254,6 +254,20 @@ fn bad_subsurface_options_are_refused_in_one_line() {
             expect: "ask for subsurface scattering with --subsurface",
         },
         BadInput {
+            case: "none with a medium",
+            file: None,
+            args: &[
+                "bake",
+                "--subsurface",
+                "none",
+                "--sss-absorption",
+                "1,1,1",
+                "-o",
+                "o.glb",
+            ],
+            expect: "--subsurface none bakes every material opaque",
+        },
+        BadInput {
             case: "lean",
             file: None,
             args: &[
@@ -565,8 +579,8 @@ fn prepared_count(mesh: &Scene) -> usize {
 }
 
 /// The command line bakes the materials' media in place, says so, and the file it writes
-/// passes the Khronos validator and shows its media in `info`; stored in one channel, the
-/// translucent material is baked opaque, with a note.
+/// passes the Khronos validator and shows its media in `info`; stored in one channel, or with
+/// `--subsurface none`, the translucent material is baked opaque, with a note.
 #[test]
 fn the_command_line_bakes_a_scenes_translucent_materials() {
     let dir = tempfile::tempdir().unwrap();
@@ -607,6 +621,25 @@ fn the_command_line_bakes_a_scenes_translucent_materials() {
         stderr.contains("\"wax\") baked opaque: --storage lean keeps one channel"),
         "{stderr}"
     );
+    let args = [
+        "bake",
+        "wax.gltf",
+        "--samples",
+        "16",
+        "--subsurface",
+        "none",
+        "-o",
+        "opaque.glb",
+    ];
+    let out = common::prt_gpu(&args, dir.path());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("\"wax\") baked opaque: --subsurface none"),
+        "{stderr}"
+    );
+    let opaque = prt_gpu::glb::read_metadata(&dir.path().join("opaque.glb")).unwrap();
+    assert_eq!(opaque.0.subsurface, None);
 }
 
 /// Radiance under `light` of a bake's lightmap, texel by texel.

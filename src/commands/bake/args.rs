@@ -112,9 +112,9 @@ pub(crate) struct BakeArgs {
     /// (apple, chicken1, chicken2, cream, ketchup, marble, potato, skim-milk, skin1, skin2,
     /// spectralon, whole-milk; coefficients per mm from the paper) or `custom` with
     /// --sss-absorption and --sss-scattering, for the whole scene. It scatters the direct light
-    /// and every bounce; at the vertices, RGB. Without it, a glTF scene's materials with a
-    /// scattering volume (KHR_materials_volume_scatter) scatter in their own media (README,
-    /// "Subsurface scattering").
+    /// and every bounce; RGB. Without it, a glTF scene's materials with a scattering volume
+    /// (KHR_materials_volume_scatter) scatter in their own media; `none` bakes them opaque
+    /// (README, "Subsurface scattering").
     #[arg(long, value_name = "MEDIUM")]
     pub(crate) subsurface: Option<String>,
     /// With --subsurface: the absorption coefficient per mm, R,G,B (replaces the medium's).

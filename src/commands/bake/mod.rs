@@ -91,6 +91,7 @@ pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeS
                 max_samples: args.max_samples,
             }),
             subsurface: subsurface_material(args)?,
+            materials_scatter: args.subsurface.as_deref() != Some("none"),
         },
         storage: StorageSpec {
             channels: args.storage,
@@ -126,6 +127,16 @@ fn subsurface_material(args: &BakeArgs) -> Result<Option<spec::SubsurfaceMateria
     };
     let names = || PRESETS.map(|(n, _)| n).join(", ");
     let mut material = match name.as_str() {
+        "none" => {
+            return match args.sss_absorption.is_some() || args.sss_scattering.is_some() {
+                true => Err(Error::Options(
+                    "--subsurface none bakes every material opaque; --sss-absorption and \
+                     --sss-scattering describe a medium"
+                        .into(),
+                )),
+                false => Ok(None),
+            }
+        }
         "custom" => match (args.sss_absorption, args.sss_scattering) {
             (Some(_), Some(_)) => spec::SubsurfaceMaterial {
                 ior: 1.3,
@@ -141,7 +152,7 @@ fn subsurface_material(args: &BakeArgs) -> Result<Option<spec::SubsurfaceMateria
         },
         name => spec::SubsurfaceMaterial::preset(name).ok_or_else(|| {
             Error::Options(format!(
-                "--subsurface {name}: not a medium this tool knows ({}, or custom)",
+                "--subsurface {name}: not a medium this tool knows ({}, custom, or none)",
                 names()
             ))
         })?,

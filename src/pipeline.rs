@@ -402,21 +402,21 @@ pub fn plan_memory(
 
 /// The media of `gltf`'s scattering volumes (`scene` as `gltf::load` made it), where `spec`
 /// bakes subsurface transfer from them: not where `--subsurface` gives the whole scene one
-/// medium, nor in one channel (the materials are then baked opaque, with a note). `notes` get a line for each volume left opaque.
+/// medium or says `none`, nor in one channel (the materials' own media are then left out,
+/// with a note). `notes` also get a line for each volume that describes no medium.
 fn scene_media(
     spec: &BakeSpec,
     (scene, gltf): (&Scene, &GltfScene),
     notes: &mut Vec<String>,
 ) -> Option<SceneMedia> {
-    if spec.transfer.subsurface.is_some() {
-        return None;
-    }
     let volumes = scattering_volumes(gltf, scene.vertex_count())?;
     notes.extend(volumes.notes.iter().cloned());
     let (media, opaque) = SceneMedia::of_volumes(&volumes);
     notes.extend(opaque);
     let media = media?;
-    let why_not = if !spec.transfer.materials_scatter {
+    let why_not = if spec.transfer.subsurface.is_some() {
+        Some("--subsurface puts the whole scene in its medium")
+    } else if !spec.transfer.materials_scatter {
         Some("--subsurface none")
     } else if spec.storage.channels == bake::Storage::Lean {
         Some("--storage lean keeps one channel, and each colour scatters as far as its own")
@@ -431,8 +431,12 @@ fn scene_media(
         .collect();
     match why_not {
         Some(why) => {
+            let left = match spec.transfer.subsurface {
+                Some(_) => ": their own media left out,",
+                None => " baked opaque:",
+            };
             notes.push(format!(
-                "translucent material(s) {} baked opaque: {why}",
+                "translucent material(s) {}{left} {why}",
                 labels.join(", ")
             ));
             None

@@ -121,6 +121,29 @@ pub fn bake(
     )
 }
 
+/// The atlas of the lightmap the options ask for on the prepared `scene`: on its own UV set
+/// (given per prepared triangle), or generated.
+fn lightmap_atlas(
+    scene: &Scene,
+    options: &BakeOptions,
+    uv_set: Option<&UvSet>,
+) -> Result<Option<receivers::atlas::Atlas>> {
+    match (options.lightmap, uv_set) {
+        (Some(size), Some(set)) => {
+            if set.corners.len() != scene.triangles.len() {
+                return Err(Error::Geometry(format!(
+                    "the lightmap's UV set has {} triangles, the prepared scene {}",
+                    set.corners.len(),
+                    scene.triangles.len()
+                )));
+            }
+            Ok(Some(set.atlas(size)))
+        }
+        (Some(size), None) => Ok(Some(texels::plan_atlas(scene, size)?)),
+        (None, _) => Ok(None),
+    }
+}
+
 /// Where a bake's direct pass comes from.
 pub enum DirectSource {
     /// Computed here, on the bake's backend.
@@ -173,20 +196,7 @@ pub fn bake_from(
     let uv_set = uv_set.map(|set| set.kept(&kept_triangles(&scene)));
     let mut planned = plan(scene, options)?;
     // A lightmap that cannot fit fails now, not after the vertices are baked.
-    let atlas = match (options.lightmap, &uv_set) {
-        (Some(size), Some(set)) => {
-            if set.corners.len() != planned.scene.triangles.len() {
-                return Err(Error::Geometry(format!(
-                    "the lightmap's UV set has {} triangles, the prepared scene {}",
-                    set.corners.len(),
-                    planned.scene.triangles.len()
-                )));
-            }
-            Some(set.atlas(size))
-        }
-        (Some(size), None) => Some(texels::plan_atlas(&planned.scene, size)?),
-        (None, _) => None,
-    };
+    let atlas = lightmap_atlas(&planned.scene, options, uv_set.as_ref())?;
     // A generated atlas gives every corner its own coordinates, and the mesh is split to
     // carry them; a scene's own set keeps them on its vertices.
     let set = uv_set.as_ref().map(|set| set.set);

@@ -172,11 +172,8 @@ fn bake_atlas_scattering(
     let transfer_seconds = casting.elapsed().as_secs_f64();
     let at_texels = match scatter {
         Some(scatter) => {
-            let points = scatter_points((scene, atlas), &texels.points, &receivers, options);
-            let own = (at_texels.coeffs(), at_texels.bands());
-            let coeffs = scatter.at_points(scene, &points, own, backend)?;
-            Transfer::new(at_texels.bands(), 3, points.len(), coeffs)
-                .expect("one row of coefficients for every texel")
+            let at = ((scene, atlas), &texels.points[..], &receivers);
+            scattered_texels(at, at_texels, scatter, options, backend)?
         }
         None => at_texels,
     };
@@ -204,20 +201,8 @@ fn bake_atlas_scattering(
         &owner,
         DILATION_PASSES,
     )?;
-    // Leaks too wide to fill keep what was baked there.
-    for ((&(x, y), values), _) in texels
-        .texels
-        .iter()
-        .zip(at_texels.coeffs().chunks_exact(stride))
-        .zip(&leaking)
-        .filter(|(_, &leak)| leak)
-    {
-        let at = (y * width + x) as usize;
-        if !valid[at] {
-            image[at * stride..(at + 1) * stride].copy_from_slice(values);
-            valid[at] = true;
-        }
-    }
+    let baked = (&texels, at_texels.coeffs(), &leaking[..]);
+    keep_wide_leaks(baked, (&mut image, stride, width), &mut valid);
     let seams = seams::seams(scene, atlas);
     if stitching == Seams::Stitched {
         let rows = seams::seam_rows(width, height, &seams);
@@ -263,6 +248,46 @@ type TexelsOf<'a> = (
     (&'a Scene, &'a Transfer, &'a Atlas),
     Option<&'a subsurface::PointScatter<'a>>,
 );
+
+/// Leaks too wide for dilation to fill keep what was baked there: each leaking texel of
+/// `texels` (`values` as baked, `stride` floats a texel) still invalid in `image` after the
+/// dilation gets its own values back.
+fn keep_wide_leaks(
+    (texels, values, leaking): (&TexelPoints, &[f32], &[bool]),
+    (image, stride, width): (&mut [f32], usize, u32),
+    valid: &mut [bool],
+) {
+    for ((&(x, y), values), _) in texels
+        .texels
+        .iter()
+        .zip(values.chunks_exact(stride))
+        .zip(leaking)
+        .filter(|(_, &leak)| leak)
+    {
+        let at = (y * width + x) as usize;
+        if !valid[at] {
+            image[at * stride..(at + 1) * stride].copy_from_slice(values);
+            valid[at] = true;
+        }
+    }
+}
+
+/// The texels' transfer in `scatter`'s medium, from what they received as white surfaces
+/// (`received`).
+fn scattered_texels(
+    (at, points, receivers): ((&Scene, &Atlas), &[SurfacePoint], &Receivers),
+    received: Transfer,
+    scatter: &subsurface::PointScatter,
+    options: &BakeOptions,
+    backend: &dyn Backend,
+) -> Result<Transfer> {
+    let scene = at.0;
+    let points = scatter_points(at, points, receivers, options);
+    let own = (received.coeffs(), received.bands());
+    let coeffs = scatter.at_points(scene, &points, own, backend)?;
+    Ok(Transfer::new(received.bands(), 3, points.len(), coeffs)
+        .expect("one row of coefficients for every texel"))
+}
 
 /// The texels at `points` of `atlas` as points of the surface to scatter at: each stands for
 /// the disc of one texel's area in the scene (its triangle's area over its area in the atlas),

@@ -800,3 +800,58 @@ fn opaque_parts_of_a_translucent_scene_keep_their_plain_texels() {
     let error = radiance_error(&expected, &got);
     assert!(error < 1e-5, "{error}");
 }
+
+/// Volumes that describe no medium — values of the wrong type, out of range, missing — are
+/// read, not refused: the material is baked opaque, with a note naming it and why, and the
+/// bake is the plain one. `--subsurface MEDIUM` on a scene with its own media says it leaves
+/// them out.
+#[test]
+fn volumes_that_describe_no_medium_are_baked_opaque_with_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = wax_and_glass_gltf(dir.path(), true);
+    let original: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let mut in_place = spec(Mode::Shadowed, None);
+    in_place.container = prt_gpu::spec::Container::GltfInPlace;
+    let cases: [(&str, serde_json::Value, &str); 5] = [
+        ("attenuationDistance", json!(-1.0), "attenuationDistance -1"),
+        (
+            "attenuationDistance",
+            json!("far"),
+            "attenuationDistance inf",
+        ),
+        (
+            "attenuationColor",
+            json!([0.5, "red", 0.5]),
+            "attenuationColor",
+        ),
+        (
+            "attenuationColor",
+            json!([0.0, 0.5, 0.5]),
+            "attenuationColor",
+        ),
+        ("attenuationColor", json!([0.5, 0.5]), "attenuationColor"),
+    ];
+    for (field, value, says) in cases {
+        let mut doc = original.clone();
+        doc["materials"][0]["extensions"]["KHR_materials_volume"][field] = value.clone();
+        std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+        let baked = bake_in_place(&in_place, &path, &CpuBackend);
+        let notes = baked.notes.join("\n");
+        assert!(
+            notes.contains("material 0 (\"wax\") is baked opaque") && notes.contains(says),
+            "{field} = {value}: {notes}"
+        );
+        assert_eq!(baked.mesh.metadata.subsurface, None, "{field} = {value}");
+    }
+    std::fs::write(&path, serde_json::to_vec(&original).unwrap()).unwrap();
+    let mut everywhere = in_place.clone();
+    everywhere.transfer.subsurface = SubsurfaceMaterial::preset("marble");
+    let notes = bake_in_place(&everywhere, &path, &CpuBackend)
+        .notes
+        .join("\n");
+    assert!(
+        notes.contains("\"wax\"): their own media left out, --subsurface puts the whole scene"),
+        "{notes}"
+    );
+}

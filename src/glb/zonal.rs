@@ -143,15 +143,46 @@ pub fn decode_zonal(bytes: &[u8], path: &Path) -> Result<Option<ZonalTransfer>> 
         .map_err(bad)
 }
 
+impl ZonalExtras {
+    /// Refuses a layout, band count or channel count this reader does not read.
+    pub(crate) fn check(&self) -> std::result::Result<(), String> {
+        if self.layout != ZONAL_LAYOUT {
+            return Err(format!("unsupported zonal layout \"{}\"", self.layout));
+        }
+        crate::sh::check_bands(self.bands).map_err(|e| e.to_string())?;
+        if !matches!(self.channels, 1 | 3) {
+            return Err(format!(
+                "zonal transfer of {} channels (1 or 3)",
+                self.channels
+            ));
+        }
+        Ok(())
+    }
+
+    /// Puts the `(channel, group)` block's lanes (a vertex's four bands each) into `coeffs`,
+    /// `[vertex][channel][l]`; lanes past the bands are left out.
+    pub(crate) fn unpack_block<'a>(
+        &self,
+        coeffs: &mut [f32],
+        (channel, group): (usize, usize),
+        lanes: impl Iterator<Item = &'a [f32]>,
+    ) {
+        let (bands, channels) = (self.bands as usize, self.channels as usize);
+        for (vertex, lanes) in lanes.enumerate() {
+            for (lane, &value) in lanes.iter().enumerate().take(bands - 4 * group) {
+                coeffs[(vertex * channels + channel) * bands + 4 * group + lane] = value;
+            }
+        }
+    }
+}
+
 fn decode_with(
     doc: &Document<serde_json::Value>,
     bin: &[u8],
     extras: &ZonalExtras,
     normals: Option<Vec<Vec3>>,
 ) -> std::result::Result<ZonalTransfer, String> {
-    if extras.layout != ZONAL_LAYOUT {
-        return Err(format!("unsupported zonal layout \"{}\"", extras.layout));
-    }
+    extras.check()?;
     let axis = match (extras.axis.as_str(), &normals) {
         ("normal", Some(_)) => ZonalAxis::Normal,
         ("fitted", None) => ZonalAxis::Fitted,
@@ -168,10 +199,6 @@ fn decode_with(
         .map(|a| a.count as usize)
         .ok_or("the file has no POSITION accessor")?;
     let (bands, channels) = (extras.bands as usize, extras.channels as usize);
-    crate::sh::check_bands(extras.bands).map_err(|e| e.to_string())?;
-    if !matches!(channels, 1 | 3) {
-        return Err(format!("zonal transfer of {channels} channels (1 or 3)"));
-    }
     let groups = groups_of(bands);
     let count = (channels * groups)
         .checked_mul(vertices)
@@ -188,11 +215,7 @@ fn decode_with(
     for channel in 0..channels {
         for group in 0..groups {
             let block = &planar[(channel * groups + group) * vertices * 4..][..vertices * 4];
-            for (vertex, lanes) in block.chunks_exact(4).enumerate() {
-                for (lane, &value) in lanes.iter().enumerate().take(bands - 4 * group) {
-                    coeffs[(vertex * channels + channel) * bands + 4 * group + lane] = value;
-                }
-            }
+            extras.unpack_block(&mut coeffs, (channel, group), block.chunks_exact(4));
         }
     }
     let axes = match (normals, extras.axes_buffer_view) {

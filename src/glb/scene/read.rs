@@ -11,9 +11,7 @@ use serde_json::{json, Value};
 use crate::bake::{BakeMetadata, BakedMesh, Transfer};
 use crate::error::{Error, Result};
 use crate::glb::compressed::{self, CpcaExtras};
-use crate::glb::zonal::{
-    groups_of, zonal_attribute_name, ZonalExtras, AXIS_ATTRIBUTE, ZONAL_LAYOUT,
-};
+use crate::glb::zonal::{groups_of, zonal_attribute_name, ZonalExtras, AXIS_ATTRIBUTE};
 use crate::glb::{groups, transfer_attribute_name, LightmapExtras, References, FLOAT16};
 use crate::precision::Precision;
 use crate::scene::gltf::accessor::{dense, view_bytes};
@@ -72,6 +70,15 @@ fn lightmap_extras(document: &Value) -> std::result::Result<Option<LightmapExtra
     }
 }
 
+/// The lightmap the root's `extras.prt.lightmap` of a loaded scene names, if any.
+fn scene_lightmap(gltf: &GltfScene) -> std::result::Result<Option<LightmapExtras>, String> {
+    let root_extras: Value = match &gltf.root.extras {
+        Some(raw) => serde_json::from_str(raw.get()).map_err(|e| e.to_string())?,
+        None => Value::Null,
+    };
+    lightmap_extras(&json!({ "extras": root_extras }))
+}
+
 /// The JSON chunk of a .glb, `Null` where there is none to parse.
 fn json_of(bytes: &[u8]) -> Value {
     let json = bytes.get(12..20).and_then(|head| {
@@ -89,11 +96,7 @@ fn json_of(bytes: &[u8]) -> Value {
 pub fn read_scene_glb(path: &Path) -> Result<BakedMesh> {
     let (gltf, mut baked) = read_scene_vertices(path)?;
     let bad = |message: String| Error::baked(path, message);
-    let root_extras: Value = match &gltf.root.extras {
-        Some(raw) => serde_json::from_str(raw.get()).map_err(|e| bad(e.to_string()))?,
-        None => Value::Null,
-    };
-    if let Some(extras) = lightmap_extras(&json!({ "extras": root_extras })).map_err(bad)? {
+    if let Some(extras) = scene_lightmap(&gltf).map_err(bad)? {
         let uvs = gltf::texcoords(&gltf, extras.texcoord)
             .map_err(bad)?
             .ok_or_else(|| {
@@ -370,13 +373,7 @@ pub fn read_scene_zonal(path: &Path) -> Result<Option<ZonalTransfer>> {
         ZonalTransfer::new((shape.bands, shape.channels, axis), axes, coeffs).map_err(bad)?;
     // A lightmapped scene is read split at its corners (`read_scene_glb`): so is its zonal
     // transfer, each corner its vertex's.
-    let root_extras: Value = match &gltf.root.extras {
-        Some(raw) => serde_json::from_str(raw.get()).map_err(|e| bad(e.to_string()))?,
-        None => Value::Null,
-    };
-    let lightmapped = lightmap_extras(&json!({ "extras": root_extras }))
-        .map_err(bad)?
-        .is_some();
+    let lightmapped = scene_lightmap(&gltf).map_err(bad)?.is_some();
     Ok(Some(match lightmapped {
         true => zonal.select(baked.scene.triangles.as_flattened()),
         false => zonal,
@@ -397,16 +394,7 @@ fn primitive_zonal(
     }
     let zonal: ZonalExtras = serde_json::from_value(zonal.clone())
         .map_err(|e| format!("invalid extras.prt.zonal: {e}"))?;
-    if zonal.layout != ZONAL_LAYOUT {
-        return Err(format!("unsupported zonal layout \"{}\"", zonal.layout));
-    }
-    crate::sh::check_bands(zonal.bands).map_err(|e| e.to_string())?;
-    if !matches!(zonal.channels, 1 | 3) {
-        return Err(format!(
-            "zonal transfer of {} channels (1 or 3)",
-            zonal.channels
-        ));
-    }
+    zonal.check()?;
     Ok(Some(zonal))
 }
 
@@ -436,11 +424,8 @@ fn primitive_zonal_values(
             if values.len() != vertices {
                 return Err(format!("{name} has the wrong length"));
             }
-            for (vertex, lanes) in values.iter().enumerate() {
-                for (lane, &value) in lanes.iter().enumerate().take(bands - 4 * group) {
-                    coeffs[(vertex * channels + channel) * bands + 4 * group + lane] = value;
-                }
-            }
+            let lanes = values.iter().map(|lanes| &lanes[..]);
+            extras.unpack_block(&mut coeffs, (channel, group), lanes);
         }
     }
     let axes = match extras.axis.as_str() {

@@ -9,7 +9,8 @@
 //!   is turned to its smallest bounding box; a tiny chart is enlarged until its box's longer
 //!   side spans [`MIN_CHART_EDGE`] texels, so that every chart gets texels of its own.
 //! - Packing ([`pack`]): by the texels each chart meets, on a skyline, charts largest first,
-//!   each turned a quarter where that keeps it lower. Every chart is kept [`GUTTER`] empty
+//!   each turned a quarter where that keeps it lower; small charts first into the room the
+//!   large ones leave (under their overhangs, above their slopes). Every chart is kept [`GUTTER`] empty
 //!   texels away from the others and from the border, so neither bilinear filtering nor
 //!   dilation ([`super::texels::dilate`]) mixes two charts.
 //!

@@ -2,11 +2,17 @@
 //!
 //! Each chart's footprint is the range of texel rows it meets in each texel column (closed
 //! squares, as `texels::rasterize` counts them, with a margin for the rounding of placed
-//! corners). The atlas keeps a skyline: per column, the lowest row a new chart may use there,
-//! [`GUTTER`] rows above the highest texel of any chart within [`GUTTER`] columns. Charts go in
-//! largest first; each takes, of both its turns (as laid out, and a quarter turn) and every
-//! column, the place that keeps its top lowest (then the leftmost, then the unturned). Two
-//! charts' texels are then more than [`GUTTER`] texels apart (Chebyshev distance), so
+//! corners). Charts go in largest first, in two stages:
+//!
+//! - Large charts stand on a skyline: per column, the lowest row a new chart may use there,
+//!   [`GUTTER`] rows above the highest texel of any chart within [`GUTTER`] columns. Each takes,
+//!   of both its turns (as laid out, and a quarter turn) and every column, the place that keeps
+//!   its top lowest (then the leftmost, then the unturned).
+//! - Small charts (both sides at most [`SMALL_CHART`] texels) first go, by their boxes, into the
+//!   free texels the large ones left: below their overhangs and above their slopes. Only those
+//!   that find no room stand on the skyline.
+//!
+//! Two charts' texels are then more than [`GUTTER`] texels apart (Chebyshev distance), so
 //! `GUTTER` empty texels lie between them, as between a chart and the border.
 
 use glam::DVec2;
@@ -35,46 +41,208 @@ pub fn pack(charts: &[TexelChart], width: u32) -> Option<(Vec<Placement>, u32, u
     let key = |c: &TexelChart| (c.size.x * c.size.y * 1024.0) as u64;
     // Stable: equal sizes keep chart order.
     order.sort_by_key(|&i| std::cmp::Reverse(key(&charts[i])));
-    let mut skyline = vec![GUTTER as i64; width as usize];
-    let mut placements = vec![
-        Placement {
-            origin: [0, 0],
-            turned: false
+    let (large, small): (Vec<usize>, Vec<usize>) =
+        order.into_iter().partition(|&i| !is_small(&charts[i]));
+    let mut packing = Packing {
+        skyline: vec![GUTTER as i64; width as usize],
+        placements: vec![
+            Placement {
+                origin: [0, 0],
+                turned: false
+            };
+            charts.len()
+        ],
+        used_width: 0,
+        height: 0,
+    };
+    let mut footprints = Vec::with_capacity(large.len());
+    for &i in &large {
+        let (x, y, turned, footprint) = on_skyline(&packing.skyline, &charts[i])?;
+        packing.place(i, x, y, turned, &footprint);
+        footprints.push(footprint);
+    }
+    // Small charts first go into the holes the large ones left below the skyline.
+    let mut holes = Holes::new(width as usize, packing.height.max(0) as usize);
+    for (&i, footprint) in large.iter().zip(&footprints) {
+        let [x, y] = packing.placements[i].origin;
+        holes.block(footprint, x as i64, y as i64);
+    }
+    for &i in &small {
+        let (x, y, turned, footprint) = match holes.find(&charts[i]) {
+            Some(found) => found,
+            None => on_skyline(&packing.skyline, &charts[i])?,
         };
-        charts.len()
-    ];
-    let (mut used_width, mut height) = (0i64, 0i64);
-    for i in order {
-        let chart = &charts[i];
-        let mut best: Option<(i64, i64, i64, bool, Footprint)> = None;
-        for turned in [false, true] {
-            let footprint = Footprint::of(&placed_corners(chart, turned));
-            if let Some((x, y, waste)) = lowest_place(&skyline, &footprint) {
-                let top = y + footprint.top();
-                if best
-                    .as_ref()
-                    .is_none_or(|b| (top, waste, x) < (b.0, b.1, b.2))
-                {
-                    best = Some((top, waste, x, turned, footprint));
-                }
-            }
-        }
-        let (top, _, x, turned, footprint) = best?;
-        let y = top - footprint.top();
-        footprint.raise(&mut skyline, x, y);
-        height = height.max(top + 1 + GUTTER as i64);
-        used_width = used_width.max(x + footprint.columns.len() as i64 + GUTTER as i64);
-        placements[i] = Placement {
+        holes.block(&footprint, x, y);
+        packing.place(i, x, y, turned, &footprint);
+    }
+    let least = 2 * GUTTER as i64 + 1;
+    Some((
+        packing.placements,
+        packing.used_width.max(least) as u32,
+        packing.height.max(least) as u32,
+    ))
+}
+
+/// Charts placed so far: the skyline over them, where each went, and the width and height they
+/// take with their gutters.
+struct Packing {
+    skyline: Vec<i64>,
+    placements: Vec<Placement>,
+    used_width: i64,
+    height: i64,
+}
+
+impl Packing {
+    fn place(&mut self, chart: usize, x: i64, y: i64, turned: bool, footprint: &Footprint) {
+        footprint.raise(&mut self.skyline, x, y);
+        self.height = self.height.max(y + footprint.top() + 1 + GUTTER as i64);
+        self.used_width = self
+            .used_width
+            .max(x + footprint.columns.len() as i64 + GUTTER as i64);
+        self.placements[chart] = Placement {
             origin: [x as u32, y as u32],
             turned,
         };
     }
-    let least = 2 * GUTTER as i64 + 1;
-    Some((
-        placements,
-        used_width.max(least) as u32,
-        height.max(least) as u32,
-    ))
+}
+
+/// The best place on the skyline for a chart, of both its turns: the one that keeps its top
+/// lowest (then wastes least, then the leftmost, then the unturned): `(x, y, turned,
+/// footprint)`; `None` where it is wider than the atlas either way round.
+fn on_skyline(skyline: &[i64], chart: &TexelChart) -> Option<(i64, i64, bool, Footprint)> {
+    let mut best: Option<(i64, i64, i64, bool, Footprint)> = None;
+    for turned in [false, true] {
+        let footprint = Footprint::of(&placed_corners(chart, turned));
+        if let Some((x, y, waste)) = lowest_place(skyline, &footprint) {
+            let top = y + footprint.top();
+            if best
+                .as_ref()
+                .is_none_or(|b| (top, waste, x) < (b.0, b.1, b.2))
+            {
+                best = Some((top, waste, x, turned, footprint));
+            }
+        }
+    }
+    let (top, _, x, turned, footprint) = best?;
+    Some((x, top - footprint.top(), turned, footprint))
+}
+
+/// Whether a chart is small enough to be packed into a hole by its box: both its sides at most
+/// [`SMALL_CHART`] texels.
+fn is_small(chart: &TexelChart) -> bool {
+    chart.size.max_element() + 1.0 <= SMALL_CHART as f64
+}
+
+/// The longest side, in texels, of a chart packed into holes by its box. Most charts of a
+/// scanned mesh are a few triangles at a few texels each; in the holes under the large charts'
+/// overhangs they cost no atlas rows.
+const SMALL_CHART: usize = 32;
+
+/// The atlas' texels below the skyline, one bit each: set where a chart or its gutter lies
+/// (the border's gutter too). Small charts are placed by their boxes, first fit in row order
+/// from the lowest row; a box size's search resumes where the last search for it stopped,
+/// since texels only ever get taken.
+struct Holes {
+    width: usize,
+    height: usize,
+    words_per_row: usize,
+    taken: Vec<u64>,
+    resume: std::collections::HashMap<(usize, usize), (usize, usize)>,
+}
+
+impl Holes {
+    fn new(width: usize, height: usize) -> Holes {
+        let words_per_row = width.div_ceil(64);
+        let mut holes = Holes {
+            width,
+            height,
+            words_per_row,
+            taken: vec![0; words_per_row * height],
+            resume: Default::default(),
+        };
+        let g = GUTTER as usize;
+        for y in 0..height {
+            let border = y < g || y + g >= height;
+            if border {
+                holes.take(y, 0, width);
+            } else {
+                holes.take(y, 0, g.min(width));
+                holes.take(y, width.saturating_sub(g), width);
+            }
+        }
+        holes
+    }
+
+    /// Takes texels `from..to` of row `y`.
+    fn take(&mut self, y: usize, from: usize, to: usize) {
+        let row = &mut self.taken[y * self.words_per_row..(y + 1) * self.words_per_row];
+        for x in from..to {
+            row[x / 64] |= 1 << (x % 64);
+        }
+    }
+
+    /// Takes a chart's texels placed at `(x, y)` and its gutter around them.
+    fn block(&mut self, footprint: &Footprint, x: i64, y: i64) {
+        let g = GUTTER as i64;
+        for (i, &(low, high)) in footprint.columns.iter().enumerate() {
+            if low > high {
+                continue;
+            }
+            let column = x + i as i64;
+            let from = (column - g).max(0) as usize;
+            let to = ((column + g + 1) as usize).min(self.width);
+            let rows = (y + low - g).max(0)..(y + high + g + 1).min(self.height as i64);
+            for row in rows {
+                self.take(row as usize, from, to);
+            }
+        }
+    }
+
+    /// The last taken texel of row `y` in `x..x + n`, if any.
+    fn last_taken(&self, y: usize, x: usize, n: usize) -> Option<usize> {
+        let row = &self.taken[y * self.words_per_row..(y + 1) * self.words_per_row];
+        (x..x + n).rev().find(|&c| row[c / 64] >> (c % 64) & 1 == 1)
+    }
+
+    /// The first free box of `columns` x `rows` texels, in row order from where the last search
+    /// for that size stopped.
+    fn first_free(&mut self, columns: usize, rows: usize) -> Option<(usize, usize)> {
+        if columns > self.width || rows > self.height {
+            return None;
+        }
+        let (mut y, mut x) = self.resume.get(&(columns, rows)).copied().unwrap_or((0, 0));
+        let found = loop {
+            if y + rows > self.height {
+                break None;
+            }
+            if x + columns > self.width {
+                (y, x) = (y + 1, 0);
+                continue;
+            }
+            match (y..y + rows).find_map(|r| self.last_taken(r, x, columns)) {
+                Some(taken) => x = taken + 1,
+                None => break Some((x, y)),
+            }
+        };
+        self.resume.insert((columns, rows), (y, x));
+        found
+    }
+
+    /// A free place for a small chart's box, of both its turns, the lowest (then leftmost, then
+    /// unturned): `(x, y, turned, footprint)`.
+    fn find(&mut self, chart: &TexelChart) -> Option<(i64, i64, bool, Footprint)> {
+        let mut best: Option<(usize, usize, bool, Footprint)> = None;
+        for turned in [false, true] {
+            let footprint = Footprint::of(&placed_corners(chart, turned));
+            let box_rows = footprint.top() as usize + 1;
+            if let Some((x, y)) = self.first_free(footprint.columns.len(), box_rows) {
+                if best.as_ref().is_none_or(|b| (y, x) < (b.1, b.0)) {
+                    best = Some((x, y, turned, footprint));
+                }
+            }
+        }
+        best.map(|(x, y, turned, footprint)| (x as i64, y as i64, turned, footprint))
+    }
 }
 
 /// A chart's corners as placed at the origin: turned a quarter (counter-clockwise, then moved
@@ -229,19 +397,17 @@ mod tests {
         );
     }
 
-    #[test]
-    fn charts_interlock_and_keep_the_gutter() {
-        // Two right triangles pack into little more than one square's rows.
-        let triangle = TexelChart {
-            corners: vec![[DVec2::ZERO, DVec2::new(20.0, 0.0), DVec2::new(0.0, 20.0)]],
-            size: DVec2::splat(20.0),
-        };
-        let charts = vec![triangle.clone(), triangle];
-        let (placements, _, height) = pack(&charts, 60).unwrap();
-        assert!(height < 2 * 21, "height {height}");
+    /// Asserts that every chart's texels lie inside the border's gutter and more than
+    /// [`GUTTER`] texels from every other chart's.
+    fn assert_gutters_kept(
+        charts: &[TexelChart],
+        placements: &[Placement],
+        width: u32,
+        height: u32,
+    ) {
         let cells: Vec<Vec<(i64, i64)>> = charts
             .iter()
-            .zip(&placements)
+            .zip(placements)
             .map(|(c, p)| {
                 let f = Footprint::of(&placed_corners(c, p.turned));
                 let mut cells = Vec::new();
@@ -255,13 +421,51 @@ mod tests {
             .collect();
         let g = GUTTER as i64;
         for &(x, y) in cells.iter().flatten() {
-            assert!(x >= g && y >= g && x < 60 - g && y < height as i64 - g);
+            assert!(x >= g && y >= g && x < width as i64 - g && y < height as i64 - g);
         }
-        for a in &cells[0] {
-            for b in &cells[1] {
-                assert!((a.0 - b.0).abs().max((a.1 - b.1).abs()) > g, "{a:?} {b:?}");
+        for (i, a) in cells.iter().enumerate() {
+            for b in &cells[i + 1..] {
+                for p in a {
+                    for q in b {
+                        assert!((p.0 - q.0).abs().max((p.1 - q.1).abs()) > g, "{p:?} {q:?}");
+                    }
+                }
             }
         }
+    }
+
+    #[test]
+    fn small_charts_fill_the_room_the_large_ones_leave() {
+        let triangle = TexelChart {
+            corners: vec![[DVec2::ZERO, DVec2::new(40.0, 0.0), DVec2::new(0.0, 40.0)]],
+            size: DVec2::splat(40.0),
+        };
+        let (_, _, alone) = pack(std::slice::from_ref(&triangle), 48).unwrap();
+        // Twenty small squares fit above the triangle's slope: the atlas grows no taller.
+        let mut charts = vec![triangle];
+        charts.extend((0..20).map(|_| square(3.0)));
+        assert!(is_small(&charts[1]) && !is_small(&charts[0]));
+        let (placements, width, height) = pack(&charts, 48).unwrap();
+        assert_eq!(height, alone);
+        assert_gutters_kept(&charts, &placements, width, height);
+        // Where the room runs out, the rest stand on the skyline, gutters kept.
+        charts.extend((0..40).map(|_| square(3.0)));
+        let (placements, width, height) = pack(&charts, 48).unwrap();
+        assert!(height > alone);
+        assert_gutters_kept(&charts, &placements, width, height);
+    }
+
+    #[test]
+    fn charts_interlock_and_keep_the_gutter() {
+        // Two right triangles pack into little more than one square's rows.
+        let triangle = TexelChart {
+            corners: vec![[DVec2::ZERO, DVec2::new(20.0, 0.0), DVec2::new(0.0, 20.0)]],
+            size: DVec2::splat(20.0),
+        };
+        let charts = vec![triangle.clone(), triangle];
+        let (placements, width, height) = pack(&charts, 60).unwrap();
+        assert!(height < 2 * 21, "height {height}");
+        assert_gutters_kept(&charts, &placements, width, height);
     }
 
     #[test]

@@ -136,8 +136,8 @@ pub struct BakedMesh {
     pub scene: Scene,
     pub transfer: Transfer,
     pub metadata: BakeMetadata,
-    /// Per-texel transfer, when a lightmap was baked (the scene is then split so that every
-    /// triangle corner has its own vertex and lightmap coordinates).
+    /// Per-texel transfer, when a lightmap was baked (on a generated atlas the scene is then
+    /// split where its charts meet, so that each vertex has one pair of lightmap coordinates).
     pub lightmap: Option<TexelBake>,
 }
 
@@ -149,13 +149,44 @@ pub struct TexelBake {
     /// Lightmap coordinates of every triangle corner of the scene (corner i of triangle t at
     /// `3t + i`), in [0, 1] as glTF's `TEXCOORD_n`: texel (x, y) (row y from the top) has its
     /// centre at `((x + 0.5) / width, (y + 0.5) / height)`. A mesh with a generated atlas is
-    /// split at its corners, so these are its vertices' coordinates too.
+    /// split where its charts meet, so the corners of one vertex agree and a file holds them
+    /// per vertex ([`TexelBake::vertex_texcoords`]).
     pub texcoords: Vec<[f32; 2]>,
     /// The `TEXCOORD_n` set the coordinates are: 0 for a generated atlas, the scene's own
     /// lightmap set otherwise.
     pub set: u32,
     /// The texels' transfer, row-major: `vertex_count` is `width * height`.
     pub transfer: Transfer,
+}
+
+impl TexelBake {
+    /// The coordinates per vertex of `scene`, as a file's `TEXCOORD_n` holds them: each
+    /// vertex's from its corners; `None` where two corners of one vertex disagree (a mesh not
+    /// split where its charts meet). A vertex no triangle uses gets `[0, 0]`.
+    pub fn vertex_texcoords(&self, scene: &Scene) -> Option<Vec<[f32; 2]>> {
+        let mut per_vertex: Vec<Option<[f32; 2]>> = vec![None; scene.vertex_count()];
+        let corners = scene.triangles.iter().flatten();
+        for (&v, &uv) in corners.zip(&self.texcoords) {
+            let slot = per_vertex.get_mut(v as usize)?;
+            match slot {
+                Some(seen) if seen.map(f32::to_bits) != uv.map(f32::to_bits) => return None,
+                _ => *slot = Some(uv),
+            }
+        }
+        Some(
+            per_vertex
+                .into_iter()
+                .map(Option::unwrap_or_default)
+                .collect(),
+        )
+    }
+
+    /// Per triangle corner, the coordinates `per_vertex` gives its vertex: what a file's
+    /// `TEXCOORD_n` reads as.
+    pub fn corner_texcoords(scene: &Scene, per_vertex: &[[f32; 2]]) -> Vec<[f32; 2]> {
+        let corners = scene.triangles.iter().flatten();
+        corners.map(|&v| per_vertex[v as usize]).collect()
+    }
 }
 
 /// Everything a baked file records about how it was made (glTF mesh extras `prt`).

@@ -197,8 +197,8 @@ pub fn bake_from(
     let mut planned = plan(scene, options)?;
     // A lightmap that cannot fit fails now, not after the vertices are baked.
     let atlas = lightmap_atlas(&planned.scene, options, uv_set.as_ref())?;
-    // A generated atlas gives every corner its own coordinates, and the mesh is split to
-    // carry them; a scene's own set keeps them on its vertices.
+    // A generated atlas gives a vertex on a chart seam coordinates on each chart, and the mesh
+    // is split there to carry them; a scene's own set keeps them on its vertices.
     let set = uv_set.as_ref().map(|set| set.set);
 
     let started = Instant::now();
@@ -374,7 +374,8 @@ fn stored(
 }
 
 /// The scene, its transfer and its lightmap's bake: the texels of `atlas` baked, and the mesh
-/// split at every corner to carry their coordinates, unless they are the scene's own `set`.
+/// split where its charts meet to carry their coordinates, unless they are the scene's own
+/// `set`.
 fn add_lightmap(
     scene: Scene,
     transfer: Transfer,
@@ -398,7 +399,7 @@ fn add_lightmap(
         texels::bake_atlas_in(at, scatter.as_ref(), options, backend, progress)?;
     lightmap.set = set.unwrap_or(0);
     let (scene, transfer) = match set {
-        None => texels::split_corners(&scene, &transfer),
+        None => texels::split_at_seams(&scene, &transfer, &lightmap.texcoords),
         Some(_) => (scene, transfer),
     };
     Ok((scene, transfer, Some(lightmap), Some(report)))

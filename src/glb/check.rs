@@ -117,7 +117,7 @@ pub(super) fn validate_shape(shape: Shape) -> Result<()> {
         ));
     }
     if let Some(texels) = shape.lightmap {
-        validate_lightmap(texels, transfer, v).map_err(Error::Geometry)?;
+        validate_lightmap(texels, transfer, scene).map_err(Error::Geometry)?;
     }
     let bin = bin_len(v, scene.triangles.len(), transfer.channels, transfer.bands);
     // A GLB records its total length in 32 bits; keep a margin for the header and the JSON.
@@ -153,22 +153,31 @@ pub(super) fn validate_cpca(baked: &BakedMesh, cpca: &Cpca) -> std::result::Resu
     Ok(())
 }
 
-/// Checks that a lightmap fits the mesh it belongs to: one coordinate pair per vertex, and
-/// texels of the vertex transfer's bands and channels.
+/// Checks that a lightmap fits the mesh it belongs to: one coordinate pair per triangle corner,
+/// the same at every corner of a vertex (a file holds them per vertex), and texels of the
+/// vertex transfer's bands and channels.
 pub(super) fn validate_lightmap(
     texels: &TexelBake,
     transfer: TransferShape,
-    v: usize,
+    scene: &Scene,
 ) -> std::result::Result<(), String> {
     let map = &texels.transfer;
-    if texels.texcoords.len() != v {
+    let corners = 3 * scene.triangles.len();
+    if texels.texcoords.len() != corners {
         return Err(format!(
-            "{} lightmap coordinates for {v} vertices",
+            "{} lightmap coordinates for {corners} triangle corners",
             texels.texcoords.len()
         ));
     }
     if texels.texcoords.iter().flatten().any(|x| !x.is_finite()) {
         return Err("non-finite lightmap coordinates".into());
+    }
+    if texels.vertex_texcoords(scene).is_none() {
+        return Err(
+            "the corners of a vertex have different lightmap coordinates; \
+                    the mesh must be split where its charts meet"
+                .into(),
+        );
     }
     if (map.bands(), map.channels()) != (transfer.bands, transfer.channels)
         || map.vertex_count() != texels.width as usize * texels.height as usize

@@ -161,7 +161,10 @@ pub(super) fn encode_bin(
     views.push(planar_view(start, bin.len() - start, precision));
     if let Some(texels) = &baked.lightmap {
         let start = bin.len();
-        put_f32s(&mut bin, texels.texcoords.iter().flatten().copied());
+        let per_vertex = texels
+            .vertex_texcoords(scene)
+            .expect("validate_lightmap found the corners of each vertex agree");
+        put_f32s(&mut bin, per_vertex.iter().flatten().copied());
         views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
     }
     let expected_views = TRANSFER_VIEW + 1 + baked.lightmap.is_some() as usize;

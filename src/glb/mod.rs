@@ -16,7 +16,8 @@
 //! - mesh `extras.prt` holds every [`BakeMetadata`] field, plus `vertices`,
 //!   `transfer_buffer_view` and `transfer_layout` ([`TRANSFER_LAYOUT`]).
 //! - with a lightmap (`bake --lightmap`): a sixth view, the lightmap coordinates as
-//!   `TEXCOORD_0` (`VEC2` float, one pair per vertex; every triangle corner is its own vertex),
+//!   `TEXCOORD_0` (`VEC2` float, one pair per vertex; the mesh is split where the atlas'
+//!   charts meet, a vertex on a seam once per chart),
 //!   and `extras.prt.lightmap` = `{uri, width, height, texcoord: 0, layout}`, `uri` naming the
 //!   OpenEXR file beside the .glb that holds the per-texel transfer (`crate::lightmap`).
 
@@ -168,7 +169,8 @@ pub fn read_glb(path: &Path) -> Result<BakedMesh> {
         return scene::read_scene_glb(path);
     }
     let (mut baked, lightmap, _) = decode_parts(&bytes, path)?;
-    if let Some((extras, texcoords)) = lightmap {
+    if let Some((extras, per_vertex)) = lightmap {
+        let texcoords = TexelBake::corner_texcoords(&baked.scene, &per_vertex);
         baked.lightmap = Some(read_texels(path, &baked, extras, texcoords)?);
     }
     Ok(baked)
@@ -182,13 +184,15 @@ pub fn read_glb_compressed(path: &Path) -> Result<(BakedMesh, Option<Cpca>)> {
         return Ok((scene::read_scene_glb(path)?, None));
     }
     let (mut baked, lightmap, cpca) = decode_parts(&bytes, path)?;
-    if let Some((extras, texcoords)) = lightmap {
+    if let Some((extras, per_vertex)) = lightmap {
+        let texcoords = TexelBake::corner_texcoords(&baked.scene, &per_vertex);
         baked.lightmap = Some(read_texels(path, &baked, extras, texcoords)?);
     }
     Ok((baked, cpca))
 }
 
-/// The lightmap `extras` names, beside `glb`, checked against the mesh it belongs to.
+/// The lightmap `extras` names, beside `glb`, checked against the mesh it belongs to, with
+/// its coordinates per triangle corner (`texcoords`).
 fn read_texels(
     glb: &Path,
     baked: &BakedMesh,
@@ -413,6 +417,43 @@ mod tests {
             let decoded = decode_glb(&bytes, Path::new("mem.glb")).unwrap();
             assert_eq!(decoded, baked);
         }
+    }
+
+    #[test]
+    fn lightmap_coordinates_are_written_per_vertex_where_the_corners_agree() {
+        // Two triangles sharing an edge: four vertices, six corners.
+        let mut baked = sample(1);
+        baked.scene.positions.push(Vec3::new(1.0, 1.0, 0.0));
+        baked.scene.albedo.push(Vec3::ONE);
+        baked.scene.normals.as_mut().unwrap().push(Vec3::Z);
+        baked.scene.triangles.push([1, 3, 2]);
+        let n = baked.transfer.coeffs_per_channel();
+        let coeffs = [baked.transfer.coeffs(), &vec![0.5; n]].concat();
+        baked.transfer = Transfer::new(3, 1, 4, coeffs).unwrap();
+        let per_vertex = [[0.1, 0.2], [0.7, 0.2], [0.1, 0.8], [0.7, 0.8]];
+        let texcoords = TexelBake::corner_texcoords(&baked.scene, &per_vertex);
+        assert_eq!(texcoords.len(), 6);
+        baked.lightmap = Some(TexelBake {
+            width: 2,
+            height: 2,
+            texcoords,
+            set: 0,
+            transfer: Transfer::zeros(3, 1, 4),
+        });
+        let bytes = Stored::plain(&baked).and_then(|s| encode_valid(s, Some("a.exr")));
+        let doc = json_of(&bytes.unwrap());
+        let attributes = &doc["meshes"][0]["primitives"][0]["attributes"];
+        let accessor = &doc["accessors"][attributes["TEXCOORD_0"].as_u64().unwrap() as usize];
+        assert_eq!(accessor["count"], 4);
+        // A vertex whose corners lie on two charts cannot be written per vertex.
+        baked.lightmap.as_mut().unwrap().texcoords[3] = [0.9, 0.9];
+        let refused = Stored::plain(&baked)
+            .and_then(|s| encode_valid(s, Some("a.exr")))
+            .unwrap_err();
+        assert!(
+            refused.to_string().contains("split where its charts meet"),
+            "{refused}"
+        );
     }
 
     #[test]

@@ -125,10 +125,14 @@ fn render_texels(
         .flatten()
         .collect();
     let coordinates: Vec<[f32; 3]> = texels.texcoords.iter().map(|&[u, v]| [u, v, 0.0]).collect();
-    // The coordinates are per triangle corner: a scene that keeps its vertices (a glTF scene's
-    // own UV set) is drawn split at its corners to carry them. A split one stays as it is.
+    // The coordinates are per triangle corner: a scene that shares vertices between corners (a
+    // glTF scene's own UV set, a mesh split only where its charts meet) is drawn split at its
+    // corners to carry them. One split already stays as it is.
     let split;
-    let scene = match scene.vertex_count() == coordinates.len() {
+    let already_split = (0..scene.triangles.len() as u32)
+        .zip(&scene.triangles)
+        .all(|(t, corners)| *corners == [3 * t, 3 * t + 1, 3 * t + 2]);
+    let scene = match already_split && scene.vertex_count() == coordinates.len() {
         true => scene,
         false => {
             split = texels::split_scene_corners(scene);

@@ -26,6 +26,7 @@ use crate::light::sky::latlong_copy;
 use crate::light::{EnvImage, Mapping, ShLight};
 use crate::probes::ProbeSet;
 use crate::render::{bounds, Camera};
+use crate::scene::Scene;
 use crate::zonal::ZonalTransfer;
 
 mod probes;
@@ -311,7 +312,11 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
     {
         return refuse("holds non-finite positions or transfer".into());
     }
-    let lightmap = baked.lightmap.as_ref().map(page_lightmap).transpose();
+    let lightmap = baked
+        .lightmap
+        .as_ref()
+        .map(|texels| page_lightmap(texels, &baked.scene))
+        .transpose();
     let lightmap = match lightmap {
         Ok(lightmap) => lightmap,
         Err(why) => return refuse(why),
@@ -360,20 +365,25 @@ fn page_bake(bake: &ViewerBake, light_bands: u32) -> Result<PageBake> {
     })
 }
 
-/// A lightmap's texels for the page, refused where they do not match the mesh.
-fn page_lightmap(texels: &TexelBake) -> std::result::Result<PageLightmap, String> {
+/// A lightmap's texels for the page, and its coordinates per vertex of `scene`; refused where
+/// they do not match the mesh.
+fn page_lightmap(texels: &TexelBake, scene: &Scene) -> std::result::Result<PageLightmap, String> {
     let transfer = &texels.transfer;
     let texel_count = texels.width as usize * texels.height as usize;
     if texel_count == 0 || transfer.vertex_count() != texel_count {
         return Err("its lightmap's texels do not match its size".into());
     }
+    let texcoords = (texels.texcoords.len() == 3 * scene.triangles.len())
+        .then(|| texels.vertex_texcoords(scene))
+        .flatten()
+        .ok_or("its lightmap's coordinates do not match its vertices")?;
     if !transfer.coeffs().iter().all(|c| c.is_finite()) {
         return Err("its lightmap holds non-finite transfer".into());
     }
     Ok(PageLightmap {
         width: texels.width,
         height: texels.height,
-        texcoords: base64_f32(texels.texcoords.iter().flatten().copied()),
+        texcoords: base64_f32(texcoords.iter().flatten().copied()),
         transfer: base64_f32(transfer.coeffs().iter().copied()),
     })
 }
@@ -502,7 +512,7 @@ mod tests {
         texels.lightmap = Some(TexelBake {
             width: 1,
             height: 1,
-            texcoords: vec![[0.5; 2]; baked.scene.vertex_count()],
+            texcoords: vec![[0.5; 2]; 3 * baked.scene.triangle_count()],
             set: 0,
             transfer: baked.transfer.clone(),
         });

@@ -279,6 +279,7 @@ impl Planned<'_> {
                 Some(_) => Some(&mut bake_probes),
                 None => None,
             },
+            zonal: self.spec.storage.zonal,
         };
         let written = glb::stream::bake_streamed(&streamed, backend, chunk, sink, progress)?;
         Ok(Streamed {
@@ -295,6 +296,7 @@ impl Planned<'_> {
             preview: preview.then(|| (streamed.into_scene(), radiance)),
             probes: written.probes,
             probe_seconds: written.probe_seconds,
+            zonal: written.zonal,
         })
     }
 }
@@ -313,6 +315,8 @@ pub struct Streamed {
     /// The probes in the file, and the seconds they took.
     pub probes: Option<ProbeSet>,
     pub probe_seconds: f64,
+    /// What the zonal transfer's fit cost, when the file holds one.
+    pub zonal: Option<ZonalFit>,
 }
 
 /// How a bake fits the memory it may use.
@@ -350,9 +354,12 @@ pub fn plan_memory(
             interreflected,
         )
     });
-    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
+    let mut need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
         .with_document(gltf.map_or(0, GltfScene::byte_size))
         .with_probes(probes);
+    if let Some(zonal) = spec.storage.zonal {
+        need = need.with_zonal(zonal.bands);
+    }
     let Some(budget) = limit.or(available) else {
         return Ok(whole);
     };
@@ -363,12 +370,12 @@ pub fn plan_memory(
         gltf.is_some_and(|gltf| scene_media(spec, (scene, gltf), &mut Vec::new()).is_some());
     let streamable = bake::stream::streams(&options)
         && spec.storage.layout == Layout::PerVertex
-        && spec.storage.zonal.is_none()
+        && (spec.storage.zonal.is_none() || spec.container == Container::Mesh)
         && spec.transfer.subsurface.is_none()
         && !translucent;
     let why_not = "only bakes at the vertices (no least-squares fit or lightmap), without \
-                   --compress, --zonal, --subsurface or translucent glTF materials, stream in \
-                   chunks";
+                   --compress, --subsurface, translucent glTF materials or --zonal in a glTF \
+                   scene baked in place, stream in chunks";
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;

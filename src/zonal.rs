@@ -297,38 +297,89 @@ pub fn fit_and_measure(
     normals: &[Vec3],
     spec: ZonalSpec,
 ) -> Result<(ZonalTransfer, ZonalFit)> {
-    let started = Instant::now();
-    let zonal = ZonalTransfer::fit(transfer, normals, spec)?;
-    let seconds = started.elapsed().as_secs_f64();
-    let light = light::preview_light(transfer.bands())?;
-    let fit = ZonalFit {
-        bands: zonal.bands,
-        axis: zonal.axis,
-        energy_outside: energy_outside(transfer, &zonal),
-        relit_error: relit_error(transfer, &zonal, &light)?,
-        seconds,
-    };
+    let mut tally = ZonalTally::new(spec);
+    let zonal = tally.fit(transfer, normals)?;
+    let fit = tally.measured().expect("one run fitted");
     Ok((zonal, fit))
 }
 
-/// The fraction of `transfer`'s energy its zonal fit leaves out. Each lobe turned to its axis
-/// has norm `sqrt(sum_l z_l^2)` (`sh::zonal`), and the residual is orthogonal to it.
-pub fn energy_outside(transfer: &Transfer, zonal: &ZonalTransfer) -> f64 {
-    let total: f64 = transfer.coeffs().iter().map(|&c| c as f64 * c as f64).sum();
-    let kept: f64 = zonal.coeffs.iter().map(|&z| z as f64 * z as f64).sum();
+/// A zonal fit a run of vertices at a time (a streamed bake's chunks), and its measure summed
+/// over the runs in vertex order: each vertex's fit is its own, so the runs together are the
+/// whole transfer's fit, and the measure the whole fit's.
+pub struct ZonalTally {
+    spec: ZonalSpec,
+    /// The preview light at the transfer's bands, once a run is fitted.
+    light: Option<ShLight>,
+    bands: u32,
+    /// Squared SH coefficients, and squared zonal ones: what the lobes keep, since each lobe
+    /// turned to its axis has norm `sqrt(sum_l z_l^2)` (`sh::zonal`) and the residual is
+    /// orthogonal to it.
+    total: f64,
+    kept: f64,
+    relit: crate::compress::RelativeRms,
+    seconds: f64,
+}
+
+impl ZonalTally {
+    pub fn new(spec: ZonalSpec) -> ZonalTally {
+        ZonalTally {
+            spec,
+            light: None,
+            bands: 0,
+            total: 0.0,
+            kept: 0.0,
+            relit: Default::default(),
+            seconds: 0.0,
+        }
+    }
+
+    /// The zonal fit of the next run of vertices (`transfer` at vertices with `normals`),
+    /// measured into the tally.
+    pub fn fit(&mut self, transfer: &Transfer, normals: &[Vec3]) -> Result<ZonalTransfer> {
+        let started = Instant::now();
+        let zonal = ZonalTransfer::fit(transfer, normals, self.spec)?;
+        self.seconds += started.elapsed().as_secs_f64();
+        if self.light.is_none() {
+            self.light = Some(light::preview_light(transfer.bands())?);
+        }
+        let light = self.light.as_ref().expect("built above");
+        self.bands = zonal.bands;
+        self.total += transfer
+            .coeffs()
+            .iter()
+            .map(|&c| c as f64 * c as f64)
+            .sum::<f64>();
+        self.kept += zonal
+            .coeffs
+            .iter()
+            .map(|&z| z as f64 * z as f64)
+            .sum::<f64>();
+        let approximate = zonal.relight(&zonal.axes, light)?;
+        let exact = crate::compress::radiance(transfer, light);
+        self.relit.add_radiance(&exact, &approximate);
+        Ok(zonal)
+    }
+
+    /// What the runs fitted so far cost, `None` before the first.
+    pub fn measured(&self) -> Option<ZonalFit> {
+        self.light.as_ref()?;
+        Some(ZonalFit {
+            bands: self.bands,
+            axis: self.spec.axis,
+            energy_outside: outside(self.total, self.kept),
+            relit_error: self.relit.value(),
+            seconds: self.seconds,
+        })
+    }
+}
+
+/// The fraction of `total` energy that keeping `kept` of it leaves out.
+fn outside(total: f64, kept: f64) -> f64 {
     if total == 0.0 {
         0.0
     } else {
         ((total - kept) / total).max(0.0)
     }
-}
-
-/// RMS of the zonal transfer's radiance under `light` (about its rest axes) against the SH
-/// transfer's, over the RMS of the latter.
-pub fn relit_error(transfer: &Transfer, zonal: &ZonalTransfer, light: &ShLight) -> Result<f64> {
-    let approximate = zonal.relight(&zonal.axes, light)?;
-    let exact = crate::compress::radiance(transfer, light);
-    Ok(crate::compress::radiance_error(&exact, &approximate))
 }
 
 #[cfg(test)]
@@ -367,6 +418,46 @@ mod tests {
         }
     }
 
+    /// Fitted in two runs, a transfer gives the whole fit's lobes and axes and its measure.
+    #[test]
+    fn a_fit_in_runs_is_the_whole_fit() {
+        let (bands, vertices) = (4, 50);
+        let coeffs = (0..vertices * 3 * 16)
+            .map(|i| ((i * 7919) % 31) as f32 / 31.0 - 0.3)
+            .collect();
+        let transfer = Transfer::new(bands, 3, vertices, coeffs).unwrap();
+        let normals: Vec<Vec3> = (0..vertices)
+            .map(|i| Vec3::new((i as f32).cos(), 0.5, (i as f32).sin()).normalize())
+            .collect();
+        for axis in [ZonalAxis::Normal, ZonalAxis::Fitted] {
+            let spec = ZonalSpec { bands: 3, axis };
+            let (whole, measured) = fit_and_measure(&transfer, &normals, spec).unwrap();
+            let mut tally = ZonalTally::new(spec);
+            assert!(tally.measured().is_none());
+            let runs = [0..20, 20..vertices];
+            let mut coeffs = Vec::new();
+            let mut axes = Vec::new();
+            for run in runs {
+                let part = crate::bake::Transfer::new(
+                    bands,
+                    3,
+                    run.len(),
+                    transfer.coeffs()[run.start * 48..run.end * 48].to_vec(),
+                )
+                .unwrap();
+                let fitted = tally.fit(&part, &normals[run]).unwrap();
+                coeffs.extend_from_slice(fitted.coeffs());
+                axes.extend_from_slice(fitted.axes());
+            }
+            assert_eq!(coeffs, whole.coeffs());
+            assert_eq!(axes, whole.axes());
+            let in_runs = tally.measured().unwrap();
+            assert!((in_runs.energy_outside - measured.energy_outside).abs() < 1e-12);
+            assert!((in_runs.relit_error - measured.relit_error).abs() < 1e-12);
+            assert!(measured.energy_outside > 0.0 && measured.relit_error > 0.0);
+        }
+    }
+
     /// About the normal, fewer zonal bands leave more out; the fitted axis never leaves out
     /// more than the normal does (the normal is where its search starts).
     #[test]
@@ -383,8 +474,11 @@ mod tests {
         .unwrap();
         let normals = [Vec3::Y, Vec3::new(0.6, 0.0, 0.8)];
         let outside = |bands, axis| {
-            let zonal = ZonalTransfer::fit(&transfer, &normals, ZonalSpec { bands, axis });
-            energy_outside(&transfer, &zonal.unwrap())
+            let spec = ZonalSpec { bands, axis };
+            fit_and_measure(&transfer, &normals, spec)
+                .unwrap()
+                .1
+                .energy_outside
         };
         let mut last = 1.0;
         for zonal_bands in 1..=bands {

@@ -39,7 +39,7 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
     let d = dir.path();
     const INTERREFLECTED: [&str; 2] = ["--mode", "interreflected"];
     const TARGET: [&str; 4] = ["--target-error", "0.05", "--max-samples", "1024"];
-    let cases: [&[&str]; 14] = [
+    let cases: [&[&str]; 18] = [
         &["--device", "cpu"],
         // An error target: the chunks wait until the mean samples the file records are known.
         &[
@@ -106,6 +106,22 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             "--precision",
             "f16",
         ],
+        // Zonal transfer: each chunk fitted and written to its place in the reserved views.
+        &["--device", "cpu", "--zonal", "3", "--zonal-axis", "fitted"],
+        &["--device", "cpu", "--zonal", "2", "--bands", "auto"],
+        &[
+            "--device",
+            "cpu",
+            "--mode",
+            "interreflected",
+            "--storage",
+            "lean",
+            "--precision",
+            "f16",
+            "--zonal",
+            "4",
+        ],
+        &["--device", "gpu", "--zonal", "2", "--zonal-axis", "fitted"],
     ];
     for extra in cases {
         if extra.contains(&"gpu") && common::gpu_baker().is_none() {
@@ -131,7 +147,11 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             }),
             ..BakeOptions::default()
         };
-        let need = bunny_need(&options);
+        let zonal = extra.iter().position(|&a| a == "--zonal");
+        let need = match zonal {
+            Some(at) => bunny_need(&options).with_zonal(extra[at + 1].parse().unwrap()),
+            None => bunny_need(&options),
+        };
         // Chunks of 300 receivers: seven of them for the bunny's 1,839 vertices.
         let limit = need.streamed(300);
         assert!(
@@ -166,10 +186,19 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             ("precision f16:", extra.contains(&"f16")),
             ("bands auto:", extra.contains(&"auto")),
             ("target error:", extra.contains(&TARGET[0])),
+            ("zonal:", zonal.is_some()),
         ] {
-            let stated = line_starting(&whole_stderr, prefix);
+            // The zonal fit's seconds are its own; what it costs is the whole fit's.
+            let without_time = |line: String| match line.split_once(" in ") {
+                Some((before, after)) if prefix == "zonal:" => {
+                    format!("{before}{}", &after[after.find(';').unwrap_or(0)..])
+                }
+                _ => line,
+            };
+            let stated = line_starting(&whole_stderr, prefix).map(without_time);
             assert_eq!(stated.is_some(), asked, "{extra:?} {prefix} {whole_stderr}");
-            assert_eq!(line_starting(&stderr, prefix), stated, "{extra:?}");
+            let streamed_line = line_starting(&stderr, prefix).map(without_time);
+            assert_eq!(streamed_line, stated, "{extra:?}");
         }
     }
 }

@@ -371,10 +371,14 @@ fn bad_zonal_options_are_refused_in_one_line() {
             expect: "--zonal is for SH transfer",
         },
         BadInput {
-            case: "streamed",
-            file: None,
+            case: "a glTF scene in place, streamed",
+            file: Some((
+                "box.glb",
+                include_bytes!("data/gltf/BoxTextured.glb").as_slice(),
+            )),
             args: &[
                 "bake",
+                "box.glb",
                 "--zonal",
                 "2",
                 "--memory-limit",
@@ -382,7 +386,7 @@ fn bad_zonal_options_are_refused_in_one_line() {
                 "-o",
                 "o.glb",
             ],
-            expect: "without --compress, --zonal, --subsurface or translucent glTF materials",
+            expect: "or --zonal in a glTF scene baked in place, stream in chunks",
         },
     ] {
         assert_clean_failure(&input);

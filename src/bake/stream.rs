@@ -117,6 +117,20 @@ impl MemoryNeed {
         }
     }
 
+    /// The need with zonal transfer of `bands` bands beside the SH transfer (`--zonal`): each
+    /// receiver's lobes (RGB) and axis as fitted and as collected, and their file bytes (twice
+    /// whole, as the transfer's; once a chunk, streamed).
+    pub fn with_zonal(self, bands: u32) -> MemoryNeed {
+        let bands = bands as u64;
+        let lobes = 2 * (4 * 3 * bands + 12) + 24;
+        let file = 16 * 3 * bands.div_ceil(4) + 12;
+        MemoryNeed {
+            per_receiver_whole: self.per_receiver_whole + lobes + 2 * file,
+            per_receiver_streamed: self.per_receiver_streamed + lobes + file,
+            ..self
+        }
+    }
+
     /// The need with a glTF scene's document of `bytes` (its buffers and images).
     pub fn with_document(self, bytes: usize) -> MemoryNeed {
         MemoryNeed {

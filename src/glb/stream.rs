@@ -26,6 +26,7 @@ use crate::fs::AtomicFile;
 use crate::probes::ProbeSet;
 use crate::scene::gltf::GltfScene;
 use crate::sh::coeff_count;
+use crate::zonal::{ZonalFit, ZonalSpec, ZonalTally, ZonalTransfer};
 
 /// A .glb being written: everything but the transfer is in place; [`GlbStream::put`] fills in
 /// the transfer of a run of vertices, [`GlbStream::commit`] puts the file in place.
@@ -37,16 +38,19 @@ pub struct GlbStream {
     channels: u32,
     bands: u32,
     precision: Precision,
+    /// File offsets of the zonal coefficients' view and of the fitted axes' view.
+    zonal_at: Option<(u64, Option<u64>)>,
 }
 
 impl GlbStream {
     /// Starts the file at `path` for the mesh and transfer shape of `shape`, the transfer at
-    /// `precision`, with `probes` after it (as [`super::write_glb`] places them).
+    /// `precision`, with `probes` and room for the zonal transfer `zonal` asks for after it (as
+    /// [`super::write_glb`] places them).
     fn create(
         path: &Path,
         shape: Shape,
         precision: Precision,
-        probes: Option<&ProbeSet>,
+        (probes, zonal): (Option<&ProbeSet>, Option<ZonalSpec>),
     ) -> Result<GlbStream> {
         validate_shape(shape)?;
         let transfer = shape.transfer;
@@ -69,12 +73,25 @@ impl GlbStream {
                 views.len() - 1
             })
         });
-        tail.resize(tail.len().next_multiple_of(4), 0);
-        let bin_len = tail_start + tail.len();
+        // The zonal views are reserved, not written: the file is sized with zeros, and each
+        // chunk's fit goes to its place.
+        let mut reserved = tail.len();
+        let mut zonal_starts = Vec::new();
+        let zonal = zonal.map(|spec| {
+            let shape = (spec.bands.min(transfer.bands), transfer.channels, spec.axis);
+            super::zonal::reserve(shape, v, |len, stride| {
+                reserved = reserved.next_multiple_of(4);
+                zonal_starts.push(tail_start + reserved);
+                views.push(array_view(tail_start + reserved, len, stride, ARRAY_BUFFER));
+                reserved += len;
+                views.len() - 1
+            })
+        });
+        let bin_len = tail_start + reserved.next_multiple_of(4);
         let extras = super::encode::Extras {
             cpca: None,
             probes,
-            zonal: None,
+            zonal,
         };
         let json = encode_json(shape, None, extras, views, bin_len, precision)?;
         let head = glb_head(json, bin_len)?;
@@ -84,6 +101,7 @@ impl GlbStream {
         file.write_at(0, &head)?;
         file.write_at(head.len() as u64, &bin)?;
         file.write_at((head.len() + tail_start) as u64, &tail)?;
+        let in_file = |start: usize| (head.len() + start) as u64;
         Ok(GlbStream {
             file,
             transfer_start: (head.len() + bin.len()) as u64,
@@ -91,6 +109,9 @@ impl GlbStream {
             channels: transfer.channels,
             bands: transfer.bands,
             precision,
+            zonal_at: zonal_starts
+                .first()
+                .map(|&start| (in_file(start), zonal_starts.get(1).map(|&s| in_file(s)))),
         })
     }
 
@@ -117,6 +138,26 @@ impl GlbStream {
         Ok(())
     }
 
+    /// Writes the zonal transfer of the vertices `first..first + chunk.vertex_count`.
+    fn put_zonal(&mut self, first: usize, chunk: &ZonalTransfer) -> Result<()> {
+        let (coefficients, axes) = self.zonal_at.expect("room reserved for zonal transfer");
+        assert!(first + chunk.vertex_count() <= self.vertices);
+        let groups = super::zonal::groups_of(chunk.bands() as usize);
+        for channel in 0..chunk.channels() as usize {
+            for group in 0..groups {
+                let block = super::zonal::coefficient_block(chunk, channel, group);
+                let index = channel * groups + group;
+                let at = coefficients + (16 * (index * self.vertices + first)) as u64;
+                self.file.write_at(at, &block)?;
+            }
+        }
+        if let Some(axes) = axes {
+            let bytes = super::zonal::axes_bytes(chunk);
+            self.file.write_at(axes + (12 * first) as u64, &bytes)?;
+        }
+        Ok(())
+    }
+
     fn commit(self) -> Result<()> {
         self.file.commit()
     }
@@ -138,6 +179,9 @@ pub struct StreamSink<'a> {
     /// starts: given an interreflected bake's transfer (to read its exit light from) and the
     /// bands the file keeps.
     pub probes: Option<&'a mut ProbeStage<'a>>,
+    /// The zonal transfer the file holds beside the SH transfer, fitted a chunk at a time (a
+    /// baked mesh only).
+    pub zonal: Option<ZonalSpec>,
 }
 
 /// What bakes a streamed file's probes ([`StreamSink::probes`]).
@@ -174,7 +218,13 @@ impl<'m> Streaming<'m> {
                     metadata,
                     lightmap: None,
                 };
-                Streaming::Mesh(GlbStream::create(sink.path, shape, sink.precision, probes)?)
+                let stored = (probes, sink.zonal);
+                Streaming::Mesh(GlbStream::create(sink.path, shape, sink.precision, stored)?)
+            }
+            Some(_) if sink.zonal.is_some() => {
+                return Err(Error::Options(
+                    "zonal transfer of a glTF scene baked in place does not stream".into(),
+                ))
             }
             Some(gltf) => Streaming::Scene(SceneStream::create(
                 sink.path,
@@ -191,6 +241,13 @@ impl<'m> Streaming<'m> {
         match self {
             Streaming::Mesh(file) => file.put(first, chunk),
             Streaming::Scene(file) => file.put(first, chunk),
+        }
+    }
+
+    fn put_zonal(&mut self, first: usize, chunk: &ZonalTransfer) -> Result<()> {
+        match self {
+            Streaming::Mesh(file) => file.put_zonal(first, chunk),
+            Streaming::Scene(_) => unreachable!("create refuses zonal transfer of a scene"),
         }
     }
 
@@ -272,14 +329,20 @@ pub fn bake_streamed(
     let probe_seconds = probes_started.elapsed().as_secs_f64();
     let (_, vertex_map, _) = bake.prepared();
     let mut file = Streaming::create(bake, (&metadata, probes.as_ref()), &sink, vertex_map, chunk)?;
+    let mut zonal = sink.zonal.map(ZonalTally::new);
+    let normals = bake.scene().normals.as_deref().unwrap_or_default();
     for range in ranges {
         let first = range.start;
         let transfer = match &mut held {
-            Some(held) => held.read(range, metadata.channels)?,
-            None => source.next(range, metadata.channels)?,
+            Some(held) => held.read(range.clone(), metadata.channels)?,
+            None => source.next(range.clone(), metadata.channels)?,
         };
         (sink.each_chunk)(&transfer)?;
         file.put(first, &transfer)?;
+        if let Some(tally) = &mut zonal {
+            let normals = normals.get(range).unwrap_or_default();
+            file.put_zonal(first, &tally.fit(&transfer, normals)?)?;
+        }
     }
     let written = file.commit()?;
     let seconds = started.elapsed().as_secs_f64();
@@ -299,6 +362,7 @@ pub fn bake_streamed(
             .map(|held| (held.bands, held.beyond)),
         probes,
         probe_seconds,
+        zonal: zonal.and_then(|tally| tally.measured()),
     })
 }
 
@@ -429,4 +493,6 @@ pub struct StreamedWrite {
     /// The probes in the file, and the seconds they took.
     pub probes: Option<ProbeSet>,
     pub probe_seconds: f64,
+    /// What the zonal transfer's fit cost, when the file holds one.
+    pub zonal: Option<ZonalFit>,
 }

@@ -41,33 +41,65 @@ pub(super) fn encode(
     zonal: &ZonalTransfer,
     mut push_view: impl FnMut(Vec<u8>, Option<u64>) -> usize,
 ) -> ZonalExtras {
-    let (bands, channels) = (zonal.bands() as usize, zonal.channels() as usize);
-    let mut coefficients =
-        Vec::with_capacity(16 * channels * groups_of(bands) * zonal.vertex_count());
-    for channel in 0..channels {
-        for group in 0..groups_of(bands) {
-            for vertex in 0..zonal.vertex_count() {
-                let lobe = zonal.vertex_channel(vertex, channel);
-                let lanes = (0..4).map(|lane| lobe.get(4 * group + lane).copied().unwrap_or(0.0));
-                put_f32s(&mut coefficients, lanes);
-            }
+    let shape = (zonal.bands(), zonal.channels(), zonal.axis());
+    let mut coefficients = Vec::new();
+    for channel in 0..zonal.channels() as usize {
+        for group in 0..groups_of(zonal.bands() as usize) {
+            coefficients.extend(coefficient_block(zonal, channel, group));
         }
     }
+    let axes = axes_bytes(zonal);
+    let mut views = [coefficients, axes].into_iter();
+    reserve(shape, zonal.vertex_count(), |len, stride| {
+        let bytes = views.next().expect("two views at most");
+        debug_assert_eq!(bytes.len(), len);
+        push_view(bytes, stride)
+    })
+}
+
+/// The views of a zonal transfer of `bands`, `channels` and `axis` over `vertices` vertices,
+/// each laid out by `push_view` (which takes the view's length and stride, and returns its
+/// index): the coefficients, then the axes where they are fitted; what `extras.prt.zonal`
+/// says of them. A streamed file reserves them before any vertex is fitted.
+pub(super) fn reserve(
+    (bands, channels, axis): (u32, u32, ZonalAxis),
+    vertices: usize,
+    mut push_view: impl FnMut(usize, Option<u64>) -> usize,
+) -> ZonalExtras {
+    let blocks = channels as usize * groups_of(bands as usize);
     // Several accessors read the coefficients' view, so the spec asks for its stride.
-    let coefficients_buffer_view = push_view(coefficients, Some(16));
-    let axes_buffer_view = (zonal.axis() == ZonalAxis::Fitted).then(|| {
-        let mut axes = Vec::with_capacity(12 * zonal.vertex_count());
-        put_f32s(&mut axes, zonal.axes().iter().flat_map(|a| a.to_array()));
-        push_view(axes, None)
-    });
+    let coefficients_buffer_view = push_view(16 * blocks * vertices, Some(16));
+    let axes_buffer_view = (axis == ZonalAxis::Fitted).then(|| push_view(12 * vertices, None));
     ZonalExtras {
-        bands: zonal.bands(),
-        channels: zonal.channels(),
-        axis: zonal.axis().name().to_string(),
+        bands,
+        channels,
+        axis: axis.name().to_string(),
         coefficients_buffer_view,
         axes_buffer_view,
         layout: ZONAL_LAYOUT.to_string(),
     }
+}
+
+/// The bytes of `zonal`'s block `(channel, group)`: each vertex's four lanes, bands past its
+/// own zero. Block `b = channel * groups + group` of a file's `v` vertices starts `16 b v`
+/// bytes into the coefficients' view.
+pub(super) fn coefficient_block(zonal: &ZonalTransfer, channel: usize, group: usize) -> Vec<u8> {
+    let mut block = Vec::with_capacity(16 * zonal.vertex_count());
+    for vertex in 0..zonal.vertex_count() {
+        let lobe = zonal.vertex_channel(vertex, channel);
+        let lanes = (0..4).map(|lane| lobe.get(4 * group + lane).copied().unwrap_or(0.0));
+        put_f32s(&mut block, lanes);
+    }
+    block
+}
+
+/// The bytes of `zonal`'s axes view, empty unless they are fitted.
+pub(super) fn axes_bytes(zonal: &ZonalTransfer) -> Vec<u8> {
+    let mut axes = Vec::new();
+    if zonal.axis() == ZonalAxis::Fitted {
+        put_f32s(&mut axes, zonal.axes().iter().flat_map(|a| a.to_array()));
+    }
+    axes
 }
 
 /// Four bands a group.

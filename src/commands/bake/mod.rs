@@ -334,6 +334,9 @@ fn report_streamed(
     if let Some(cost) = &streamed.half_float {
         eprintln!("{cost}");
     }
+    if let Some(fit) = &streamed.zonal {
+        eprintln!("{fit}");
+    }
     print_probes_line(streamed.probes.as_ref(), streamed.probe_seconds);
     if let (Some(path), Some((scene, radiance))) = (&execution.preview, &streamed.preview) {
         let image = match baker {

@@ -370,12 +370,10 @@ pub fn plan_memory(
         gltf.is_some_and(|gltf| scene_media(spec, (scene, gltf), &mut Vec::new()).is_some());
     let streamable = bake::stream::streams(&options)
         && spec.storage.layout == Layout::PerVertex
-        && (spec.storage.zonal.is_none() || spec.container == Container::Mesh)
         && spec.transfer.subsurface.is_none()
         && !translucent;
     let why_not = "only bakes at the vertices (no least-squares fit or lightmap), without \
-                   --compress, --subsurface, translucent glTF materials or --zonal in a glTF \
-                   scene baked in place, stream in chunks";
+                   --compress, --subsurface or translucent glTF materials, stream in chunks";
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;

@@ -212,9 +212,13 @@ fn a_gltf_scene_streamed_in_chunks_writes_the_whole_bakes_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (gltf, scene) = prt_gpu::scene::gltf::load(Path::new(common::ENGINE_GLB)).unwrap();
-    let cases: [&[&str]; 5] = [
+    let cases: [&[&str]; 7] = [
         &["--device", "cpu"],
         &["--device", "cpu", "--storage", "lean", "--precision", "f16"],
+        // Zonal transfer: each chunk's fit waits in a scratch file of its own and fills every
+        // placement's zonal views at the end (dropped vertices get no lobe, as whole).
+        &["--device", "cpu", "--zonal", "3", "--zonal-axis", "fitted"],
+        &["--device", "gpu", "--zonal", "2"],
         &[
             "--device",
             "cpu",
@@ -247,8 +251,11 @@ fn a_gltf_scene_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             },
             ..BakeOptions::default()
         };
-        let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
+        let mut need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
             .with_document(gltf.byte_size());
+        if let Some(at) = extra.iter().position(|&a| a == "--zonal") {
+            need = need.with_zonal(extra[at + 1].parse().unwrap());
+        }
         let limit = need.streamed(4096);
         assert!(limit < need.whole());
         let run = |output: &str, limit: &str| {

@@ -370,24 +370,6 @@ fn bad_zonal_options_are_refused_in_one_line() {
             args: &["bake", "--mode", "local", "--zonal", "2", "-o", "o.glb"],
             expect: "--zonal is for SH transfer",
         },
-        BadInput {
-            case: "a glTF scene in place, streamed",
-            file: Some((
-                "box.glb",
-                include_bytes!("data/gltf/BoxTextured.glb").as_slice(),
-            )),
-            args: &[
-                "bake",
-                "box.glb",
-                "--zonal",
-                "2",
-                "--memory-limit",
-                "2M",
-                "-o",
-                "o.glb",
-            ],
-            expect: "or --zonal in a glTF scene baked in place, stream in chunks",
-        },
     ] {
         assert_clean_failure(&input);
     }

@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use super::scene::stream::SceneStream;
 use super::scene::SceneWrite;
+use super::zonal::{write_run, ZonalView};
 use super::{
     array_view, check_finite_coeffs, encode_json, encode_mesh_views, glb_head, groups,
     planar_bytes, planar_view, put_planar_block, validate_shape, Precision, Shape, ARRAY_BUFFER,
@@ -142,18 +143,18 @@ impl GlbStream {
     fn put_zonal(&mut self, first: usize, chunk: &ZonalTransfer) -> Result<()> {
         let (coefficients, axes) = self.zonal_at.expect("room reserved for zonal transfer");
         assert!(first + chunk.vertex_count() <= self.vertices);
-        let groups = super::zonal::groups_of(chunk.bands() as usize);
-        for channel in 0..chunk.channels() as usize {
-            for group in 0..groups {
-                let block = super::zonal::coefficient_block(chunk, channel, group);
-                let index = channel * groups + group;
-                let at = coefficients + (16 * (index * self.vertices + first)) as u64;
-                self.file.write_at(at, &block)?;
+        let views = [
+            (ZonalView::Coefficients, Some(coefficients)),
+            (ZonalView::Axes, axes),
+        ];
+        for (view, start) in views {
+            if let Some(start) = start {
+                let at = (self.vertices, first);
+                let file = &mut self.file;
+                write_run(chunk, view, at, &mut |offset, bytes| {
+                    file.write_at(start + offset as u64, bytes)
+                })?;
             }
-        }
-        if let Some(axes) = axes {
-            let bytes = super::zonal::axes_bytes(chunk);
-            self.file.write_at(axes + (12 * first) as u64, &bytes)?;
         }
         Ok(())
     }
@@ -221,16 +222,11 @@ impl<'m> Streaming<'m> {
                 let stored = (probes, sink.zonal);
                 Streaming::Mesh(GlbStream::create(sink.path, shape, sink.precision, stored)?)
             }
-            Some(_) if sink.zonal.is_some() => {
-                return Err(Error::Options(
-                    "zonal transfer of a glTF scene baked in place does not stream".into(),
-                ))
-            }
             Some(gltf) => Streaming::Scene(SceneStream::create(
                 sink.path,
                 gltf,
                 (shape_transfer, metadata),
-                (sink.precision, probes),
+                (sink.precision, probes, sink.zonal),
                 vertex_map,
                 chunk,
             )?),
@@ -247,7 +243,7 @@ impl<'m> Streaming<'m> {
     fn put_zonal(&mut self, first: usize, chunk: &ZonalTransfer) -> Result<()> {
         match self {
             Streaming::Mesh(file) => file.put_zonal(first, chunk),
-            Streaming::Scene(_) => unreachable!("create refuses zonal transfer of a scene"),
+            Streaming::Scene(file) => file.put_zonal(first, chunk),
         }
     }
 

@@ -80,10 +80,42 @@ pub(super) fn reserve(
     }
 }
 
+/// One of a zonal transfer's views.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ZonalView {
+    Coefficients,
+    /// Present where the axes are fitted.
+    Axes,
+}
+
+/// Writes the fit of a run of vertices (`zonal`, vertex `first` on of a view of `vertices`)
+/// into its `view` with `write(offset in the view, bytes)`: a streamed file's chunks go to
+/// their places this way.
+pub(super) fn write_run(
+    zonal: &ZonalTransfer,
+    view: ZonalView,
+    (vertices, first): (usize, usize),
+    write: &mut dyn FnMut(usize, &[u8]) -> Result<()>,
+) -> Result<()> {
+    match view {
+        ZonalView::Coefficients => {
+            let groups = groups_of(zonal.bands() as usize);
+            for channel in 0..zonal.channels() as usize {
+                for group in 0..groups {
+                    let block = coefficient_block(zonal, channel, group);
+                    write(16 * ((channel * groups + group) * vertices + first), &block)?;
+                }
+            }
+            Ok(())
+        }
+        ZonalView::Axes => write(12 * first, &axes_bytes(zonal)),
+    }
+}
+
 /// The bytes of `zonal`'s block `(channel, group)`: each vertex's four lanes, bands past its
 /// own zero. Block `b = channel * groups + group` of a file's `v` vertices starts `16 b v`
 /// bytes into the coefficients' view.
-pub(super) fn coefficient_block(zonal: &ZonalTransfer, channel: usize, group: usize) -> Vec<u8> {
+fn coefficient_block(zonal: &ZonalTransfer, channel: usize, group: usize) -> Vec<u8> {
     let mut block = Vec::with_capacity(16 * zonal.vertex_count());
     for vertex in 0..zonal.vertex_count() {
         let lobe = zonal.vertex_channel(vertex, channel);
@@ -94,7 +126,7 @@ pub(super) fn coefficient_block(zonal: &ZonalTransfer, channel: usize, group: us
 }
 
 /// The bytes of `zonal`'s axes view, empty unless they are fitted.
-pub(super) fn axes_bytes(zonal: &ZonalTransfer) -> Vec<u8> {
+fn axes_bytes(zonal: &ZonalTransfer) -> Vec<u8> {
     let mut axes = Vec::new();
     if zonal.axis() == ZonalAxis::Fitted {
         put_f32s(&mut axes, zonal.axes().iter().flat_map(|a| a.to_array()));

@@ -38,7 +38,7 @@ pub(crate) use read::stored_references;
 pub use read::{is_baked_in_place, read_scene_glb, read_scene_vertices, read_scene_zonal};
 
 use super::compressed::{self, CpcaExtras};
-use super::zonal::{groups_of, zonal_attribute_name, ZonalExtras, AXIS_ATTRIBUTE};
+use super::zonal::{groups_of, zonal_attribute_name, ZonalExtras, ZonalView, AXIS_ATTRIBUTE};
 use super::{
     glb_container, groups, transfer_attribute_name, LightmapExtras, Stored, FLOAT16,
     TRANSFER_LAYOUT, TRANSFER_LAYOUT_F16,
@@ -186,9 +186,19 @@ struct Bin {
     views: Vec<gltf_json::buffer::View>,
     /// Whether the per-vertex transfer's views are reserved rather than encoded.
     streaming: bool,
-    /// The reserved views: each one's offset in the chunk and the scene vertices it holds.
-    reserved: Vec<(usize, Range<usize>)>,
+    /// The reserved views: each one's offset in the chunk, the scene vertices it holds and
+    /// what of theirs.
+    reserved: Vec<(usize, Range<usize>, Holds)>,
     reserved_bytes: usize,
+}
+
+/// What a reserved view holds of its vertices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Holds {
+    /// Their SH transfer, planar.
+    Transfer,
+    /// A view of their zonal transfer (`glb::zonal`).
+    Zonal(ZonalView),
 }
 
 impl Bin {
@@ -204,19 +214,19 @@ impl Bin {
         self.add_view(offset, bytes.len(), stride, target)
     }
 
-    /// Appends a 4-byte aligned view of `len` bytes (a multiple of 4) for the transfer of the
+    /// Appends a 4-byte aligned view of `len` bytes (a multiple of 4) for what `holds` of the
     /// scene vertices `vertices`, to be written later; returns its index.
     fn reserve(
         &mut self,
         len: usize,
-        vertices: Range<usize>,
+        (vertices, holds): (Range<usize>, Holds),
         stride: Option<usize>,
         target: Option<Target>,
     ) -> u32 {
         debug_assert_eq!(len % 4, 0);
         self.bytes.resize(self.bytes.len().next_multiple_of(4), 0);
         let offset = self.bytes.len() + self.reserved_bytes;
-        self.reserved.push((offset, vertices));
+        self.reserved.push((offset, vertices.clone(), holds));
         self.reserved_bytes += len;
         self.add_view(offset, len, stride, target)
     }
@@ -549,7 +559,13 @@ fn add_transfer(
             let map = &vertex_map[vertices.clone()];
             let zonal = stored.zonal().map(|zonal| {
                 let primitive = &mut root.meshes[mesh].primitives[span.primitive];
-                add_zonal(bin, &mut root.accessors, primitive, &zonal.select(map))
+                add_zonal(
+                    bin,
+                    &mut root.accessors,
+                    primitive,
+                    zonal,
+                    (vertex_map, vertices.clone()),
+                )
             });
             if let Some(zonal) = &zonal {
                 first_zonal.get_or_insert(zonal.clone());
@@ -704,7 +720,7 @@ fn push_transfer(
     };
     let len = transfer.channels() as usize * groups * vertices.len() * 4 * precision.bytes();
     if bin.streaming {
-        return bin.reserve(len, vertices, stride, target);
+        return bin.reserve(len, (vertices, Holds::Transfer), stride, target);
     }
     let map = &vertex_map[vertices];
     let mut bytes = Vec::with_capacity(len);
@@ -756,19 +772,35 @@ fn add_attributes(
     }
 }
 
-/// The views of `zonal` (a primitive's vertices) in `bin`, and the primitive's `_PRT_ZH_*`
-/// attributes over them, as in the single-mesh format; what its `extras.prt.zonal` says.
+/// The views of `zonal` at the scene vertices `vertices` (which `vertex_map` maps to baked
+/// ones) in `bin`, and the primitive's `_PRT_ZH_*` attributes over them, as in the single-mesh
+/// format; what its `extras.prt.zonal` says. Reserved where the bin streams (`zonal` is then
+/// only its shape).
 fn add_zonal(
     bin: &mut Bin,
     accessors: &mut Vec<gltf_json::Accessor>,
     primitive: &mut gltf_json::mesh::Primitive,
     zonal: &ZonalTransfer,
+    (vertex_map, vertices): (&[u32], Range<usize>),
 ) -> ZonalExtras {
     let target = Some(Target::ArrayBuffer);
-    let extras = super::zonal::encode(zonal, |bytes, stride| {
-        bin.push(&bytes, stride.map(|s| s as usize), target) as usize
-    });
-    let vertices = zonal.vertex_count();
+    let extras = match bin.streaming {
+        true => {
+            let shape = (zonal.bands(), zonal.channels(), zonal.axis());
+            let mut holds = [ZonalView::Coefficients, ZonalView::Axes]
+                .map(Holds::Zonal)
+                .into_iter();
+            super::zonal::reserve(shape, vertices.len(), |len, stride| {
+                let at = (vertices.clone(), holds.next().expect("two views at most"));
+                bin.reserve(len, at, stride.map(|s| s as usize), target) as usize
+            })
+        }
+        false => super::zonal::encode(
+            &zonal.select(&vertex_map[vertices.clone()]),
+            |bytes, stride| bin.push(&bytes, stride.map(|s| s as usize), target) as usize,
+        ),
+    };
+    let vertices = vertices.len();
     let groups = groups_of(extras.bands as usize);
     for channel in 0..extras.channels {
         for group in 0..groups {

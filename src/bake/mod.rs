@@ -450,10 +450,13 @@ fn vertex_transfer(
         }
         None => &receivers.albedo[..],
     };
-    let bands = options.bands;
+    let scattering = match &scatter {
+        Some(scatter) => Some(scatter.on(options.bands, backend)?),
+        None => None,
+    };
     let mut to_vertices = |values: Vec<f32>| -> Result<Vec<f32>> {
         let values = to_vertices(values)?;
-        let Some(scatter) = &scatter else {
+        let Some(scattering) = &scattering else {
             return Ok(values);
         };
         if keep_incoming {
@@ -462,7 +465,7 @@ fn vertex_transfer(
                 None => incoming = Some(values.clone()),
             }
         }
-        scatter.apply(&values, bands, backend)
+        scattering.apply(&values)
     };
     let at_receivers = tint_by_albedo(&direct.scalar, albedo, options.bands);
     let mut transfer = Transfer::new(
@@ -488,7 +491,7 @@ fn vertex_transfer(
         }
         None => Vec::new(),
     };
-    let subsurface = scatter.map(|scatter| scatter.report);
+    let subsurface = scatter.as_ref().map(|scatter| scatter.report);
     let scattered = media
         .zip(incoming)
         .map(|((materials, of_vertex), incoming)| Scattered {

@@ -32,7 +32,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::backend::Backend;
+use super::backend::{Backend, Gatherer};
 use super::bounce::GatherMatrix;
 use crate::error::{Error, Result};
 use crate::scene::gltf::volume::SceneVolumes;
@@ -527,13 +527,55 @@ impl Scatter {
         })
     }
 
+    /// The scattering on `backend` for transfer of `bands`, each channel's matrix made ready
+    /// once (on the GPU: uploaded once) for the direct light and every bounce.
+    pub fn on<'s>(&'s self, bands: u32, backend: &'s dyn Backend) -> Result<Scattering<'s>> {
+        Scattering::new(&self.matrices, &self.only, bands, backend)
+    }
+}
+
+/// Subsurface matrices ready on a backend: [`Scattering::apply`] runs them.
+pub struct Scattering<'s> {
+    /// Each channel's gatherer, `None` for a channel whose matrix is empty.
+    gatherers: Vec<Option<Box<dyn Gatherer + 's>>>,
+    rows: usize,
+    stride: usize,
+}
+
+impl<'s> Scattering<'s> {
+    fn new(
+        matrices: &'s [GatherMatrix; 3],
+        only: &'s [Vec<Vec3>; 3],
+        bands: u32,
+        backend: &'s dyn Backend,
+    ) -> Result<Scattering<'s>> {
+        let gatherers = matrices
+            .iter()
+            .zip(only)
+            .map(|(matrix, only)| match matrix.columns.is_empty() {
+                true => Ok(None),
+                false => backend.gatherer(matrix, only, bands).map(Some),
+            })
+            .collect::<Result<_>>()?;
+        Ok(Scattering {
+            gatherers,
+            rows: matrices[0].rows(),
+            stride: 3 * crate::sh::coeff_count(bands),
+        })
+    }
+
     /// The light a surface sends back from the albedo-free transfer `values` (RGB,
     /// `[vertex][3][coeffs]`, what a white diffuse surface would send back), scattered under
-    /// it: channel by channel `W_c values_c`. For a white diffuse surface, `values` is
-    /// `1/pi` times the irradiance transfer, and `W_c` holds the profile's exitance, so this
-    /// is `(1/pi) integral R_d E dA` per unit light.
-    pub fn apply(&self, values: &[f32], bands: u32, backend: &dyn Backend) -> Result<Vec<f32>> {
-        gather_channels(&self.matrices, &self.only, (values, bands), backend)
+    /// it: channel by channel `W_c values_c`, summed. For a white diffuse surface, `values`
+    /// is `1/pi` times the irradiance transfer, and `W_c` holds the profile's exitance, so
+    /// this is `(1/pi) integral R_d E dA` per unit light.
+    pub fn apply(&self, values: &[f32]) -> Result<Vec<f32>> {
+        let mut sum = vec![0.0f32; self.rows * self.stride];
+        for gatherer in self.gatherers.iter().flatten() {
+            let gathered = gatherer.gather(values)?;
+            sum.iter_mut().zip(gathered).for_each(|(s, g)| *s += g);
+        }
+        Ok(sum)
     }
 }
 
@@ -544,26 +586,6 @@ fn channel_selectors(rows: usize) -> [Vec<Vec3>; 3] {
         unit[c] = 1.0;
         vec![unit; rows]
     })
-}
-
-/// `sum_c W_c values_c`: each channel's matrix applied to that channel of `values` (RGB,
-/// `[column][3][coeffs]`), on the backend.
-fn gather_channels(
-    matrices: &[GatherMatrix; 3],
-    only: &[Vec<Vec3>; 3],
-    (values, bands): (&[f32], u32),
-    backend: &dyn Backend,
-) -> Result<Vec<f32>> {
-    let stride = 3 * crate::sh::coeff_count(bands);
-    let mut sum = vec![0.0f32; matrices[0].rows() * stride];
-    for (matrix, only) in matrices.iter().zip(only) {
-        if matrix.columns.is_empty() {
-            continue;
-        }
-        let gathered = backend.gatherer(matrix, only, bands)?.gather(values)?;
-        sum.iter_mut().zip(gathered).for_each(|(s, g)| *s += g);
-    }
-    Ok(sum)
 }
 
 /// A point of the surface where subsurface light is wanted (a lightmap's texel): where it is,
@@ -609,8 +631,9 @@ impl PointScatter<'_> {
         let opaque = |i: usize| (Vec::new(), points[i].albedo.to_array());
         let rows = surface.rows(receivers, opaque)?;
         let only = channel_selectors(points.len());
-        let values = (self.incoming, bands);
-        let mut transfer = gather_channels(&per_channel(&rows), &only, values, backend)?;
+        let matrices = per_channel(&rows);
+        let scattering = Scattering::new(&matrices, &only, bands, backend)?;
+        let mut transfer = scattering.apply(self.incoming)?;
         let coeffs = crate::sh::coeff_count(bands);
         let per_point = transfer
             .chunks_exact_mut(3 * coeffs)

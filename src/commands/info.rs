@@ -37,11 +37,11 @@ pub(crate) fn run_devices() -> Result<()> {
 }
 
 /// Prints a baked file's description; a reader that stops early (`| head`) ends it quietly.
-/// What a baked file holds beside its transfer, one line each: probes, the subsurface
+/// What a baked file (`read`) holds beside its transfer, one line each: probes, the subsurface
 /// medium its transfer was baked in, zonal transfer.
-fn beside_the_transfer(path: &Path, metadata: &BakeMetadata) -> Result<Vec<String>> {
+fn beside_the_transfer(read: &glb::ReadBack, metadata: &BakeMetadata) -> Vec<String> {
     let mut lines = Vec::new();
-    if let Some(probes) = glb::probes::read_probes(path)? {
+    if let Some(probes) = &read.probes {
         lines.push(format!("probes:       {}", probes.describe()));
     }
     if let Some(subsurface) = &metadata.subsurface {
@@ -51,7 +51,7 @@ fn beside_the_transfer(path: &Path, metadata: &BakeMetadata) -> Result<Vec<Strin
             subsurface.reach
         ));
     }
-    if let Some(zonal) = glb::zonal::read_zonal(path)? {
+    if let Some(zonal) = &read.zonal {
         lines.push(format!(
             "zonal:        {} bands x {} channel(s) about the {} axis (_PRT_ZH_*)",
             zonal.bands(),
@@ -59,7 +59,7 @@ fn beside_the_transfer(path: &Path, metadata: &BakeMetadata) -> Result<Vec<Strin
             zonal.axis().name()
         ));
     }
-    Ok(lines)
+    lines
 }
 
 pub(crate) fn run_info(path: &Path) -> Result<()> {
@@ -80,7 +80,7 @@ pub(crate) fn run_info(path: &Path) -> Result<()> {
     };
     // Read whole, as render and view read it, so that a file they would refuse is refused
     // here too rather than described.
-    glb::read_glb_compressed(path)?;
+    let read = glb::read_back(path)?;
     let mut lines: Vec<String> = Vec::new();
     let (metadata, vertices, triangles) = glb::read_metadata(path)?;
     lines.push(format!("file:         {}", path.display()));
@@ -130,7 +130,7 @@ pub(crate) fn run_info(path: &Path) -> Result<()> {
             cpca.clusters, cpca.components
         ));
     }
-    lines.extend(beside_the_transfer(path, &metadata)?);
+    lines.extend(beside_the_transfer(&read, &metadata));
     lines.push(format!("backend:      {}", metadata.backend));
     lines.push(format!(
         "made by:      {} {}",

@@ -127,7 +127,8 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
     let context = open_render_device(args.adapter.as_deref())?;
     let mut panels = Vec::new();
     for (panel_index, path) in args.baked.iter().enumerate() {
-        let (baked, cpca) = glb::read_glb_compressed(path)?;
+        let read = glb::read_back(path)?;
+        let (baked, cpca) = (&read.baked, read.cpca.as_ref());
         let bands = baked.metadata.bands;
         let light = match &args.light {
             // Read again for each panel's bands; what it says, said once.
@@ -148,11 +149,11 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
             // Relit on the CPU as a run-time would, then drawn; else the preview's own way
             // (which draws a lightmap by its texels).
             _ if relit_on_cpu || bend.is_some() => {
-                let how = (cpca.as_ref(), args.zonal, bend);
-                let radiance = vertex_radiance(path, &baked, how, &light)?;
+                let how = (cpca, args.zonal, bend);
+                let radiance = vertex_radiance((path, &read), how, &light)?;
                 let (scene, radiance) = match &args.probe_sphere[..] {
                     [] => (drawn, radiance),
-                    spheres => with_probe_spheres(path, &baked, radiance, &light, spheres)?,
+                    spheres => with_probe_spheres((path, &read), radiance, &light, spheres)?,
                 };
                 render::render(
                     &context,
@@ -165,7 +166,7 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
             }
             _ => render::preview(
                 &context,
-                &baked,
+                baked,
                 &light,
                 Some(&camera),
                 args.width,
@@ -220,18 +221,18 @@ fn bent(scene: &prt_gpu::scene::Scene, bend: Option<Bend>) -> prt_gpu::scene::Sc
     drawn
 }
 
-/// The exit radiance at `baked`'s vertices (read from `path`) under `light`, albedo applied:
-/// from its zonal transfer where `zonal` asks (as an LDPRT run-time relights), each axis
-/// turned by `bend` at its vertex; from its clusters where it is compressed (the light dotted
-/// into each cluster once, then per vertex); else from its SH transfer.
+/// The exit radiance at the vertices of the bake `read` from `path` under `light`, albedo
+/// applied: from its zonal transfer where `zonal` asks (as an LDPRT run-time relights), each
+/// axis turned by `bend` at its vertex; from its clusters where it is compressed (the light
+/// dotted into each cluster once, then per vertex); else from its SH transfer.
 fn vertex_radiance(
-    path: &Path,
-    baked: &prt_gpu::bake::BakedMesh,
+    (path, read): (&Path, &glb::ReadBack),
     (cpca, zonal, bend): (Option<&prt_gpu::compress::Cpca>, bool, Option<Bend>),
     light: &light::ShLight,
 ) -> Result<Vec<[f32; 3]>> {
+    let baked = &read.baked;
     if zonal {
-        let zonal = glb::zonal::read_zonal(path)?.ok_or_else(|| {
+        let zonal = read.zonal.as_ref().ok_or_else(|| {
             Error::Options(format!(
                 "--zonal: {} holds no zonal transfer (bake it with --zonal BANDS)",
                 path.display()
@@ -252,15 +253,15 @@ fn vertex_radiance(
 }
 
 /// `radiance` of the baked scene's vertices with `spheres` added, lit by the probes of the
-/// file at `path`.
+/// bake `read` from `path`.
 fn with_probe_spheres(
-    path: &Path,
-    baked: &prt_gpu::bake::BakedMesh,
+    (path, read): (&Path, &glb::ReadBack),
     radiance: Vec<[f32; 3]>,
     light: &light::ShLight,
     spheres: &[(Vec3, Option<f32>)],
 ) -> Result<(prt_gpu::scene::Scene, Vec<[f32; 3]>)> {
-    let probes = glb::probes::read_probes(path)?.ok_or_else(|| {
+    let baked = &read.baked;
+    let probes = read.probes.as_ref().ok_or_else(|| {
         Error::Options(format!(
             "--probe-sphere: {} holds no probes (bake it with --probes or --probe-points)",
             path.display()
@@ -274,7 +275,7 @@ fn with_probe_spheres(
             radius: radius.unwrap_or(default_radius),
         })
         .collect();
-    render::with_probe_spheres(&baked.scene, radiance, &probes, &spheres, light)
+    render::with_probe_spheres(&baked.scene, radiance, probes, &spheres, light)
 }
 
 /// `render FILE --light ... -o relit.glb`: the file's relit radiance as COLOR_0 of a copy.
@@ -288,9 +289,10 @@ fn write_relit_distant(args: &RenderArgs) -> Result<()> {
     if glb::is_scene_file(&bytes) {
         return write_relit_scene(args, path);
     }
-    let (baked, cpca) = glb::read_glb_compressed(path)?;
+    let read = glb::read_back(path)?;
+    let (baked, cpca) = (&read.baked, read.cpca.as_ref());
     let (light, name) = relit_light(args, baked.metadata.bands)?;
-    let radiance = vertex_radiance(path, &baked, (cpca.as_ref(), args.zonal, None), &light)?;
+    let radiance = vertex_radiance((path, &read), (cpca, args.zonal, None), &light)?;
     let lightmap = match &baked.lightmap {
         Some(texels) => {
             let relit = render::relight(&texels.transfer, &light)?;

@@ -76,11 +76,9 @@ pub(crate) fn run_view(args: ViewArgs) -> Result<()> {
     )?;
     let mut bakes = Vec::new();
     for path in &args.baked {
-        let extras = (
-            glb::probes::read_probes(path)?,
-            glb::zonal::read_zonal(path)?,
-        );
-        bakes.push((path.display().to_string(), glb::read_glb(path)?, extras));
+        let read = glb::read_back(path)?;
+        let extras = (read.probes, read.zonal);
+        bakes.push((path.display().to_string(), read.baked, extras));
     }
     let bands = bakes
         .iter()

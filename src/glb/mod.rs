@@ -33,6 +33,8 @@ use crate::bake::{BakeMetadata, BakedMesh, TexelBake, Transfer, TransferShape};
 use crate::compress::Cpca;
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
+use crate::probes::ProbeSet;
+use crate::zonal::ZonalTransfer;
 use compressed::CpcaExtras;
 
 mod check;
@@ -189,6 +191,45 @@ pub fn read_glb_compressed(path: &Path) -> Result<(BakedMesh, Option<Cpca>)> {
         baked.lightmap = Some(read_texels(path, &baked, extras, texcoords)?);
     }
     Ok((baked, cpca))
+}
+
+/// Everything a baked file holds, read in one pass: the baked mesh (its lightmap read too),
+/// its compressed form, its probes and its zonal transfer.
+pub struct ReadBack {
+    /// The mesh and its transfer (for a compressed file, the reconstruction).
+    pub baked: BakedMesh,
+    pub cpca: Option<Cpca>,
+    pub probes: Option<ProbeSet>,
+    pub zonal: Option<ZonalTransfer>,
+}
+
+/// Reads a baked file once for what [`read_glb_compressed`], [`probes::read_probes`] and
+/// [`zonal::read_zonal`] each read, as they read it.
+pub fn read_back(path: &Path) -> Result<ReadBack> {
+    let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
+    let probes = probes::decode_probes(&bytes, path)?;
+    if is_scene_file(&bytes) {
+        let (baked, zonal) = scene::read_scene_with_zonal(path)?;
+        return Ok(ReadBack {
+            baked,
+            cpca: None,
+            probes,
+            zonal,
+        });
+    }
+    let (mut baked, lightmap, cpca) = decode_parts(&bytes, path)?;
+    let normals = || Ok(baked.scene.normals.clone().unwrap_or_default());
+    let zonal = zonal::decode_mesh_zonal(&bytes, path, normals)?;
+    if let Some((extras, per_vertex)) = lightmap {
+        let texcoords = TexelBake::corner_texcoords(&baked.scene, &per_vertex);
+        baked.lightmap = Some(read_texels(path, &baked, extras, texcoords)?);
+    }
+    Ok(ReadBack {
+        baked,
+        cpca,
+        probes,
+        zonal,
+    })
 }
 
 /// The lightmap `extras` names, beside `glb`, checked against the mesh it belongs to, with

@@ -182,6 +182,18 @@ pub fn decode_zonal(bytes: &[u8], path: &Path) -> Result<Option<ZonalTransfer>> 
     if is_scene_file(bytes) {
         return scene::read_scene_zonal(path);
     }
+    decode_mesh_zonal(bytes, path, || {
+        Ok(decode_glb(bytes, path)?.scene.normals.unwrap_or_default())
+    })
+}
+
+/// A baked mesh's zonal transfer from its bytes, its lobes about `normals()` where its axis
+/// is the normal.
+pub(super) fn decode_mesh_zonal(
+    bytes: &[u8],
+    path: &Path,
+    normals: impl FnOnce() -> Result<Vec<Vec3>>,
+) -> Result<Option<ZonalTransfer>> {
     let (json, bin) = split_chunks(bytes, path)?;
     let doc = parse_document(json, path)?;
     let bad = |message: String| Error::baked(path, message);
@@ -200,7 +212,7 @@ pub fn decode_zonal(bytes: &[u8], path: &Path) -> Result<Option<ZonalTransfer>> 
         .map_err(|e| bad(format!("invalid extras.prt.zonal: {e}")))?;
     let normals = match extras.axes_buffer_view {
         Some(_) => None,
-        None => Some(decode_glb(bytes, path)?.scene.normals.unwrap_or_default()),
+        None => Some(normals()?),
     };
     decode_with(&doc, bin, &extras, normals)
         .map(Some)

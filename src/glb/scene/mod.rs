@@ -35,7 +35,9 @@ mod read;
 pub mod stream;
 
 pub(crate) use read::stored_references;
-pub use read::{is_baked_in_place, read_scene_glb, read_scene_vertices, read_scene_zonal};
+pub use read::{
+    is_baked_in_place, read_scene_glb, read_scene_vertices, read_scene_with_zonal, read_scene_zonal,
+};
 
 use super::compressed::{self, CpcaExtras};
 use super::zonal::{groups_of, zonal_attribute_name, ZonalExtras, ZonalView, AXIS_ATTRIBUTE};

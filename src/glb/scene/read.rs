@@ -94,10 +94,29 @@ fn json_of(bytes: &[u8]) -> Value {
 /// comes split at its triangle corners, each carrying its lightmap coordinates, as a baked
 /// mesh with a generated atlas does.
 pub fn read_scene_glb(path: &Path) -> Result<BakedMesh> {
-    let (gltf, mut baked) = read_scene_vertices(path)?;
+    let (gltf, baked) = read_scene_vertices(path)?;
+    with_scene_lightmap(path, &gltf, baked)
+}
+
+/// [`read_scene_glb`] and [`read_scene_zonal`] from one reading of the file.
+pub fn read_scene_with_zonal(path: &Path) -> Result<(BakedMesh, Option<ZonalTransfer>)> {
+    let (gltf, baked) = read_scene_vertices(path)?;
+    let zonal = scene_zonal(path, &gltf, &baked)?;
+    let corners = baked.scene.triangles.as_flattened().to_vec();
+    let baked = with_scene_lightmap(path, &gltf, baked)?;
+    let split = baked.lightmap.is_some();
+    Ok((
+        baked,
+        zonal.map(|z| if split { z.select(&corners) } else { z }),
+    ))
+}
+
+/// `baked` (a scene's vertices as read) with the scene's lightmap, if it has one: split at its
+/// triangle corners, each carrying its lightmap coordinates.
+fn with_scene_lightmap(path: &Path, gltf: &GltfScene, mut baked: BakedMesh) -> Result<BakedMesh> {
     let bad = |message: String| Error::baked(path, message);
-    if let Some(extras) = scene_lightmap(&gltf).map_err(bad)? {
-        let uvs = gltf::texcoords(&gltf, extras.texcoord)
+    if let Some(extras) = scene_lightmap(gltf).map_err(bad)? {
+        let uvs = gltf::texcoords(gltf, extras.texcoord)
             .map_err(bad)?
             .ok_or_else(|| {
                 bad(format!(
@@ -329,6 +348,21 @@ fn attribute_blocks(
 /// where the scene has a lightmap. `None` where the scene has none.
 pub fn read_scene_zonal(path: &Path) -> Result<Option<ZonalTransfer>> {
     let (gltf, baked) = read_scene_vertices(path)?;
+    let zonal = scene_zonal(path, &gltf, &baked)?;
+    // A lightmapped scene is read split at its corners (`read_scene_glb`): so is its zonal
+    // transfer, each corner its vertex's.
+    let lightmapped = scene_lightmap(&gltf)
+        .map_err(|message| Error::baked(path, message))?
+        .is_some();
+    Ok(zonal.map(|zonal| match lightmapped {
+        true => zonal.select(baked.scene.triangles.as_flattened()),
+        false => zonal,
+    }))
+}
+
+/// The zonal transfer of the scene `gltf` at its vertices as read (`baked`), `None` where it
+/// has none.
+fn scene_zonal(path: &Path, gltf: &GltfScene, baked: &BakedMesh) -> Result<Option<ZonalTransfer>> {
     let bad = |message: String| Error::baked(path, message);
     let normals = baked.scene.normals.as_deref().unwrap_or_default();
     let mut shape: Option<ZonalExtras> = None;
@@ -354,7 +388,7 @@ pub fn read_scene_zonal(path: &Path) -> Result<Option<ZonalTransfer>> {
             }
             let span_normals = &normals[span.first..span.first + span.count];
             let (span_axes, span_coeffs) =
-                primitive_zonal_values(&gltf, primitive, &extras, span_normals).map_err(in_mesh)?;
+                primitive_zonal_values(gltf, primitive, &extras, span_normals).map_err(in_mesh)?;
             axes.extend(span_axes);
             coeffs.extend(span_coeffs);
         }
@@ -369,15 +403,9 @@ pub fn read_scene_zonal(path: &Path) -> Result<Option<ZonalTransfer>> {
         "fitted" => ZonalAxis::Fitted,
         _ => ZonalAxis::Normal,
     };
-    let zonal =
-        ZonalTransfer::new((shape.bands, shape.channels, axis), axes, coeffs).map_err(bad)?;
-    // A lightmapped scene is read split at its corners (`read_scene_glb`): so is its zonal
-    // transfer, each corner its vertex's.
-    let lightmapped = scene_lightmap(&gltf).map_err(bad)?.is_some();
-    Ok(Some(match lightmapped {
-        true => zonal.select(baked.scene.triangles.as_flattened()),
-        false => zonal,
-    }))
+    ZonalTransfer::new((shape.bands, shape.channels, axis), axes, coeffs)
+        .map(Some)
+        .map_err(bad)
 }
 
 /// A primitive's `extras.prt.zonal`, if any.

@@ -30,7 +30,7 @@ use std::path::Path;
 
 use serde_json::{json, Value};
 
-use super::{glb_container, split_chunks, FLOAT};
+use super::{glb_container, split_chunks, ARRAY_BUFFER, FLOAT};
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
 use crate::scene::gltf::GltfScene;
@@ -290,8 +290,8 @@ fn finish(mut doc: Value, bin: Vec<u8>, scale: f32) -> Result<(Vec<u8>, f32)> {
     Ok((glb_container(json, bin)?, scale))
 }
 
-/// Appends `values` to the BIN chunk as a new buffer view and float `VEC3` accessor; gives the
-/// accessor's index.
+/// Appends `values` to the BIN chunk as a new buffer view (of vertex data, so its target is
+/// set) and float `VEC3` accessor; gives the accessor's index.
 fn append_vec3s(
     doc: &mut Value,
     bin: &mut Vec<u8>,
@@ -304,7 +304,12 @@ fn append_vec3s(
     let view = push(
         doc,
         "bufferViews",
-        json!({"buffer": 0, "byteOffset": offset, "byteLength": 12 * count}),
+        json!({
+            "buffer": 0,
+            "byteOffset": offset,
+            "byteLength": 12 * count,
+            "target": ARRAY_BUFFER,
+        }),
     )?;
     push(
         doc,

@@ -15,6 +15,8 @@
 //! Two charts' texels are then more than [`GUTTER`] texels apart (Chebyshev distance), so
 //! `GUTTER` empty texels lie between them, as between a chart and the border.
 
+use std::ops::Range;
+
 use glam::DVec2;
 
 use super::GUTTER;
@@ -184,16 +186,10 @@ impl Holes {
     /// Takes a chart's texels placed at `(x, y)` and its gutter around them.
     fn block(&mut self, footprint: &Footprint, x: i64, y: i64) {
         let g = GUTTER as i64;
-        for (i, &(low, high)) in footprint.columns.iter().enumerate() {
-            if low > high {
-                continue;
-            }
-            let column = x + i as i64;
-            let from = (column - g).max(0) as usize;
-            let to = ((column + g + 1) as usize).min(self.width);
+        for (columns, low, high) in footprint.with_gutter(x, self.width) {
             let rows = (y + low - g).max(0)..(y + high + g + 1).min(self.height as i64);
             for row in rows {
-                self.take(row as usize, from, to);
+                self.take(row as usize, columns.start, columns.end);
             }
         }
     }
@@ -303,17 +299,28 @@ impl Footprint {
     /// Raises the skyline over the chart placed at `(x, y)`.
     fn raise(&self, skyline: &mut [i64], x: i64, y: i64) {
         let g = GUTTER as i64;
-        for (i, &(low, high)) in self.columns.iter().enumerate() {
-            if low > high {
-                continue;
-            }
-            let column = x + i as i64;
-            let from = (column - g).max(0) as usize;
-            let to = ((column + g) as usize).min(skyline.len() - 1);
-            for s in &mut skyline[from..=to] {
+        for (columns, _, high) in self.with_gutter(x, skyline.len()) {
+            for s in &mut skyline[columns] {
                 *s = (*s).max(y + high + g + 1);
             }
         }
+    }
+
+    /// For each texel column the chart meets, placed at column `x`: the atlas columns within
+    /// [`GUTTER`] of it (within `0..width`), and the lowest and highest row it meets there.
+    fn with_gutter(
+        &self,
+        x: i64,
+        width: usize,
+    ) -> impl Iterator<Item = (Range<usize>, i64, i64)> + '_ {
+        let g = GUTTER as i64;
+        let met = self.columns.iter().enumerate().filter(|(_, c)| c.0 <= c.1);
+        met.map(move |(i, &(low, high))| {
+            let column = x + i as i64;
+            let from = (column - g).max(0) as usize;
+            let to = ((column + g + 1) as usize).min(width);
+            (from..to, low, high)
+        })
     }
 }
 

@@ -686,9 +686,10 @@ fn a_lightmap_in_a_medium_glows_like_the_vertices() {
     let flat: Vec<f32> = texels.iter().flatten().copied().collect();
     let vertices = compress::radiance(&baked.mesh.transfer, &below);
     let top = top_vertices(&baked.mesh.scene, 14.0);
+    let per_vertex = lightmap.vertex_texcoords(&baked.mesh.scene).unwrap();
     let (mut from_texels, mut from_vertices) = (0.0f64, 0.0f64);
     for &v in &top {
-        let uv = lightmap.texcoords[v];
+        let uv = per_vertex[v];
         let looked_up =
             prt_gpu::bake::texels::sample_bilinear(&flat, 3, lightmap.width, lightmap.height, uv);
         from_texels += looked_up[1] as f64;
@@ -781,6 +782,7 @@ fn opaque_parts_of_a_translucent_scene_keep_their_plain_texels() {
             .flatten()
             .collect();
         let (width, height) = (lightmap.width, lightmap.height);
+        let per_vertex = lightmap.vertex_texcoords(&baked.scene).unwrap();
         (0..baked.scene.vertex_count())
             .filter(|&v| baked.scene.positions[v].x >= 6.0)
             .map(|v| {
@@ -789,7 +791,7 @@ fn opaque_parts_of_a_translucent_scene_keep_their_plain_texels() {
                     3,
                     width,
                     height,
-                    lightmap.texcoords[v],
+                    per_vertex[v],
                 );
                 [looked_up[0], looked_up[1], looked_up[2]]
             })

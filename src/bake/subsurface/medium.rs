@@ -272,16 +272,11 @@ impl Dipole {
         high
     }
 
-    /// `R_d` averaged over the ring from `r - radius` to `r + radius` (the disc of `radius`
-    /// where `r <= radius`): what a point at distance `r` standing for a disc of that radius
-    /// receives per unit area.
-    pub fn ring_mean(&self, r: f64, radius: f64) -> f64 {
-        self.ring_mean_outside(r, radius, 0.0)
-    }
-
-    /// [`Self::ring_mean`] of the part of the ring outside the disc of radius `own` about the
-    /// receiver (whose light the receiver takes from its own irradiance): the ring's mass out
-    /// there, over the whole ring's area.
+    /// `R_d` over the ring from `r - radius` to `r + radius` (the disc of `radius` where
+    /// `r <= radius`) outside the disc of radius `own` about the receiver (whose light the
+    /// receiver takes from its own irradiance), over the whole ring's area: what a point at
+    /// distance `r` standing for a disc of that radius sends the receiver per unit area. With
+    /// `own` zero, the ring's mean.
     pub fn ring_mean_outside(&self, r: f64, radius: f64, own: f64) -> f64 {
         let (inner, outer) = ((r - radius).max(0.0), r + radius);
         let area = PI * (outer * outer - inner * inner);
@@ -349,16 +344,21 @@ mod tests {
         );
     }
 
-    /// A ring's mean times its area is the profile's integral over it; the disc about a point
-    /// holds what is within its radius.
+    /// A ring's mean times its area is the profile's integral over it (the disc about a point
+    /// holds what is within its radius); outside a receiver's own disc, the part beyond it;
+    /// within it, nothing.
     #[test]
     fn ring_means_integrate_the_profile() {
         let dipole = media()[0];
         for (r, radius) in [(0.0f64, 0.5f64), (0.2, 0.5), (3.0, 0.25)] {
             let (inner, outer) = ((r - radius).max(0.0), r + radius);
             let area = PI * (outer * outer - inner * inner);
-            let mass = dipole.ring_mean(r, radius) * area;
+            let mass = dipole.ring_mean_outside(r, radius, 0.0) * area;
             assert!((mass - (dipole.within(outer) - dipole.within(inner))).abs() < 1e-12);
+            let own = 0.5 * (inner + outer);
+            let beyond = dipole.ring_mean_outside(r, radius, own) * area;
+            assert!((beyond - (dipole.within(outer) - dipole.within(own))).abs() < 1e-12);
+            assert_eq!(dipole.ring_mean_outside(r, radius, outer), 0.0);
         }
     }
 

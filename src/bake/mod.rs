@@ -450,10 +450,8 @@ fn vertex_transfer(
         }
         None => &receivers.albedo[..],
     };
-    let scattering = match &scatter {
-        Some(scatter) => Some(scatter.on(options.bands, backend)?),
-        None => None,
-    };
+    let scattering = scatter.as_ref().map(|s| s.on(options.bands, backend));
+    let scattering = scattering.transpose()?;
     let mut to_vertices = |values: Vec<f32>| -> Result<Vec<f32>> {
         let values = to_vertices(values)?;
         let Some(scattering) = &scattering else {

@@ -317,12 +317,8 @@ pub fn bake_streamed(
     if let Some(adaptive) = &adaptive {
         metadata.samples = adaptive.samples_mean.round() as u32;
     }
-    let probes_started = Instant::now();
-    let probes = match sink.probes.as_mut() {
-        Some(bake_probes) => Some(bake_probes(source.interreflected.as_mut(), metadata.bands)?),
-        None => None,
-    };
-    let probe_seconds = probes_started.elapsed().as_secs_f64();
+    let (probes, probe_seconds) =
+        probe_stage(&mut sink, source.interreflected.as_mut(), metadata.bands)?;
     let (_, vertex_map, _) = bake.prepared();
     let mut file = Streaming::create(bake, (&metadata, probes.as_ref()), &sink, vertex_map, chunk)?;
     let mut zonal = sink.zonal.map(ZonalTally::new);
@@ -360,6 +356,21 @@ pub fn bake_streamed(
         probe_seconds,
         zonal: zonal.and_then(|tally| tally.measured()),
     })
+}
+
+/// The probes the sink asks for, baked once the transfer is known (`interreflected`: a bake's
+/// scratch file to read the exit light from) at the file's `bands`, and their seconds.
+fn probe_stage(
+    sink: &mut StreamSink,
+    interreflected: Option<&mut Interreflected>,
+    bands: u32,
+) -> Result<(Option<ProbeSet>, f64)> {
+    let started = Instant::now();
+    let probes = match sink.probes.as_mut() {
+        Some(bake_probes) => Some(bake_probes(interreflected, bands)?),
+        None => None,
+    };
+    Ok((probes, started.elapsed().as_secs_f64()))
 }
 
 /// Where a streamed bake's chunks come from: an interreflected bake's scratch file, or the

@@ -91,8 +91,8 @@ fn json_of(bytes: &[u8]) -> Value {
 
 /// Reads a scene written by [`write_scene_glb`](super::write_scene_glb) as one baked mesh in world space: every
 /// placement's geometry and its transfer, for relighting and rendering. A scene with a lightmap
-/// comes split at its triangle corners, each carrying its lightmap coordinates, as a baked
-/// mesh with a generated atlas does.
+/// comes split at its triangle corners, each carrying its lightmap coordinates (its vertices'
+/// own coordinates, shared by the corners).
 pub fn read_scene_glb(path: &Path) -> Result<BakedMesh> {
     let (gltf, baked) = read_scene_vertices(path)?;
     with_scene_lightmap(path, &gltf, baked)

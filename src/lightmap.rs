@@ -16,6 +16,7 @@
 //! The file is encoded in memory and written through [`crate::fs::write_atomically`], so no
 //! partial file ever exists.
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::io::Cursor;
 use std::path::Path;
@@ -28,16 +29,18 @@ use exr::prelude::{
 use crate::error::{one_line, Error, Result};
 use crate::sh;
 
-/// Per-texel transfer: `coefficients[((y * width + x) * channels + c) * bands^2 + k]`.
+/// Per-texel transfer: `coefficients[((y * width + x) * channels + c) * bands^2 + k]`; a
+/// lightmap being written borrows its coefficients from the bake (a 2048² map of 4 bands in
+/// colour is 805 MB of them).
 #[derive(Clone, Debug, PartialEq)]
-pub struct Lightmap {
+pub struct Lightmap<'a> {
     pub width: u32,
     pub height: u32,
     pub bands: u32,
     /// 1 (grey transfer, channel `Y`) or 3 (`R`, `G`, `B`).
     pub channels: u32,
     /// `[texel row-major][channel][k]`.
-    pub coefficients: Vec<f32>,
+    pub coefficients: Cow<'a, [f32]>,
 }
 
 /// Reads a baked file's lightmap with Python, numpy and OpenEXR (pip's `OpenEXR` 3.x):
@@ -87,7 +90,7 @@ pub fn channel_name(k: usize, suffix: &str) -> String {
     format!("sh{k:02}.{suffix}")
 }
 
-impl Lightmap {
+impl Lightmap<'_> {
     fn coefficient_count(&self) -> usize {
         sh::coeff_count(self.bands)
     }
@@ -208,13 +211,13 @@ fn lightmap_attributes(bands: u32) -> LayerAttributes {
 /// Reads a lightmap written by [`write_lightmap`] (or any OpenEXR file with the same channels:
 /// `shKK.R/G/B` or `shKK.Y` for every `k < bands^2`, nothing else). Anything else is a one-line
 /// error naming the file.
-pub fn read_lightmap(path: &Path) -> Result<Lightmap> {
+pub fn read_lightmap(path: &Path) -> Result<Lightmap<'static>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     decode_lightmap(&bytes).map_err(|message| Error::baked(path, message))
 }
 
 /// A lightmap from OpenEXR bytes; the error is a one-line message.
-pub fn decode_lightmap(bytes: &[u8]) -> std::result::Result<Lightmap, String> {
+pub fn decode_lightmap(bytes: &[u8]) -> std::result::Result<Lightmap<'static>, String> {
     use exr::prelude::{read, ReadChannels, ReadLayers};
     let image = read()
         .no_deep_data()
@@ -257,7 +260,7 @@ pub fn decode_lightmap(bytes: &[u8]) -> std::result::Result<Lightmap, String> {
         height: height as u32,
         bands,
         channels,
-        coefficients,
+        coefficients: Cow::Owned(coefficients),
     })
 }
 
@@ -322,7 +325,7 @@ mod tests {
     use crate::testing::entries;
 
     /// A lightmap whose every value is distinct and half-exact (multiples of 1/64 below 32).
-    fn sample_lightmap(width: u32, height: u32, bands: u32, channels: u32) -> Lightmap {
+    fn sample_lightmap(width: u32, height: u32, bands: u32, channels: u32) -> Lightmap<'static> {
         let n = (width * height * channels) as usize * sh::coeff_count(bands);
         Lightmap {
             width,
@@ -382,7 +385,7 @@ mod tests {
     #[test]
     fn values_are_rounded_to_half() {
         let mut lightmap = sample_lightmap(3, 2, 2, 3);
-        lightmap.coefficients[5] = 0.1;
+        lightmap.coefficients.to_mut()[5] = 0.1;
         let back = decode_lightmap(&encode_lightmap(&lightmap).unwrap()).unwrap();
         assert!((back.coefficients[5] - 0.1).abs() < 0.1 * 2f32.powi(-11));
         assert_eq!(back.coefficients[6], lightmap.coefficients[6]);
@@ -418,12 +421,12 @@ mod tests {
         cases.push(Lightmap {
             width: 0,
             height: 0,
-            coefficients: vec![],
+            coefficients: Cow::Owned(vec![]),
             ..good.clone()
         });
         for value in [f32::NAN, f32::INFINITY, 1e6] {
             let mut bad = good.clone();
-            bad.coefficients[3] = value;
+            bad.coefficients.to_mut()[3] = value;
             cases.push(bad);
         }
         for bad in cases {

@@ -18,6 +18,7 @@ use crate::error::Error;
 use crate::local::{self, LocalBake, LocalReport};
 use crate::precision::Precision;
 use crate::probes::{self, ProbeSet};
+use crate::receivers::spread_point_count;
 use crate::receivers::uv_set::{self, UvSet};
 use crate::scene::gltf::volume::scattering_volumes;
 use crate::scene::gltf::GltfScene;
@@ -345,21 +346,7 @@ pub fn plan_memory(
         message: None,
     };
     let options = spec.options();
-    let probes = spec.probes.as_ref().map_or(0, |probes| {
-        let interreflected = options.mode == bake::Mode::Interreflected;
-        probes::memory_need(
-            probes,
-            scene,
-            (options.bands, options.samples),
-            interreflected,
-        )
-    });
-    let mut need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
-        .with_document(gltf.map_or(0, GltfScene::byte_size))
-        .with_probes(probes);
-    if let Some(zonal) = spec.storage.zonal {
-        need = need.with_zonal(zonal.bands);
-    }
+    let need = memory_need(spec, (scene, gltf));
     let Some(budget) = limit.or(available) else {
         return Ok(whole);
     };
@@ -403,6 +390,36 @@ pub fn plan_memory(
             )),
         }),
     }
+}
+
+/// The memory the bake of `scene` (`gltf` its document where the scene is a glTF one) as
+/// `spec` asks needs, estimated before it starts ([`MemoryNeed`]): what [`plan_memory`] holds
+/// against the user's limit or the machine's memory.
+pub fn memory_need(spec: &BakeSpec, (scene, gltf): (&Scene, Option<&GltfScene>)) -> MemoryNeed {
+    let options = spec.options();
+    let probes = spec.probes.as_ref().map_or(0, |probes| {
+        let interreflected = options.mode == bake::Mode::Interreflected;
+        probes::memory_need(
+            probes,
+            scene,
+            (options.bands, options.samples),
+            interreflected,
+        )
+    });
+    let mut need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
+        .with_document(gltf.map_or(0, GltfScene::byte_size))
+        .with_probes(probes);
+    if let Some(zonal) = spec.storage.zonal {
+        need = need.with_zonal(zonal.bands);
+    }
+    if options.fit == bake::Fit::LeastSquares {
+        let points = spread_point_count(scene, options.point_density);
+        need = need.with_fit_points(points as u64, &options);
+    }
+    if let Some(size) = spec.receivers.lightmap {
+        need = need.with_lightmap(size, &options);
+    }
+    need
 }
 
 /// The media of `gltf`'s scattering volumes (`scene` as `gltf::load` made it), where `spec`

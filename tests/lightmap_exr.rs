@@ -35,7 +35,7 @@ fn openexr_dump(path: &Path) -> serde_json::Value {
 }
 
 /// Values of many magnitudes and both signs, none exactly representable in half.
-fn lightmap(width: u32, height: u32, bands: u32, channels: u32) -> Lightmap {
+fn lightmap(width: u32, height: u32, bands: u32, channels: u32) -> Lightmap<'static> {
     let count = (width * height * channels * bands * bands) as usize;
     Lightmap {
         width,

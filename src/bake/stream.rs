@@ -47,6 +47,10 @@ pub struct MemoryNeed {
     pub per_receiver_whole: u64,
     pub per_receiver_streamed: u64,
     pub receivers: u64,
+    /// What a whole bake adds beside its vertices' transfer: a least-squares fit's points and
+    /// its solve ([`MemoryNeed::with_fit_points`]), a lightmap's texels and image
+    /// ([`MemoryNeed::with_lightmap`]). Neither streams.
+    pub beside_vertices: u64,
 }
 
 /// Receivers of the smallest chunk worth streaming: below it, per-chunk overheads dominate.
@@ -106,6 +110,50 @@ impl MemoryNeed {
                 + bounces_whole
                 + batches,
             receivers: v,
+            beside_vertices: 0,
+        }
+    }
+
+    /// The need with a least-squares fit to `points` surface points (`options` the bake's):
+    /// each point as spread and as kept, its receiver twice (candidate and kept), its ray
+    /// origin and normal, its transfer (albedo-free and RGB; for interreflection its gather
+    /// row and bounces, as a vertex's); and for each vertex the fit's conjugate gradients,
+    /// six f64 vectors over every RGB coefficient, and its row of the sparse normal matrix.
+    pub fn with_fit_points(self, points: u64, options: &BakeOptions) -> MemoryNeed {
+        let coeffs = coeff_count(options.bands) as u64;
+        let per_point =
+            2 * 16 + 2 * 48 + 24 + 8 + 4 * coeffs + 12 * coeffs + self.interreflection(options);
+        let solve = 6 * 8 * 3 * coeffs + 8 * 12;
+        MemoryNeed {
+            beside_vertices: self.beside_vertices + points * per_point + self.receivers * solve,
+            ..self
+        }
+    }
+
+    /// The need with a lightmap of at most `size` x `size` texels (`options` the bake's), at
+    /// the larger of its two peaks: while its texels bake (each texel a receiver, as a fitted
+    /// point is, with its transfer) and while it is written (the image in f32, its channels
+    /// in half floats, and the compressed file at most as large), beside the per-texel flags
+    /// and chart labels of the clean-up.
+    pub fn with_lightmap(self, size: u32, options: &BakeOptions) -> MemoryNeed {
+        let coeffs = coeff_count(options.bands) as u64;
+        let texels = size as u64 * size as u64;
+        let baking = 24 + 48 + 24 + 4 * coeffs + 12 * coeffs + self.interreflection(options);
+        let writing = 12 * coeffs + 6 * coeffs + 6 * coeffs;
+        MemoryNeed {
+            beside_vertices: self.beside_vertices + texels * (baking.max(writing) + 16),
+            ..self
+        }
+    }
+
+    /// What interreflection adds to a surface point's or texel's transfer: its gather row
+    /// (a column and a weight per blocked ray at most) and the bounce it gathers.
+    fn interreflection(&self, options: &BakeOptions) -> u64 {
+        match options.mode {
+            Mode::Interreflected => {
+                2 * 8 * options.samples_used() as u64 + 2 * 12 * coeff_count(options.bands) as u64
+            }
+            _ => 0,
         }
     }
 
@@ -149,7 +197,11 @@ impl MemoryNeed {
     /// The whole bake's need, every receiver at once.
     pub fn whole(&self) -> u64 {
         // The document as read, in the BIN chunk, and in the container around it.
-        self.fixed + 3 * self.document + self.probes + self.receivers * self.per_receiver_whole
+        self.fixed
+            + 3 * self.document
+            + self.probes
+            + self.receivers * self.per_receiver_whole
+            + self.beside_vertices
     }
 
     /// The need of a bake streamed `chunk` receivers at a time.

@@ -179,7 +179,9 @@ fn bake_atlas_scattering(
         None => at_texels,
     };
     let stride = at_texels.channels() as usize * at_texels.coeffs_per_channel();
-    let mut image = texels.scatter(at_texels.coeffs(), stride)?;
+    let (bands, channels) = (at_texels.bands(), at_texels.channels());
+    let leaks = leaks_as_baked((&texels, at_texels.coeffs(), &leaking[..]), stride);
+    let mut image = texels.scatter(at_texels.into_coeffs(), stride)?;
     let mut valid = texels.valid_mask(&leaking)?;
     let (width, height) = (atlas.width, atlas.height);
     if options.denoise {
@@ -202,8 +204,7 @@ fn bake_atlas_scattering(
         &owner,
         DILATION_PASSES,
     )?;
-    let baked = (&texels, at_texels.coeffs(), &leaking[..]);
-    keep_wide_leaks(baked, (&mut image, stride, width), &mut valid);
+    keep_wide_leaks(leaks, (&mut image, stride), &mut valid);
     let seams = seams::seams(scene, atlas);
     if stitching == Seams::Stitched {
         let rows = seams::seam_rows(width, height, &seams);
@@ -233,13 +234,8 @@ fn bake_atlas_scattering(
         height,
         texcoords,
         set: 0,
-        transfer: Transfer::new(
-            at_texels.bands(),
-            at_texels.channels(),
-            (width * height) as usize,
-            image,
-        )
-        .expect("one row of coefficients for every texel"),
+        transfer: Transfer::new(bands, channels, (width * height) as usize, image)
+            .expect("one row of coefficients for every texel"),
     };
     Ok((bake, report))
 }
@@ -250,24 +246,33 @@ type TexelsOf<'a> = (
     Option<&'a subsurface::PointScatter<'a>>,
 );
 
-/// Leaks too wide for dilation to fill keep what was baked there: each leaking texel of
-/// `texels` (`values` as baked, `stride` floats a texel) still invalid in `image` after the
-/// dilation gets its own values back.
-fn keep_wide_leaks(
+/// The values as baked (`values`, `stride` floats a texel of `texels`) of the texels flagged
+/// in `leaking`, by their row-major index in the image: what [`keep_wide_leaks`] puts back.
+fn leaks_as_baked(
     (texels, values, leaking): (&TexelPoints, &[f32], &[bool]),
-    (image, stride, width): (&mut [f32], usize, u32),
-    valid: &mut [bool],
-) {
-    for ((&(x, y), values), _) in texels
+    stride: usize,
+) -> Vec<(usize, Vec<f32>)> {
+    texels
         .texels
         .iter()
         .zip(values.chunks_exact(stride))
         .zip(leaking)
         .filter(|(_, &leak)| leak)
-    {
-        let at = (y * width + x) as usize;
+        .map(|((&(x, y), values), _)| ((y * texels.width + x) as usize, values.to_vec()))
+        .collect()
+}
+
+/// Leaks too wide for dilation to fill keep what was baked there: each leaking texel
+/// ([`leaks_as_baked`]) still invalid in `image` (`stride` floats a texel) after the dilation
+/// gets its own values back.
+fn keep_wide_leaks(
+    leaks: Vec<(usize, Vec<f32>)>,
+    (image, stride): (&mut [f32], usize),
+    valid: &mut [bool],
+) {
+    for (at, values) in leaks {
         if !valid[at] {
-            image[at * stride..(at + 1) * stride].copy_from_slice(values);
+            image[at * stride..(at + 1) * stride].copy_from_slice(&values);
             valid[at] = true;
         }
     }

@@ -153,13 +153,13 @@ pub fn lightmap_file_name(glb: &Path) -> String {
 }
 
 /// The file form of a texel bake.
-fn lightmap_of(texels: &TexelBake) -> crate::lightmap::Lightmap {
+fn lightmap_of(texels: &TexelBake) -> crate::lightmap::Lightmap<'_> {
     crate::lightmap::Lightmap {
         width: texels.width,
         height: texels.height,
         bands: texels.transfer.bands(),
         channels: texels.transfer.channels(),
-        coefficients: texels.transfer.coeffs().to_vec(),
+        coefficients: std::borrow::Cow::Borrowed(texels.transfer.coeffs()),
     }
 }
 
@@ -287,7 +287,7 @@ fn read_texels(
             map.bands,
             map.channels,
             (map.width * map.height) as usize,
-            map.coefficients,
+            map.coefficients.into_owned(),
         )
         .map_err(|e| Error::baked(&exr_path, e.to_string()))?,
     })

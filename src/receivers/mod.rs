@@ -223,17 +223,8 @@ impl Default for PointDensity {
 /// shift drawn from `(seed, triangle)` alone, so a triangle's points do not depend on the
 /// others (nor on their order).
 pub fn spread_points(scene: &Scene, density: PointDensity, seed: u64) -> Vec<SurfacePoint> {
-    let areas = triangle_areas(scene);
-    let total: f64 = areas.iter().sum();
-    let budget = density.per_vertex as f64 * scene.vertex_count() as f64;
     let mut points = Vec::new();
-    for (t, &area) in areas.iter().enumerate() {
-        let share = if total > 0.0 {
-            (budget * area / total).round() as u32
-        } else {
-            0
-        };
-        let count = share.max(density.min_per_triangle);
+    for (t, count) in points_per_triangle(scene, density).enumerate() {
         let mut rng = Pcg32::new(seed ^ ((pcg_hash(t as u32) as u64) << 32 | t as u64));
         let shift = [rng.next_f32() as f64, rng.next_f32() as f64];
         for i in 0..count {
@@ -245,6 +236,29 @@ pub fn spread_points(scene: &Scene, density: PointDensity, seed: u64) -> Vec<Sur
         }
     }
     points
+}
+
+/// How many points [`spread_points`] puts on each triangle: its share by area of
+/// `per_vertex * vertices`, and no fewer than `min_per_triangle`.
+fn points_per_triangle(scene: &Scene, density: PointDensity) -> impl Iterator<Item = u32> {
+    let areas = triangle_areas(scene);
+    let total: f64 = areas.iter().sum();
+    let budget = density.per_vertex as f64 * scene.vertex_count() as f64;
+    areas.into_iter().map(move |area| {
+        let share = if total > 0.0 {
+            (budget * area / total).round() as u32
+        } else {
+            0
+        };
+        share.max(density.min_per_triangle)
+    })
+}
+
+/// How many points [`spread_points`] spreads, without spreading them.
+pub fn spread_point_count(scene: &Scene, density: PointDensity) -> usize {
+    points_per_triangle(scene, density)
+        .map(|n| n as usize)
+        .sum()
 }
 
 /// `count` points, independently and uniformly by area over the whole surface (the held-out

@@ -53,8 +53,11 @@ impl TexelPoints {
     }
 
     /// Per-receiver values (`[receiver][channel]`) spread into a row-major image
-    /// (`[texel][channel]`), zero where no texel is covered.
-    pub fn scatter(&self, values: &[f32], channels: usize) -> Result<Vec<f32>> {
+    /// (`[texel][channel]`), zero where no texel is covered. The image is `values` itself,
+    /// grown and spread in place: a texel's place in the image is never before its place
+    /// among the covered texels (both are row-major), so moving texels from the last to the
+    /// first never overwrites one not yet moved, and a map never needs room for two copies.
+    pub fn scatter(&self, mut values: Vec<f32>, channels: usize) -> Result<Vec<f32>> {
         if values.len() != self.texels.len() * channels {
             return Err(Error::Options(format!(
                 "{} values for {} texels of {channels} channels",
@@ -62,12 +65,19 @@ impl TexelPoints {
                 self.texels.len()
             )));
         }
-        let mut image = vec![0.0; self.width as usize * self.height as usize * channels];
-        for (&(x, y), texel) in self.texels.iter().zip(values.chunks_exact(channels.max(1))) {
+        values.resize(self.width as usize * self.height as usize * channels, 0.0);
+        // Where the texel after the one being moved starts: everything from there to the
+        // previous texel's end is a gap left uncovered.
+        let mut gap_end = values.len();
+        for (i, &(x, y)) in self.texels.iter().enumerate().rev() {
             let at = self.index(x, y) * channels;
-            image[at..at + channels].copy_from_slice(texel);
+            debug_assert!(at >= i * channels, "covered texels are in row-major order");
+            values.copy_within(i * channels..(i + 1) * channels, at);
+            values[at + channels..gap_end].fill(0.0);
+            gap_end = at;
         }
-        Ok(image)
+        values[..gap_end].fill(0.0);
+        Ok(values)
     }
 
     fn index(&self, x: u32, y: u32) -> usize {
@@ -485,6 +495,43 @@ mod tests {
         })
     }
 
+    const ORIGIN_POINT: SurfacePoint = SurfacePoint {
+        triangle: 0,
+        barycentrics: [1.0, 0.0, 0.0],
+    };
+
+    #[test]
+    fn scattering_in_place_puts_every_texel_where_a_fresh_image_would() {
+        let mut rng = crate::sampling::Pcg32::new(7);
+        for (width, height, channels, share) in [(7, 5, 3, 0.3), (16, 9, 1, 0.9), (4, 4, 2, 1.0)] {
+            let all = (0..height).flat_map(|y| (0..width).map(move |x| (x, y)));
+            let texels: Vec<(u32, u32)> = all.filter(|_| rng.next_f32() < share).collect();
+            let points = vec![ORIGIN_POINT; texels.len()];
+            let map = TexelPoints {
+                width,
+                height,
+                texels,
+                points,
+            };
+            let values: Vec<f32> = (0..map.texels.len() * channels)
+                .map(|i| i as f32 + 1.0)
+                .collect();
+            let mut fresh = vec![0.0; (width * height) as usize * channels];
+            for (i, &(x, y)) in map.texels.iter().enumerate() {
+                let at = (y * width + x) as usize * channels;
+                fresh[at..at + channels].copy_from_slice(&values[i * channels..][..channels]);
+            }
+            assert_eq!(map.scatter(values, channels).unwrap(), fresh);
+        }
+        let map = TexelPoints {
+            width: 2,
+            height: 2,
+            texels: vec![(0, 0)],
+            points: vec![ORIGIN_POINT],
+        };
+        assert!(map.scatter(vec![1.0; 3], 2).is_err());
+    }
+
     #[test]
     fn every_texel_a_chart_overlaps_is_covered_by_it() {
         for scene in [assorted_scene(), quad_scene()] {
@@ -696,7 +743,7 @@ mod tests {
         let mut valid = texels.valid_mask(&leaking).unwrap();
         let chart_of = |p: &SurfacePoint| atlas.chart_of[p.triangle as usize] as f32;
         let values: Vec<f32> = texels.points.iter().map(chart_of).collect();
-        let mut image = texels.scatter(&values, 1).unwrap();
+        let mut image = texels.scatter(values, 1).unwrap();
         let (w, h) = (atlas.width, atlas.height);
         let seeds: Vec<(usize, u32)> = texels
             .texels

@@ -636,34 +636,88 @@ pub fn bake_at_in(
     vertex_transfer: Option<&Transfer>,
     progress: &dyn Progress,
 ) -> Result<(Transfer, u64)> {
+    let at = (receivers, bvh);
+    bake_at_gathering(
+        scene,
+        at,
+        options,
+        backend,
+        vertex_transfer,
+        progress,
+        GATHER_CHUNK,
+    )
+}
+
+/// [`bake_at_in`], gathering `chunk` receivers at a time.
+fn bake_at_gathering(
+    scene: &Scene,
+    (receivers, bvh): (&Receivers, Bvh),
+    options: &BakeOptions,
+    backend: &dyn Backend,
+    vertex_transfer: Option<&Transfer>,
+    progress: &dyn Progress,
+    chunk: usize,
+) -> Result<(Transfer, u64)> {
     options.validate()?;
     let owned = BakeInputs::with_tree(scene, receivers, bvh, options);
-    let direct = backend.direct_pass(&owned.view(), options.mode, progress)?;
     let albedo = match options.albedo {
         Some(albedo) => vec![albedo; receivers.len()],
         None => receivers.albedo.clone(),
     };
-    let mut transfer = tint_by_albedo(&direct.scalar, &albedo, options.bands);
-    if let Some(matrix) = &direct.matrix {
-        let vertices = vertex_transfer
-            .filter(|t| t.vertex_count() == scene.vertex_count() && t.bands() == options.bands)
-            .ok_or_else(|| {
-                Error::Options(
-                    "interreflected transfer at surface points gathers from the vertices' \
-                     transfer, and none of this scene and band count was given"
-                        .into(),
-                )
-            })?;
+    if options.mode != Mode::Interreflected {
+        let direct = backend.direct_pass(&owned.view(), options.mode, progress)?;
+        let transfer = tint_by_albedo(&direct.scalar, &albedo, options.bands);
+        return Ok((transfer, direct.rays_cast));
+    }
+    let vertices = vertex_transfer
+        .filter(|t| t.vertex_count() == scene.vertex_count() && t.bands() == options.bands)
+        .ok_or_else(|| {
+            Error::Options(
+                "interreflected transfer at surface points gathers from the vertices' \
+                 transfer, and none of this scene and band count was given"
+                    .into(),
+            )
+        })?;
+    // Each receiver's gather row holds an entry per blocked ray, so the rows of a large
+    // lightmap's texels would take gigabytes at once; a chunk's rows are gathered and dropped
+    // before the next chunk's rays. A receiver's values are its own, whatever the chunk.
+    progress.stage("transfer", receivers.len() as u64);
+    let mut coeffs = Vec::with_capacity(receivers.len() * 3 * coeff_count(options.bands));
+    let mut rays_cast = 0;
+    for first in (0..receivers.len()).step_by(chunk.max(1)) {
+        let chunk = first..receivers.len().min(first + chunk.max(1));
+        let part = owned.view().part(chunk.clone());
+        let direct = backend.direct_pass(&part, Mode::Interreflected, &Advancing(progress))?;
+        rays_cast += direct.rays_cast;
+        let matrix = direct
+            .matrix
+            .expect("an interreflected pass gives its gather matrix");
         let gathered = backend
-            .gatherer(matrix, &receivers.albedo, options.bands)?
+            .gatherer(&matrix, &receivers.albedo[chunk.clone()], options.bands)?
             .gather(vertices.coeffs())?;
+        let mut transfer = tint_by_albedo(&direct.scalar, &albedo[chunk], options.bands);
         transfer
             .coeffs_mut()
             .iter_mut()
             .zip(gathered)
             .for_each(|(t, g)| *t += g);
+        coeffs.extend(transfer.into_coeffs());
     }
-    Ok((transfer, direct.rays_cast))
+    let transfer = Transfer::new(options.bands, 3, receivers.len(), coeffs)
+        .expect("three channels of every receiver's coefficients");
+    Ok((transfer, rays_cast))
+}
+
+/// Receivers whose gather rows [`bake_at_in`] holds at once.
+pub const GATHER_CHUNK: usize = 1 << 16;
+
+/// Progress that passes on advances but not stages: chunks advance one stage of the whole.
+pub(crate) struct Advancing<'a>(pub(crate) &'a dyn Progress);
+
+impl Progress for Advancing<'_> {
+    fn advance(&self, done: u64) {
+        self.0.advance(done);
+    }
 }
 
 /// What the direct pass gives: albedo-free transfer `[receiver][k]`, the gather matrix
@@ -687,4 +741,46 @@ pub fn tint_by_albedo(scalar: &[f32], albedo: &[Vec3], bands: u32) -> Transfer {
     }
     Transfer::new(bands, 3, albedo.len(), coeffs)
         .expect("one albedo for each receiver's bands^2 coefficients")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::receivers::{spread_points, PointDensity};
+    use crate::scene::builtin::default_scene;
+
+    #[test]
+    fn points_gathered_a_chunk_at_a_time_get_the_whole_gathers_bytes() {
+        let options = BakeOptions {
+            mode: Mode::Interreflected,
+            samples: 64,
+            ..BakeOptions::default()
+        };
+        let (baked, _) = bake(default_scene(), &options, &CpuBackend, &NoProgress).unwrap();
+        let scene = &baked.scene;
+        let points = spread_points(scene, PointDensity::default(), 3);
+        let receivers = Receivers::at_points(scene, &points);
+        let at = |chunk: usize| {
+            let bvh = Bvh::build(&scene.positions, &scene.triangles);
+            let vertices = Some(&baked.transfer);
+            let at = (&receivers, bvh);
+            bake_at_gathering(
+                scene,
+                at,
+                &options,
+                &CpuBackend,
+                vertices,
+                &NoProgress,
+                chunk,
+            )
+            .unwrap()
+        };
+        let whole = at(receivers.len());
+        assert!(receivers.len() > 3 * 1000, "{} points", receivers.len());
+        for chunk in [1000, 777] {
+            let (transfer, rays) = at(chunk);
+            assert_eq!(rays, whole.1, "rays in chunks of {chunk}");
+            assert!(transfer == whole.0, "transfer in chunks of {chunk}");
+        }
+    }
 }

@@ -18,8 +18,8 @@ use super::adaptive::ReceiverErrors;
 use super::bounce::{self, GatherMatrix};
 use super::spill::Spill;
 use super::{
-    direct_or_adaptive, metadata_for, plan, tint_by_albedo, Backend, BakeMetadata, BakeOptions,
-    BounceStat, Fit, Mode, Progress, Storage, Transfer,
+    direct_or_adaptive, metadata_for, plan, tint_by_albedo, Advancing, Backend, BakeMetadata,
+    BakeOptions, BounceStat, Fit, Mode, Progress, Storage, Transfer,
 };
 use crate::error::{Error, Result};
 use crate::scene::Scene;
@@ -132,16 +132,18 @@ impl MemoryNeed {
 
     /// The need with a lightmap of at most `size` x `size` texels (`options` the bake's), at
     /// the larger of its two peaks: while its texels bake (each texel a receiver, as a fitted
-    /// point is, with its transfer) and while it is written (the image in f32, its channels
-    /// in half floats, and the compressed file at most as large), beside the per-texel flags
-    /// and chart labels of the clean-up.
+    /// point is, with its transfer; interreflected, one chunk's gather rows at a time,
+    /// [`super::GATHER_CHUNK`]) and while it is written (the image in f32, its channels in
+    /// half floats, and the compressed file at most as large), beside the per-texel flags and
+    /// chart labels of the clean-up.
     pub fn with_lightmap(self, size: u32, options: &BakeOptions) -> MemoryNeed {
         let coeffs = coeff_count(options.bands) as u64;
         let texels = size as u64 * size as u64;
-        let baking = 24 + 48 + 24 + 4 * coeffs + 12 * coeffs + self.interreflection(options);
+        let baking = 24 + 48 + 24 + 4 * coeffs + 12 * coeffs;
         let writing = 12 * coeffs + 6 * coeffs + 6 * coeffs;
+        let gathering = texels.min(super::GATHER_CHUNK as u64) * self.interreflection(options);
         MemoryNeed {
-            beside_vertices: self.beside_vertices + texels * (baking.max(writing) + 16),
+            beside_vertices: self.beside_vertices + texels * (baking.max(writing) + 16) + gathering,
             ..self
         }
     }
@@ -556,15 +558,6 @@ impl SpilledRows {
             columns: spill.read_vec(self.columns_at, self.entries)?,
             weights: spill.read_vec(self.weights_at, self.entries)?,
         })
-    }
-}
-
-/// Progress that passes on advances but not stages: chunks advance one stage of the whole.
-struct Advancing<'a>(&'a dyn Progress);
-
-impl Progress for Advancing<'_> {
-    fn advance(&self, done: u64) {
-        self.0.advance(done);
     }
 }
 

@@ -189,48 +189,97 @@ pub fn solve(
             diagonal[i] += row.weight * w * w;
         }
     }
-    let apply = |x: &[f64], out: &mut [f64]| {
-        for ((o, v), w) in out.iter_mut().zip(x).zip(&weight) {
-            *o = w * v;
+    // `x` and `out` hold `columns` values a texel, texel-major.
+    let apply = |x: &[f64], out: &mut [f64], columns: usize| {
+        for ((o, v), w) in out
+            .chunks_exact_mut(columns)
+            .zip(x.chunks_exact(columns))
+            .zip(&weight)
+        {
+            for (o, v) in o.iter_mut().zip(v) {
+                *o = w * v;
+            }
         }
+        let mut lookup = [0.0f64; COLUMNS];
         for (row, taps) in rows.iter().zip(&local) {
-            let lookup: f64 = taps.iter().map(|&(i, w)| w * x[i]).sum();
+            let lookup = &mut lookup[..columns];
+            // `Iterator::sum`'s start, as the single-coefficient solve summed.
+            lookup.fill(-0.0);
             for &(i, w) in taps {
-                out[i] += row.weight * w * lookup;
+                for (l, v) in lookup.iter_mut().zip(&x[i * columns..(i + 1) * columns]) {
+                    *l += w * v;
+                }
+            }
+            for &(i, w) in taps {
+                for (o, l) in out[i * columns..(i + 1) * columns].iter_mut().zip(&*lookup) {
+                    *o += row.weight * w * l;
+                }
             }
         }
     };
-    let precondition = |r: &[f64], z: &mut [f64]| {
-        for ((z, r), d) in z.iter_mut().zip(r).zip(&diagonal) {
-            *z = r / d;
+    let precondition = |r: &[f64], z: &mut [f64], columns: usize| {
+        for ((z, r), d) in z
+            .chunks_exact_mut(columns)
+            .zip(r.chunks_exact(columns))
+            .zip(&diagonal)
+        {
+            for (z, r) in z.iter_mut().zip(r) {
+                *z = r / d;
+            }
         }
     };
-    // The same matrix for every coefficient: one solve per coefficient, in parallel.
-    let solved: Vec<Vec<f64>> = (0..stride)
+    // The same matrix for every coefficient: each solved on its own, [`COLUMNS`] side by side
+    // (one pass over the rows serves them all), the groups in parallel.
+    let groups: Vec<(usize, Vec<f64>)> = (0..stride)
+        .step_by(COLUMNS)
+        .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|c| {
-            let start: Vec<f64> = texels
-                .iter()
-                .map(|&t| image[t * stride + c] as f64)
+        .map(|first| {
+            let columns = COLUMNS.min(stride - first);
+            let mut start = Vec::with_capacity(texels.len() * columns);
+            for &t in &texels {
+                let values = &image[t * stride + first..][..columns];
+                start.extend(values.iter().map(|&v| v as f64));
+            }
+            let rhs: Vec<f64> = start
+                .chunks_exact(columns)
+                .zip(&weight)
+                .flat_map(|(v, w)| v.iter().map(move |v| v * w))
                 .collect();
-            let rhs: Vec<f64> = start.iter().zip(&weight).map(|(v, w)| v * w).collect();
-            conjugate_gradients(apply, precondition, &rhs, &start)
+            let solved = conjugate_gradients(
+                |x, out| apply(x, out, columns),
+                |r, z| precondition(r, z, columns),
+                (&rhs, &start),
+                columns,
+            );
+            (first, solved)
         })
         .collect();
-    for (c, x) in solved.iter().enumerate() {
-        for (&t, &v) in texels.iter().zip(x) {
-            image[t * stride + c] = v as f32;
+    for (first, x) in groups {
+        let columns = COLUMNS.min(stride - first);
+        for (&t, values) in texels.iter().zip(x.chunks_exact(columns)) {
+            for (at, &v) in image[t * stride + first..][..columns]
+                .iter_mut()
+                .zip(values)
+            {
+                *at = v as f32;
+            }
         }
     }
 }
 
+/// Coefficients solved side by side by one [`conjugate_gradients`].
+const COLUMNS: usize = 8;
+
 /// Solves `A x = b` for the symmetric positive definite `A` given as `apply`, preconditioned
-/// by `precondition` (an approximate inverse), from `start`.
+/// by `precondition` (an approximate inverse), from `start`: `columns` systems at once, the
+/// vectors texel-major. Each column is the solve it would be alone, with its own step
+/// lengths, and stops when its own residual falls below its floor; the others go on.
 fn conjugate_gradients(
     apply: impl Fn(&[f64], &mut [f64]),
     precondition: impl Fn(&[f64], &mut [f64]),
-    b: &[f64],
-    start: &[f64],
+    (b, start): (&[f64], &[f64]),
+    columns: usize,
 ) -> Vec<f64> {
     let n = b.len();
     let mut x = start.to_vec();
@@ -240,26 +289,57 @@ fn conjugate_gradients(
     let mut z = vec![0.0; n];
     precondition(&residual, &mut z);
     let mut direction = z.clone();
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| a * b).sum::<f64>();
-    let mut rz = dot(&residual, &z);
+    // Per column, summed over the texels in order.
+    let dots = |a: &[f64], b: &[f64]| {
+        let mut sums = [-0.0f64; COLUMNS];
+        for (a, b) in a.chunks_exact(columns).zip(b.chunks_exact(columns)) {
+            for c in 0..columns {
+                sums[c] += a[c] * b[c];
+            }
+        }
+        sums
+    };
+    let mut rz = dots(&residual, &z);
     // A thousandth of the right-hand side.
-    let floor = TOLERANCE * TOLERANCE * dot(b, b).max(f64::MIN_POSITIVE);
+    let floor = dots(b, b).map(|bb| TOLERANCE * TOLERANCE * bb.max(f64::MIN_POSITIVE));
+    let mut open = [false; COLUMNS];
+    open[..columns].fill(true);
     for _ in 0..MAX_STEPS {
-        if dot(&residual, &residual) <= floor {
+        let rr = dots(&residual, &residual);
+        for c in 0..columns {
+            open[c] &= rr[c] > floor[c];
+        }
+        if !open.contains(&true) {
             break;
         }
         apply(&direction, &mut product);
-        let alpha = rz / dot(&direction, &product);
-        for i in 0..n {
-            x[i] += alpha * direction[i];
-            residual[i] -= alpha * product[i];
+        let dp = dots(&direction, &product);
+        let alpha: [f64; COLUMNS] = std::array::from_fn(|c| rz[c] / dp[c]);
+        for (i, ((x, r), (d, p))) in x
+            .iter_mut()
+            .zip(residual.iter_mut())
+            .zip(direction.iter().zip(&product))
+            .enumerate()
+        {
+            let c = i % columns;
+            if open[c] {
+                *x += alpha[c] * d;
+                *r -= alpha[c] * p;
+            }
         }
         precondition(&residual, &mut z);
-        let next = dot(&residual, &z);
-        let beta = next / rz;
-        rz = next;
-        for i in 0..n {
-            direction[i] = z[i] + beta * direction[i];
+        let next = dots(&residual, &z);
+        let beta: [f64; COLUMNS] = std::array::from_fn(|c| next[c] / rz[c]);
+        for c in 0..columns {
+            if open[c] {
+                rz[c] = next[c];
+            }
+        }
+        for (i, (d, z)) in direction.iter_mut().zip(&z).enumerate() {
+            let c = i % columns;
+            if open[c] {
+                *d = z + beta[c] * *d;
+            }
         }
     }
     x

@@ -12,6 +12,7 @@
 //! coefficient, in parallel.
 
 use std::collections::HashMap;
+use std::ops::Range;
 
 use glam::DVec2;
 use rayon::prelude::*;
@@ -166,42 +167,112 @@ pub fn solve(
     if rows.is_empty() || stride == 0 || image.len() != count * stride {
         return;
     }
-    // The texels the rows read, numbered densely in first-use order.
-    let mut index: HashMap<usize, usize> = HashMap::new();
-    let mut texels = Vec::new();
-    let mut number = |texel: usize| {
-        *index.entry(texel).or_insert_with(|| {
-            texels.push(texel);
-            texels.len() - 1
+    let system = SeamSystem::new(rows, anchor);
+    // The same matrix for every coefficient: each solved on its own, [`COLUMNS`] side by side
+    // (one pass over the rows serves them all), the groups in parallel.
+    let groups: Vec<(usize, Vec<f64>)> = (0..stride)
+        .step_by(COLUMNS)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|first| {
+            let columns = first..stride.min(first + COLUMNS);
+            (first, system.solve_columns(image, stride, columns))
         })
-    };
-    let local: Vec<[(usize, f64); 8]> = rows
-        .iter()
-        .map(|row| row.taps.map(|(texel, w)| (number(texel), w)))
         .collect();
-    let weight: Vec<f64> = texels
-        .iter()
-        .map(|&t| anchor.get(t).map_or(1.0, |&a| a as f64))
-        .collect();
-    let mut diagonal = weight.clone();
-    for (row, taps) in rows.iter().zip(&local) {
-        for &(i, w) in taps {
-            diagonal[i] += row.weight * w * w;
+    for (first, x) in groups {
+        let columns = COLUMNS.min(stride - first);
+        for (&t, values) in system.texels.iter().zip(x.chunks_exact(columns)) {
+            for (at, &v) in image[t * stride + first..][..columns]
+                .iter_mut()
+                .zip(values)
+            {
+                *at = v as f32;
+            }
         }
     }
-    // `x` and `out` hold `columns` values a texel, texel-major.
-    let apply = |x: &[f64], out: &mut [f64], columns: usize| {
+}
+
+/// The stitching's normal equations over the texels the rows read: each texel held to its
+/// value with its anchor's weight, and each row's lookup difference pulled towards zero.
+struct SeamSystem<'a> {
+    rows: &'a [Row],
+    /// Each row's taps, their texels numbered as in `texels`.
+    local: Vec<[(usize, f64); 8]>,
+    /// The texels the rows read (row-major image indices), in first-use order.
+    texels: Vec<usize>,
+    /// Each texel's anchor weight.
+    weight: Vec<f64>,
+    diagonal: Vec<f64>,
+}
+
+impl<'a> SeamSystem<'a> {
+    fn new(rows: &'a [Row], anchor: &[f32]) -> Self {
+        let mut index: HashMap<usize, usize> = HashMap::new();
+        let mut texels = Vec::new();
+        let mut number = |texel: usize| {
+            *index.entry(texel).or_insert_with(|| {
+                texels.push(texel);
+                texels.len() - 1
+            })
+        };
+        let local: Vec<[(usize, f64); 8]> = rows
+            .iter()
+            .map(|row| row.taps.map(|(texel, w)| (number(texel), w)))
+            .collect();
+        let weight: Vec<f64> = texels
+            .iter()
+            .map(|&t| anchor.get(t).map_or(1.0, |&a| a as f64))
+            .collect();
+        let mut diagonal = weight.clone();
+        for (row, taps) in rows.iter().zip(&local) {
+            for &(i, w) in taps {
+                diagonal[i] += row.weight * w * w;
+            }
+        }
+        SeamSystem {
+            rows,
+            local,
+            texels,
+            weight,
+            diagonal,
+        }
+    }
+
+    /// The solved values of coefficients `columns` of `image` (`stride` values a texel), from
+    /// the values there, texel-major.
+    fn solve_columns(&self, image: &[f32], stride: usize, columns: Range<usize>) -> Vec<f64> {
+        let width = columns.len();
+        let mut start = Vec::with_capacity(self.texels.len() * width);
+        for &t in &self.texels {
+            let values = &image[t * stride..][columns.clone()];
+            start.extend(values.iter().map(|&v| v as f64));
+        }
+        let rhs: Vec<f64> = start
+            .chunks_exact(width)
+            .zip(&self.weight)
+            .flat_map(|(v, w)| v.iter().map(move |v| v * w))
+            .collect();
+        conjugate_gradients(
+            |x, out| self.apply(x, out, width),
+            |r, z| self.precondition(r, z, width),
+            (&rhs, &start),
+            width,
+        )
+    }
+
+    /// `out = A x`, `x` and `out` holding `columns` values a texel, texel-major.
+    fn apply(&self, x: &[f64], out: &mut [f64], columns: usize) {
         for ((o, v), w) in out
             .chunks_exact_mut(columns)
             .zip(x.chunks_exact(columns))
-            .zip(&weight)
+            .zip(&self.weight)
         {
             for (o, v) in o.iter_mut().zip(v) {
                 *o = w * v;
             }
         }
         let mut lookup = [0.0f64; COLUMNS];
-        for (row, taps) in rows.iter().zip(&local) {
+        for (row, taps) in self.rows.iter().zip(&self.local) {
             let lookup = &mut lookup[..columns];
             // `Iterator::sum`'s start, as the single-coefficient solve summed.
             lookup.fill(-0.0);
@@ -216,53 +287,17 @@ pub fn solve(
                 }
             }
         }
-    };
-    let precondition = |r: &[f64], z: &mut [f64], columns: usize| {
+    }
+
+    /// `z = r / diagonal(A)`, texel by texel.
+    fn precondition(&self, r: &[f64], z: &mut [f64], columns: usize) {
         for ((z, r), d) in z
             .chunks_exact_mut(columns)
             .zip(r.chunks_exact(columns))
-            .zip(&diagonal)
+            .zip(&self.diagonal)
         {
             for (z, r) in z.iter_mut().zip(r) {
                 *z = r / d;
-            }
-        }
-    };
-    // The same matrix for every coefficient: each solved on its own, [`COLUMNS`] side by side
-    // (one pass over the rows serves them all), the groups in parallel.
-    let groups: Vec<(usize, Vec<f64>)> = (0..stride)
-        .step_by(COLUMNS)
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|first| {
-            let columns = COLUMNS.min(stride - first);
-            let mut start = Vec::with_capacity(texels.len() * columns);
-            for &t in &texels {
-                let values = &image[t * stride + first..][..columns];
-                start.extend(values.iter().map(|&v| v as f64));
-            }
-            let rhs: Vec<f64> = start
-                .chunks_exact(columns)
-                .zip(&weight)
-                .flat_map(|(v, w)| v.iter().map(move |v| v * w))
-                .collect();
-            let solved = conjugate_gradients(
-                |x, out| apply(x, out, columns),
-                |r, z| precondition(r, z, columns),
-                (&rhs, &start),
-                columns,
-            );
-            (first, solved)
-        })
-        .collect();
-    for (first, x) in groups {
-        let columns = COLUMNS.min(stride - first);
-        for (&t, values) in texels.iter().zip(x.chunks_exact(columns)) {
-            for (at, &v) in image[t * stride + first..][..columns]
-                .iter_mut()
-                .zip(values)
-            {
-                *at = v as f32;
             }
         }
     }

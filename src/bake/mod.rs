@@ -630,19 +630,19 @@ pub fn bake_at(
 /// [`bake_at`] with the scene's tree already built.
 pub fn bake_at_in(
     scene: &Scene,
-    (receivers, bvh): (&Receivers, Bvh),
+    at: (&Receivers, Bvh),
     options: &BakeOptions,
     backend: &dyn Backend,
     vertex_transfer: Option<&Transfer>,
     progress: &dyn Progress,
 ) -> Result<(Transfer, u64)> {
-    let at = (receivers, bvh);
+    let vertices = vertex_transfer;
     bake_at_gathering(
         scene,
         at,
         options,
         backend,
-        vertex_transfer,
+        vertices,
         progress,
         GATHER_CHUNK,
     )

@@ -32,7 +32,7 @@ use crate::bvh::Bvh;
 use crate::error::{Error, Result};
 use crate::ray::offset_ray_origin;
 use crate::receivers;
-use crate::receivers::fit::{fit_vertices, FitOptions, FitReport};
+use crate::receivers::fit::{fit_vertices, FitOptions, FitReport, NormalEquations};
 use crate::receivers::uv_set::UvSet;
 use crate::receivers::{spread_points, PointDensity, Receivers, SurfacePoint};
 use crate::sampling::{
@@ -423,8 +423,12 @@ fn vertex_transfer(
         if options.fit == Fit::Point {
             return Ok(values);
         }
-        let (fitted, report) =
-            fit_vertices(scene, points, &values, columns, &FitOptions::default())?;
+        // The values at the points (a point's whole transfer each) are let go before the
+        // solve, which holds six vectors of every vertex's.
+        let fit = FitOptions::default();
+        let equations = NormalEquations::of(scene, points, &values, columns, &fit)?;
+        drop(values);
+        let (fitted, report) = equations.solve(&fit);
         // The direct pass's solve is the one reported; the bounces' are like it.
         fit_report.get_or_insert(report);
         Ok(fitted)

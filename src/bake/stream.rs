@@ -115,17 +115,23 @@ impl MemoryNeed {
     }
 
     /// The need with a least-squares fit to `points` surface points (`options` the bake's):
-    /// each point as spread and as kept, its receiver twice (candidate and kept), its ray
-    /// origin and normal, its transfer (albedo-free and RGB; for interreflection its gather
-    /// row and bounces, as a vertex's); and for each vertex the fit's conjugate gradients,
-    /// six f64 vectors over every RGB coefficient, and its row of the sparse normal matrix.
+    /// held throughout, each point as spread and as kept, its receiver twice (candidate and
+    /// kept), its ray origin and normal, its albedo-free transfer and, for interreflection,
+    /// its gather row; then the larger of what a fit holds as it assembles (every point's RGB
+    /// values, twice while a bounce is gathered) and as it solves (the conjugate gradients'
+    /// six f64 vectors over every vertex's RGB coefficients, and the sparse normal matrix).
     pub fn with_fit_points(self, points: u64, options: &BakeOptions) -> MemoryNeed {
         let coeffs = coeff_count(options.bands) as u64;
-        let per_point =
-            2 * 16 + 2 * 48 + 24 + 8 + 4 * coeffs + 12 * coeffs + self.interreflection(options);
-        let solve = 6 * 8 * 3 * coeffs + 8 * 12;
+        let interreflected = options.mode == Mode::Interreflected;
+        let gather = match interreflected {
+            true => 2 * 8 * options.samples_used() as u64,
+            false => 0,
+        };
+        let held = points * (2 * 16 + 2 * 48 + 24 + 8 + 4 * coeffs + gather);
+        let assembling = points * 12 * coeffs * if interreflected { 2 } else { 1 };
+        let solving = self.receivers * (6 * 8 * 3 * coeffs + 8 * 12);
         MemoryNeed {
-            beside_vertices: self.beside_vertices + points * per_point + self.receivers * solve,
+            beside_vertices: self.beside_vertices + held + assembling.max(solving),
             ..self
         }
     }

@@ -130,53 +130,83 @@ pub fn fit_vertices(
     columns: usize,
     options: &FitOptions,
 ) -> Result<(Vec<f32>, FitReport)> {
-    if values.len() != points.len() * columns {
-        return Err(Error::Options(format!(
-            "least-squares fit: {} values for {} points of {columns} columns",
-            values.len(),
-            points.len()
-        )));
-    }
-    let vertex_count = scene.vertex_count();
-    let mut order: Vec<usize> = (0..points.len()).collect();
-    order.sort_by_key(|&i| {
-        let p = &points[i];
-        (p.triangle, p.barycentrics.map(f32::to_bits))
-    });
-    let areas = triangle_areas(scene);
-    let mut per_triangle = vec![0u32; scene.triangle_count()];
-    for p in points {
-        per_triangle[p.triangle as usize] += 1;
-    }
+    Ok(NormalEquations::of(scene, points, values, columns, options)?.solve(options))
+}
 
-    let mut matrix = SparseMatrix::adjacency(vertex_count, &scene.triangles);
-    let mut rhs = vec![0.0f64; vertex_count * columns];
-    for &i in &order {
-        let p = points[i];
-        let corners = scene.triangles[p.triangle as usize];
-        let weight = areas[p.triangle as usize] / per_triangle[p.triangle as usize] as f64;
-        let value = &values[i * columns..(i + 1) * columns];
-        for a in 0..3 {
-            let wa = weight * p.barycentrics[a] as f64;
-            for b in 0..3 {
-                *matrix.entry_mut(corners[a], corners[b]) += wa * p.barycentrics[b] as f64;
-            }
-            let row = &mut rhs[corners[a] as usize * columns..(corners[a] as usize + 1) * columns];
-            for (r, &v) in row.iter_mut().zip(value) {
-                *r += wa * v as f64;
+/// The fit's normal equations, `(B^T W B + lambda L) x = B^T W v`, assembled: all the solve
+/// needs, so that the values at the points can be let go before it runs.
+pub struct NormalEquations {
+    matrix: SparseMatrix,
+    rhs: Vec<f64>,
+    columns: usize,
+}
+
+impl NormalEquations {
+    /// The equations of [`fit_vertices`]`(scene, points, values, columns, options)`.
+    pub fn of(
+        scene: &Scene,
+        points: &[SurfacePoint],
+        values: &[f32],
+        columns: usize,
+        options: &FitOptions,
+    ) -> Result<NormalEquations> {
+        if values.len() != points.len() * columns {
+            return Err(Error::Options(format!(
+                "least-squares fit: {} values for {} points of {columns} columns",
+                values.len(),
+                points.len()
+            )));
+        }
+        let vertex_count = scene.vertex_count();
+        let mut order: Vec<usize> = (0..points.len()).collect();
+        order.sort_by_key(|&i| {
+            let p = &points[i];
+            (p.triangle, p.barycentrics.map(f32::to_bits))
+        });
+        let areas = triangle_areas(scene);
+        let mut per_triangle = vec![0u32; scene.triangle_count()];
+        for p in points {
+            per_triangle[p.triangle as usize] += 1;
+        }
+
+        let mut matrix = SparseMatrix::adjacency(vertex_count, &scene.triangles);
+        let mut rhs = vec![0.0f64; vertex_count * columns];
+        for &i in &order {
+            let p = points[i];
+            let corners = scene.triangles[p.triangle as usize];
+            let weight = areas[p.triangle as usize] / per_triangle[p.triangle as usize] as f64;
+            let value = &values[i * columns..(i + 1) * columns];
+            for a in 0..3 {
+                let wa = weight * p.barycentrics[a] as f64;
+                for b in 0..3 {
+                    *matrix.entry_mut(corners[a], corners[b]) += wa * p.barycentrics[b] as f64;
+                }
+                let row =
+                    &mut rhs[corners[a] as usize * columns..(corners[a] as usize + 1) * columns];
+                for (r, &v) in row.iter_mut().zip(value) {
+                    *r += wa * v as f64;
+                }
             }
         }
+        add_edge_term(&mut matrix, options.smoothness);
+        Ok(NormalEquations {
+            matrix,
+            rhs,
+            columns,
+        })
     }
-    add_edge_term(&mut matrix, options.smoothness);
 
-    let (solution, iterations, relative_residual) =
-        conjugate_gradients(&matrix, &rhs, columns, options);
-    let report = FitReport {
-        iterations,
-        relative_residual,
-        matrix_entries: matrix.values.len(),
-    };
-    Ok((solution.iter().map(|&x| x as f32).collect(), report))
+    /// The vertex values that solve the equations, and what the solve did.
+    pub fn solve(self, options: &FitOptions) -> (Vec<f32>, FitReport) {
+        let (solution, iterations, relative_residual) =
+            conjugate_gradients(&self.matrix, &self.rhs, self.columns, options);
+        let report = FitReport {
+            iterations,
+            relative_residual,
+            matrix_entries: self.matrix.values.len(),
+        };
+        (solution.iter().map(|&x| x as f32).collect(), report)
+    }
 }
 
 /// Adds `lambda (x_u - x_v)^2` for every edge, lambda relative to the mean data diagonal.

@@ -169,28 +169,33 @@ pub fn solve(
     }
     let system = SeamSystem::new(rows, anchor);
     // The same matrix for every coefficient: each solved on its own, [`COLUMNS`] side by side
-    // (one pass over the rows serves them all), the groups in parallel.
-    let groups: Vec<(usize, Vec<f64>)> = (0..stride)
-        .step_by(COLUMNS)
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|first| {
+    // (one pass over the rows serves them all). Groups are solved in parallel, a wave of at
+    // most [`GROUPS_IN_FLIGHT`] at a time, each wave written back before the next: what the
+    // solve holds is a few groups' vectors, not every coefficient's solution.
+    let groups: Vec<usize> = (0..stride).step_by(COLUMNS).collect();
+    let wave = rayon::current_num_threads().clamp(1, GROUPS_IN_FLIGHT);
+    for firsts in groups.chunks(wave) {
+        let solved: Vec<(usize, Vec<f64>)> = firsts
+            .par_iter()
+            .map(|&first| {
+                let columns = first..stride.min(first + COLUMNS);
+                (first, system.solve_columns(image, stride, columns))
+            })
+            .collect();
+        for (first, x) in solved {
             let columns = first..stride.min(first + COLUMNS);
-            (first, system.solve_columns(image, stride, columns))
-        })
-        .collect();
-    for (first, x) in groups {
-        let columns = COLUMNS.min(stride - first);
-        for (&t, values) in system.texels.iter().zip(x.chunks_exact(columns)) {
-            for (at, &v) in image[t * stride + first..][..columns]
-                .iter_mut()
-                .zip(values)
-            {
-                *at = v as f32;
+            for (&t, values) in system.texels.iter().zip(x.chunks_exact(columns.len())) {
+                for (at, &v) in image[t * stride..][columns.clone()].iter_mut().zip(values) {
+                    *at = v as f32;
+                }
             }
         }
     }
 }
+
+/// Groups of [`COLUMNS`] coefficients solved at once, at most (each holds five vectors of
+/// the seam texels' values).
+const GROUPS_IN_FLIGHT: usize = 4;
 
 /// The stitching's normal equations over the texels the rows read: each texel held to its
 /// value with its anchor's weight, and each row's lookup difference pulled towards zero.
@@ -255,7 +260,7 @@ impl<'a> SeamSystem<'a> {
         conjugate_gradients(
             |x, out| self.apply(x, out, width),
             |r, z| self.precondition(r, z, width),
-            (&rhs, &start),
+            (rhs, start),
             width,
         )
     }
@@ -304,7 +309,7 @@ impl<'a> SeamSystem<'a> {
 }
 
 /// Coefficients solved side by side by one [`conjugate_gradients`].
-const COLUMNS: usize = 8;
+const COLUMNS: usize = 4;
 
 /// Solves `A x = b` for the symmetric positive definite `A` given as `apply`, preconditioned
 /// by `precondition` (an approximate inverse), from `start`: `columns` systems at once, the
@@ -313,17 +318,10 @@ const COLUMNS: usize = 8;
 fn conjugate_gradients(
     apply: impl Fn(&[f64], &mut [f64]),
     precondition: impl Fn(&[f64], &mut [f64]),
-    (b, start): (&[f64], &[f64]),
+    (b, start): (Vec<f64>, Vec<f64>),
     columns: usize,
 ) -> Vec<f64> {
     let n = b.len();
-    let mut x = start.to_vec();
-    let mut product = vec![0.0; n];
-    apply(&x, &mut product);
-    let mut residual: Vec<f64> = b.iter().zip(&product).map(|(b, p)| b - p).collect();
-    let mut z = vec![0.0; n];
-    precondition(&residual, &mut z);
-    let mut direction = z.clone();
     // Per column, summed over the texels in order.
     let dots = |a: &[f64], b: &[f64]| {
         let mut sums = [-0.0f64; COLUMNS];
@@ -334,9 +332,20 @@ fn conjugate_gradients(
         }
         sums
     };
-    let mut rz = dots(&residual, &z);
     // A thousandth of the right-hand side.
-    let floor = dots(b, b).map(|bb| TOLERANCE * TOLERANCE * bb.max(f64::MIN_POSITIVE));
+    let floor = dots(&b, &b).map(|bb| TOLERANCE * TOLERANCE * bb.max(f64::MIN_POSITIVE));
+    let mut x = start;
+    let mut product = vec![0.0; n];
+    apply(&x, &mut product);
+    // The residual takes the right-hand side's place: one vector fewer held.
+    let mut residual = b;
+    for (r, p) in residual.iter_mut().zip(&product) {
+        *r -= p;
+    }
+    let mut z = vec![0.0; n];
+    precondition(&residual, &mut z);
+    let mut direction = z.clone();
+    let mut rz = dots(&residual, &z);
     let mut open = [false; COLUMNS];
     open[..columns].fill(true);
     for _ in 0..MAX_STEPS {

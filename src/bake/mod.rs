@@ -423,12 +423,7 @@ fn vertex_transfer(
         if options.fit == Fit::Point {
             return Ok(values);
         }
-        // The values at the points (a point's whole transfer each) are let go before the
-        // solve, which holds six vectors of every vertex's.
-        let fit = FitOptions::default();
-        let equations = NormalEquations::of(scene, points, &values, columns, &fit)?;
-        drop(values);
-        let (fitted, report) = equations.solve(&fit);
+        let (fitted, report) = fit_letting_go(scene, points, values, columns)?;
         // The direct pass's solve is the one reported; the bounces' are like it.
         fit_report.get_or_insert(report);
         Ok(fitted)
@@ -509,6 +504,21 @@ fn vertex_transfer(
         subsurface,
         scattered,
     })
+}
+
+/// The vertex values that best fit `values` at `points` ([`fit_vertices`]), the values let
+/// go once the normal equations are assembled: they are a point's whole transfer each, and
+/// the solve holds six vectors of every vertex's beside them otherwise.
+fn fit_letting_go(
+    scene: &Scene,
+    points: &[SurfacePoint],
+    values: Vec<f32>,
+    columns: usize,
+) -> Result<(Vec<f32>, FitReport)> {
+    let fit = FitOptions::default();
+    let equations = NormalEquations::of(scene, points, &values, columns, &fit)?;
+    drop(values);
+    Ok(equations.solve(&fit))
 }
 
 /// The media of the prepared `scene`'s vertices: the one the options give it, or its own

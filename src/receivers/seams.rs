@@ -9,7 +9,7 @@
 //! minimise `sum_t anchor_t |x_t - x0_t|^2 + sum_rows weight |lookup_a(x) - lookup_b(x)|^2`,
 //! the same weights for every coefficient. The normal equations are symmetric positive
 //! definite and solved by Jacobi-preconditioned conjugate gradients, one solve per
-//! coefficient, in parallel.
+//! coefficient, a few coefficients side by side and a few such groups in parallel.
 
 use std::collections::HashMap;
 use std::ops::Range;

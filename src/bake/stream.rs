@@ -78,9 +78,10 @@ impl MemoryNeed {
         // Interreflection: each receiver's gather row (a column and a weight per blocked ray
         // at most, as the rays find it and as the matrix holds it), and the previous and next
         // bounce; streamed, the previous bounce of every vertex stays in memory.
-        let (gather, bounces_whole, bounces_held) = match options.mode {
-            Mode::Interreflected => (2 * 8 * samples, 2 * transfer, transfer),
-            _ => (0, 0, 0),
+        let gather = gather_row_bytes(options);
+        let (bounces_whole, bounces_held) = match options.mode {
+            Mode::Interreflected => (2 * transfer, transfer),
+            _ => (0, 0),
         };
         // An error target: each receiver's sums and sums of squares (f64) while it bakes,
         // and its samples and error, which every bake keeps for all receivers (counted with
@@ -122,13 +123,12 @@ impl MemoryNeed {
     /// six f64 vectors over every vertex's RGB coefficients, and the sparse normal matrix).
     pub fn with_fit_points(self, points: u64, options: &BakeOptions) -> MemoryNeed {
         let coeffs = coeff_count(options.bands) as u64;
-        let interreflected = options.mode == Mode::Interreflected;
-        let gather = match interreflected {
-            true => 2 * 8 * options.samples_used() as u64,
-            false => 0,
+        let held = points * (2 * 16 + 2 * 48 + 24 + 8 + 4 * coeffs + gather_row_bytes(options));
+        let bounce = match options.mode {
+            Mode::Interreflected => 2,
+            _ => 1,
         };
-        let held = points * (2 * 16 + 2 * 48 + 24 + 8 + 4 * coeffs + gather);
-        let assembling = points * 12 * coeffs * if interreflected { 2 } else { 1 };
+        let assembling = points * 12 * coeffs * bounce;
         let solving = self.receivers * (6 * 8 * 3 * coeffs + 8 * 12);
         MemoryNeed {
             beside_vertices: self.beside_vertices + held + assembling.max(solving),
@@ -147,21 +147,16 @@ impl MemoryNeed {
         let texels = size as u64 * size as u64;
         let baking = 24 + 48 + 24 + 4 * coeffs + 12 * coeffs;
         let writing = 12 * coeffs + 6 * coeffs + 6 * coeffs;
-        let gathering = texels.min(super::GATHER_CHUNK as u64) * self.interreflection(options);
+        // Interreflected, one chunk's gather rows and the bounce they gather.
+        let gathering = match options.mode {
+            Mode::Interreflected => {
+                texels.min(super::GATHER_CHUNK as u64) * (gather_row_bytes(options) + 24 * coeffs)
+            }
+            _ => 0,
+        };
         MemoryNeed {
             beside_vertices: self.beside_vertices + texels * (baking.max(writing) + 16) + gathering,
             ..self
-        }
-    }
-
-    /// What interreflection adds to a surface point's or texel's transfer: its gather row
-    /// (a column and a weight per blocked ray at most) and the bounce it gathers.
-    fn interreflection(&self, options: &BakeOptions) -> u64 {
-        match options.mode {
-            Mode::Interreflected => {
-                2 * 8 * options.samples_used() as u64 + 2 * 12 * coeff_count(options.bands) as u64
-            }
-            _ => 0,
         }
     }
 
@@ -276,6 +271,15 @@ impl MemoryNeed {
             )));
         }
         Ok(chunk.max(1))
+    }
+}
+
+/// A receiver's gather row where light bounces (a column and a weight per blocked ray at
+/// most, as the rays find it and as the matrix holds it); 0 otherwise.
+fn gather_row_bytes(options: &BakeOptions) -> u64 {
+    match options.mode {
+        Mode::Interreflected => 2 * 8 * options.samples_used() as u64,
+        _ => 0,
     }
 }
 

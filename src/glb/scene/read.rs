@@ -105,10 +105,16 @@ pub fn read_scene_with_zonal(path: &Path) -> Result<(BakedMesh, Option<ZonalTran
     let corners = baked.scene.triangles.as_flattened().to_vec();
     let baked = with_scene_lightmap(path, &gltf, baked)?;
     let split = baked.lightmap.is_some();
-    Ok((
-        baked,
-        zonal.map(|z| if split { z.select(&corners) } else { z }),
-    ))
+    Ok((baked, zonal.map(|zonal| at_corners(zonal, &corners, split))))
+}
+
+/// A lightmapped scene is read split at its corners ([`read_scene_glb`]), and so is its zonal
+/// transfer, each corner its vertex's (`corners`: the vertex of each triangle corner).
+fn at_corners(zonal: ZonalTransfer, corners: &[u32], lightmapped: bool) -> ZonalTransfer {
+    match lightmapped {
+        true => zonal.select(corners),
+        false => zonal,
+    }
 }
 
 /// `baked` (a scene's vertices as read) with the scene's lightmap, if it has one: split at its
@@ -349,15 +355,11 @@ fn attribute_blocks(
 pub fn read_scene_zonal(path: &Path) -> Result<Option<ZonalTransfer>> {
     let (gltf, baked) = read_scene_vertices(path)?;
     let zonal = scene_zonal(path, &gltf, &baked)?;
-    // A lightmapped scene is read split at its corners (`read_scene_glb`): so is its zonal
-    // transfer, each corner its vertex's.
     let lightmapped = scene_lightmap(&gltf)
         .map_err(|message| Error::baked(path, message))?
         .is_some();
-    Ok(zonal.map(|zonal| match lightmapped {
-        true => zonal.select(baked.scene.triangles.as_flattened()),
-        false => zonal,
-    }))
+    let corners = baked.scene.triangles.as_flattened();
+    Ok(zonal.map(|zonal| at_corners(zonal, corners, lightmapped)))
 }
 
 /// The zonal transfer of the scene `gltf` at its vertices as read (`baked`), `None` where it

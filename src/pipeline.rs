@@ -96,6 +96,8 @@ pub struct Planned<'s> {
     /// The media of a glTF scene's translucent materials, where the spec bakes them.
     scene_media: Option<SceneMedia>,
     notes: Vec<String>,
+    /// A least-squares fit's points baked this many at a time (a plan of [`plan_memory`]).
+    point_chunk: Option<usize>,
 }
 
 /// Checks the bake of `scene` as `spec` asks (see [`run`]) and chooses what it can before any
@@ -127,6 +129,7 @@ pub fn plan<'s>(spec: &'s BakeSpec, scene: Scene, gltf: Option<&GltfScene>) -> R
         uv_set,
         scene_media,
         notes,
+        point_chunk: None,
     })
 }
 
@@ -134,6 +137,15 @@ impl Planned<'_> {
     /// The scene to bake, as given.
     pub fn scene(&self) -> &Scene {
         &self.scene
+    }
+
+    /// The bake with its least-squares fit's points baked about `chunk` at a time (a plan of
+    /// [`plan_memory`]): the same bytes in less memory.
+    pub fn with_point_chunk(self, chunk: usize) -> Self {
+        Planned {
+            point_chunk: Some(chunk),
+            ..self
+        }
     }
 
     /// Bakes it: the transfer, then the stages that shape what is stored.
@@ -149,9 +161,11 @@ impl Planned<'_> {
             uv_set,
             scene_media,
             mut notes,
+            point_chunk,
         } = self;
         let options = BakeOptions {
             scene_media,
+            point_chunk,
             ..spec.options()
         };
         let (mut mesh, report) =
@@ -325,6 +339,9 @@ pub struct Streamed {
 pub struct MemoryPlan {
     /// Streamed in chunks of this many receivers (`None`: whole).
     pub chunk: Option<usize>,
+    /// A least-squares fit's points baked about this many at a time, the rest of the bake
+    /// whole ([`Planned::with_point_chunk`]).
+    pub point_chunk: Option<usize>,
     /// What to tell the user: a `note:` that the bake streams, or a `warning:` that it needs
     /// more than the machine has.
     pub message: Option<String>,
@@ -343,6 +360,7 @@ pub fn plan_memory(
 ) -> Result<MemoryPlan> {
     let whole = MemoryPlan {
         chunk: None,
+        point_chunk: None,
         message: None,
     };
     let options = spec.options();
@@ -355,17 +373,51 @@ pub fn plan_memory(
     }
     let translucent =
         gltf.is_some_and(|gltf| scene_media(spec, (scene, gltf), &mut Vec::new()).is_some());
-    let streamable = bake::stream::streams(&options)
-        && spec.storage.layout == Layout::PerVertex
+    // What the bake holds beside its receivers that no chunking shrinks, or that a chunked
+    // bake cannot give: a compressed layout's clustering, a medium's scattering matrices.
+    let chunkable = spec.storage.layout == Layout::PerVertex
         && spec.transfer.subsurface.is_none()
         && !translucent;
-    let why_not = "only bakes at the vertices (no least-squares fit or lightmap), without \
-                   --compress, --subsurface or translucent glTF materials, stream in chunks";
+    let streamable = bake::stream::streams(&options) && chunkable;
+    let points_chunk =
+        options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
+    let why_not = "only bakes at the vertices or at a least-squares fit's points (no \
+                   lightmap), without --compress, --subsurface or translucent glTF materials, \
+                   stream in chunks";
+    if points_chunk {
+        let points = need.fit.map_or(0, |fit| fit.points);
+        return match (need.point_chunk_within(budget), limit) {
+            (Ok(chunk), _) => Ok(MemoryPlan {
+                chunk: None,
+                point_chunk: Some(chunk),
+                message: Some(format!(
+                    "note: baking the least-squares fit's {points} points in runs of about \
+                     {chunk} to stay within {} (about {} whole, {} so)",
+                    format_bytes(budget),
+                    format_bytes(need.whole()),
+                    format_bytes(need.points_chunked(chunk))
+                )),
+            }),
+            (Err(error), Some(_)) => Err(error),
+            // Over the machine's memory even in the smallest runs: those, and a warning.
+            (Err(_), None) => Ok(MemoryPlan {
+                chunk: None,
+                point_chunk: Some(bake::stream::MIN_CHUNK),
+                message: Some(format!(
+                    "warning: this bake needs at least {} with its fit's points baked in runs, \
+                     more than the {} this machine has available",
+                    format_bytes(need.points_chunked(bake::stream::MIN_CHUNK)),
+                    format_bytes(budget)
+                )),
+            }),
+        };
+    }
     match (streamable, limit) {
         (true, _) => {
             let chunk = need.chunk_within(budget)?;
             Ok(MemoryPlan {
                 chunk: Some(chunk),
+                point_chunk: None,
                 message: Some(format!(
                     "note: streaming the transfer in chunks of {chunk} receivers to stay within \
                      {} (about {} whole, {} streamed)",
@@ -382,6 +434,7 @@ pub fn plan_memory(
         ))),
         (false, None) => Ok(MemoryPlan {
             chunk: None,
+            point_chunk: None,
             message: Some(format!(
                 "warning: this bake needs about {}, more than the {} this machine has \
                  available, and {why_not}",

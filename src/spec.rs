@@ -322,6 +322,7 @@ impl BakeSpec {
             turns: false,
             subsurface: self.transfer.subsurface,
             scene_media: None,
+            point_chunk: None,
         }
     }
 

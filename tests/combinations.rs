@@ -14,6 +14,7 @@ use common::gltf_builder::ground_and_card_gltf;
 use prt_gpu::bake::stream::MemoryNeed;
 use prt_gpu::bake::{BakeOptions, Fit, Mode, Storage};
 use prt_gpu::light::preview_light;
+use prt_gpu::receivers::spread_point_count;
 use prt_gpu::render::relight_baked;
 use prt_gpu::testing::lightmap_reader_output;
 
@@ -165,6 +166,12 @@ impl Cell {
     fn streams(&self) -> bool {
         self.receivers == Receivers::Vertices && !self.compressed
     }
+
+    /// Whether the cell, under a memory limit below its whole need, bakes its least-squares
+    /// fit's points a run at a time.
+    fn points_in_runs(&self) -> bool {
+        self.receivers == Receivers::LeastSquares && !self.compressed
+    }
 }
 
 fn run(dir: &Path, args: &[String]) -> std::process::Output {
@@ -307,19 +314,21 @@ fn check_sinks(dir: &Path, input: &str, scene: &prt_gpu::scene::Scene, cell: Cel
             .byte_size(),
         Input::Obj => 0,
     };
-    let need = MemoryNeed::estimate(
-        scene.vertex_count(),
-        scene.triangle_count(),
-        &cell.options(),
-    )
-    .with_document(document);
+    let options = cell.options();
+    let mut need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
+        .with_document(document);
+    if options.fit == Fit::LeastSquares {
+        let points = spread_point_count(scene, options.point_density);
+        need = need.with_fit_points(points as u64, &options);
+    }
     // Chunks of 300 receivers where the cell streams (the glTF scene, of fewer vertices,
-    // streams in one chunk of all of them; tests/memory.rs streams a larger one in many);
-    // half its need where it cannot.
+    // streams in one chunk of all of them; tests/memory.rs streams a larger one in many), runs
+    // of 300 points where the fit's points bake in runs; half its need where it cannot.
     let chunk = 300.min(scene.vertex_count());
-    let limit = match cell.streams() {
-        true => need.streamed(chunk),
-        false => need.whole() / 2,
+    let limit = match (cell.streams(), cell.points_in_runs()) {
+        (true, _) => need.streamed(chunk),
+        (_, true) => need.points_chunked(300),
+        _ => need.whole() / 2,
     };
     if cell.streams() && cell.input == Input::Gltf && limit >= need.whole() {
         // An interreflected bake streamed holds every vertex's last bounce beside its chunk,
@@ -342,12 +351,13 @@ fn check_sinks(dir: &Path, input: &str, scene: &prt_gpu::scene::Scene, cell: Cel
     ]);
     let out = run(dir, &args);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    if cell.streams() {
+    if cell.streams() || cell.points_in_runs() {
         assert!(out.status.success(), "{name} streamed: {stderr}");
-        assert!(
-            stderr.contains(&format!("chunks of {chunk} receivers")),
-            "{name}: {stderr}"
-        );
+        let said = match cell.streams() {
+            true => format!("chunks of {chunk} receivers"),
+            false => "points in runs of about".into(),
+        };
+        assert!(stderr.contains(&said), "{name}: {stderr}");
         assert!(
             std::fs::read(dir.join(&streamed)).unwrap() == whole,
             "{name}: streamed bytes differ"

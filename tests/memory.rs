@@ -306,8 +306,8 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
     let cases: [(&[&str], &str); 4] = [
         (&["--memory-limit", &below_any_chunk], "needs at least"),
         (
-            &["--memory-limit", &below_whole, "--fit", "least-squares"],
-            "stream in chunks",
+            &["--memory-limit", &below_any_chunk, "--fit", "least-squares"],
+            "and the larger of its solve over every vertex",
         ),
         (
             &["--memory-limit", &below_whole, "--compress", "8x4"],
@@ -334,8 +334,15 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
 /// fewest shards that each fit, and that many shards then bake within the same limit.
 #[test]
 fn a_shard_over_the_limit_is_refused_naming_a_count_that_fits() {
+    use prt_gpu::bake::Fit;
     let dir = tempfile::tempdir().unwrap();
-    for mode in ["shadowed", "interreflected"] {
+    // A least-squares fit's shards split its points, each holding all of them.
+    let cases = [
+        ("shadowed", Fit::Point),
+        ("interreflected", Fit::Point),
+        ("interreflected", Fit::LeastSquares),
+    ];
+    for (mode, fit) in cases {
         let options = BakeOptions {
             samples: 64,
             mode: if mode == "shadowed" {
@@ -343,18 +350,30 @@ fn a_shard_over_the_limit_is_refused_naming_a_count_that_fits() {
             } else {
                 prt_gpu::bake::Mode::Interreflected
             },
+            fit,
             ..BakeOptions::default()
         };
-        let need = bunny_need(&options);
+        let mut need = bunny_need(&options);
+        if fit == Fit::LeastSquares {
+            let scene = prt_gpu::scene::load(Path::new(BUNNY)).unwrap();
+            let points = prt_gpu::receivers::spread_point_count(&scene, options.point_density);
+            need = need.with_fit_points(points as u64, &options);
+        }
         let limit = need.shard(4);
         let fewest = need.shards_within(limit).unwrap();
         assert!((2..=4).contains(&fewest), "{mode}: {fewest}");
         let limit_text = limit.to_string();
+        let fit_name = match fit {
+            Fit::Point => "point",
+            Fit::LeastSquares => "least-squares",
+        };
         let base = [
             "--device",
             "cpu",
             "--mode",
             mode,
+            "--fit",
+            fit_name,
             "--memory-limit",
             &limit_text,
         ];
@@ -424,4 +443,85 @@ fn a_streamed_bake_draws_the_whole_bakes_preview() {
     // The bunny is drawn: the preview is not one colour.
     let first = whole.as_raw()[..3].to_vec();
     assert!(whole.as_raw().chunks(3).any(|p| p != first));
+}
+
+/// A least-squares fit's points baked a few hundred at a time (each run's values summed into
+/// the fit and let go, its gather rows in a scratch file) give the whole bake's transfer bit
+/// for bit, and the same report: rays, gather entries, bounces, the fit's solve.
+#[test]
+fn a_fit_whose_points_bake_in_runs_gives_the_whole_fits_bits() {
+    use prt_gpu::bake::{DirectSource, Fit, Mode, NoProgress, Storage};
+    use prt_gpu::pipeline;
+    use prt_gpu::spec::BakeSpec;
+
+    let scene = prt_gpu::scene::load(Path::new(BUNNY)).unwrap();
+    let spec = |change: &dyn Fn(&mut BakeSpec)| {
+        let mut spec = BakeSpec::default();
+        spec.receivers.fit = Fit::LeastSquares;
+        spec.transfer.samples = 36;
+        change(&mut spec);
+        spec
+    };
+    let cases = [
+        ("shadowed", spec(&|_| {})),
+        ("lean", spec(&|s| s.storage.channels = Storage::Lean)),
+        (
+            "target error",
+            spec(&|s| {
+                s.transfer.target_error = Some(TargetError {
+                    relative: 0.1,
+                    max_samples: 512,
+                })
+            }),
+        ),
+        (
+            "interreflected",
+            spec(&|s| {
+                s.transfer.mode = Mode::Interreflected;
+                s.transfer.bounces = 2;
+            }),
+        ),
+    ];
+    for backend in common::backends() {
+        for (name, spec) in &cases {
+            let run = |chunk: Option<usize>| {
+                let planned = pipeline::plan(spec, scene.clone(), None).unwrap();
+                let planned = match chunk {
+                    Some(chunk) => planned.with_point_chunk(chunk),
+                    None => planned,
+                };
+                let source = DirectSource::Compute;
+                planned.run(backend.as_ref(), source, &NoProgress).unwrap()
+            };
+            let whole = run(None);
+            let name = format!("{name} on {}", backend.describe());
+            // Runs of one triangle's points each on the CPU; a device's calls cost more.
+            let chunks: &[usize] = match backend.gpu_context() {
+                None => &[1, 300],
+                Some(_) => &[300],
+            };
+            for &chunk in chunks {
+                let runs = run(Some(chunk));
+                let bits = |baked: &pipeline::Baked| -> Vec<u32> {
+                    let coeffs = baked.mesh.transfer.coeffs();
+                    coeffs.iter().map(|c| c.to_bits()).collect()
+                };
+                assert!(bits(&runs) == bits(&whole), "{name}, runs of {chunk}");
+                let (a, b) = (&runs.report, &whole.report);
+                assert_eq!(a.rays_cast, b.rays_cast, "{name}");
+                assert_eq!(a.gather_entries, b.gather_entries, "{name}");
+                assert_eq!(a.fit, b.fit, "{name}");
+                assert_eq!(a.adaptive, b.adaptive, "{name}");
+                let energies = |r: &prt_gpu::bake::BakeReport| -> Vec<f64> {
+                    r.bounces.iter().map(|b| b.relative_energy).collect()
+                };
+                assert_eq!(energies(a), energies(b), "{name}");
+                assert_eq!(runs.mesh.metadata, whole.mesh.metadata, "{name}");
+            }
+            if spec.transfer.mode == Mode::Interreflected {
+                assert!(whole.report.gather_entries > 0, "{name}");
+                assert_eq!(whole.report.bounces.len(), 2, "{name}");
+            }
+        }
+    }
 }

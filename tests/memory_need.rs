@@ -61,14 +61,19 @@ const DRAGON: &str = concat!(
     "/tests/data/dragon_vrip_res3.ply.gz"
 );
 
-/// The bytes allocated at the peak of loading `mesh`, baking it as `spec` asks and writing it,
-/// beyond what was live before; and the estimate the bake plans by.
-fn measured(spec: &BakeSpec, mesh: &str, dir: &Path) -> (u64, u64) {
+/// The bytes allocated at the peak of loading `mesh`, baking it as `spec` asks (a fit's points
+/// `point_chunk` at a time where given) and writing it, beyond what was live before; and the
+/// estimate the bake plans by.
+fn measured((spec, point_chunk): &(BakeSpec, Option<usize>), mesh: &str, dir: &Path) -> (u64, u64) {
     let before = LIVE.load(Ordering::Relaxed);
     PEAK.store(before, Ordering::Relaxed);
     let scene = scene::load(Path::new(mesh)).unwrap();
     let planned = pipeline::plan(spec, scene, None).unwrap();
-    let need = pipeline::memory_need(spec, (planned.scene(), None)).whole();
+    let need = pipeline::memory_need(spec, (planned.scene(), None));
+    let (planned, need) = match *point_chunk {
+        Some(chunk) => (planned.with_point_chunk(chunk), need.points_chunked(chunk)),
+        None => (planned, need.whole()),
+    };
     let baked = planned
         .run(&CpuBackend, DirectSource::Compute, &NoProgress)
         .unwrap();
@@ -88,47 +93,59 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
         spec
     };
     let interreflected = |s: &mut BakeSpec| s.transfer.mode = Mode::Interreflected;
-    let cases: Vec<(&str, BakeSpec)> = vec![
-        ("vertices, shadowed", spec(&|_| {})),
-        ("vertices, interreflected", spec(&interreflected)),
+    let least_squares_interreflected = |s: &mut BakeSpec| {
+        s.receivers.fit = Fit::LeastSquares;
+        interreflected(s);
+    };
+    let whole = |spec: BakeSpec| (spec, None);
+    let cases: Vec<(&str, (BakeSpec, Option<usize>))> = vec![
+        ("vertices, shadowed", whole(spec(&|_| {}))),
+        ("vertices, interreflected", whole(spec(&interreflected))),
         (
             "compressed",
-            spec(&|s| {
+            whole(spec(&|s| {
                 s.storage.layout = StoredLayout::Cpca(Compression::Shape {
                     clusters: 16,
                     components: 4,
                 })
-            }),
+            })),
         ),
         (
             "least squares, shadowed",
-            spec(&|s| s.receivers.fit = Fit::LeastSquares),
+            whole(spec(&|s| s.receivers.fit = Fit::LeastSquares)),
         ),
         (
             "least squares, interreflected",
-            spec(&|s| {
-                s.receivers.fit = Fit::LeastSquares;
-                interreflected(s);
-            }),
+            whole(spec(&least_squares_interreflected)),
+        ),
+        (
+            "least squares, interreflected, 64 samples, points in runs",
+            (
+                spec(&|s| {
+                    least_squares_interreflected(s);
+                    s.transfer.samples = 64;
+                }),
+                Some(20_000),
+            ),
         ),
         (
             "lightmap 512, shadowed",
-            spec(&|s| s.receivers.lightmap = Some(512)),
+            whole(spec(&|s| s.receivers.lightmap = Some(512))),
         ),
         (
             "lightmap 512, interreflected",
-            spec(&|s| {
+            whole(spec(&|s| {
                 s.receivers.lightmap = Some(512);
                 interreflected(s);
-            }),
+            })),
         ),
     ];
     let mut failures = Vec::new();
-    for (what, spec) in &cases {
-        let (peak, need) = measured(spec, DRAGON, dir.path());
+    for (what, case) in &cases {
+        let (peak, need) = measured(case, DRAGON, dir.path());
         let ratio = need as f64 / peak as f64;
         eprintln!(
-            "{what:<32} peak {:>8.1} MiB  estimate {:>8.1} MiB  estimate/peak {ratio:.2}",
+            "{what:<58} peak {:>8.1} MiB  estimate {:>8.1} MiB  estimate/peak {ratio:.2}",
             peak as f64 / 1048576.0,
             need as f64 / 1048576.0
         );

@@ -9,6 +9,7 @@ pub mod cpu;
 pub mod gpu;
 mod inputs;
 mod options;
+mod points;
 mod shard;
 pub mod spill;
 pub mod stream;
@@ -32,7 +33,7 @@ use crate::bvh::Bvh;
 use crate::error::{Error, Result};
 use crate::ray::offset_ray_origin;
 use crate::receivers;
-use crate::receivers::fit::{fit_vertices, FitOptions, FitReport, NormalEquations};
+use crate::receivers::fit::FitReport;
 use crate::receivers::uv_set::UvSet;
 use crate::receivers::{spread_points, PointDensity, Receivers, SurfacePoint};
 use crate::sampling::{
@@ -42,6 +43,7 @@ use crate::scene::prepare::{kept_triangles, prepare_mapped, PrepareReport, Verte
 use crate::scene::Scene;
 use crate::sh::rotation::EulerShRotation;
 use crate::sh::{coeff_count, ShTable, CONVENTION, MAX_BANDS};
+use points::{Fitting, PointChunks};
 
 /// Receives progress from long stages; the CLI draws it, tests ignore it.
 pub trait Progress: Sync {
@@ -56,33 +58,22 @@ pub struct NoProgress;
 
 impl Progress for NoProgress {}
 
-/// What a bounce reads: the gather matrix (rows: receivers), the receivers' albedo, and the
-/// map from values at the receivers to vertex values (the identity, or the fit).
-struct Gather<'a> {
-    matrix: &'a bounce::GatherMatrix,
-    albedo: &'a [Vec3],
-    to_vertices: &'a mut dyn FnMut(Vec<f32>) -> Result<Vec<f32>>,
-}
-
 /// Adds `options.bounces` bounces to the vertex `transfer` in place (stopping early below
-/// `options.bounce_tolerance`), on the backend's device. Each bounce gathers the previous
-/// one's vertex values at the receivers and takes them back to the vertices.
+/// `options.bounce_tolerance`). Each bounce is `next_bounce` of the previous one's vertex
+/// values: gathered at the receivers and taken back to the vertices.
 fn add_bounces(
     transfer: &mut Transfer,
-    gather: Gather,
+    next_bounce: &mut dyn FnMut(&[f32]) -> Result<Vec<f32>>,
     options: &BakeOptions,
-    backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<Vec<BounceStat>> {
     let coeffs = coeff_count(transfer.bands());
-    let gatherer = backend.gatherer(gather.matrix, gather.albedo, transfer.bands())?;
     progress.stage("bounces", options.bounces as u64);
     let mut previous = transfer.coeffs().to_vec();
     let mut stats = Vec::new();
     for _ in 0..options.bounces {
         let started = Instant::now();
-        let at_receivers = gatherer.gather(&previous)?;
-        let next = (gather.to_vertices)(at_receivers)?;
+        let next = next_bounce(&previous)?;
         let relative_energy = bounce::relative_energy(&next, transfer.coeffs(), coeffs);
         transfer
             .coeffs_mut()
@@ -201,19 +192,40 @@ pub fn bake_from(
     // is split there to carry them; a scene's own set keeps them on its vertices.
     let set = uv_set.as_ref().map(|set| set.set);
 
+    let (scene, receivers, points) = (&planned.scene, &planned.receivers, &planned.points);
+    let fitting = (options.fit == Fit::LeastSquares).then(|| Fitting::new(scene, points));
+    // In a translucent medium, the receivers reflect as white diffuse surfaces, and the
+    // medium's scattering, from vertex to vertex, replaces their albedo.
+    let white;
+    let albedo = match options.subsurface.is_some() || options.scene_media.is_some() {
+        true => {
+            white = vec![Vec3::ONE; receivers.len()];
+            &white[..]
+        }
+        false => &receivers.albedo[..],
+    };
+
     let started = Instant::now();
-    let (direct, ran_on) = direct_pass(source, &planned, options, backend, progress)?;
+    let (mut at_receivers, ran_on) = match (&fitting, options.point_chunk, source) {
+        (Some(fitting), Some(chunk), DirectSource::Compute) => {
+            let at = (fitting, albedo);
+            let chunks = PointChunks::bake(&planned, at, chunk, options, backend, progress)?;
+            (AtReceivers::Chunked(chunks), backend.describe())
+        }
+        (_, _, source) => {
+            let (direct, ran_on) = direct_pass(source, &planned, options, backend, progress)?;
+            (AtReceivers::Whole(direct), ran_on)
+        }
+    };
     let adaptive_report = options
         .target_error
-        .zip(direct.adaptive.as_ref())
+        .zip(at_receivers.adaptive())
         .map(|(target, receivers)| adaptive::AdaptiveReport::of(receivers, &target));
     let seconds_transfer = started.elapsed().as_secs_f64();
 
-    let (scene, receivers, points) = (&planned.scene, &planned.receivers, &planned.points);
     let on_scene = (scene, &planned.vertex_map[..]);
-    let fitted = vertex_transfer(
-        on_scene, receivers, points, &direct, options, backend, progress,
-    )?;
+    let at = (&mut at_receivers, fitting.as_ref(), albedo);
+    let fitted = vertex_transfer(on_scene, at, options, backend, progress)?;
     let VertexTransfer {
         transfer,
         bounces,
@@ -222,7 +234,15 @@ pub fn bake_from(
         subsurface,
         scattered,
     } = fitted;
-    let (transfer, albedo_free) = stored(transfer, &direct.scalar, scene, points, options)?;
+    let lean_direct = options.storage == Storage::Lean && options.mode != Mode::Interreflected;
+    let albedo_free = match lean_direct {
+        true => Some(at_receivers.albedo_free_at_vertices(fitting.as_ref(), options.bands)?),
+        false => None,
+    };
+    let (rays_cast, gather_entries) = at_receivers.counts();
+    drop(fitting);
+    drop(at_receivers);
+    let (transfer, albedo_free) = stored(transfer, albedo_free, scene, options);
     let scene = std::mem::take(&mut planned.scene);
     let (scene, transfer, lightmap, texel_report) = match &atlas {
         None => (scene, transfer, None, None),
@@ -249,7 +269,7 @@ pub fn bake_from(
         vertex_map: planned.vertex_map,
         receivers: planned.receivers.len(),
         samples_used: samples_used as u32,
-        rays_cast: direct.rays_cast,
+        rays_cast,
         bvh_nodes: planned.inputs.bvh.nodes.len(),
         seconds_prepare: planned.seconds,
         seconds_transfer,
@@ -258,7 +278,7 @@ pub fn bake_from(
         texels: texel_report,
         adaptive: adaptive_report,
         bounces,
-        gather_entries: direct.matrix.map_or(0, |m| m.columns.len()),
+        gather_entries,
         backend: backend.describe(),
         subsurface,
     };
@@ -338,30 +358,27 @@ fn check_given(direct: &DirectPass, receivers: &Receivers, options: &BakeOptions
 }
 
 /// The transfer as `options.storage` stores it, and whether it left the albedo out. Lean: one
-/// channel where one suffices: direct transfer becomes the albedo-free scalar (fitted as the RGB was);
-/// interreflected transfer keeps its red channel when every albedo is grey.
+/// channel where one suffices: direct transfer becomes the albedo-free vertex values
+/// (`albedo_free`, fitted as the RGB was); interreflected transfer keeps its red channel when
+/// every albedo is grey.
 fn stored(
     rgb: Transfer,
-    scalar: &[f32],
+    albedo_free: Option<Vec<f32>>,
     scene: &Scene,
-    points: &[SurfacePoint],
     options: &BakeOptions,
-) -> Result<(Transfer, bool)> {
+) -> (Transfer, bool) {
     if options.storage == Storage::Rgb {
-        return Ok((rgb, false));
+        return (rgb, false);
     }
     let n = coeff_count(rgb.bands());
     if options.mode != Mode::Interreflected {
-        let coeffs = match options.fit {
-            Fit::Point => scalar.to_vec(),
-            Fit::LeastSquares => fit_vertices(scene, points, scalar, n, &FitOptions::default())?.0,
-        };
+        let coeffs = albedo_free.expect("lean direct transfer's albedo-free values");
         let transfer = Transfer::new(rgb.bands(), 1, rgb.vertex_count(), coeffs)
             .expect("one channel of the vertices' coefficients");
-        return Ok((transfer, true));
+        return (transfer, true);
     }
     if scene.albedo.iter().any(|a| a.x != a.y || a.y != a.z) {
-        return Ok((rgb, false));
+        return (rgb, false);
     }
     let coeffs = rgb
         .coeffs()
@@ -370,7 +387,7 @@ fn stored(
         .collect();
     let transfer = Transfer::new(rgb.bands(), 1, rgb.vertex_count(), coeffs)
         .expect("one channel of the vertices' coefficients");
-    Ok((transfer, false))
+    (transfer, false)
 }
 
 /// The scene, its transfer and its lightmap's bake: the texels of `atlas` baked, and the mesh
@@ -405,31 +422,93 @@ fn add_lightmap(
     Ok((scene, transfer, Some(lightmap), Some(report)))
 }
 
-/// Vertex transfer from the direct pass at the receivers (fitted, for the least-squares fit)
-/// and its bounces; what each bounce added, the first fit's report and the direct fit's time.
+/// Where the values at a bake's receivers come from.
+enum AtReceivers {
+    /// The whole direct pass, at the vertices or at the fit's points.
+    Whole(DirectPass),
+    /// The fit's points baked a run at a time, their values summed as they come.
+    Chunked(PointChunks),
+}
+
+impl AtReceivers {
+    /// With an error target, each receiver's samples and error.
+    fn adaptive(&self) -> Option<&adaptive::ReceiverErrors> {
+        match self {
+            AtReceivers::Whole(direct) => direct.adaptive.as_ref(),
+            AtReceivers::Chunked(chunks) => chunks.adaptive.as_ref(),
+        }
+    }
+
+    /// The rays cast, and the gather rows' entries.
+    fn counts(&self) -> (u64, usize) {
+        match self {
+            AtReceivers::Whole(direct) => (
+                direct.rays_cast,
+                direct.matrix.as_ref().map_or(0, |m| m.columns.len()),
+            ),
+            AtReceivers::Chunked(chunks) => (chunks.rays_cast, chunks.gather_entries),
+        }
+    }
+
+    /// The direct light's RGB vertex values (`albedo` each receiver's), fitted where there is
+    /// a `fitting`, and the fit's report.
+    fn direct_at_vertices(
+        &mut self,
+        fitting: Option<&Fitting>,
+        albedo: &[Vec3],
+        bands: u32,
+    ) -> Result<(Vec<f32>, Option<FitReport>)> {
+        match (self, fitting) {
+            (AtReceivers::Chunked(chunks), Some(fitting)) => {
+                let (values, report) = chunks.direct_at_vertices(fitting);
+                Ok((values, Some(report)))
+            }
+            (AtReceivers::Whole(direct), fitting) => {
+                let values = tint_by_albedo(&direct.scalar, albedo, bands).into_coeffs();
+                match fitting {
+                    None => Ok((values, None)),
+                    Some(fitting) => {
+                        let (fitted, report) = fitting.fit(values, 3 * coeff_count(bands))?;
+                        Ok((fitted, Some(report)))
+                    }
+                }
+            }
+            (AtReceivers::Chunked(_), None) => unreachable!("points are chunked for a fit"),
+        }
+    }
+
+    /// Lean direct transfer's albedo-free vertex values, fitted where there is a `fitting`.
+    fn albedo_free_at_vertices(
+        &mut self,
+        fitting: Option<&Fitting>,
+        bands: u32,
+    ) -> Result<Vec<f32>> {
+        match (self, fitting) {
+            (AtReceivers::Chunked(chunks), Some(fitting)) => {
+                Ok(chunks.albedo_free_at_vertices(fitting))
+            }
+            (AtReceivers::Whole(direct), None) => Ok(direct.scalar.clone()),
+            (AtReceivers::Whole(direct), Some(fitting)) => {
+                let rhs = fitting.right_hand_side(&direct.scalar, coeff_count(bands))?;
+                Ok(fitting.solve(rhs).0)
+            }
+            (AtReceivers::Chunked(_), None) => unreachable!("points are chunked for a fit"),
+        }
+    }
+}
+
+/// Vertex transfer from the values `at` the receivers (fitted, for the least-squares fit;
+/// `albedo` each receiver's) and its bounces; what each bounce added, the first fit's report
+/// and the direct fit's time.
 fn vertex_transfer(
     (scene, vertex_map): (&Scene, &[u32]),
-    receivers: &Receivers,
-    points: &[SurfacePoint],
-    direct: &DirectPass,
+    (at, fitting, albedo): (&mut AtReceivers, Option<&Fitting>, &[Vec3]),
     options: &BakeOptions,
     backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<VertexTransfer> {
     let started = Instant::now();
-    let columns = 3 * coeff_count(options.bands);
-    let mut fit_report = None;
-    let mut to_vertices = |values: Vec<f32>| -> Result<Vec<f32>> {
-        if options.fit == Fit::Point {
-            return Ok(values);
-        }
-        let (fitted, report) = fit_letting_go(scene, points, values, columns)?;
-        // The direct pass's solve is the one reported; the bounces' are like it.
-        fit_report.get_or_insert(report);
-        Ok(fitted)
-    };
-    // In a translucent medium, the receivers reflect as white diffuse surfaces, and the
-    // medium's scattering, from vertex to vertex, replaces their albedo.
+    let bands = options.bands;
     let media = media_of(scene, vertex_map, options);
     let scatter = match &media {
         Some((materials, of_vertex)) => {
@@ -441,18 +520,9 @@ fn vertex_transfer(
     // lightmap's texels scatter it too.
     let mut incoming: Option<Vec<f32>> = None;
     let keep_incoming = options.lightmap.is_some();
-    let white;
-    let albedo = match scatter {
-        Some(_) => {
-            white = vec![Vec3::ONE; receivers.len()];
-            &white[..]
-        }
-        None => &receivers.albedo[..],
-    };
-    let scattering = scatter.as_ref().map(|s| s.on(options.bands, backend));
+    let scattering = scatter.as_ref().map(|s| s.on(bands, backend));
     let scattering = scattering.transpose()?;
-    let mut to_vertices = |values: Vec<f32>| -> Result<Vec<f32>> {
-        let values = to_vertices(values)?;
+    let mut scattered = |values: Vec<f32>| -> Result<Vec<f32>> {
         let Some(scattering) = &scattering else {
             return Ok(values);
         };
@@ -464,29 +534,39 @@ fn vertex_transfer(
         }
         scattering.apply(&values)
     };
-    let at_receivers = tint_by_albedo(&direct.scalar, albedo, options.bands);
-    let mut transfer = Transfer::new(
-        options.bands,
-        3,
-        scene.vertex_count(),
-        to_vertices(at_receivers.into_coeffs())?,
-    )
-    .expect("the vertex values hold every vertex's coefficients");
+    let (direct, fit_report) = at.direct_at_vertices(fitting, albedo, bands)?;
+    let mut transfer = Transfer::new(bands, 3, scene.vertex_count(), scattered(direct)?)
+        .expect("the vertex values hold every vertex's coefficients");
     let seconds_fit = match options.fit {
         Fit::Point => 0.0,
         Fit::LeastSquares => started.elapsed().as_secs_f64(),
     };
-    let bounces = match &direct.matrix {
-        Some(matrix) => {
-            let to_vertices = &mut to_vertices;
-            let gather = Gather {
-                matrix,
-                albedo,
-                to_vertices,
+    let columns = 3 * coeff_count(bands);
+    let bounces = match at {
+        AtReceivers::Whole(DirectPass {
+            matrix: Some(matrix),
+            ..
+        }) => {
+            let gatherer = backend.gatherer(matrix, albedo, bands)?;
+            let mut next_bounce = |previous: &[f32]| -> Result<Vec<f32>> {
+                let gathered = gatherer.gather(previous)?;
+                let fitted = match fitting {
+                    Some(fitting) => fitting.fit(gathered, columns)?.0,
+                    None => gathered,
+                };
+                scattered(fitted)
             };
-            add_bounces(&mut transfer, gather, options, backend, progress)?
+            add_bounces(&mut transfer, &mut next_bounce, options, progress)?
         }
-        None => Vec::new(),
+        AtReceivers::Chunked(chunks) if chunks.gathers() => {
+            let fitting = fitting.expect("points are chunked for a fit");
+            let mut next_bounce = |previous: &[f32]| -> Result<Vec<f32>> {
+                let fitted = chunks.bounce((fitting, albedo), previous, bands, backend)?;
+                scattered(fitted)
+            };
+            add_bounces(&mut transfer, &mut next_bounce, options, progress)?
+        }
+        _ => Vec::new(),
     };
     let subsurface = scatter.as_ref().map(|scatter| scatter.report);
     let scattered = media
@@ -504,21 +584,6 @@ fn vertex_transfer(
         subsurface,
         scattered,
     })
-}
-
-/// The vertex values that best fit `values` at `points` ([`fit_vertices`]), the values let
-/// go once the normal equations are assembled: they are a point's whole transfer each, and
-/// the solve holds six vectors of every vertex's beside them otherwise.
-fn fit_letting_go(
-    scene: &Scene,
-    points: &[SurfacePoint],
-    values: Vec<f32>,
-    columns: usize,
-) -> Result<(Vec<f32>, FitReport)> {
-    let fit = FitOptions::default();
-    let equations = NormalEquations::of(scene, points, &values, columns, &fit)?;
-    drop(values);
-    Ok(equations.solve(&fit))
 }
 
 /// The media of the prepared `scene`'s vertices: the one the options give it, or its own

@@ -100,6 +100,10 @@ pub struct BakeOptions {
     /// Without `subsurface`: the media of the scene's own materials (a glTF scene's
     /// scattering volumes), each on its vertices; the other vertices stay opaque.
     pub scene_media: Option<super::subsurface::SceneMedia>,
+    /// Least-squares fit: bake the points about this many at a time, each run's values summed
+    /// into the fit and let go, its gather rows in a scratch file (`points::PointChunks`), to
+    /// bound memory; the bytes are the whole bake's. How the bake runs, not what it is.
+    pub point_chunk: Option<usize>,
 }
 
 /// How the transfer is stored.
@@ -135,6 +139,7 @@ impl Default for BakeOptions {
             turns: false,
             subsurface: None,
             scene_media: None,
+            point_chunk: None,
         }
     }
 }

@@ -4,7 +4,9 @@
 //! its receivers, so a chunked bake writes the bytes of the whole one.
 //!
 //! Only bakes whose vertex values are their own receivers' can stream: transfer at the
-//! vertices, no fit or lightmap (a fit solves for all vertices at once). An error target
+//! vertices, no fit or lightmap (a fit solves for all vertices at once; its points bake in
+//! runs instead, `points::PointChunks`, and [`MemoryNeed::points_chunked`] is their need). An
+//! error target
 //! streams too: each receiver's batches depend on it alone.
 //! Interreflection streams its direct pass; each bounce then reads every vertex's previous
 //! bounce, so the bake holds one transfer of every vertex (the previous bounce) and keeps the
@@ -47,10 +49,47 @@ pub struct MemoryNeed {
     pub per_receiver_whole: u64,
     pub per_receiver_streamed: u64,
     pub receivers: u64,
-    /// What a whole bake adds beside its vertices' transfer: a least-squares fit's points and
-    /// its solve ([`MemoryNeed::with_fit_points`]), a lightmap's texels and image
-    /// ([`MemoryNeed::with_lightmap`]). Neither streams.
+    /// What a whole bake adds beside its vertices' transfer: a lightmap's texels and image
+    /// ([`MemoryNeed::with_lightmap`]), which do not stream.
     pub beside_vertices: u64,
+    /// A least-squares fit's points and its solve ([`MemoryNeed::with_fit_points`]).
+    pub fit: Option<FitNeed>,
+}
+
+/// What a least-squares fit adds to a bake's need: its points, held whatever the chunking,
+/// their values and gather rows, all at once or a run of points at a time
+/// (`points::PointChunks`), and its solve over every vertex, which does not shrink.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FitNeed {
+    pub points: u64,
+    /// Each point throughout: as spread and as kept, its receiver twice (candidate and kept),
+    /// its ray origin and normal.
+    pub per_point_held: u64,
+    /// Each point's direct pass: its albedo-free transfer and, where light bounces, its gather
+    /// row (held to the end of a whole bake).
+    pub per_point_direct: u64,
+    /// Each point's RGB values while they are summed (twice while a bounce gathers them).
+    pub per_point_values: u64,
+    /// The right-hand sides summed while points bake a run at a time: each vertex's RGB
+    /// values and albedo-free ones, in f64.
+    pub sums: u64,
+    /// The solve: the conjugate gradients' f64 vectors over every vertex's RGB coefficients,
+    /// and the sparse normal matrix.
+    pub solving: u64,
+}
+
+impl FitNeed {
+    /// Every point at once, as a whole bake holds them.
+    pub fn whole(&self) -> u64 {
+        self.points * (self.per_point_held + self.per_point_direct)
+            + (self.points * self.per_point_values).max(self.solving)
+    }
+
+    /// `chunk` points at a time, their gather rows in a scratch file.
+    pub fn chunked(&self, chunk: u64) -> u64 {
+        let run = chunk.min(self.points) * (self.per_point_direct + self.per_point_values);
+        self.points * self.per_point_held + (run + self.sums).max(self.solving)
+    }
 }
 
 /// Receivers of the smallest chunk worth streaming: below it, per-chunk overheads dominate.
@@ -112,26 +151,31 @@ impl MemoryNeed {
                 + batches,
             receivers: v,
             beside_vertices: 0,
+            fit: None,
         }
     }
 
-    /// The need with a least-squares fit to `points` surface points (`options` the bake's):
-    /// held throughout, each point as spread and as kept, its receiver twice (candidate and
-    /// kept), its ray origin and normal, its albedo-free transfer and, for interreflection,
-    /// its gather row; then the larger of what a fit holds as it assembles (every point's RGB
-    /// values, twice while a bounce is gathered) and as it solves (the conjugate gradients'
-    /// six f64 vectors over every vertex's RGB coefficients, and the sparse normal matrix).
+    /// The need with a least-squares fit to `points` surface points (`options` the bake's),
+    /// as [`FitNeed`] counts it. The conjugate gradients hold five f64 vectors and the
+    /// solution; six are counted.
     pub fn with_fit_points(self, points: u64, options: &BakeOptions) -> MemoryNeed {
         let coeffs = coeff_count(options.bands) as u64;
-        let held = points * (2 * 16 + 2 * 48 + 24 + 8 + 4 * coeffs + gather_row_bytes(options));
         let bounce = match options.mode {
             Mode::Interreflected => 2,
             _ => 1,
         };
-        let assembling = points * 12 * coeffs * bounce;
-        let solving = self.receivers * (6 * 8 * 3 * coeffs + 8 * 12);
+        let fit = FitNeed {
+            points,
+            per_point_held: 2 * 16 + 2 * 48 + 24 + 8,
+            per_point_direct: 4 * coeffs + gather_row_bytes(options),
+            per_point_values: 12 * coeffs * bounce,
+            sums: self.receivers * 8 * 4 * coeffs,
+            solving: self.receivers * (6 * 8 * 3 * coeffs + 8 * 12),
+        };
         MemoryNeed {
-            beside_vertices: self.beside_vertices + held + assembling.max(solving),
+            fit: Some(fit),
+            // The vertices gather nothing: the points do.
+            per_receiver_whole: self.per_receiver_whole - gather_row_bytes(options),
             ..self
         }
     }
@@ -205,6 +249,52 @@ impl MemoryNeed {
             + self.probes
             + self.receivers * self.per_receiver_whole
             + self.beside_vertices
+            + self.fit.map_or(0, |fit| fit.whole())
+    }
+
+    /// The need of a least-squares bake whose points bake `chunk` at a time (the rest whole).
+    pub fn points_chunked(&self, chunk: usize) -> u64 {
+        let fit = self.fit.map_or(0, |fit| fit.chunked(chunk as u64));
+        self.whole() - self.fit.map_or(0, |fit| fit.whole()) + fit
+    }
+
+    /// The largest run of points that keeps a least-squares bake within `limit` bytes, or the
+    /// error that says how much the smallest needs (the solve over every vertex does not
+    /// shrink with the runs).
+    pub fn point_chunk_within(&self, limit: u64) -> Result<usize> {
+        let Some(fit) = self.fit else {
+            return Err(Error::Options(
+                "only a least-squares fit bakes points".into(),
+            ));
+        };
+        let per_point = fit.per_point_direct + fit.per_point_values;
+        let smallest = MIN_CHUNK.min(fit.points as usize).max(1);
+        if self.points_chunked(smallest) > limit {
+            let rest = self.whole() - fit.whole();
+            return Err(Error::Options(format!(
+                "--memory-limit {}: this bake needs at least {} (the mesh, its BVH and its \
+                 vertices' transfer {}, the fit's {} points {}, and the larger of its solve over \
+                 every vertex {} and one run of {smallest} points with the sums {})",
+                format_bytes(limit),
+                format_bytes(self.points_chunked(smallest)),
+                format_bytes(rest),
+                fit.points,
+                format_bytes(fit.points * fit.per_point_held),
+                format_bytes(fit.solving),
+                format_bytes(smallest as u64 * per_point + fit.sums)
+            )));
+        }
+        // The need grows with the run (once the run outgrows the solve): the largest run
+        // that fits, by bisection.
+        let (mut low, mut high) = (smallest, (fit.points as usize).max(smallest));
+        while low < high {
+            let middle = low + (high - low).div_ceil(2);
+            match self.points_chunked(middle) <= limit {
+                true => low = middle,
+                false => high = middle - 1,
+            }
+        }
+        Ok(low)
     }
 
     /// The need of a bake streamed `chunk` receivers at a time.
@@ -214,16 +304,25 @@ impl MemoryNeed {
 
     /// The need of one of `shards` shards of the bake: the mesh and its BVH, and
     /// its share of the receivers at a whole bake's cost each (for interreflection their
-    /// gather rows too, in the pass and in the part file).
+    /// gather rows too, in the pass and in the part file). A least-squares fit's receivers are
+    /// its points: the shard holds them all and bakes its share's direct pass.
     pub fn shard(&self, shards: u32) -> u64 {
-        let share = self.receivers.div_ceil(shards.max(1) as u64);
-        self.fixed + share * self.per_receiver_whole
+        let share = |receivers: u64| receivers.div_ceil(shards.max(1) as u64);
+        match self.fit {
+            Some(fit) => {
+                self.fixed
+                    + fit.points * fit.per_point_held
+                    + share(fit.points) * fit.per_point_direct
+            }
+            None => self.fixed + share(self.receivers) * self.per_receiver_whole,
+        }
     }
 
-    /// The fewest shards, at most `receivers`, each within `limit` bytes; `None` when the mesh
-    /// and its BVH alone exceed it.
+    /// The fewest shards, at most one a receiver, each within `limit` bytes; `None` when the
+    /// mesh and its BVH (and a fit's points) alone exceed it.
     pub fn shards_within(&self, limit: u64) -> Option<u32> {
-        let most = self.receivers.clamp(1, u32::MAX as u64) as u32;
+        let receivers = self.fit.map_or(self.receivers, |fit| fit.points);
+        let most = receivers.clamp(1, u32::MAX as u64) as u32;
         if self.shard(most) > limit {
             return None;
         }
@@ -543,7 +642,7 @@ impl Interreflected {
 }
 
 /// Where one chunk's gather rows lie in the scratch file.
-struct SpilledRows {
+pub(super) struct SpilledRows {
     offsets_at: u64,
     columns_at: u64,
     weights_at: u64,
@@ -552,7 +651,7 @@ struct SpilledRows {
 }
 
 impl SpilledRows {
-    fn put(spill: &mut Spill, matrix: &GatherMatrix) -> Result<SpilledRows> {
+    pub(super) fn put(spill: &mut Spill, matrix: &GatherMatrix) -> Result<SpilledRows> {
         Ok(SpilledRows {
             offsets_at: spill.append(&matrix.row_offsets)?,
             columns_at: spill.append(&matrix.columns)?,
@@ -562,7 +661,7 @@ impl SpilledRows {
         })
     }
 
-    fn read(&self, spill: &mut Spill) -> Result<GatherMatrix> {
+    pub(super) fn read(&self, spill: &mut Spill) -> Result<GatherMatrix> {
         Ok(GatherMatrix {
             row_offsets: spill.read_vec(self.offsets_at, self.rows + 1)?,
             columns: spill.read_vec(self.columns_at, self.entries)?,

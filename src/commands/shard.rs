@@ -7,7 +7,7 @@ use prt_gpu::bake::{self, backend_for, Backend, BakeOptions, CpuBackend, Mode};
 use prt_gpu::device::{self, DeviceChoice};
 use prt_gpu::shard::{self, Part};
 use prt_gpu::spec::BakeSpec;
-use prt_gpu::{fs, scene, Error, Result};
+use prt_gpu::{fs, receivers, scene, Error, Result};
 
 use super::bake::{
     bake_name, bake_one, bake_spec, check_chunking, check_preview, load_bake_input, mesh_shown,
@@ -189,7 +189,11 @@ fn check_shard_memory(
     shard: bake::Shard,
 ) -> Result<()> {
     use bake::stream::{format_bytes, MemoryNeed};
-    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), options);
+    let mut need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), options);
+    if options.fit == bake::Fit::LeastSquares {
+        let points = receivers::spread_point_count(scene, options.point_density);
+        need = need.with_fit_points(points as u64, options);
+    }
     let Some(limit) = args.memory_limit.or_else(device::available_memory) else {
         return Ok(());
     };
@@ -200,8 +204,9 @@ fn check_shard_memory(
     let advice = match need.shards_within(limit) {
         Some(count) => format!("{count} or more shards would each fit"),
         None => format!(
-            "the mesh and its BVH alone need about {}, so no shard count fits",
-            format_bytes(need.fixed)
+            "a shard of one receiver needs about {} (the mesh and its BVH, and a fit's \
+             points), so no shard count fits",
+            format_bytes(need.shard(u32::MAX))
         ),
     };
     let message = format!(

@@ -130,26 +130,78 @@ pub fn fit_vertices(
     columns: usize,
     options: &FitOptions,
 ) -> Result<(Vec<f32>, FitReport)> {
-    Ok(NormalEquations::of(scene, points, values, columns, options)?.solve(options))
+    let system = FitSystem::of(scene, points, options);
+    let mut rhs = system.right_hand_side(columns);
+    system.add(&mut rhs, scene, points, values)?;
+    Ok(system.solve(rhs, options))
 }
 
-/// The fit's normal equations, `(B^T W B + lambda L) x = B^T W v`, assembled: all the solve
-/// needs, so that the values at the points can be let go before it runs.
-pub struct NormalEquations {
+/// The fit's matrix, `B^T W B + lambda L`: it depends on the points alone, so one serves the
+/// direct light and every bounce, whose values at the points give only new right-hand sides.
+pub struct FitSystem {
     matrix: SparseMatrix,
-    rhs: Vec<f64>,
+    /// Each triangle's weight per point: its area over its point count (`w_i`).
+    weights: Vec<f64>,
+}
+
+/// A right-hand side of the fit, `B^T W v`, `columns` per vertex, summed from the values at
+/// the points a run at a time ([`FitSystem::add`]).
+pub struct RightHandSide {
+    sums: Vec<f64>,
     columns: usize,
 }
 
-impl NormalEquations {
-    /// The equations of [`fit_vertices`]`(scene, points, values, columns, options)`.
-    pub fn of(
+impl FitSystem {
+    /// The system of a fit to `points` on the triangles of `scene`.
+    pub fn of(scene: &Scene, points: &[SurfacePoint], options: &FitOptions) -> FitSystem {
+        let mut per_triangle = vec![0u32; scene.triangle_count()];
+        for p in points {
+            per_triangle[p.triangle as usize] += 1;
+        }
+        let weights = triangle_areas(scene)
+            .iter()
+            .zip(&per_triangle)
+            .map(|(&area, &count)| area / count.max(1) as f64)
+            .collect();
+        let mut system = FitSystem {
+            matrix: SparseMatrix::adjacency(scene.vertex_count(), &scene.triangles),
+            weights,
+        };
+        for &i in &canonical_order(points) {
+            let p = points[i];
+            let corners = scene.triangles[p.triangle as usize];
+            let weight = system.weights[p.triangle as usize];
+            for a in 0..3 {
+                let wa = weight * p.barycentrics[a] as f64;
+                for b in 0..3 {
+                    *system.matrix.entry_mut(corners[a], corners[b]) +=
+                        wa * p.barycentrics[b] as f64;
+                }
+            }
+        }
+        add_edge_term(&mut system.matrix, options.smoothness);
+        system
+    }
+
+    /// A right-hand side of `columns` per vertex, all zeros.
+    pub fn right_hand_side(&self, columns: usize) -> RightHandSide {
+        RightHandSide {
+            sums: vec![0.0; (self.matrix.row_offsets.len() - 1) * columns],
+            columns,
+        }
+    }
+
+    /// Adds `values` (`[point][column]`) at `points` to `rhs`. The points are summed in the
+    /// canonical order, so runs of whole triangles' points, added in the order of their
+    /// triangles, sum to the bytes of all of them added at once.
+    pub fn add(
+        &self,
+        rhs: &mut RightHandSide,
         scene: &Scene,
         points: &[SurfacePoint],
         values: &[f32],
-        columns: usize,
-        options: &FitOptions,
-    ) -> Result<NormalEquations> {
+    ) -> Result<()> {
+        let columns = rhs.columns;
         if values.len() != points.len() * columns {
             return Err(Error::Options(format!(
                 "least-squares fit: {} values for {} points of {columns} columns",
@@ -157,49 +209,27 @@ impl NormalEquations {
                 points.len()
             )));
         }
-        let vertex_count = scene.vertex_count();
-        let mut order: Vec<usize> = (0..points.len()).collect();
-        order.sort_by_key(|&i| {
-            let p = &points[i];
-            (p.triangle, p.barycentrics.map(f32::to_bits))
-        });
-        let areas = triangle_areas(scene);
-        let mut per_triangle = vec![0u32; scene.triangle_count()];
-        for p in points {
-            per_triangle[p.triangle as usize] += 1;
-        }
-
-        let mut matrix = SparseMatrix::adjacency(vertex_count, &scene.triangles);
-        let mut rhs = vec![0.0f64; vertex_count * columns];
-        for &i in &order {
+        for i in canonical_order(points) {
             let p = points[i];
             let corners = scene.triangles[p.triangle as usize];
-            let weight = areas[p.triangle as usize] / per_triangle[p.triangle as usize] as f64;
+            let weight = self.weights[p.triangle as usize];
             let value = &values[i * columns..(i + 1) * columns];
-            for a in 0..3 {
-                let wa = weight * p.barycentrics[a] as f64;
-                for b in 0..3 {
-                    *matrix.entry_mut(corners[a], corners[b]) += wa * p.barycentrics[b] as f64;
-                }
-                let row =
-                    &mut rhs[corners[a] as usize * columns..(corners[a] as usize + 1) * columns];
+            for (&corner, &barycentric) in corners.iter().zip(&p.barycentrics) {
+                let wa = weight * barycentric as f64;
+                let vertex = corner as usize;
+                let row = &mut rhs.sums[vertex * columns..(vertex + 1) * columns];
                 for (r, &v) in row.iter_mut().zip(value) {
                     *r += wa * v as f64;
                 }
             }
         }
-        add_edge_term(&mut matrix, options.smoothness);
-        Ok(NormalEquations {
-            matrix,
-            rhs,
-            columns,
-        })
+        Ok(())
     }
 
-    /// The vertex values that solve the equations, and what the solve did.
-    pub fn solve(self, options: &FitOptions) -> (Vec<f32>, FitReport) {
+    /// The vertex values that solve the system for `rhs`, and what the solve did.
+    pub fn solve(&self, rhs: RightHandSide, options: &FitOptions) -> (Vec<f32>, FitReport) {
         let (solution, iterations, relative_residual) =
-            conjugate_gradients(&self.matrix, &self.rhs, self.columns, options);
+            conjugate_gradients(&self.matrix, rhs.sums, rhs.columns, options);
         let report = FitReport {
             iterations,
             relative_residual,
@@ -207,6 +237,17 @@ impl NormalEquations {
         };
         (solution.iter().map(|&x| x as f32).collect(), report)
     }
+}
+
+/// The order the fit sums `points` in: by triangle, then barycentrics (stable, so equal
+/// points keep theirs).
+fn canonical_order(points: &[SurfacePoint]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    order.sort_by_key(|&i| {
+        let p = &points[i];
+        (p.triangle, p.barycentrics.map(f32::to_bits))
+    });
+    order
 }
 
 /// Adds `lambda (x_u - x_v)^2` for every edge, lambda relative to the mean data diagonal.
@@ -234,7 +275,7 @@ fn add_edge_term(matrix: &mut SparseMatrix, smoothness: f64) {
 /// relative residual.
 fn conjugate_gradients(
     matrix: &SparseMatrix,
-    rhs: &[f64],
+    rhs: Vec<f64>,
     columns: usize,
     options: &FitOptions,
 ) -> (Vec<f64>, u32, f64) {
@@ -259,9 +300,10 @@ fn conjugate_gradients(
         }
         dots
     };
-    let rhs_norms: Vec<f64> = column_dots(rhs, rhs).iter().map(|d| d.sqrt()).collect();
+    let rhs_norms: Vec<f64> = column_dots(&rhs, &rhs).iter().map(|d| d.sqrt()).collect();
     let mut x = vec![0.0; rows * columns];
-    let mut r = rhs.to_vec();
+    // From x = 0 the residual starts as the right-hand side, which is not needed again.
+    let mut r = rhs;
     let mut z = vec![0.0; rows * columns];
     precondition(&r, &mut z);
     let mut p = z.clone();

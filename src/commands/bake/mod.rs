@@ -246,7 +246,7 @@ pub(crate) fn bake_one(
     let (scene, gltf, name) = load_bake_input(mesh)?;
     let seconds_load = loading.elapsed().as_secs_f64();
     let naming = |e| naming_the_mesh(e, &mesh_shown(mesh));
-    let planned = pipeline::plan(spec, scene, gltf.as_ref()).map_err(naming)?;
+    let mut planned = pipeline::plan(spec, scene, gltf.as_ref()).map_err(naming)?;
     let options = spec.options();
     note_samples_rounded(&options);
     let baker = device.get()?;
@@ -258,6 +258,9 @@ pub(crate) fn bake_one(
         let plan = pipeline::plan_memory(spec, scene_and_document, limit, available)?;
         if let Some(message) = plan.message {
             eprintln!("{message}");
+        }
+        if let Some(chunk) = plan.point_chunk {
+            planned = planned.with_point_chunk(chunk);
         }
         if let Some(chunk) = plan.chunk {
             let preview = execution.preview.is_some();

@@ -15,6 +15,7 @@ pub mod spill;
 pub mod stream;
 pub mod subsurface;
 pub mod texels;
+mod vertices;
 
 // The bake's parts, each in its own file; their items are the module's.
 pub use backend::*;
@@ -24,6 +25,7 @@ pub use inputs::*;
 pub use options::*;
 pub use shard::*;
 
+use std::borrow::Cow;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -44,6 +46,7 @@ use crate::scene::Scene;
 use crate::sh::rotation::EulerShRotation;
 use crate::sh::{coeff_count, ShTable, CONVENTION, MAX_BANDS};
 use points::{Fitting, PointChunks};
+use vertices::{vertex_transfer, AtReceivers, Scattered, VertexTransfer};
 
 /// Receives progress from long stages; the CLI draws it, tests ignore it.
 pub trait Progress: Sync {
@@ -57,41 +60,6 @@ pub trait Progress: Sync {
 pub struct NoProgress;
 
 impl Progress for NoProgress {}
-
-/// Adds `options.bounces` bounces to the vertex `transfer` in place (stopping early below
-/// `options.bounce_tolerance`). Each bounce is `next_bounce` of the previous one's vertex
-/// values: gathered at the receivers and taken back to the vertices.
-fn add_bounces(
-    transfer: &mut Transfer,
-    next_bounce: &mut dyn FnMut(&[f32]) -> Result<Vec<f32>>,
-    options: &BakeOptions,
-    progress: &dyn Progress,
-) -> Result<Vec<BounceStat>> {
-    let coeffs = coeff_count(transfer.bands());
-    progress.stage("bounces", options.bounces as u64);
-    let mut previous = transfer.coeffs().to_vec();
-    let mut stats = Vec::new();
-    for _ in 0..options.bounces {
-        let started = Instant::now();
-        let next = next_bounce(&previous)?;
-        let relative_energy = bounce::relative_energy(&next, transfer.coeffs(), coeffs);
-        transfer
-            .coeffs_mut()
-            .iter_mut()
-            .zip(&next)
-            .for_each(|(t, n)| *t += n);
-        stats.push(BounceStat {
-            relative_energy,
-            seconds: started.elapsed().as_secs_f64(),
-        });
-        progress.advance(1);
-        previous = next;
-        if relative_energy < options.bounce_tolerance {
-            break;
-        }
-    }
-    Ok(stats)
-}
 
 /// The whole bake: prepare the mesh, build the BVH, choose the receivers, draw samples,
 /// compute transfer at the receivers and, for the least-squares fit, the vertex values that
@@ -194,29 +162,12 @@ pub fn bake_from(
 
     let (scene, receivers, points) = (&planned.scene, &planned.receivers, &planned.points);
     let fitting = (options.fit == Fit::LeastSquares).then(|| Fitting::new(scene, points));
-    // In a translucent medium, the receivers reflect as white diffuse surfaces, and the
-    // medium's scattering, from vertex to vertex, replaces their albedo.
-    let white;
-    let albedo = match options.subsurface.is_some() || options.scene_media.is_some() {
-        true => {
-            white = vec![Vec3::ONE; receivers.len()];
-            &white[..]
-        }
-        false => &receivers.albedo[..],
-    };
+    let albedo = reflecting_albedo(receivers, options);
 
     let started = Instant::now();
-    let (mut at_receivers, ran_on) = match (&fitting, options.point_chunk, source) {
-        (Some(fitting), Some(chunk), DirectSource::Compute) => {
-            let at = (fitting, albedo);
-            let chunks = PointChunks::bake(&planned, at, chunk, options, backend, progress)?;
-            (AtReceivers::Chunked(chunks), backend.describe())
-        }
-        (_, _, source) => {
-            let (direct, ran_on) = direct_pass(source, &planned, options, backend, progress)?;
-            (AtReceivers::Whole(direct), ran_on)
-        }
-    };
+    let at = (fitting.as_ref(), &albedo[..]);
+    let (mut at_receivers, ran_on) =
+        values_at_receivers(&planned, at, source, options, backend, progress)?;
     let adaptive_report = options
         .target_error
         .zip(at_receivers.adaptive())
@@ -224,7 +175,7 @@ pub fn bake_from(
     let seconds_transfer = started.elapsed().as_secs_f64();
 
     let on_scene = (scene, &planned.vertex_map[..]);
-    let at = (&mut at_receivers, fitting.as_ref(), albedo);
+    let at = (&mut at_receivers, fitting.as_ref(), &albedo[..]);
     let fitted = vertex_transfer(on_scene, at, options, backend, progress)?;
     let VertexTransfer {
         transfer,
@@ -240,8 +191,7 @@ pub fn bake_from(
         false => None,
     };
     let (rays_cast, gather_entries) = at_receivers.counts();
-    drop(fitting);
-    drop(at_receivers);
+    drop((fitting, at_receivers, albedo));
     let (transfer, albedo_free) = stored(transfer, albedo_free, scene, options);
     let scene = std::mem::take(&mut planned.scene);
     let (scene, transfer, lightmap, texel_report) = match &atlas {
@@ -291,6 +241,39 @@ pub fn bake_from(
         },
         report,
     ))
+}
+
+/// The albedo each receiver reflects with: its own, or white in a translucent medium, whose
+/// scattering from vertex to vertex replaces it.
+fn reflecting_albedo<'a>(receivers: &'a Receivers, options: &BakeOptions) -> Cow<'a, [Vec3]> {
+    match options.subsurface.is_some() || options.scene_media.is_some() {
+        true => Cow::Owned(vec![Vec3::ONE; receivers.len()]),
+        false => Cow::Borrowed(&receivers.albedo),
+    }
+}
+
+/// The values at `planned`'s receivers: a fit's points baked in runs where the options ask
+/// (and the direct pass is computed here), else the whole direct pass, computed or given;
+/// and what it ran on.
+fn values_at_receivers(
+    planned: &Planned,
+    (fitting, albedo): (Option<&Fitting>, &[Vec3]),
+    source: DirectSource,
+    options: &BakeOptions,
+    backend: &dyn Backend,
+    progress: &dyn Progress,
+) -> Result<(AtReceivers, String)> {
+    match (fitting, options.point_chunk, source) {
+        (Some(fitting), Some(chunk), DirectSource::Compute) => {
+            let at = (fitting, albedo);
+            let chunks = PointChunks::bake(planned, at, chunk, options, backend, progress)?;
+            Ok((AtReceivers::Chunked(chunks), backend.describe()))
+        }
+        (_, _, source) => {
+            let (direct, ran_on) = direct_pass(source, planned, options, backend, progress)?;
+            Ok((AtReceivers::Whole(direct), ran_on))
+        }
+    }
 }
 
 /// The direct pass of `planned`'s receivers, computed on `backend` or given (and checked), and
@@ -420,204 +403,6 @@ fn add_lightmap(
         Some(_) => (scene, transfer),
     };
     Ok((scene, transfer, Some(lightmap), Some(report)))
-}
-
-/// Where the values at a bake's receivers come from.
-enum AtReceivers {
-    /// The whole direct pass, at the vertices or at the fit's points.
-    Whole(DirectPass),
-    /// The fit's points baked a run at a time, their values summed as they come.
-    Chunked(PointChunks),
-}
-
-impl AtReceivers {
-    /// With an error target, each receiver's samples and error.
-    fn adaptive(&self) -> Option<&adaptive::ReceiverErrors> {
-        match self {
-            AtReceivers::Whole(direct) => direct.adaptive.as_ref(),
-            AtReceivers::Chunked(chunks) => chunks.adaptive.as_ref(),
-        }
-    }
-
-    /// The rays cast, and the gather rows' entries.
-    fn counts(&self) -> (u64, usize) {
-        match self {
-            AtReceivers::Whole(direct) => (
-                direct.rays_cast,
-                direct.matrix.as_ref().map_or(0, |m| m.columns.len()),
-            ),
-            AtReceivers::Chunked(chunks) => (chunks.rays_cast, chunks.gather_entries),
-        }
-    }
-
-    /// The direct light's RGB vertex values (`albedo` each receiver's), fitted where there is
-    /// a `fitting`, and the fit's report.
-    fn direct_at_vertices(
-        &mut self,
-        fitting: Option<&Fitting>,
-        albedo: &[Vec3],
-        bands: u32,
-    ) -> Result<(Vec<f32>, Option<FitReport>)> {
-        match (self, fitting) {
-            (AtReceivers::Chunked(chunks), Some(fitting)) => {
-                let (values, report) = chunks.direct_at_vertices(fitting);
-                Ok((values, Some(report)))
-            }
-            (AtReceivers::Whole(direct), fitting) => {
-                let values = tint_by_albedo(&direct.scalar, albedo, bands).into_coeffs();
-                match fitting {
-                    None => Ok((values, None)),
-                    Some(fitting) => {
-                        let (fitted, report) = fitting.fit(values, 3 * coeff_count(bands))?;
-                        Ok((fitted, Some(report)))
-                    }
-                }
-            }
-            (AtReceivers::Chunked(_), None) => unreachable!("points are chunked for a fit"),
-        }
-    }
-
-    /// Lean direct transfer's albedo-free vertex values, fitted where there is a `fitting`.
-    fn albedo_free_at_vertices(
-        &mut self,
-        fitting: Option<&Fitting>,
-        bands: u32,
-    ) -> Result<Vec<f32>> {
-        match (self, fitting) {
-            (AtReceivers::Chunked(chunks), Some(fitting)) => {
-                Ok(chunks.albedo_free_at_vertices(fitting))
-            }
-            (AtReceivers::Whole(direct), None) => Ok(direct.scalar.clone()),
-            (AtReceivers::Whole(direct), Some(fitting)) => {
-                let rhs = fitting.right_hand_side(&direct.scalar, coeff_count(bands))?;
-                Ok(fitting.solve(rhs).0)
-            }
-            (AtReceivers::Chunked(_), None) => unreachable!("points are chunked for a fit"),
-        }
-    }
-}
-
-/// Vertex transfer from the values `at` the receivers (fitted, for the least-squares fit;
-/// `albedo` each receiver's) and its bounces; what each bounce added, the first fit's report
-/// and the direct fit's time.
-fn vertex_transfer(
-    (scene, vertex_map): (&Scene, &[u32]),
-    (at, fitting, albedo): (&mut AtReceivers, Option<&Fitting>, &[Vec3]),
-    options: &BakeOptions,
-    backend: &dyn Backend,
-    progress: &dyn Progress,
-) -> Result<VertexTransfer> {
-    let started = Instant::now();
-    let bands = options.bands;
-    let media = media_of(scene, vertex_map, options);
-    let scatter = match &media {
-        Some((materials, of_vertex)) => {
-            Some(subsurface::Scatter::new(scene, (materials, of_vertex))?)
-        }
-        None => None,
-    };
-    // What arrives at the vertices, summed over the direct light and the bounces: a
-    // lightmap's texels scatter it too.
-    let mut incoming: Option<Vec<f32>> = None;
-    let keep_incoming = options.lightmap.is_some();
-    let scattering = scatter.as_ref().map(|s| s.on(bands, backend));
-    let scattering = scattering.transpose()?;
-    let mut scattered = |values: Vec<f32>| -> Result<Vec<f32>> {
-        let Some(scattering) = &scattering else {
-            return Ok(values);
-        };
-        if keep_incoming {
-            match &mut incoming {
-                Some(sum) => sum.iter_mut().zip(&values).for_each(|(s, v)| *s += v),
-                None => incoming = Some(values.clone()),
-            }
-        }
-        scattering.apply(&values)
-    };
-    let (direct, fit_report) = at.direct_at_vertices(fitting, albedo, bands)?;
-    let mut transfer = Transfer::new(bands, 3, scene.vertex_count(), scattered(direct)?)
-        .expect("the vertex values hold every vertex's coefficients");
-    let seconds_fit = match options.fit {
-        Fit::Point => 0.0,
-        Fit::LeastSquares => started.elapsed().as_secs_f64(),
-    };
-    let columns = 3 * coeff_count(bands);
-    let bounces = match at {
-        AtReceivers::Whole(DirectPass {
-            matrix: Some(matrix),
-            ..
-        }) => {
-            let gatherer = backend.gatherer(matrix, albedo, bands)?;
-            let mut next_bounce = |previous: &[f32]| -> Result<Vec<f32>> {
-                let gathered = gatherer.gather(previous)?;
-                let fitted = match fitting {
-                    Some(fitting) => fitting.fit(gathered, columns)?.0,
-                    None => gathered,
-                };
-                scattered(fitted)
-            };
-            add_bounces(&mut transfer, &mut next_bounce, options, progress)?
-        }
-        AtReceivers::Chunked(chunks) if chunks.gathers() => {
-            let fitting = fitting.expect("points are chunked for a fit");
-            let mut next_bounce = |previous: &[f32]| -> Result<Vec<f32>> {
-                let fitted = chunks.bounce((fitting, albedo), previous, bands, backend)?;
-                scattered(fitted)
-            };
-            add_bounces(&mut transfer, &mut next_bounce, options, progress)?
-        }
-        _ => Vec::new(),
-    };
-    let subsurface = scatter.as_ref().map(|scatter| scatter.report);
-    let scattered = media
-        .zip(incoming)
-        .map(|((materials, of_vertex), incoming)| Scattered {
-            materials,
-            of_vertex,
-            incoming,
-        });
-    Ok(VertexTransfer {
-        transfer,
-        bounces,
-        fit_report,
-        seconds_fit,
-        subsurface,
-        scattered,
-    })
-}
-
-/// The media of the prepared `scene`'s vertices: the one the options give it, or its own
-/// materials' (`vertex_map` giving the prepared vertex each loaded one became), and each
-/// vertex's index among them or [`subsurface::OPAQUE`]; `None` where it has neither.
-fn media_of(
-    scene: &Scene,
-    vertex_map: &[u32],
-    options: &BakeOptions,
-) -> Option<(Vec<subsurface::SubsurfaceMaterial>, Vec<u32>)> {
-    let vertices = scene.vertex_count();
-    match (&options.subsurface, &options.scene_media) {
-        (Some(material), _) => Some((vec![*material], vec![0; vertices])),
-        (None, Some(media)) => Some((media.materials(), media.on_prepared(vertex_map, vertices))),
-        (None, None) => None,
-    }
-}
-
-/// What a lightmap's texels scatter: the vertices' media and the light arriving at them.
-struct Scattered {
-    materials: Vec<subsurface::SubsurfaceMaterial>,
-    of_vertex: Vec<u32>,
-    incoming: Vec<f32>,
-}
-
-/// What [`vertex_transfer`] made.
-struct VertexTransfer {
-    transfer: Transfer,
-    bounces: Vec<BounceStat>,
-    fit_report: Option<FitReport>,
-    seconds_fit: f64,
-    subsurface: Option<subsurface::SubsurfaceReport>,
-    /// Where a lightmap is baked in a medium: what its texels scatter.
-    scattered: Option<Scattered>,
 }
 
 /// The scene prepared for the bake, its albedo replaced where the options say so.

@@ -1,7 +1,7 @@
 //! `prt-gpu bake`: one mesh or a batch, distant-light transfer. Arguments become a spec
 //! ([`bake_spec`]), the pipeline bakes it ([`bake_one`]), the report is printed: the arguments in
-//! `args.rs`, the device in `backend.rs`, the files read and written in `files.rs`, the printed
-//! lines in `report.rs`, batches in `batch.rs`.
+//! `args.rs`, the spec they ask for in `spec_args.rs`, the device in `backend.rs`, the files
+//! read and written in `files.rs`, the printed lines in `report.rs`, batches in `batch.rs`.
 
 use std::path::{Path, PathBuf};
 
@@ -31,6 +31,7 @@ mod backend;
 mod batch;
 mod files;
 mod report;
+mod spec_args;
 
 // The command's parts, one step each; the other commands use them too.
 pub(crate) use args::*;
@@ -38,6 +39,7 @@ pub(crate) use backend::*;
 pub(crate) use batch::*;
 pub(crate) use files::*;
 pub(crate) use report::*;
+pub(crate) use spec_args::*;
 
 /// One mesh (or the built-in scene) baked to one file.
 pub(crate) fn run_one(args: &BakeArgs, mesh: Option<PathBuf>) -> Result<()> {
@@ -56,153 +58,6 @@ pub(crate) fn run_one(args: &BakeArgs, mesh: Option<PathBuf>) -> Result<()> {
         None,
         &progress,
     )
-}
-
-/// What `bake`'s arguments ask of the bake of `mesh` (whose kind decides the container).
-pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeSpec> {
-    // Checked even where the bands are fixed: a nonsense option is refused, not ignored.
-    spec::check_bands_threshold(args.bands_threshold)?;
-    let defaults = BakeSpec::default();
-    let options = args.transfer.options();
-    Ok(BakeSpec {
-        receivers: ReceiverSpec {
-            fit: args.fit,
-            fit_points: args.fit_points,
-            lightmap: args.lightmap,
-            lightmap_uv: args.lightmap_uv,
-            denoise: args.denoise,
-        },
-        transfer: TransferSpec {
-            bands: match args.transfer.bands {
-                Bands::Fixed(bands) => spec::Bands::Fixed(bands),
-                Bands::Auto => spec::Bands::Auto {
-                    threshold: args.bands_threshold,
-                },
-            },
-            samples: options.samples,
-            sampling: options.sampling,
-            seed: args.seed,
-            mode: options.mode,
-            albedo: args.albedo.map(|albedo| albedo.to_array()),
-            bounces: args.bounces,
-            bounce_tolerance: args.bounce_tolerance,
-            target_error: args.target_error.map(|relative| TargetError {
-                relative,
-                max_samples: args.max_samples,
-            }),
-            subsurface: subsurface_material(args)?,
-            materials_scatter: args.subsurface.as_deref() != Some("none"),
-        },
-        storage: StorageSpec {
-            channels: args.storage,
-            precision: args.precision,
-            layout: args.compress.map_or(Layout::PerVertex, Layout::Cpca),
-            zonal: zonal_spec(args)?,
-        },
-        container: match mesh {
-            Some(path) if scene::is_gltf(path) => Container::GltfInPlace,
-            _ => Container::Mesh,
-        },
-        probes: probe_spec(args)?,
-        ..defaults
-    })
-}
-
-/// The medium `--subsurface` and the `--sss-*` options ask for.
-fn subsurface_material(args: &BakeArgs) -> Result<Option<spec::SubsurfaceMaterial>> {
-    use prt_gpu::bake::subsurface::PRESETS;
-    let Some(name) = &args.subsurface else {
-        let given = args.sss_absorption.is_some()
-            || args.sss_scattering.is_some()
-            || args.sss_ior.is_some()
-            || args.sss_mm_per_unit.is_some();
-        return match given {
-            true => Err(Error::Options(
-                "--sss-absorption, --sss-scattering, --sss-ior and --sss-mm-per-unit describe \
-                 a medium; ask for subsurface scattering with --subsurface MEDIUM"
-                    .into(),
-            )),
-            false => Ok(None),
-        };
-    };
-    let names = || PRESETS.map(|(n, _)| n).join(", ");
-    let mut material = match name.as_str() {
-        "none" => {
-            return match args.sss_absorption.is_some() || args.sss_scattering.is_some() {
-                true => Err(Error::Options(
-                    "--subsurface none bakes every material opaque; --sss-absorption and \
-                     --sss-scattering describe a medium"
-                        .into(),
-                )),
-                false => Ok(None),
-            }
-        }
-        "custom" => match (args.sss_absorption, args.sss_scattering) {
-            (Some(_), Some(_)) => spec::SubsurfaceMaterial {
-                ior: 1.3,
-                absorption: [0.0; 3],
-                reduced_scattering: [0.0; 3],
-                mm_per_unit: 1000.0,
-            },
-            _ => {
-                return Err(Error::Options(
-                    "--subsurface custom needs --sss-absorption and --sss-scattering".into(),
-                ))
-            }
-        },
-        name => spec::SubsurfaceMaterial::preset(name).ok_or_else(|| {
-            Error::Options(format!(
-                "--subsurface {name}: not a medium this tool knows ({}, custom, or none)",
-                names()
-            ))
-        })?,
-    };
-    if let Some(absorption) = args.sss_absorption {
-        material.absorption = absorption.to_array();
-    }
-    if let Some(scattering) = args.sss_scattering {
-        material.reduced_scattering = scattering.to_array();
-    }
-    material.ior = args.sss_ior.unwrap_or(material.ior);
-    material.mm_per_unit = args.sss_mm_per_unit.unwrap_or(material.mm_per_unit);
-    Ok(Some(material))
-}
-
-/// The zonal transfer `--zonal` and `--zonal-axis` ask for.
-fn zonal_spec(args: &BakeArgs) -> Result<Option<spec::ZonalSpec>> {
-    match (args.zonal, args.zonal_axis) {
-        (Some(bands), axis) => Ok(Some(spec::ZonalSpec {
-            bands,
-            axis: axis.unwrap_or(spec::ZonalAxis::Normal),
-        })),
-        (None, Some(axis)) => Err(Error::Options(format!(
-            "--zonal-axis {} says what zonal transfer is about; ask for it with --zonal BANDS",
-            axis.name()
-        ))),
-        (None, None) => Ok(None),
-    }
-}
-
-/// The probes `--probes`, `--probe-points` and `--probe-form` ask for.
-fn probe_spec(args: &BakeArgs) -> Result<Option<spec::ProbeSpec>> {
-    let placement = match (args.probes, &args.probe_points) {
-        (Some(spacing), _) => spec::ProbePlacement::Grid { spacing },
-        (None, Some(path)) => spec::ProbePlacement::Points(prt_gpu::probes::read_points(path)?),
-        (None, None) => {
-            if let Some(form) = args.probe_form {
-                return Err(Error::Options(format!(
-                    "--probe-form {} says what probes store; ask for them with --probes SPACING \
-                     or --probe-points FILE",
-                    form.name()
-                )));
-            }
-            return Ok(None);
-        }
-    };
-    Ok(Some(spec::ProbeSpec {
-        placement,
-        form: args.probe_form.unwrap_or(spec::ProbeForm::Radiance),
-    }))
 }
 
 /// Where the direct pass comes from: computed here, or the merged parts' (whose fingerprint

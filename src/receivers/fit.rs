@@ -291,6 +291,8 @@ fn conjugate_gradients(
             .zip(&inverse_diagonal)
             .for_each(|((z, r), &d)| z.iter_mut().zip(r).for_each(|(z, r)| *z = d * r));
     };
+    // Each column's dot products summed row by row, in order: the same bits on any number of
+    // threads. Two at once where a pass can give both.
     let column_dots = |a: &[f64], b: &[f64]| -> Vec<f64> {
         let mut dots = vec![0.0; columns];
         for (ra, rb) in a.chunks(columns).zip(b.chunks(columns)) {
@@ -300,6 +302,16 @@ fn conjugate_gradients(
         }
         dots
     };
+    let column_dots_rz_rr = |r: &[f64], z: &[f64]| -> (Vec<f64>, Vec<f64>) {
+        let (mut rz, mut rr) = (vec![0.0; columns], vec![0.0; columns]);
+        for (rr_row, rz_row) in r.chunks(columns).zip(z.chunks(columns)) {
+            for c in 0..columns {
+                rz[c] += rr_row[c] * rz_row[c];
+                rr[c] += rr_row[c] * rr_row[c];
+            }
+        }
+        (rz, rr)
+    };
     let rhs_norms: Vec<f64> = column_dots(&rhs, &rhs).iter().map(|d| d.sqrt()).collect();
     let mut x = vec![0.0; rows * columns];
     // From x = 0 the residual starts as the right-hand side, which is not needed again.
@@ -307,16 +319,15 @@ fn conjugate_gradients(
     let mut z = vec![0.0; rows * columns];
     precondition(&r, &mut z);
     let mut p = z.clone();
-    let mut rz = column_dots(&r, &z);
+    let (mut rz, rr) = column_dots_rz_rr(&r, &z);
     let mut ap = vec![0.0; rows * columns];
-    let residual = |r: &[f64]| -> f64 {
-        column_dots(r, r)
-            .iter()
+    let worst_of = |rr: &[f64]| -> f64 {
+        rr.iter()
             .zip(&rhs_norms)
             .map(|(&rr, &n)| if n > 0.0 { rr.sqrt() / n } else { 0.0 })
             .fold(0.0, f64::max)
     };
-    let mut worst = residual(&r);
+    let mut worst = worst_of(&rr);
     let mut iterations = 0;
     while worst > options.tolerance && iterations < options.max_iterations {
         matrix.multiply(&p, columns, &mut ap);
@@ -326,20 +337,32 @@ fn conjugate_gradients(
             .zip(&pap)
             .map(|(&rz, &pap)| if pap > 0.0 { rz / pap } else { 0.0 })
             .collect();
-        for i in 0..rows * columns {
-            x[i] += alpha[i % columns] * p[i];
-            r[i] -= alpha[i % columns] * ap[i];
-        }
+        x.par_chunks_mut(columns)
+            .zip(r.par_chunks_mut(columns))
+            .zip(p.par_chunks(columns).zip(ap.par_chunks(columns)))
+            .for_each(|((x, r), (p, ap))| {
+                for c in 0..columns {
+                    x[c] += alpha[c] * p[c];
+                    r[c] -= alpha[c] * ap[c];
+                }
+            });
         precondition(&r, &mut z);
-        let rz_next = column_dots(&r, &z);
-        for i in 0..rows * columns {
-            let c = i % columns;
-            let beta = if rz[c] > 0.0 { rz_next[c] / rz[c] } else { 0.0 };
-            p[i] = z[i] + beta * p[i];
-        }
+        let (rz_next, rr) = column_dots_rz_rr(&r, &z);
+        let beta: Vec<f64> = rz
+            .iter()
+            .zip(&rz_next)
+            .map(|(&rz, &next)| if rz > 0.0 { next / rz } else { 0.0 })
+            .collect();
+        p.par_chunks_mut(columns)
+            .zip(z.par_chunks(columns))
+            .for_each(|(p, z)| {
+                for c in 0..columns {
+                    p[c] = z[c] + beta[c] * p[c];
+                }
+            });
         rz = rz_next;
         iterations += 1;
-        worst = residual(&r);
+        worst = worst_of(&rr);
     }
     (x, iterations, worst)
 }

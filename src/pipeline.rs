@@ -381,9 +381,7 @@ pub fn plan_memory(
     let streamable = bake::stream::streams(&options) && chunkable;
     let points_chunk =
         options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
-    let why_not = "only bakes at the vertices or at a least-squares fit's points (no \
-                   lightmap), without --compress, --subsurface or translucent glTF materials, \
-                   stream in chunks";
+    let why_not = why_whole(spec, translucent);
     if points_chunk {
         let points = need.fit.map_or(0, |fit| fit.points);
         return match (need.point_chunk_within(budget), limit) {
@@ -442,6 +440,23 @@ pub fn plan_memory(
                 format_bytes(budget)
             )),
         }),
+    }
+}
+
+/// Why a bake that needs more than its limit is not split: what it does that needs every
+/// receiver at once.
+fn why_whole(spec: &BakeSpec, translucent: bool) -> &'static str {
+    if spec.receivers.lightmap.is_some() {
+        "a lightmap is baked, stitched at its seams and denoised as one image of every texel, \
+         so it does not stream in chunks"
+    } else if spec.compression().is_some() {
+        "clustered PCA (--compress) clusters every vertex's transfer at once, so it does not \
+         stream in chunks"
+    } else if spec.transfer.subsurface.is_some() || translucent {
+        "subsurface scattering carries light from every vertex to those around it over the \
+         whole surface, so it does not stream in chunks"
+    } else {
+        "only bakes at the vertices or at a least-squares fit's points stream in chunks"
     }
 }
 

@@ -303,7 +303,8 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
     });
     let below_any_chunk = (need.fixed / 2).to_string();
     let below_whole = (need.whole() / 2).to_string();
-    let cases: [(&[&str], &str); 4] = [
+    // Each bake that is not split says what it does with every receiver at once.
+    let cases: [(&[&str], &str); 6] = [
         (&["--memory-limit", &below_any_chunk], "needs at least"),
         (
             &["--memory-limit", &below_any_chunk, "--fit", "least-squares"],
@@ -311,7 +312,15 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
         ),
         (
             &["--memory-limit", &below_whole, "--compress", "8x4"],
-            "stream in chunks",
+            "clusters every vertex's transfer at once, so it does not stream in chunks",
+        ),
+        (
+            &["--memory-limit", &below_whole, "--lightmap", "256"],
+            "denoised as one image of every texel, so it does not stream in chunks",
+        ),
+        (
+            &["--memory-limit", &below_whole, "--subsurface", "marble"],
+            "over the whole surface, so it does not stream in chunks",
         ),
         (&["--memory-limit", "lots"], "expected a size"),
     ];

@@ -8,9 +8,10 @@
 //! printing the case, so that a reader reserving what a header claims fails here with its name
 //! rather than taking the machine's memory.
 
-use std::alloc::{GlobalAlloc, Layout, System};
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -20,10 +21,8 @@ use prt_gpu::testing::hostile::{self, Outcome, Reader};
 use prt_gpu::testing::mutate::Mutator;
 use prt_gpu::testing::seeds::seeds;
 
-struct Counting;
+use common::counting::{self, Counting};
 
-static LIVE: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
 /// What the case being run is, for the line printed when it asks for too much.
 static CASE: Mutex<String> = Mutex::new(String::new());
 /// The cases share the counters: one at a time.
@@ -50,64 +49,18 @@ fn allowed(reader: Reader, input: usize) -> usize {
     }
 }
 
-fn counted(size: usize) {
-    let live = LIVE.fetch_add(size, Ordering::Relaxed) + size;
-    PEAK.fetch_max(live, Ordering::Relaxed);
-}
-
-fn too_large(size: usize) -> bool {
-    if size <= LARGEST_REQUEST {
-        return false;
-    }
-    // Small allocations while printing are under the limit and do not come back here.
+/// A request the allocator refuses, printed with the case that made it (small allocations
+/// while printing are under the limit and do not come back here).
+fn refused(size: usize) {
     let case = CASE.lock().map(|c| c.clone()).unwrap_or_default();
     eprintln!("hostile case {case}: asked for {size} bytes at once");
-    true
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if too_large(layout.size()) {
-            return std::ptr::null_mut();
-        }
-        let p = System.alloc(layout);
-        if !p.is_null() {
-            counted(layout.size());
-        }
-        p
-    }
-
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        if too_large(layout.size()) {
-            return std::ptr::null_mut();
-        }
-        let p = System.alloc_zeroed(layout);
-        if !p.is_null() {
-            counted(layout.size());
-        }
-        p
-    }
-
-    unsafe fn dealloc(&self, p: *mut u8, layout: Layout) {
-        System.dealloc(p, layout);
-        LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
-    }
-
-    unsafe fn realloc(&self, p: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if too_large(new_size) {
-            return std::ptr::null_mut();
-        }
-        let q = System.realloc(p, layout, new_size);
-        if !q.is_null() {
-            LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
-            counted(new_size);
-        }
-        q
-    }
 }
 
 #[global_allocator]
-static ALLOCATOR: Counting = Counting;
+static ALLOCATOR: Counting = Counting {
+    largest: LARGEST_REQUEST,
+    refused,
+};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -135,8 +88,7 @@ fn quiet_while_in_a_case() {
 /// Runs one case, catching a panic as a fault.
 fn run(reader: Reader, bytes: &[u8], dir: &Path, name: &str) -> Ran {
     *CASE.lock().unwrap() = format!("{} {name}", reader.name());
-    let base = LIVE.load(Ordering::Relaxed);
-    PEAK.store(base, Ordering::Relaxed);
+    let base = counting::start();
     IN_CASE.store(true, Ordering::Relaxed);
     let outcome = std::panic::catch_unwind(|| hostile::try_reader(reader, bytes, dir));
     IN_CASE.store(false, Ordering::Relaxed);
@@ -148,7 +100,7 @@ fn run(reader: Reader, bytes: &[u8], dir: &Path, name: &str) -> Ran {
             .unwrap_or_default();
         Err(format!("panicked: {message}"))
     });
-    let peak = PEAK.load(Ordering::Relaxed).saturating_sub(base);
+    let peak = counting::peak_since(base);
     Ran { outcome, peak }
 }
 

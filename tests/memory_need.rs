@@ -4,57 +4,20 @@
 //! in this process under a counting allocator, one at a time (this file holds one test, so no
 //! other test allocates beside it).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod common;
 
+use std::path::Path;
+
+use common::counting::{self, Counting};
 use prt_gpu::bake::{CpuBackend, DirectSource, Fit, Mode, NoProgress};
 use prt_gpu::spec::{BakeSpec, Compression, Layout as StoredLayout};
 use prt_gpu::{pipeline, scene};
 
-/// Bytes allocated and not yet freed, and the most there were since the last reset.
-struct Counting;
-static LIVE: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
-
-fn grown(bytes: usize) {
-    let live = LIVE.fetch_add(bytes, Ordering::Relaxed) + bytes;
-    PEAK.fetch_max(live, Ordering::Relaxed);
-}
-
-// SAFETY: every call is passed on to the system allocator unchanged; only counts are kept.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let p = System.alloc(layout);
-        if !p.is_null() {
-            grown(layout.size());
-        }
-        p
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        let p = System.alloc_zeroed(layout);
-        if !p.is_null() {
-            grown(layout.size());
-        }
-        p
-    }
-    unsafe fn dealloc(&self, p: *mut u8, layout: Layout) {
-        System.dealloc(p, layout);
-        LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
-    }
-    // The system's own, so that a block grown in place counts once, as it is held.
-    unsafe fn realloc(&self, p: *mut u8, layout: Layout, size: usize) -> *mut u8 {
-        let q = System.realloc(p, layout, size);
-        if !q.is_null() {
-            LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
-            grown(size);
-        }
-        q
-    }
-}
-
 #[global_allocator]
-static ALLOCATOR: Counting = Counting;
+static ALLOCATOR: Counting = Counting {
+    largest: usize::MAX,
+    refused: |_| {},
+};
 
 const DRAGON: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -65,8 +28,7 @@ const DRAGON: &str = concat!(
 /// `point_chunk` at a time where given) and writing it, beyond what was live before; and the
 /// estimate the bake plans by.
 fn measured((spec, point_chunk): &(BakeSpec, Option<usize>), mesh: &str, dir: &Path) -> (u64, u64) {
-    let before = LIVE.load(Ordering::Relaxed);
-    PEAK.store(before, Ordering::Relaxed);
+    let before = counting::start();
     let scene = scene::load(Path::new(mesh)).unwrap();
     let planned = pipeline::plan(spec, scene, None).unwrap();
     let need = pipeline::memory_need(spec, (planned.scene(), None));
@@ -79,7 +41,7 @@ fn measured((spec, point_chunk): &(BakeSpec, Option<usize>), mesh: &str, dir: &P
         .unwrap();
     pipeline::write(spec, &baked, None, &dir.join("baked.glb")).unwrap();
     drop(baked);
-    let peak = PEAK.load(Ordering::Relaxed) - before;
+    let peak = counting::peak_since(before);
     (peak as u64, need)
 }
 

@@ -9,6 +9,7 @@
 
 #![allow(dead_code)]
 
+pub mod counting;
 pub mod gltf_builder;
 pub mod pixels;
 pub mod sky;

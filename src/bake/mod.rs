@@ -185,8 +185,7 @@ pub fn bake_from(
         subsurface,
         scattered,
     } = fitted;
-    let lean_direct = options.storage == Storage::Lean && options.mode != Mode::Interreflected;
-    let albedo_free = match lean_direct {
+    let albedo_free = match options.albedo_free() {
         true => Some(at_receivers.albedo_free_at_vertices(fitting.as_ref(), options.bands)?),
         false => None,
     };

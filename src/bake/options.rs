@@ -145,6 +145,12 @@ impl Default for BakeOptions {
 }
 
 impl BakeOptions {
+    /// Whether the transfer is stored albedo-free: lean direct (shadowed or unshadowed)
+    /// transfer, whose albedo is applied at relighting.
+    pub fn albedo_free(&self) -> bool {
+        self.storage == Storage::Lean && self.mode != Mode::Interreflected
+    }
+
     /// These options with receivers' turns on or off.
     pub fn with_turns(self, turns: bool) -> Self {
         BakeOptions { turns, ..self }

@@ -15,7 +15,7 @@ use super::adaptive::ReceiverErrors;
 use super::spill::Spill;
 use super::stream::SpilledRows;
 use super::{direct_or_adaptive, tint_by_albedo, Advancing, Backend, BakeOptions, Progress};
-use super::{Mode, Planned, Storage};
+use super::{Mode, Planned};
 use crate::error::Result;
 use crate::receivers::fit::{FitOptions, FitReport, FitSystem, RightHandSide};
 use crate::receivers::SurfacePoint;
@@ -99,21 +99,15 @@ impl PointChunks {
         let coeffs = coeff_count(bands);
         let runs = triangle_runs(&planned.points, chunk);
         let mut direct = fitting.system.right_hand_side(3 * coeffs);
-        let lean_direct = options.storage == Storage::Lean && options.mode != Mode::Interreflected;
-        let mut albedo_free = lean_direct.then(|| fitting.system.right_hand_side(coeffs));
+        let mut albedo_free = options
+            .albedo_free()
+            .then(|| fitting.system.right_hand_side(coeffs));
         let mut rows = match options.mode {
             Mode::Interreflected => Some((Spill::new()?, Vec::with_capacity(runs.len()))),
             _ => None,
         };
-        let mut chunks = PointChunks {
-            runs: Vec::new(),
-            direct: None,
-            albedo_free: None,
-            rows: None,
-            rays_cast: 0,
-            adaptive: None,
-            gather_entries: 0,
-        };
+        let (mut rays_cast, mut gather_entries) = (0, 0);
+        let mut adaptive: Option<ReceiverErrors> = None;
         progress.stage("transfer", planned.points.len() as u64);
         for run in &runs {
             let pass = direct_or_adaptive(
@@ -130,11 +124,11 @@ impl PointChunks {
             }
             if let (Some((spill, spilled)), Some(matrix)) = (&mut rows, &pass.matrix) {
                 spilled.push(SpilledRows::put(spill, matrix)?);
-                chunks.gather_entries += matrix.columns.len();
+                gather_entries += matrix.columns.len();
             }
-            chunks.rays_cast += pass.rays_cast;
+            rays_cast += pass.rays_cast;
             if let Some(errors) = pass.adaptive {
-                let all = chunks.adaptive.get_or_insert_with(ReceiverErrors::default);
+                let all = adaptive.get_or_insert_with(ReceiverErrors::default);
                 all.samples.extend(errors.samples);
                 all.errors.extend(errors.errors);
             }
@@ -144,7 +138,9 @@ impl PointChunks {
             direct: Some(direct),
             albedo_free,
             rows,
-            ..chunks
+            rays_cast,
+            adaptive,
+            gather_entries,
         })
     }
 

@@ -254,8 +254,12 @@ impl MemoryNeed {
 
     /// The need of a least-squares bake whose points bake `chunk` at a time (the rest whole).
     pub fn points_chunked(&self, chunk: usize) -> u64 {
-        let fit = self.fit.map_or(0, |fit| fit.chunked(chunk as u64));
-        self.whole() - self.fit.map_or(0, |fit| fit.whole()) + fit
+        self.beside_fit() + self.fit.map_or(0, |fit| fit.chunked(chunk as u64))
+    }
+
+    /// The whole bake's need but for its fit's.
+    fn beside_fit(&self) -> u64 {
+        self.whole() - self.fit.map_or(0, |fit| fit.whole())
     }
 
     /// The largest run of points that keeps a least-squares bake within `limit` bytes, or the
@@ -270,14 +274,13 @@ impl MemoryNeed {
         let per_point = fit.per_point_direct + fit.per_point_values;
         let smallest = MIN_CHUNK.min(fit.points as usize).max(1);
         if self.points_chunked(smallest) > limit {
-            let rest = self.whole() - fit.whole();
             return Err(Error::Options(format!(
                 "--memory-limit {}: this bake needs at least {} (the mesh, its BVH and its \
                  vertices' transfer {}, the fit's {} points {}, and the larger of its solve over \
                  every vertex {} and one run of {smallest} points with the sums {})",
                 format_bytes(limit),
                 format_bytes(self.points_chunked(smallest)),
-                format_bytes(rest),
+                format_bytes(self.beside_fit()),
                 fit.points,
                 format_bytes(fit.points * fit.per_point_held),
                 format_bytes(fit.solving),
@@ -470,8 +473,7 @@ impl StreamedBake {
         let samples = self.planned.inputs.samples.len();
         BakeMetadata {
             channels: self.channels(),
-            albedo_free: self.options.storage == Storage::Lean
-                && self.options.mode != Mode::Interreflected,
+            albedo_free: self.options.albedo_free(),
             backend: backend.describe(),
             ..metadata_for(&self.options, samples, bounces, None)
         }

@@ -7,7 +7,7 @@ use prt_gpu::bake::{self, backend_for, Backend, BakeOptions, CpuBackend, Mode};
 use prt_gpu::device::{self, DeviceChoice};
 use prt_gpu::shard::{self, Part};
 use prt_gpu::spec::BakeSpec;
-use prt_gpu::{fs, receivers, scene, Error, Result};
+use prt_gpu::{fs, pipeline, scene, Error, Result};
 
 use super::bake::{
     bake_name, bake_one, bake_spec, check_chunking, check_preview, load_bake_input, mesh_shown,
@@ -48,7 +48,7 @@ pub(crate) fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Sh
     });
     check_part_output(mesh, &output)?;
     let (scene, _, name) = load_bake_input(mesh)?;
-    check_shard_memory(args, &options, &scene, shard)?;
+    check_shard_memory(args, &spec, &scene, shard)?;
     note_samples_rounded(&options);
     check_chunking(args)?;
     let fingerprint = shard::fingerprint(&scene, &spec.fingerprint_text());
@@ -184,16 +184,12 @@ fn check_merge_outputs(args: &MergeArgs) -> Result<()> {
 /// memory this machine has, it goes ahead with a warning.
 fn check_shard_memory(
     args: &BakeArgs,
-    options: &BakeOptions,
+    spec: &BakeSpec,
     scene: &scene::Scene,
     shard: bake::Shard,
 ) -> Result<()> {
-    use bake::stream::{format_bytes, MemoryNeed};
-    let mut need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), options);
-    if options.fit == bake::Fit::LeastSquares {
-        let points = receivers::spread_point_count(scene, options.point_density);
-        need = need.with_fit_points(points as u64, options);
-    }
+    use bake::stream::format_bytes;
+    let need = pipeline::memory_need(spec, (scene, None));
     let Some(limit) = args.memory_limit.or_else(device::available_memory) else {
         return Ok(());
     };

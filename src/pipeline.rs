@@ -9,7 +9,6 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use crate::bake::stream::{format_bytes, MemoryNeed};
 use crate::bake::subsurface::SceneMedia;
 use crate::bake::{self, Backend, BakeOptions, BakeReport, BakedMesh, DirectSource, Progress};
 use crate::compress::{self, Cpca, CpcaOptions};
@@ -18,14 +17,17 @@ use crate::error::Error;
 use crate::local::{self, LocalBake, LocalReport};
 use crate::precision::Precision;
 use crate::probes::{self, ProbeSet};
-use crate::receivers::spread_point_count;
 use crate::receivers::uv_set::{self, UvSet};
 use crate::scene::gltf::volume::scattering_volumes;
 use crate::scene::gltf::GltfScene;
 use crate::scene::Scene;
-use crate::spec::{BakeSpec, Bands, Compression, Container, Layout, AUTO_MAX_BANDS};
+use crate::spec::{BakeSpec, Bands, Compression, Container, AUTO_MAX_BANDS};
 use crate::zonal::{ZonalFit, ZonalTransfer};
 use crate::{glb, light, render, Result};
+
+mod memory;
+
+pub use memory::{memory_need, plan_memory, MemoryPlan};
 
 /// A bake done and shaped as its spec stores it, not yet written.
 pub struct Baked {
@@ -332,162 +334,6 @@ pub struct Streamed {
     pub probe_seconds: f64,
     /// What the zonal transfer's fit cost, when the file holds one.
     pub zonal: Option<ZonalFit>,
-}
-
-/// How a bake fits the memory it may use.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct MemoryPlan {
-    /// Streamed in chunks of this many receivers (`None`: whole).
-    pub chunk: Option<usize>,
-    /// A least-squares fit's points baked about this many at a time, the rest of the bake
-    /// whole ([`Planned::with_point_chunk`]).
-    pub point_chunk: Option<usize>,
-    /// What to tell the user: a `note:` that the bake streams, or a `warning:` that it needs
-    /// more than the machine has.
-    pub message: Option<String>,
-}
-
-/// How the bake of `scene` (`gltf` its document where the scene is a glTF one) as `spec` asks
-/// fits `limit` (the user's `--memory-limit`) or, without one, the machine's `available`
-/// memory: whole, or streamed to the file in chunks that fit. A bake that cannot fit an
-/// explicit limit fails before it starts, saying what it needs; over the available memory, a
-/// warning.
-pub fn plan_memory(
-    spec: &BakeSpec,
-    (scene, gltf): (&Scene, Option<&GltfScene>),
-    limit: Option<u64>,
-    available: Option<u64>,
-) -> Result<MemoryPlan> {
-    let whole = MemoryPlan {
-        chunk: None,
-        point_chunk: None,
-        message: None,
-    };
-    let options = spec.options();
-    let need = memory_need(spec, (scene, gltf));
-    let Some(budget) = limit.or(available) else {
-        return Ok(whole);
-    };
-    if need.whole() <= budget {
-        return Ok(whole);
-    }
-    let translucent =
-        gltf.is_some_and(|gltf| scene_media(spec, (scene, gltf), &mut Vec::new()).is_some());
-    // What the bake holds beside its receivers that no chunking shrinks, or that a chunked
-    // bake cannot give: a compressed layout's clustering, a medium's scattering matrices.
-    let chunkable = spec.storage.layout == Layout::PerVertex
-        && spec.transfer.subsurface.is_none()
-        && !translucent;
-    let streamable = bake::stream::streams(&options) && chunkable;
-    let points_chunk =
-        options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
-    let why_not = why_whole(spec, translucent);
-    if points_chunk {
-        let points = need.fit.map_or(0, |fit| fit.points);
-        return match (need.point_chunk_within(budget), limit) {
-            (Ok(chunk), _) => Ok(MemoryPlan {
-                chunk: None,
-                point_chunk: Some(chunk),
-                message: Some(format!(
-                    "note: baking the least-squares fit's {points} points in runs of about \
-                     {chunk} to stay within {} (about {} whole, {} so)",
-                    format_bytes(budget),
-                    format_bytes(need.whole()),
-                    format_bytes(need.points_chunked(chunk))
-                )),
-            }),
-            (Err(error), Some(_)) => Err(error),
-            // Over the machine's memory even in the smallest runs: those, and a warning.
-            (Err(_), None) => Ok(MemoryPlan {
-                chunk: None,
-                point_chunk: Some(bake::stream::MIN_CHUNK),
-                message: Some(format!(
-                    "warning: this bake needs at least {} with its fit's points baked in runs, \
-                     more than the {} this machine has available",
-                    format_bytes(need.points_chunked(bake::stream::MIN_CHUNK)),
-                    format_bytes(budget)
-                )),
-            }),
-        };
-    }
-    match (streamable, limit) {
-        (true, _) => {
-            let chunk = need.chunk_within(budget)?;
-            Ok(MemoryPlan {
-                chunk: Some(chunk),
-                point_chunk: None,
-                message: Some(format!(
-                    "note: streaming the transfer in chunks of {chunk} receivers to stay within \
-                     {} (about {} whole, {} streamed)",
-                    format_bytes(budget),
-                    format_bytes(need.whole()),
-                    format_bytes(need.streamed(chunk))
-                )),
-            })
-        }
-        (false, Some(_)) => Err(Error::Options(format!(
-            "--memory-limit {}: this bake needs about {}, and {why_not}",
-            format_bytes(budget),
-            format_bytes(need.whole())
-        ))),
-        (false, None) => Ok(MemoryPlan {
-            chunk: None,
-            point_chunk: None,
-            message: Some(format!(
-                "warning: this bake needs about {}, more than the {} this machine has \
-                 available, and {why_not}",
-                format_bytes(need.whole()),
-                format_bytes(budget)
-            )),
-        }),
-    }
-}
-
-/// Why a bake that needs more than its limit is not split: what it does that needs every
-/// receiver at once.
-fn why_whole(spec: &BakeSpec, translucent: bool) -> &'static str {
-    if spec.receivers.lightmap.is_some() {
-        "a lightmap is baked, stitched at its seams and denoised as one image of every texel, \
-         so it does not stream in chunks"
-    } else if spec.compression().is_some() {
-        "clustered PCA (--compress) clusters every vertex's transfer at once, so it does not \
-         stream in chunks"
-    } else if spec.transfer.subsurface.is_some() || translucent {
-        "subsurface scattering carries light from every vertex to those around it over the \
-         whole surface, so it does not stream in chunks"
-    } else {
-        "only bakes at the vertices or at a least-squares fit's points stream in chunks"
-    }
-}
-
-/// The memory the bake of `scene` (`gltf` its document where the scene is a glTF one) as
-/// `spec` asks needs, estimated before it starts ([`MemoryNeed`]): what [`plan_memory`] holds
-/// against the user's limit or the machine's memory.
-pub fn memory_need(spec: &BakeSpec, (scene, gltf): (&Scene, Option<&GltfScene>)) -> MemoryNeed {
-    let options = spec.options();
-    let probes = spec.probes.as_ref().map_or(0, |probes| {
-        let interreflected = options.mode == bake::Mode::Interreflected;
-        probes::memory_need(
-            probes,
-            scene,
-            (options.bands, options.samples),
-            interreflected,
-        )
-    });
-    let mut need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
-        .with_document(gltf.map_or(0, GltfScene::byte_size))
-        .with_probes(probes);
-    if let Some(zonal) = spec.storage.zonal {
-        need = need.with_zonal(zonal.bands);
-    }
-    if options.fit == bake::Fit::LeastSquares {
-        let points = spread_point_count(scene, options.point_density);
-        need = need.with_fit_points(points as u64, &options);
-    }
-    if let Some(size) = spec.receivers.lightmap {
-        need = need.with_lightmap(size, &options);
-    }
-    need
 }
 
 /// The media of `gltf`'s scattering volumes (`scene` as `gltf::load` made it), where `spec`

@@ -21,7 +21,7 @@ use crate::light::ShLight;
 use crate::render::relight;
 use crate::sampling::Sampling;
 use crate::scene::Scene;
-use crate::surface::{surface_reference, surface_rms, texel_surface_rms, SurfaceReference};
+use crate::surface::{surface_error, surface_reference, texel_surface_error, SurfaceReference};
 
 /// What to sweep.
 #[derive(Clone, Debug)]
@@ -92,6 +92,9 @@ pub struct SweepPoint {
     /// RMS over held-out surface points and channels of the relit radiance's difference, the
     /// vertex values interpolated there (crate::surface).
     pub surface_rms: f64,
+    /// `surface_rms` as seen: each point weighted by how much of it viewers see
+    /// ([`crate::surface::seen_fractions`]).
+    pub surface_seen_rms: f64,
 }
 
 /// A finished sweep.
@@ -298,6 +301,7 @@ fn measure(
     let started = Instant::now();
     let (baked, report) = bake(scene.clone(), options, backend, &NoProgress)?;
     let seconds = started.elapsed().as_secs_f64();
+    let surface = surface_error(references.surface, &baked.scene, &baked.transfer, light)?;
     let vertex_point = SweepPoint {
         sampling: options.sampling,
         fit: options.fit,
@@ -313,7 +317,8 @@ fn measure(
         rays: report.rays_cast,
         transfer_rms: rms_difference(baked.transfer.coeffs(), references.transfer.coeffs()),
         radiance_rms: rms_difference(&radiance(&baked.transfer, light)?, references.radiance),
-        surface_rms: surface_rms(references.surface, &baked.scene, &baked.transfer, light)?,
+        surface_rms: surface.rms,
+        surface_seen_rms: surface.seen_rms,
     };
     let mut points = Vec::new();
     // Texels are baked from their own points; the vertex fit only feeds interreflected
@@ -347,12 +352,14 @@ fn measure(
                 backend,
                 &NoProgress,
             )?;
+            let surface = texel_surface_error(references.surface, &texels, light)?;
             points.push(SweepPoint {
                 lightmap: Some(size),
                 denoised: denoise,
                 seconds: seconds + planned + started.elapsed().as_secs_f64(),
                 rays: report.rays_cast + texel_report.rays_cast,
-                surface_rms: texel_surface_rms(references.surface, &texels, light)?,
+                surface_rms: surface.rms,
+                surface_seen_rms: surface.seen_rms,
                 ..vertex_point.clone()
             });
         }
@@ -363,7 +370,7 @@ fn measure(
 
 /// The CSV header: one row per point follows.
 pub const CSV_HEADER: &str = "sampling,fit,backend,samples,seconds,rays,transfer_rms,\
-radiance_rms,surface_rms,target_error";
+radiance_rms,surface_rms,surface_seen_rms,target_error";
 
 /// How a point represents the transfer between vertices: the fit's name, or `texels-SIZE`.
 pub fn representation(point: &SweepPoint) -> String {
@@ -380,7 +387,7 @@ pub fn to_csv(sweep: &Sweep) -> String {
     text.push('\n');
     for p in &sweep.points {
         text.push_str(&format!(
-            "{},{},{},{},{:.6},{},{:.6e},{:.6e},{:.6e},{}\n",
+            "{},{},{},{},{:.6},{},{:.6e},{:.6e},{:.6e},{:.6e},{}\n",
             p.sampling.name(),
             representation(p),
             p.backend,
@@ -390,6 +397,7 @@ pub fn to_csv(sweep: &Sweep) -> String {
             p.transfer_rms,
             p.radiance_rms,
             p.surface_rms,
+            p.surface_seen_rms,
             p.target_error.map_or(String::new(), |e| e.to_string())
         ));
     }
@@ -658,6 +666,7 @@ mod tests {
             transfer_rms: 1.0 / samples as f64,
             radiance_rms: 2.0 / samples as f64,
             surface_rms: 3.0 / samples as f64,
+            surface_seen_rms: 2.5 / samples as f64,
         }
     }
 
@@ -680,6 +689,8 @@ mod tests {
                 hidden: 0,
                 radiance: Vec::new(),
                 rms: 1.0,
+                seen: Vec::new(),
+                seen_rms: 1.0,
                 rays: 0,
                 seconds: 0.0,
             },

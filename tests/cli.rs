@@ -692,7 +692,7 @@ fn csv_rows(path: &Path) -> Vec<Vec<String>> {
     let mut lines = text.lines();
     assert_eq!(
         lines.next(),
-        Some("sampling,fit,backend,samples,seconds,rays,transfer_rms,radiance_rms,surface_rms,target_error")
+        Some("sampling,fit,backend,samples,seconds,rays,transfer_rms,radiance_rms,surface_rms,surface_seen_rms,target_error")
     );
     lines
         .map(|l| l.split(',').map(str::to_string).collect())
@@ -717,7 +717,7 @@ fn chart_at_default_settings_writes_one_csv_row_per_point() {
     for row in &rows {
         assert_eq!(row[2], "cpu");
         let seconds: f64 = row[4].parse().unwrap();
-        let errors: Vec<f64> = row[6..9].iter().map(|e| e.parse().unwrap()).collect();
+        let errors: Vec<f64> = row[6..10].iter().map(|e| e.parse().unwrap()).collect();
         assert!(seconds > 0.0 && errors.iter().all(|&e| e > 0.0), "{row:?}");
     }
     assert_eq!(rows.iter().filter(|r| r[1] == "least-squares").count(), 15);
@@ -773,7 +773,7 @@ fn chart_runs_each_backend_and_draws_png() {
             .iter()
             .find(|r| r[2] == "gpu" && r[0] == cpu[0] && r[1] == cpu[1] && r[3] == cpu[3])
             .unwrap();
-        for column in [6, 8] {
+        for column in [6, 8, 9] {
             let (c, g): (f64, f64) = (cpu[column].parse().unwrap(), gpu[column].parse().unwrap());
             assert!((c - g).abs() <= 0.02 * c, "{cpu:?} vs {gpu:?}");
         }

@@ -9,7 +9,7 @@ use prt_gpu::light::ShLight;
 use prt_gpu::receivers::{spread_points, PointDensity, Receivers, SurfacePoint};
 use prt_gpu::sampling::Sampling;
 use prt_gpu::scene::{builtin, prepare::prepare, Scene};
-use prt_gpu::surface::{surface_reference, surface_rms, texel_surface_rms};
+use prt_gpu::surface::{surface_error, surface_reference, texel_surface_error};
 
 /// The rule at a point whose shading normal leans past its flat face: a direction below the
 /// face's plane is blocked by the face, as a path tracer sees it. On a convex shape nothing
@@ -125,7 +125,9 @@ fn the_least_squares_fit_beats_point_vertices_over_the_surface_at_equal_rays() {
                     ..base.clone()
                 };
                 let (baked, _) = bake(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap();
-                surface_rms(&reference, &baked.scene, &baked.transfer, &light).unwrap()
+                surface_error(&reference, &baked.scene, &baked.transfer, &light)
+                    .unwrap()
+                    .rms
                     / reference.rms
             })
             .collect()
@@ -154,7 +156,10 @@ fn the_least_squares_fit_beats_point_vertices_over_the_surface_at_equal_rays() {
             };
             let (baked, _) = bake(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap();
             let lightmap = baked.lightmap.as_ref().unwrap();
-            texel_surface_rms(&reference, lightmap, &light).unwrap() / reference.rms
+            texel_surface_error(&reference, lightmap, &light)
+                .unwrap()
+                .rms
+                / reference.rms
         })
         .collect();
     let (texel_mean, texel_spread) = mean_and_spread(&texels);

@@ -153,7 +153,7 @@ pub(crate) fn run_chart(args: ChartArgs) -> Result<()> {
     for p in &result.points {
         eprintln!(
             "{:>16} {:>13} {:>3} {:>6} samples: {:>8.3} s, transfer rms {:.3e}, radiance rms \
-             {:.3e}, surface {:.2}%",
+             {:.3e}, surface {:.2}% ({:.2}% as seen)",
             p.sampling.name(),
             match p.target_error {
                 Some(e) => format!("target {e}"),
@@ -164,7 +164,8 @@ pub(crate) fn run_chart(args: ChartArgs) -> Result<()> {
             p.seconds,
             p.transfer_rms,
             p.radiance_rms,
-            100.0 * p.surface_rms / result.surface.rms.max(1e-30)
+            100.0 * p.surface_rms / result.surface.rms.max(1e-30),
+            100.0 * p.surface_seen_rms / result.surface.seen_rms.max(1e-30)
         );
     }
     println!(

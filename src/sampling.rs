@@ -420,6 +420,7 @@ impl VertexDirections {
     }
 
     /// World direction of sample `d`.
+    #[inline]
     pub fn world(&self, d: Vec3) -> Vec3 {
         match self.axes {
             None => d,

@@ -40,6 +40,7 @@ pub struct FanPacket {
 impl FanPacket {
     /// Rays from `origin` along each of `directions` (at most [`LANES`]), those in `active`
     /// taking part; lanes beyond `directions.len()` are empty.
+    #[inline(always)]
     pub fn new(origin: Vec3, directions: &[Vec3], active: LaneMask) -> Self {
         assert!(
             directions.len() <= LANES,

@@ -18,6 +18,7 @@
 mod fan;
 mod parallel;
 
+pub use dispatch::{on_widest_unit, Kernel};
 pub use fan::FanPacket;
 pub use parallel::{PacketOrigins, RayPacket};
 
@@ -465,6 +466,46 @@ mod dispatch {
     #[cfg(target_arch = "aarch64")]
     pub fn traverse<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
         super::traverse::<P, arm::Neon, Q>(bvh, packet, query)
+    }
+
+    /// Work around the traversal (a vertex's packets built, its hits projected) that LLVM
+    /// vectorizes from plain loops, compiled once per vector unit like the traversal: `run`,
+    /// `#[inline(always)]` in each implementation, is inlined into each copy of
+    /// [`on_widest_unit`] together with the `#[inline]` functions it calls.
+    pub trait Kernel {
+        type Output;
+        fn run(self) -> Self::Output;
+    }
+
+    /// Runs `kernel` compiled for the widest vector unit of this machine (as [`traverse`]
+    /// chooses). Same bits on every unit: no copy contracts a product and a sum into one.
+    #[cfg(target_arch = "x86_64")]
+    pub fn on_widest_unit<K: Kernel>(kernel: K) -> K::Output {
+        match level() {
+            // SAFETY: the CPU has the features the function is compiled for.
+            Level::Avx512 => unsafe { avx512_kernel(kernel) },
+            // SAFETY: as above.
+            Level::Avx2 => unsafe { avx2_kernel(kernel) },
+            Level::Sse2 => kernel.run(),
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma,bmi1,bmi2,popcnt")]
+    unsafe fn avx512_kernel<K: Kernel>(kernel: K) -> K::Output {
+        kernel.run()
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,popcnt")]
+    unsafe fn avx2_kernel<K: Kernel>(kernel: K) -> K::Output {
+        kernel.run()
+    }
+
+    /// Other targets: the one copy.
+    #[cfg(not(target_arch = "x86_64"))]
+    pub fn on_widest_unit<K: Kernel>(kernel: K) -> K::Output {
+        kernel.run()
     }
 
     #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]

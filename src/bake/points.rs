@@ -8,6 +8,7 @@
 //! the bytes of the whole bake.
 
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use glam::Vec3;
 
@@ -28,6 +29,9 @@ pub(super) struct Fitting<'a> {
     points: &'a [SurfacePoint],
     system: FitSystem,
     options: FitOptions,
+    /// The direct light's right-hand side norms, once it is solved: the scale every bounce's
+    /// solve is held to ([`FitSystem::solve_to_scale`]).
+    direct_scale: OnceLock<Vec<f64>>,
 }
 
 impl<'a> Fitting<'a> {
@@ -38,6 +42,7 @@ impl<'a> Fitting<'a> {
             points,
             system: FitSystem::of(scene, points, &options),
             options,
+            direct_scale: OnceLock::new(),
         }
     }
 
@@ -59,14 +64,50 @@ impl<'a> Fitting<'a> {
         self.system.solve(rhs, &self.options)
     }
 
+    /// [`solve`](Self::solve) for the direct light's RGB values, keeping their scale for the
+    /// bounces'.
+    fn solve_direct(&self, rhs: RightHandSide) -> (Vec<f32>, FitReport) {
+        let scale = rhs.column_norms();
+        let solved = self.solve(rhs);
+        self.direct_scale
+            .set(scale)
+            .expect("the direct light is solved once");
+        solved
+    }
+
+    /// [`solve`](Self::solve) for a bounce's RGB values, held to the direct light's scale.
+    fn solve_bounce(&self, rhs: RightHandSide) -> Vec<f32> {
+        let scale = self.direct_scale.get().map(Vec::as_slice);
+        debug_assert!(scale.is_some(), "bounces follow the direct light");
+        self.system.solve_to_scale(rhs, &self.options, scale).0
+    }
+
     /// The vertex values that best fit `values` at every point, the values let go before the
     /// solve (they are every point's transfer, and the solve holds five vectors of every
-    /// vertex's beside them otherwise).
-    pub(super) fn fit(&self, values: Vec<f32>, columns: usize) -> Result<(Vec<f32>, FitReport)> {
+    /// vertex's beside them otherwise): the direct light's RGB values, or a `bounce`'s.
+    pub(super) fn fit(
+        &self,
+        values: Vec<f32>,
+        columns: usize,
+        light: Light,
+    ) -> Result<(Vec<f32>, Option<FitReport>)> {
         let rhs = self.right_hand_side(&values, columns)?;
         drop(values);
-        Ok(self.solve(rhs))
+        Ok(match light {
+            Light::Direct => {
+                let (fitted, report) = self.solve_direct(rhs);
+                (fitted, Some(report))
+            }
+            Light::Bounce => (self.solve_bounce(rhs), None),
+        })
     }
+}
+
+/// Which light a fit's RGB values are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Light {
+    Direct,
+    Bounce,
 }
 
 /// A least-squares bake's direct pass at its points, a run at a time ([module docs](self)):
@@ -147,7 +188,7 @@ impl PointChunks {
     /// The direct light's RGB vertex values, fitted (once).
     pub(super) fn direct_at_vertices(&mut self, fitting: &Fitting) -> (Vec<f32>, FitReport) {
         let rhs = self.direct.take().expect("the direct light is fitted once");
-        fitting.solve(rhs)
+        fitting.solve_direct(rhs)
     }
 
     /// Lean direct transfer's albedo-free vertex values, fitted (once).
@@ -182,7 +223,7 @@ impl PointChunks {
                 .gather(previous)?;
             fitting.add(&mut rhs, run.clone(), &gathered)?;
         }
-        Ok(fitting.solve(rhs).0)
+        Ok(fitting.solve_bounce(rhs))
     }
 }
 

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use super::points::{Fitting, PointChunks};
+use super::points::{Fitting, Light, PointChunks};
 use super::{
     adaptive, bounce, subsurface, tint_by_albedo, Backend, BakeOptions, BounceStat, DirectPass,
     Fit, Progress, Transfer,
@@ -63,8 +63,8 @@ impl AtReceivers {
                 match fitting {
                     None => Ok((values, None)),
                     Some(fitting) => {
-                        let (fitted, report) = fitting.fit(values, 3 * coeff_count(bands))?;
-                        Ok((fitted, Some(report)))
+                        let columns = 3 * coeff_count(bands);
+                        fitting.fit(values, columns, Light::Direct)
                     }
                 }
             }
@@ -146,7 +146,7 @@ pub(super) fn vertex_transfer(
             let mut next_bounce = |previous: &[f32]| -> Result<Vec<f32>> {
                 let gathered = gatherer.gather(previous)?;
                 let fitted = match fitting {
-                    Some(fitting) => fitting.fit(gathered, columns)?.0,
+                    Some(fitting) => fitting.fit(gathered, columns, Light::Bounce)?.0,
                     None => gathered,
                 };
                 scattered(fitted)

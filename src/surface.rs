@@ -7,7 +7,7 @@
 //! Points inside other geometry (by the lightmap's leak test, `bake::texels::leaking_receivers`:
 //! most of their rays reach back faces) are left out: no viewer sees them, and a lightmap
 //! deliberately refills its texels there from their visible neighbours.
-
+//!
 //! A point a viewer barely sees counts for little: besides the plain RMS over the points, each
 //! error is also given *as seen* ([`seen_fractions`]), every point weighted by how much of it
 //! viewers around it see. On scans, whose sheets touch and fold within a fraction of a texel of
@@ -17,10 +17,10 @@
 
 use std::time::Instant;
 
-use crate::bake::texels::{leaking_receivers_in, sample_bilinear};
-use crate::bake::{bake_at_in, Backend, BakeOptions, NoProgress, TexelBake, Transfer};
 use rayon::prelude::*;
 
+use crate::bake::texels::{leaking_receivers_in, sample_bilinear};
+use crate::bake::{bake_at_in, Backend, BakeOptions, NoProgress, TexelBake, Transfer};
 use crate::bvh::Bvh;
 use crate::error::Result;
 use crate::light::ShLight;

@@ -19,16 +19,15 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use crate::bake::texels::{leaking_receivers_in, sample_bilinear};
+use crate::bake::texels::{fans_from, leaking_receivers_in, sample_bilinear};
 use crate::bake::{bake_at_in, Backend, BakeOptions, NoProgress, TexelBake, Transfer};
 use crate::bvh::Bvh;
 use crate::error::Result;
 use crate::light::ShLight;
-use crate::packet::{self, FanPacket, ALL_LANES, LANES};
-use crate::ray::offset_ray_origin;
+use crate::packet;
 use crate::receivers::{uniform_points, Receivers, SurfacePoint};
 use crate::render::relight;
-use crate::sampling::{cosine_hemisphere, VertexDirections};
+use crate::sampling::cosine_hemisphere;
 use crate::scene::Scene;
 
 /// The reference radiance at held-out surface points.
@@ -150,20 +149,11 @@ pub fn seen_fractions(bvh: &Bvh, receivers: &Receivers) -> Vec<f32> {
     (0..receivers.len())
         .into_par_iter()
         .map(|r| {
-            let normal = receivers.normals[r];
-            let origin = offset_ray_origin(receivers.positions[r], normal, extent);
-            let to_world = VertexDirections::new(directions.frame, normal);
             let mut open = 0;
-            let mut world = [glam::Vec3::ZERO; LANES];
-            for group in directions.directions.chunks(LANES) {
-                for (w, &d) in world.iter_mut().zip(group) {
-                    *w = to_world.world(d);
-                }
-                let active = ALL_LANES >> (LANES - group.len());
-                let fan = FanPacket::new(origin, &world[..group.len()], active);
-                let blocked = packet::occluded_fan(bvh, &fan, reach);
-                open += group.len() - blocked.count_ones() as usize;
-            }
+            fans_from(receivers, r, &directions, extent, |fan, world| {
+                let blocked = packet::occluded_fan(bvh, fan, reach);
+                open += world.len() - blocked.count_ones() as usize;
+            });
             open as f32 / directions.directions.len() as f32
         })
         .collect()

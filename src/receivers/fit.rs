@@ -257,11 +257,16 @@ impl FitSystem {
 impl RightHandSide {
     /// The norm of each column: the scale a solve measures its residual against.
     pub fn column_norms(&self) -> Vec<f64> {
-        column_dots(&self.sums, &self.sums, self.columns)
-            .iter()
-            .map(|d| d.sqrt())
-            .collect()
+        column_norms(&self.sums, self.columns)
     }
+}
+
+/// The norm of each column of `values` (`columns` a row).
+fn column_norms(values: &[f64], columns: usize) -> Vec<f64> {
+    column_dots(values, values, columns)
+        .into_iter()
+        .map(f64::sqrt)
+        .collect()
 }
 
 /// Each column's dot product of `a` and `b` (`columns` a row), summed row by row, in order:
@@ -341,11 +346,13 @@ fn conjugate_gradients(
         }
         (rz, rr)
     };
-    let own_norms = column_dots(&rhs, &rhs, columns).into_iter().map(f64::sqrt);
-    let rhs_norms: Vec<f64> = match scale {
-        Some(scale) => own_norms.zip(scale).map(|(own, &s)| own.max(s)).collect(),
-        None => own_norms.collect(),
-    };
+    let mut rhs_norms = column_norms(&rhs, columns);
+    if let Some(scale) = scale {
+        rhs_norms
+            .iter_mut()
+            .zip(scale)
+            .for_each(|(own, &s)| *own = own.max(s));
+    }
     let mut x = vec![0.0; rows * columns];
     // From x = 0 the residual starts as the right-hand side, which is not needed again.
     let mut r = rhs;

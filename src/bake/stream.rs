@@ -74,7 +74,8 @@ pub struct FitNeed {
     /// values and albedo-free ones, in f64.
     pub sums: u64,
     /// The solve: the conjugate gradients' f64 vectors over every vertex's RGB coefficients,
-    /// and the sparse normal matrix.
+    /// the sparse normal matrix and its incomplete Cholesky factor (about seven entries a row,
+    /// 12 bytes each, and a row's offsets) and the factor's per-row tables.
     pub solving: u64,
 }
 
@@ -170,7 +171,7 @@ impl MemoryNeed {
             per_point_direct: 4 * coeffs + gather_row_bytes(options),
             per_point_values: 12 * coeffs * bounce,
             sums: self.receivers * 8 * 4 * coeffs,
-            solving: self.receivers * (6 * 8 * 3 * coeffs + 8 * 12),
+            solving: self.receivers * (6 * 8 * 3 * coeffs + 2 * 8 * 12 + 48),
         };
         MemoryNeed {
             fit: Some(fit),

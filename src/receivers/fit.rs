@@ -10,9 +10,14 @@
 //! definite where a vertex has little support. The normal equations
 //! `(B^T W B + lambda L) x = B^T W v` share one sparse symmetric positive-definite matrix with
 //! the mesh's vertex adjacency as its pattern across all right-hand sides (bands² × channels),
-//! solved together by Jacobi-preconditioned conjugate gradients in f64.
+//! solved together by conjugate gradients in f64, preconditioned by an incomplete Cholesky
+//! factor ([`IncompleteCholesky`]).
 
 use rayon::prelude::*;
+
+mod preconditioner;
+
+use preconditioner::IncompleteCholesky;
 
 use super::{triangle_areas, SurfacePoint};
 use crate::error::{Error, Result};
@@ -274,8 +279,8 @@ fn column_norms(values: &[f64], columns: usize) -> Vec<f64> {
 fn column_dots(a: &[f64], b: &[f64], columns: usize) -> Vec<f64> {
     let mut dots = vec![0.0; columns];
     for (ra, rb) in a.chunks(columns).zip(b.chunks(columns)) {
-        for c in 0..columns {
-            dots[c] += ra[c] * rb[c];
+        for (dot, (a, b)) in dots.iter_mut().zip(ra.iter().zip(rb)) {
+            *dot += a * b;
         }
     }
     dots
@@ -313,7 +318,7 @@ fn add_edge_term(matrix: &mut SparseMatrix, smoothness: f64) {
 }
 
 /// Solves `matrix x = rhs` for every column at once (each with its own step lengths), from
-/// x = 0, preconditioned by the diagonal, until each column's residual is within the
+/// x = 0, preconditioned by [`IncompleteCholesky`], until each column's residual is within the
 /// tolerance of its right-hand side's norm (or of `scale`'s, where larger). Returns x, the
 /// iterations run and the largest relative residual.
 fn conjugate_gradients(
@@ -324,24 +329,16 @@ fn conjugate_gradients(
     scale: Option<&[f64]>,
 ) -> (Vec<f64>, u32, f64) {
     let rows = rhs.len() / columns.max(1);
-    let inverse_diagonal: Vec<f64> = matrix
-        .diagonal()
-        .iter()
-        .map(|&d| if d > 0.0 { 1.0 / d } else { 0.0 })
-        .collect();
-    let precondition = |r: &[f64], z: &mut [f64]| {
-        z.par_chunks_mut(columns)
-            .zip(r.par_chunks(columns))
-            .zip(&inverse_diagonal)
-            .for_each(|((z, r), &d)| z.iter_mut().zip(r).for_each(|(z, r)| *z = d * r));
-    };
+    let factor = IncompleteCholesky::of(matrix);
+    let precondition = |r: &[f64], z: &mut [f64]| factor.solve(r, columns, z);
     // Two dot products at once where a pass can give both, in column_dots' order.
     let column_dots_rz_rr = |r: &[f64], z: &[f64]| -> (Vec<f64>, Vec<f64>) {
         let (mut rz, mut rr) = (vec![0.0; columns], vec![0.0; columns]);
-        for (rr_row, rz_row) in r.chunks(columns).zip(z.chunks(columns)) {
-            for c in 0..columns {
-                rz[c] += rr_row[c] * rz_row[c];
-                rr[c] += rr_row[c] * rr_row[c];
+        for (r_row, z_row) in r.chunks(columns).zip(z.chunks(columns)) {
+            let sums = rz.iter_mut().zip(rr.iter_mut());
+            for ((rz, rr), (&r, &z)) in sums.zip(r_row.iter().zip(z_row)) {
+                *rz += r * z;
+                *rr += r * r;
             }
         }
         (rz, rr)

@@ -12,6 +12,7 @@ mod options;
 mod points;
 mod shard;
 pub mod spill;
+pub mod split;
 pub mod stream;
 pub mod subsurface;
 pub mod texels;
@@ -398,7 +399,7 @@ fn add_lightmap(
         texels::bake_atlas_in(at, scatter.as_ref(), options, backend, progress)?;
     lightmap.set = set.unwrap_or(0);
     let (scene, transfer) = match set {
-        None => texels::split_at_seams(&scene, &transfer, &lightmap.texcoords),
+        None => split::split_at_seams(&scene, &transfer, &lightmap.texcoords),
         Some(_) => (scene, transfer),
     };
     Ok((scene, transfer, Some(lightmap), Some(report)))

@@ -6,7 +6,8 @@ use wgpu::util::DeviceExt;
 
 use super::camera::{bounds, usable_radius, Camera};
 use super::relight::{relight, relight_baked};
-use crate::bake::texels::{self, sample_bilinear};
+use crate::bake::split::split_scene_corners;
+use crate::bake::texels::sample_bilinear;
 use crate::bake::{BakedMesh, TexelBake};
 use crate::device::GpuContext;
 use crate::error::{Error, Result};
@@ -135,7 +136,7 @@ fn render_texels(
     let scene = match already_split && scene.vertex_count() == coordinates.len() {
         true => scene,
         false => {
-            split = texels::split_scene_corners(scene);
+            split = split_scene_corners(scene);
             &split
         }
     };

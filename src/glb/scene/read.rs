@@ -130,7 +130,7 @@ fn with_scene_lightmap(path: &Path, gltf: &GltfScene, mut baked: BakedMesh) -> R
                     extras.texcoord
                 ))
             })?;
-        let (scene, transfer) = crate::bake::texels::split_corners(&baked.scene, &baked.transfer);
+        let (scene, transfer) = crate::bake::split::split_corners(&baked.scene, &baked.transfer);
         let texcoords = baked
             .scene
             .triangles

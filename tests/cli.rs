@@ -65,6 +65,26 @@ fn a_least_squares_bake_says_so_in_its_report_and_file() {
     assert!(out.status.success());
     let info = prt_gpu(&["info", "p.glb"], dir.path());
     assert!(String::from_utf8_lossy(&info.stdout).contains("fit:          point\n"));
+    // A bounce's line gives the iterations of its own fit's solve, and a point bake's none.
+    let bounce_line = |fit: &str| {
+        let mut args = vec!["bake", "--samples", "32", "--fit", fit, "--fit-points", "4"];
+        args.extend(["--mode", "interreflected", "--bounces", "1", "-o", "b.glb"]);
+        let out = prt_gpu(&args, dir.path());
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{stderr}");
+        let line = stderr.lines().find(|l| l.starts_with("bounce 1:"));
+        line.unwrap_or_else(|| panic!("no bounce line: {stderr}"))
+            .to_string()
+    };
+    let fitted = bounce_line("least-squares");
+    let iterations: u32 = fitted
+        .split("its fit solved in ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no fit iterations in {fitted:?}"));
+    assert!(iterations > 0, "{fitted}");
+    assert!(!bounce_line("point").contains("fit"));
     dir.close().unwrap();
 }
 

@@ -347,6 +347,8 @@ pub struct BounceStat {
     /// DC energy the bounce added over the DC energy of all transfer before it.
     pub relative_energy: f64,
     pub seconds: f64,
+    /// The iterations of its least-squares fit's solve, where the bake has one.
+    pub fit_iterations: Option<u32>,
 }
 
 #[cfg(test)]

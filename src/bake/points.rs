@@ -76,10 +76,10 @@ impl<'a> Fitting<'a> {
     }
 
     /// [`solve`](Self::solve) for a bounce's RGB values, held to the direct light's scale.
-    fn solve_bounce(&self, rhs: RightHandSide) -> Vec<f32> {
+    fn solve_bounce(&self, rhs: RightHandSide) -> (Vec<f32>, FitReport) {
         let scale = self.direct_scale.get().map(Vec::as_slice);
         debug_assert!(scale.is_some(), "bounces follow the direct light");
-        self.system.solve_to_scale(rhs, &self.options, scale).0
+        self.system.solve_to_scale(rhs, &self.options, scale)
     }
 
     /// The vertex values that best fit `values` at every point, the values let go before the
@@ -90,15 +90,12 @@ impl<'a> Fitting<'a> {
         values: Vec<f32>,
         columns: usize,
         light: Light,
-    ) -> Result<(Vec<f32>, Option<FitReport>)> {
+    ) -> Result<(Vec<f32>, FitReport)> {
         let rhs = self.right_hand_side(&values, columns)?;
         drop(values);
         Ok(match light {
-            Light::Direct => {
-                let (fitted, report) = self.solve_direct(rhs);
-                (fitted, Some(report))
-            }
-            Light::Bounce => (self.solve_bounce(rhs), None),
+            Light::Direct => self.solve_direct(rhs),
+            Light::Bounce => self.solve_bounce(rhs),
         })
     }
 }
@@ -213,7 +210,7 @@ impl PointChunks {
         previous: &[f32],
         bands: u32,
         backend: &dyn Backend,
-    ) -> Result<Vec<f32>> {
+    ) -> Result<(Vec<f32>, FitReport)> {
         let (spill, spilled) = self.rows.as_mut().expect("only bounced light is gathered");
         let mut rhs = fitting.system.right_hand_side(3 * coeff_count(bands));
         for (run, rows) in self.runs.iter().zip(spilled.iter()) {

@@ -572,6 +572,7 @@ impl StreamedBake {
             bounces.push(BounceStat {
                 relative_energy,
                 seconds: started.elapsed().as_secs_f64(),
+                fit_iterations: None,
             });
             progress.advance(1);
             if relative_energy < self.options.bounce_tolerance {

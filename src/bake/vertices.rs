@@ -64,7 +64,8 @@ impl AtReceivers {
                     None => Ok((values, None)),
                     Some(fitting) => {
                         let columns = 3 * coeff_count(bands);
-                        fitting.fit(values, columns, Light::Direct)
+                        let (values, report) = fitting.fit(values, columns, Light::Direct)?;
+                        Ok((values, Some(report)))
                     }
                 }
             }
@@ -143,21 +144,25 @@ pub(super) fn vertex_transfer(
             ..
         }) => {
             let gatherer = backend.gatherer(matrix, albedo, bands)?;
-            let mut next_bounce = |previous: &[f32]| -> Result<Vec<f32>> {
+            let mut next_bounce = |previous: &[f32]| -> Result<Bounce> {
                 let gathered = gatherer.gather(previous)?;
-                let fitted = match fitting {
-                    Some(fitting) => fitting.fit(gathered, columns, Light::Bounce)?.0,
-                    None => gathered,
+                let (fitted, iterations) = match fitting {
+                    Some(fitting) => {
+                        let (fitted, report) = fitting.fit(gathered, columns, Light::Bounce)?;
+                        (fitted, Some(report.iterations))
+                    }
+                    None => (gathered, None),
                 };
-                scattered(fitted)
+                Ok((scattered(fitted)?, iterations))
             };
             add_bounces(&mut transfer, &mut next_bounce, options, progress)?
         }
         AtReceivers::Chunked(chunks) if chunks.gathers() => {
             let fitting = fitting.expect("points are chunked for a fit");
-            let mut next_bounce = |previous: &[f32]| -> Result<Vec<f32>> {
-                let fitted = chunks.bounce((fitting, albedo), previous, bands, backend)?;
-                scattered(fitted)
+            let mut next_bounce = |previous: &[f32]| -> Result<Bounce> {
+                let (fitted, report) =
+                    chunks.bounce((fitting, albedo), previous, bands, backend)?;
+                Ok((scattered(fitted)?, Some(report.iterations)))
             };
             add_bounces(&mut transfer, &mut next_bounce, options, progress)?
         }
@@ -215,12 +220,15 @@ pub(super) struct VertexTransfer {
     pub(super) scattered: Option<Scattered>,
 }
 
+/// A bounce's vertex values, and the iterations of their fit's solve where there is one.
+type Bounce = (Vec<f32>, Option<u32>);
+
 /// Adds `options.bounces` bounces to the vertex `transfer` in place (stopping early below
 /// `options.bounce_tolerance`). Each bounce is `next_bounce` of the previous one's vertex
 /// values: gathered at the receivers and taken back to the vertices.
 fn add_bounces(
     transfer: &mut Transfer,
-    next_bounce: &mut dyn FnMut(&[f32]) -> Result<Vec<f32>>,
+    next_bounce: &mut dyn FnMut(&[f32]) -> Result<Bounce>,
     options: &BakeOptions,
     progress: &dyn Progress,
 ) -> Result<Vec<BounceStat>> {
@@ -230,7 +238,7 @@ fn add_bounces(
     let mut stats = Vec::new();
     for _ in 0..options.bounces {
         let started = Instant::now();
-        let next = next_bounce(&previous)?;
+        let (next, fit_iterations) = next_bounce(&previous)?;
         let relative_energy = bounce::relative_energy(&next, transfer.coeffs(), coeffs);
         transfer
             .coeffs_mut()
@@ -240,6 +248,7 @@ fn add_bounces(
         stats.push(BounceStat {
             relative_energy,
             seconds: started.elapsed().as_secs_f64(),
+            fit_iterations,
         });
         progress.advance(1);
         previous = next;

@@ -73,8 +73,12 @@ pub(super) type MergedFrom = Option<(u32, String)>;
 /// error target, lightmap (written beside `output`).
 pub(super) fn print_stage_lines(report: &BakeReport, output: &Path) {
     for (i, bounce) in report.bounces.iter().enumerate() {
+        let fit = match bounce.fit_iterations {
+            Some(iterations) => format!(" (its fit solved in {iterations} iterations)"),
+            None => String::new(),
+        };
         eprintln!(
-            "bounce {}: +{:.2}% energy in {:.2} s",
+            "bounce {}: +{:.2}% energy in {:.2} s{fit}",
             i + 1,
             100.0 * bounce.relative_energy,
             bounce.seconds

@@ -95,13 +95,21 @@ impl SparseMatrix {
     }
 
     fn diagonal(&self) -> Vec<f64> {
+        self.diagonal_positions()
+            .into_iter()
+            .map(|at| self.values[at])
+            .collect()
+    }
+
+    /// Where each row's diagonal entry is in `values`.
+    fn diagonal_positions(&self) -> Vec<usize> {
         (0..self.row_offsets.len() - 1)
             .map(|r| {
                 let range = self.row_offsets[r]..self.row_offsets[r + 1];
                 let at = self.columns[range.clone()]
                     .binary_search(&(r as u32))
                     .expect("every row of the normal matrix holds its diagonal");
-                self.values[range.start + at]
+                range.start + at
             })
             .collect()
     }

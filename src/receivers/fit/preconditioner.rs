@@ -27,7 +27,7 @@ impl IncompleteCholesky {
     /// should none, the diagonal alone (Jacobi). A zero row (a vertex nothing constrains)
     /// factors as the identity.
     pub(super) fn of(matrix: &SparseMatrix) -> IncompleteCholesky {
-        let diagonal_at = diagonal_positions(matrix);
+        let diagonal_at = matrix.diagonal_positions();
         for shift in Self::SHIFTS {
             if let Some(factor) = Self::factor(matrix, &diagonal_at, shift) {
                 return factor;
@@ -173,19 +173,6 @@ impl IncompleteCholesky {
     }
 }
 
-/// Where each row's diagonal entry is in `matrix`.
-fn diagonal_positions(matrix: &SparseMatrix) -> Vec<usize> {
-    (0..matrix.row_offsets.len() - 1)
-        .map(|r| {
-            let range = matrix.row_offsets[r]..matrix.row_offsets[r + 1];
-            let at = matrix.columns[range.clone()]
-                .binary_search(&(r as u32))
-                .expect("every row of the normal matrix holds its diagonal");
-            range.start + at
-        })
-        .collect()
-}
-
 /// `sum_k a_k b_k` over the columns two sorted sparse rows share.
 fn merged_dot((a_columns, a): (&[u32], &[f64]), (b_columns, b): (&[u32], &[f64])) -> f64 {
     let (mut p, mut q, mut sum) = (0, 0, 0.0);
@@ -314,7 +301,7 @@ mod tests {
                 (4, 4, 0.0),
             ],
         );
-        let diagonal_at = diagonal_positions(&matrix);
+        let diagonal_at = matrix.diagonal_positions();
         assert!(IncompleteCholesky::factor(&matrix, &diagonal_at, 0.0).is_none());
         let factor = IncompleteCholesky::of(&matrix);
         // With a shift the factor approximates A; preconditioned, A's residual direction is

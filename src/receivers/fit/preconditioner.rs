@@ -21,7 +21,7 @@ pub(super) struct IncompleteCholesky {
 
 impl IncompleteCholesky {
     /// Shifts tried in turn, as fractions of the diagonal: none first.
-    const SHIFTS: [f64; 9] = [0.0, 1e-3, 4e-3, 0.016, 0.064, 0.256, 1.0, 4.0, 16.0];
+    const SHIFTS: [f64; 9] = [0.0, 1e-3, 4e-3, 0.016, 0.064, 0.256, 1.024, 4.096, 16.384];
 
     /// The factor with the smallest shift in [`Self::SHIFTS`] that keeps every pivot positive;
     /// should none, the diagonal alone (Jacobi). A zero row (a vertex nothing constrains)

@@ -156,14 +156,20 @@ fn encode_exr(
     width: u32,
     height: u32,
 ) -> std::result::Result<Vec<u8>, String> {
-    use exr::prelude::{Image, SpecificChannels, Vec2, WritableImage};
+    use exr::prelude::{Encoding, Image, LineOrder, SpecificChannels, Vec2, WritableImage};
     let w = width as usize;
     let channels = SpecificChannels::rgba(|Vec2(x, y): Vec2<usize>| {
         let [r, g, b, a] = pixels[y * w + x];
         (r, g, b, a)
     });
+    // Blocks in increasing order, not in the order the threads compressing them finish: the
+    // same image is the same bytes.
+    let encoding = Encoding {
+        line_order: LineOrder::Increasing,
+        ..Encoding::default()
+    };
     let mut bytes = Cursor::new(Vec::new());
-    Image::from_channels((w, height as usize), channels)
+    Image::from_encoded_channels((w, height as usize), encoding, channels)
         .write()
         .to_buffered(&mut bytes)
         .map_err(|e| e.to_string())?;
@@ -179,11 +185,16 @@ mod tests {
 
     #[test]
     fn an_exr_is_the_same_bytes_every_time() {
-        // The exr crate orders header attributes by a HashMap's iteration order.
-        let pixels: Vec<[f32; 4]> = (0..12).map(|i| [i as f32, 0.5, 2.0, 1.0]).collect();
-        let first = encode_exr(&pixels, 4, 3).unwrap();
-        for _ in 0..16 {
-            assert_eq!(encode_exr(&pixels, 4, 3).unwrap(), first);
+        // The exr crate orders header attributes by a HashMap's iteration order, and writes the
+        // blocks of a large image in the order its threads finish compressing them.
+        for (width, height) in [(4, 3), (256, 255)] {
+            let pixels: Vec<[f32; 4]> = (0..width * height)
+                .map(|i| [(i % 97) as f32, 0.5, (i / 7) as f32, 1.0])
+                .collect();
+            let first = encode_exr(&pixels, width, height).unwrap();
+            for _ in 0..16 {
+                assert_eq!(encode_exr(&pixels, width, height).unwrap(), first);
+            }
         }
     }
 

@@ -19,7 +19,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{append_view, BufferViewJson, Document};
+use super::{append_view, view_start, BufferViewJson, Document};
 use crate::compress::{index_bytes, Cpca};
 use crate::precision::Precision;
 
@@ -116,8 +116,8 @@ pub(super) fn encode(
 /// Reads the compressed transfer `extras` describes from the BIN chunk, checking every size and
 /// value; `vertices`, `bands` and `channels` come from the rest of the file, and `precision`
 /// from `extras.prt.transfer_precision`, which the layout must agree with.
-pub(super) fn decode<X>(
-    doc: &Document<X>,
+pub(super) fn decode(
+    doc: &Document,
     bin: &[u8],
     extras: &CpcaExtras,
     shape: (usize, u32, u32),
@@ -184,8 +184,8 @@ fn storage_of(extras: &CpcaExtras) -> Result<(Precision, usize), String> {
 
 /// Reads compressed rows of `extras.dimension` floats (`compress::compress_rows`; `bands` and
 /// `channels` 0), one per vertex, in either layout.
-pub(super) fn decode_rows<X>(
-    doc: &Document<X>,
+pub(super) fn decode_rows(
+    doc: &Document,
     bin: &[u8],
     extras: &CpcaExtras,
     vertices: usize,
@@ -253,8 +253,8 @@ fn decode_rows_with(view: ViewBytes, extras: &CpcaExtras, vertices: usize) -> Re
 }
 
 /// The bytes of buffer view `index`, which must hold exactly `count` 4-byte values.
-pub(super) fn view_bytes<'b, X>(
-    doc: &Document<X>,
+pub(super) fn view_bytes<'b>(
+    doc: &Document,
     bin: &'b [u8],
     index: usize,
     count: usize,
@@ -264,8 +264,8 @@ pub(super) fn view_bytes<'b, X>(
 }
 
 /// The bytes of buffer view `index`, which must hold exactly `count` values of `width` bytes.
-fn sized_view_bytes<'b, X>(
-    doc: &Document<X>,
+fn sized_view_bytes<'b>(
+    doc: &Document,
     bin: &'b [u8],
     (index, count): (usize, usize),
     width: usize,
@@ -275,8 +275,8 @@ fn sized_view_bytes<'b, X>(
 }
 
 /// The bytes of the single-mesh file's buffer view `index`.
-fn doc_view<'b, X>(
-    doc: &Document<X>,
+fn doc_view<'b>(
+    doc: &Document,
     bin: &'b [u8],
     index: usize,
     what: &str,
@@ -285,9 +285,11 @@ fn doc_view<'b, X>(
         .buffer_views
         .get(index)
         .ok_or(format!("the {what} buffer view does not exist"))?;
-    let start = view.byte_offset as usize;
-    start
-        .checked_add(view.byte_length as usize)
+    let start = usize::try_from(view_start(view))
+        .map_err(|_| format!("the {what} buffer view's offset overflows"))?;
+    usize::try_from(view.byte_length.0)
+        .ok()
+        .and_then(|length| start.checked_add(length))
         .and_then(|end| bin.get(start..end))
         .ok_or(format!("the {what} buffer view runs past the BIN chunk"))
 }
@@ -304,8 +306,8 @@ fn sized<'b>(bytes: &'b [u8], count: usize, width: usize, what: &str) -> Result<
 }
 
 /// `count` finite little-endian float32 values from buffer view `index`.
-pub(super) fn floats<X>(
-    doc: &Document<X>,
+pub(super) fn floats(
+    doc: &Document,
     bin: &[u8],
     index: usize,
     count: usize,
@@ -315,8 +317,8 @@ pub(super) fn floats<X>(
 }
 
 /// `count` finite little-endian values at `precision` from buffer view `index`.
-fn values_at<X>(
-    doc: &Document<X>,
+fn values_at(
+    doc: &Document,
     bin: &[u8],
     (index, count): (usize, usize),
     precision: Precision,
@@ -336,8 +338,8 @@ fn finite(bytes: &[u8], precision: Precision, what: &str) -> Result<Vec<f32>, St
 }
 
 /// `count` little-endian u32 from buffer view `index`.
-pub(super) fn u32s<X>(
-    doc: &Document<X>,
+pub(super) fn u32s(
+    doc: &Document,
     bin: &[u8],
     index: usize,
     count: usize,

@@ -231,8 +231,8 @@ pub(super) fn check_bin_head(head: &[u8], start: u64, file_len: u64, path: &Path
     Ok(len as usize)
 }
 
-pub(super) fn parse_document(json: &[u8], path: &Path) -> Result<Document<serde_json::Value>> {
-    serde_json::from_slice(json).map_err(|e| Error::baked(path, format!("invalid glTF JSON: {e}")))
+pub(super) fn parse_document(json: &[u8], path: &Path) -> Result<Document> {
+    Document::from_slice(json).map_err(|e| Error::baked(path, format!("invalid glTF JSON: {e}")))
 }
 
 /// Where one accessor's elements lie in the BIN chunk.
@@ -264,7 +264,7 @@ pub(super) struct Plan {
     pub(super) cpca: Option<CpcaExtras>,
 }
 
-pub(super) fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Path) -> Result<Plan> {
+pub(super) fn plan(doc: &Document, bin_len: usize, path: &Path) -> Result<Plan> {
     let bad = |message: String| Error::baked(path, message);
     let buffer_len = check_buffer(doc, bin_len).map_err(bad)?;
     let mesh = doc
@@ -275,30 +275,32 @@ pub(super) fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Pat
         .primitives
         .first()
         .ok_or_else(|| bad("the mesh has no primitive".into()))?;
-    if primitive.mode.unwrap_or(TRIANGLES) != TRIANGLES {
+    if primitive.mode != Checked::Valid(Mode::Triangles) {
         return Err(bad("the primitive is not a triangle list".into()));
     }
-    let prt = prt_extras(mesh).map_err(bad)?;
+    let prt = prt_extras(doc).map_err(bad)?;
 
-    let locate = |what: &str, index: Option<usize>, component: u32, kind: &str, comps: u64| {
-        locate(doc, buffer_len, what, index, component, kind, comps).map_err(bad)
+    let locate = |what: &str, index: Option<usize>, component, kind| {
+        locate(doc, buffer_len, what, index, (component, kind)).map_err(bad)
     };
-    let attribute = |name: &str| primitive.attributes.get(name).copied();
-    let positions = locate("POSITION", attribute("POSITION"), FLOAT, "VEC3", 3)?;
+    let attribute = |name: &str| attribute(primitive, name);
+    let (float, vec3) = (ComponentType::F32, Type::Vec3);
+    let positions = locate("POSITION", attribute("POSITION"), float, vec3)?;
     let v = positions.count;
     let normals = same_count(
-        locate("NORMAL", attribute("NORMAL"), FLOAT, "VEC3", 3)?,
+        locate("NORMAL", attribute("NORMAL"), float, vec3)?,
         v,
         "NORMAL",
     )
     .map_err(bad)?;
     let albedo = same_count(
-        locate("COLOR_0", attribute("COLOR_0"), FLOAT, "VEC3", 3)?,
+        locate("COLOR_0", attribute("COLOR_0"), float, vec3)?,
         v,
         "COLOR_0",
     )
     .map_err(bad)?;
-    let indices = locate("indices", primitive.indices, UNSIGNED_INT, "SCALAR", 1)?;
+    let index_accessor = primitive.indices.map(|i| i.value());
+    let indices = locate("indices", index_accessor, ComponentType::U32, Type::Scalar)?;
     if indices.count % 3 != 0 {
         return Err(bad(format!(
             "{} indices do not make whole triangles",
@@ -335,7 +337,7 @@ pub(super) fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Pat
     let texcoords = match &prt.lightmap {
         Some(lightmap) => {
             let name = format!("TEXCOORD_{}", lightmap.texcoord);
-            let span = locate(&name, attribute(&name), FLOAT, "VEC2", 2)?;
+            let span = locate(&name, attribute(&name), float, Type::Vec2)?;
             Some(same_count(span, v, &name).map_err(bad)?)
         }
         None => None,
@@ -360,10 +362,7 @@ pub(super) fn plan(doc: &Document<serde_json::Value>, bin_len: usize, path: &Pat
 }
 
 /// Checks the document's one buffer against the BIN chunk; returns the buffer's length.
-pub(super) fn check_buffer(
-    doc: &Document<serde_json::Value>,
-    bin_len: usize,
-) -> std::result::Result<u64, String> {
+pub(super) fn check_buffer(doc: &Document, bin_len: usize) -> std::result::Result<u64, String> {
     if doc.asset.version.split('.').next() != Some("2") {
         return Err(format!("glTF version {} is not 2.x", doc.asset.version));
     }
@@ -376,24 +375,19 @@ pub(super) fn check_buffer(
     if buffer.uri.is_some() {
         return Err("the buffer refers to an external file".into());
     }
-    if buffer.byte_length > bin_len as u64 {
+    let declared = buffer.byte_length.0;
+    if declared > bin_len as u64 {
         return Err(format!(
-            "the buffer declares {} bytes but the BIN chunk has {bin_len}",
-            buffer.byte_length
+            "the buffer declares {declared} bytes but the BIN chunk has {bin_len}"
         ));
     }
-    Ok(buffer.byte_length)
+    Ok(declared)
 }
 
-/// The mesh's `extras.prt`, with a layout, band count and channel count this reader knows.
-pub(super) fn prt_extras(
-    mesh: &MeshJson<serde_json::Value>,
-) -> std::result::Result<PrtExtrasIn, String> {
-    let prt = mesh
-        .extras
-        .as_ref()
-        .and_then(|extras| extras.get("prt"))
-        .ok_or("not a prt-gpu file: the mesh has no extras.prt")?;
+/// The first mesh's `extras.prt`, with a layout, band count and channel count this reader
+/// knows.
+pub(super) fn prt_extras(doc: &Document) -> std::result::Result<PrtExtrasIn, String> {
+    let prt = mesh_prt(doc).ok_or("not a prt-gpu file: the mesh has no extras.prt")?;
     if prt.get("mode").and_then(|m| m.as_str()) == Some("local") {
         return Err(
             "a local-lights bake (--mode local) holds no SH transfer: render it alone \
@@ -402,7 +396,7 @@ pub(super) fn prt_extras(
         );
     }
     let prt: PrtExtrasIn =
-        serde_json::from_value(prt.clone()).map_err(|e| format!("invalid extras.prt: {e}"))?;
+        serde_json::from_value(prt).map_err(|e| format!("invalid extras.prt: {e}"))?;
     let layout = match prt.transfer_precision.as_deref() {
         Some(FLOAT16) => TRANSFER_LAYOUT_F16,
         _ => TRANSFER_LAYOUT,
@@ -457,7 +451,7 @@ pub(super) fn same_count(
 /// The blocks of a half-float transfer view, which no accessor describes: checked against the
 /// view's length and the buffer (the view itself was checked by `check_buffer`).
 pub(super) fn half_transfer_spans(
-    doc: &Document<serde_json::Value>,
+    doc: &Document,
     prt: &PrtExtrasIn,
     transfer_view: usize,
     v: usize,
@@ -469,13 +463,13 @@ pub(super) fn half_transfer_spans(
         .ok_or("extras.prt.transfer_buffer_view does not exist")?;
     let blocks = meta.channels as usize * groups(meta.bands);
     let expected = planar_bytes(v, meta.channels, meta.bands, Precision::F16);
-    if expected.map(|n| n as u64) != Some(view.byte_length) {
+    let length = view.byte_length.0;
+    if expected.map(|n| n as u64) != Some(length) {
         return Err(format!(
-            "the half-float transfer view has {} bytes, expected {v} vertices x {blocks} blocks x 8",
-            view.byte_length
+            "the half-float transfer view has {length} bytes, expected {v} vertices x {blocks} blocks x 8"
         ));
     }
-    let start = view.byte_offset as usize;
+    let start = view_start(view) as usize;
     Ok((0..blocks)
         .map(|block| Span {
             offset: start + block * v * 8,
@@ -486,7 +480,7 @@ pub(super) fn half_transfer_spans(
 }
 
 pub(super) fn transfer_spans(
-    doc: &Document<serde_json::Value>,
+    doc: &Document,
     buffer_len: u64,
     primitive: &PrimitiveJson,
     prt: &PrtExtrasIn,
@@ -500,23 +494,25 @@ pub(super) fn transfer_spans(
         .get(transfer_view)
         .ok_or("extras.prt.transfer_buffer_view does not exist")?;
     let expected = transfer_bytes(v, meta.channels, meta.bands);
-    if expected.map(|n| n as u64) != Some(view.byte_length) {
+    let length = view.byte_length.0;
+    if expected.map(|n| n as u64) != Some(length) {
         return Err(format!(
-            "the transfer buffer view has {} bytes, expected {v} vertices x {} channels x {groups} groups x 16",
-            view.byte_length, meta.channels
+            "the transfer buffer view has {length} bytes, expected {v} vertices x {} channels x {groups} groups x 16",
+            meta.channels
         ));
     }
     let mut transfer = Vec::with_capacity(meta.channels as usize * groups);
     for channel in 0..meta.channels {
         for group in 0..groups {
             let name = transfer_attribute_name(meta.channels, channel, group);
-            let index = primitive.attributes.get(&name).copied();
-            let span = locate(doc, buffer_len, &name, index, FLOAT, "VEC4", 4)?;
+            let index = attribute(primitive, &name);
+            let vec4s = (ComponentType::F32, Type::Vec4);
+            let span = locate(doc, buffer_len, &name, index, vec4s)?;
             let span = same_count(span, v, &name)?;
             let block = channel as usize * groups + group;
             let accessor = &doc.accessors[index.unwrap_or_default()];
-            if accessor.buffer_view != Some(transfer_view)
-                || accessor.byte_offset != (block * v * 16) as u64
+            if accessor.buffer_view.map(|view| view.value()) != Some(transfer_view)
+                || accessor_start(accessor) != (block * v * 16) as u64
                 || span.stride != 16
             {
                 return Err(format!(
@@ -529,26 +525,26 @@ pub(super) fn transfer_spans(
     Ok(transfer)
 }
 
-/// Resolves accessor `index` to a span of `count` elements of `comps` 4-byte components,
-/// proven to lie inside the buffer (whose length was already checked against the BIN chunk).
-pub(super) fn locate<X>(
-    doc: &Document<X>,
+/// Resolves accessor `index` to a span of its elements, checked to be `kind` of `component`
+/// (4 bytes each) and proven to lie inside the buffer (whose length was already checked
+/// against the BIN chunk).
+pub(super) fn locate(
+    doc: &Document,
     buffer_len: u64,
     what: &str,
     index: Option<usize>,
-    component: u32,
-    kind: &str,
-    comps: u64,
+    (component, kind): (ComponentType, Type),
 ) -> std::result::Result<Span, String> {
     let index = index.ok_or_else(|| format!("the primitive has no {what} accessor"))?;
     let accessor = doc
         .accessors
         .get(index)
         .ok_or_else(|| format!("{what} refers to missing accessor {index}"))?;
-    if accessor.component_type != component || accessor.kind != kind {
+    if !accessor_is(accessor, component, kind) {
+        let expected = accessor_kind(&super::accessor(0, 0, component, 0, kind));
         return Err(format!(
-            "{what} is {} of component type {}, expected {kind} of {component}",
-            accessor.kind, accessor.component_type
+            "{what} is {}, expected {expected}",
+            accessor_kind(accessor)
         ));
     }
     if accessor.sparse.is_some() {
@@ -558,51 +554,54 @@ pub(super) fn locate<X>(
     }
     let view_index = accessor
         .buffer_view
+        .map(|view| view.value())
         .ok_or_else(|| format!("{what} has no buffer view"))?;
     let view = doc
         .buffer_views
         .get(view_index)
         .ok_or_else(|| format!("{what} refers to missing buffer view {view_index}"))?;
-    if view.buffer != 0 {
+    if view.buffer.value() != 0 {
         return Err(format!(
             "buffer view {view_index} refers to a missing buffer"
         ));
     }
-    let view_end = view.byte_offset.checked_add(view.byte_length);
+    let (view_offset, view_length) = (view_start(view), view.byte_length.0);
+    let view_end = view_offset.checked_add(view_length);
     if view_end.is_none_or(|end| end > buffer_len) {
         return Err(format!(
             "buffer view {view_index} runs past the end of the buffer"
         ));
     }
-    let element = 4 * comps;
-    let stride = view.byte_stride.unwrap_or(element);
+    let element = 4 * kind.multiplicity() as u64;
+    let stride = view.byte_stride.map_or(element, |stride| stride.0 as u64);
     if stride < element || stride % 4 != 0 {
         return Err(format!(
             "buffer view {view_index} has an invalid stride {stride}"
         ));
     }
-    if accessor.count == 0 {
+    let count = accessor.count.0;
+    if count == 0 {
         return Err(format!("{what} has no elements"));
     }
     // The last element must end inside the view.
-    let end = (accessor.count - 1)
+    let end = (count - 1)
         .checked_mul(stride)
         .and_then(|x| x.checked_add(element))
-        .and_then(|x| x.checked_add(accessor.byte_offset));
-    if end.is_none_or(|end| end > view.byte_length) {
+        .and_then(|x| x.checked_add(accessor_start(accessor)));
+    if end.is_none_or(|end| end > view_length) {
         return Err(format!(
             "{what} runs past the end of buffer view {view_index}"
         ));
     }
-    let offset = view.byte_offset + accessor.byte_offset;
-    if offset % 4 != 0 {
+    let offset = view_offset + accessor_start(accessor);
+    if !offset.is_multiple_of(4) {
         return Err(format!("{what} is not 4-byte aligned"));
     }
     // In range of usize: everything is bounded by the buffer, which is inside the file.
     Ok(Span {
         offset: offset as usize,
         stride: stride as usize,
-        count: accessor.count as usize,
+        count: count as usize,
     })
 }
 

@@ -23,7 +23,7 @@ pub(super) fn encode_valid(stored: Stored, lightmap_uri: Option<&str>) -> Result
     let zonal = stored.zonal().map(|zonal| {
         zonal::encode(zonal, |bytes, stride| {
             let index = append_view(&mut bin, &mut views, |bin| bin.extend(bytes));
-            views[index].byte_stride = stride;
+            views[index].byte_stride = stride.map(Stride);
             index
         })
     });
@@ -94,7 +94,7 @@ pub(super) fn encode_json(
 /// (indices in accessor 3) carrying `extras`, one buffer, the BIN chunk `bin`.
 pub(super) fn mesh_glb<X: Serialize>(
     extras: X,
-    accessors: (Vec<AccessorJson>, BTreeMap<String, usize>),
+    accessors: (Vec<AccessorJson>, Attributes),
     views: Vec<BufferViewJson>,
     bin: Vec<u8>,
 ) -> Result<Vec<u8>> {
@@ -105,36 +105,55 @@ pub(super) fn mesh_glb<X: Serialize>(
 /// The JSON chunk of [`mesh_glb`], for a BIN chunk of `bin_len` bytes.
 pub(super) fn mesh_json<X: Serialize>(
     extras: X,
-    (accessors, attributes): (Vec<AccessorJson>, BTreeMap<String, usize>),
+    (accessors, attributes): (Vec<AccessorJson>, Attributes),
     views: Vec<BufferViewJson>,
     bin_len: usize,
 ) -> Result<Vec<u8>> {
+    let primitive = PrimitiveJson {
+        attributes,
+        indices: Some(index(3)),
+        mode: Checked::Valid(Mode::Triangles),
+        extensions: None,
+        extras: None,
+        material: None,
+        targets: None,
+    };
     let doc = Document {
-        asset: AssetJson {
+        asset: gltf_json::Asset {
             version: "2.0".into(),
             generator: Some(format!("prt-gpu {}", env!("CARGO_PKG_VERSION"))),
+            ..Default::default()
         },
-        scene: Some(0),
-        scenes: vec![SceneJson { nodes: vec![0] }],
-        nodes: vec![NodeJson { mesh: Some(0) }],
-        meshes: vec![MeshJson {
-            primitives: vec![PrimitiveJson {
-                attributes,
-                indices: Some(3),
-                mode: Some(TRIANGLES),
-            }],
-            extras: Some(extras),
+        scene: Some(index(0)),
+        scenes: vec![gltf_json::Scene {
+            nodes: vec![index(0)],
+            extensions: None,
+            extras: None,
+            name: None,
+        }],
+        nodes: vec![gltf_json::Node {
+            mesh: Some(index(0)),
+            ..Default::default()
+        }],
+        meshes: vec![gltf_json::Mesh {
+            primitives: vec![primitive],
+            extras: raw_extras(&extras)?,
+            extensions: None,
+            name: None,
+            weights: None,
         }],
         accessors,
         buffer_views: views,
-        buffers: vec![BufferJson {
-            byte_length: bin_len as u64,
+        buffers: vec![gltf_json::Buffer {
+            byte_length: USize64::from(bin_len),
             uri: None,
+            name: None,
+            extensions: None,
+            extras: None,
         }],
-        extras: None,
+        ..Default::default()
     };
-    serde_json::to_vec(&doc)
-        .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))
+    encode_document(&doc)
 }
 
 /// The BIN chunk and its views: positions, normals, albedo, indices, then (with `planar`) the
@@ -165,7 +184,12 @@ pub(super) fn encode_bin(
             .vertex_texcoords(scene)
             .expect("validate_lightmap found the corners of each vertex agree");
         put_f32s(&mut bin, per_vertex.iter().flatten().copied());
-        views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
+        views.push(array_view(
+            start,
+            bin.len() - start,
+            None,
+            Target::ArrayBuffer,
+        ));
     }
     let expected_views = TRANSFER_VIEW + 1 + baked.lightmap.is_some() as usize;
     debug_assert_eq!(views.len(), expected_views);
@@ -180,7 +204,12 @@ pub(super) fn encode_mesh_views(scene: &Scene, bin: &mut Vec<u8>) -> Vec<BufferV
     for vectors in [&scene.positions[..], normals, &scene.albedo[..]] {
         let start = bin.len();
         put_f32s(bin, vectors.iter().flat_map(|p| p.to_array()));
-        views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
+        views.push(array_view(
+            start,
+            bin.len() - start,
+            None,
+            Target::ArrayBuffer,
+        ));
     }
     let start = bin.len();
     for &i in scene.triangles.iter().flatten() {
@@ -190,7 +219,7 @@ pub(super) fn encode_mesh_views(scene: &Scene, bin: &mut Vec<u8>) -> Vec<BufferV
         start,
         bin.len() - start,
         None,
-        ELEMENT_ARRAY_BUFFER,
+        Target::ElementArrayBuffer,
     ));
     debug_assert_eq!(views.len(), TRANSFER_VIEW);
     views
@@ -203,7 +232,7 @@ pub(super) fn planar_view(start: usize, len: usize, precision: Precision) -> Buf
         Precision::F32 => Some(16),
         Precision::F16 => None,
     };
-    array_view(start, len, stride, ARRAY_BUFFER)
+    array_view(start, len, stride, Target::ArrayBuffer)
 }
 
 /// Appends to `bin`, from its next 4-byte boundary, what `write` puts there, and a view of it
@@ -217,22 +246,30 @@ pub(super) fn append_view(
     bin.resize(bin.len().next_multiple_of(4), 0);
     let start = bin.len();
     write(bin);
-    views.push(array_view(start, bin.len() - start, None, ARRAY_BUFFER));
+    views.push(array_view(
+        start,
+        bin.len() - start,
+        None,
+        Target::ArrayBuffer,
+    ));
     views.len() - 1
 }
 
 pub(super) fn array_view(
     start: usize,
     len: usize,
-    stride: Option<u64>,
-    target: u32,
+    stride: Option<usize>,
+    target: Target,
 ) -> BufferViewJson {
     BufferViewJson {
-        buffer: 0,
-        byte_offset: start as u64,
-        byte_length: len as u64,
-        byte_stride: stride,
-        target: Some(target),
+        buffer: index(0),
+        byte_offset: Some(USize64::from(start)),
+        byte_length: USize64::from(len),
+        byte_stride: stride.map(Stride),
+        target: Some(Checked::Valid(target)),
+        name: None,
+        extensions: None,
+        extras: None,
     }
 }
 
@@ -268,7 +305,7 @@ pub(super) fn put_planar_block(
 pub(super) fn accessors_and_attributes(
     shape: Shape,
     planar: bool,
-) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
+) -> (Vec<AccessorJson>, Attributes) {
     let (scene, transfer) = (shape.scene, shape.transfer);
     let v = scene.positions.len();
     let groups = groups(transfer.bands);
@@ -282,13 +319,27 @@ pub(super) fn accessors_and_attributes(
         for group in 0..groups {
             let block = channel * groups + group;
             let name = transfer_attribute_name(transfer.channels, channel as u32, group);
-            attributes.insert(name, accessors.len());
-            accessors.push(accessor(TRANSFER_VIEW, block * v * 16, FLOAT, v, "VEC4"));
+            attributes.insert(semantic(&name), index(accessors.len()));
+            let offset = block * v * 16;
+            accessors.push(accessor(
+                TRANSFER_VIEW,
+                offset,
+                ComponentType::F32,
+                v,
+                Type::Vec4,
+            ));
         }
     }
     if shape.lightmap.is_some() {
-        attributes.insert("TEXCOORD_0".into(), accessors.len());
-        accessors.push(accessor(TEXCOORD_VIEW, 0, FLOAT, v, "VEC2"));
+        let texcoords = Checked::Valid(Semantic::TexCoords(0));
+        attributes.insert(texcoords, index(accessors.len()));
+        accessors.push(accessor(
+            TEXCOORD_VIEW,
+            0,
+            ComponentType::F32,
+            v,
+            Type::Vec2,
+        ));
     }
     (accessors, attributes)
 }
@@ -297,43 +348,55 @@ pub(super) fn accessors_and_attributes(
 pub(super) fn accessor(
     view: usize,
     offset: usize,
-    component: u32,
+    component: ComponentType,
     count: usize,
-    kind: &str,
+    kind: Type,
 ) -> AccessorJson {
     AccessorJson {
-        buffer_view: Some(view),
-        byte_offset: offset as u64,
-        component_type: component,
-        count: count as u64,
-        kind: kind.to_string(),
+        buffer_view: Some(index(view)),
+        byte_offset: Some(USize64::from(offset)),
+        component_type: Checked::Valid(GenericComponentType(component)),
+        count: USize64::from(count),
+        type_: Checked::Valid(kind),
         min: None,
         max: None,
+        name: None,
+        normalized: false,
         sparse: None,
+        extensions: None,
+        extras: None,
     }
 }
 
 /// The accessors of [`encode_mesh`]'s views and the primitive's `POSITION`, `NORMAL` and
 /// `COLOR_0` attributes.
-pub(super) fn mesh_accessors(scene: &Scene) -> (Vec<AccessorJson>, BTreeMap<String, usize>) {
+pub(super) fn mesh_accessors(scene: &Scene) -> (Vec<AccessorJson>, Attributes) {
     let v = scene.positions.len();
     let (min, max) = scene.positions.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
         |(lo, hi), &p| (lo.min(p), hi.max(p)),
     );
+    let vec3s = |view| accessor(view, 0, ComponentType::F32, v, Type::Vec3);
     let accessors = vec![
         AccessorJson {
-            min: Some(min.to_array().to_vec()),
-            max: Some(max.to_array().to_vec()),
-            ..accessor(0, 0, FLOAT, v, "VEC3")
+            min: Some(f32_values(&min.to_array())),
+            max: Some(f32_values(&max.to_array())),
+            ..vec3s(0)
         },
-        accessor(1, 0, FLOAT, v, "VEC3"),
-        accessor(2, 0, FLOAT, v, "VEC3"),
-        accessor(3, 0, UNSIGNED_INT, 3 * scene.triangles.len(), "SCALAR"),
+        vec3s(1),
+        vec3s(2),
+        accessor(
+            3,
+            0,
+            ComponentType::U32,
+            3 * scene.triangles.len(),
+            Type::Scalar,
+        ),
     ];
-    let attributes: BTreeMap<String, usize> = [("POSITION", 0), ("NORMAL", 1), ("COLOR_0", 2)]
+    let attributes = [Semantic::Positions, Semantic::Normals, Semantic::Colors(0)]
         .into_iter()
-        .map(|(name, index)| (name.to_string(), index))
+        .enumerate()
+        .map(|(i, semantic)| (Checked::Valid(semantic), index(i)))
         .collect();
     (accessors, attributes)
 }

@@ -1,6 +1,6 @@
-//! The baked file's JSON: container constants (glTF 2.0, "GLB File Format Specification"), and
-//! the document as structs rather than maps, so the key order, and with it the bytes, never
-//! change; unknown fields are ignored on reading, as glTF asks of readers.
+//! The baked file's JSON: container constants (glTF 2.0, "GLB File Format Specification"), the
+//! document in gltf-json's types (every glTF the tool writes is, a scene baked in place's too)
+//! and the `extras.prt` it carries.
 
 use super::*;
 
@@ -8,121 +8,127 @@ pub(super) const GLB_MAGIC: u32 = 0x4654_6C67;
 pub(super) const GLB_VERSION: u32 = 2;
 pub(super) const CHUNK_JSON: u32 = 0x4E4F_534A;
 pub(super) const CHUNK_BIN: u32 = 0x004E_4942;
-pub(super) const FLOAT: u32 = 5126;
-pub(super) const UNSIGNED_INT: u32 = 5125;
-pub(super) const TRIANGLES: u32 = 4;
-pub(super) const ARRAY_BUFFER: u32 = 34962;
-pub(super) const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 pub(super) const TRANSFER_VIEW: usize = 4;
 pub(super) const TEXCOORD_VIEW: usize = 5;
 
 // ---------------------------------------------------------------------------------------------
-// JSON. Structs rather than maps so the key order, and with it the bytes, never change; unknown
-// fields are ignored on reading, as glTF asks of readers.
+// gltf-json's structs serialize their fields in declaration order, so the key order, and with
+// it the bytes, never change; unknown fields are ignored on reading, as glTF asks of readers.
 
-#[derive(Serialize, Deserialize)]
-pub(super) struct Document<X> {
-    pub(super) asset: AssetJson,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(super) scene: Option<usize>,
-    #[serde(default)]
-    pub(super) scenes: Vec<SceneJson>,
-    #[serde(default)]
-    pub(super) nodes: Vec<NodeJson>,
-    #[serde(default)]
-    pub(super) meshes: Vec<MeshJson<X>>,
-    #[serde(default)]
-    pub(super) accessors: Vec<AccessorJson>,
-    #[serde(default, rename = "bufferViews")]
-    pub(super) buffer_views: Vec<BufferViewJson>,
-    #[serde(default)]
-    pub(super) buffers: Vec<BufferJson>,
-    /// The root's: a scene baked in place keeps its `prt` here.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(super) extras: Option<serde_json::Value>,
+pub(super) use gltf_json::accessor::{ComponentType, GenericComponentType, Type};
+pub(super) use gltf_json::buffer::{Stride, Target};
+pub(super) use gltf_json::mesh::{Mode, Semantic};
+pub(super) use gltf_json::validation::{Checked, USize64};
+pub(super) use gltf_json::Index;
+
+/// A baked file's glTF document.
+pub(super) type Document = gltf_json::Root;
+pub(super) type AccessorJson = gltf_json::Accessor;
+pub(super) type BufferViewJson = gltf_json::buffer::View;
+pub(super) type PrimitiveJson = gltf_json::mesh::Primitive;
+/// A primitive's attributes: semantic name to accessor.
+pub(super) type Attributes = BTreeMap<Checked<Semantic>, Index<AccessorJson>>;
+
+/// An attribute's semantic from its name (`_PRT_R_0`, `TEXCOORD_0`, ...), as gltf-json reads it.
+pub(super) fn semantic(name: &str) -> Checked<Semantic> {
+    use serde::de::{value::StrDeserializer, IntoDeserializer};
+    let name: StrDeserializer<serde::de::value::Error> = name.into_deserializer();
+    Checked::deserialize(name).unwrap_or(Checked::Invalid)
 }
 
-#[derive(Serialize, Deserialize)]
-pub(super) struct AssetJson {
-    pub(super) version: String,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(super) generator: Option<String>,
+/// The accessor of `primitive`'s attribute `name`.
+pub(super) fn attribute(primitive: &PrimitiveJson, name: &str) -> Option<usize> {
+    match semantic(name) {
+        Checked::Valid(semantic) => primitive
+            .attributes
+            .get(&Checked::Valid(semantic))
+            .map(Index::value),
+        Checked::Invalid => None,
+    }
 }
 
-#[derive(Serialize, Deserialize)]
-pub(super) struct SceneJson {
-    #[serde(default)]
-    pub(super) nodes: Vec<usize>,
+/// Index `i` of a glTF array (every array of a .glb is far below 2^32 entries).
+pub(super) fn index<T>(i: usize) -> Index<T> {
+    Index::new(u32::try_from(i).expect("a .glb holds fewer than 2^32 of anything"))
 }
 
-#[derive(Serialize, Deserialize)]
-pub(super) struct NodeJson {
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(super) mesh: Option<usize>,
+/// Where a view starts in the buffer.
+pub(super) fn view_start(view: &BufferViewJson) -> u64 {
+    view.byte_offset.map_or(0, |offset| offset.0)
 }
 
-#[derive(Serialize, Deserialize)]
-pub(super) struct MeshJson<X> {
-    pub(super) primitives: Vec<PrimitiveJson>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub(super) extras: Option<X>,
+/// Where an accessor starts in its view.
+pub(super) fn accessor_start(accessor: &AccessorJson) -> u64 {
+    accessor.byte_offset.map_or(0, |offset| offset.0)
 }
 
-#[derive(Serialize, Deserialize)]
-pub(super) struct PrimitiveJson {
-    pub(super) attributes: BTreeMap<String, usize>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(super) indices: Option<usize>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(super) mode: Option<u32>,
+/// An accessor's element type and component type, as a message names them.
+pub(super) fn accessor_kind(accessor: &AccessorJson) -> String {
+    let kind = match accessor.type_ {
+        Checked::Valid(kind) => serde_json::to_value(kind)
+            .ok()
+            .and_then(|k| k.as_str().map(String::from))
+            .unwrap_or_default(),
+        Checked::Invalid => "an invalid type".into(),
+    };
+    match accessor.component_type {
+        Checked::Valid(GenericComponentType(component)) => {
+            format!("{kind} of component type {}", component.as_gl_enum())
+        }
+        Checked::Invalid => format!("{kind} of an invalid component type"),
+    }
 }
 
-#[derive(Serialize, Deserialize)]
-pub(super) struct AccessorJson {
-    #[serde(
-        default,
-        rename = "bufferView",
-        skip_serializing_if = "Option::is_none"
-    )]
-    pub(super) buffer_view: Option<usize>,
-    #[serde(default, rename = "byteOffset")]
-    pub(super) byte_offset: u64,
-    #[serde(rename = "componentType")]
-    pub(super) component_type: u32,
-    pub(super) count: u64,
-    #[serde(rename = "type")]
-    pub(super) kind: String,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(super) min: Option<Vec<f32>>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(super) max: Option<Vec<f32>>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(super) sparse: Option<serde_json::Value>,
+/// Whether `accessor` holds `kind` elements of `component`.
+pub(super) fn accessor_is(accessor: &AccessorJson, component: ComponentType, kind: Type) -> bool {
+    matches!(accessor.component_type, Checked::Valid(GenericComponentType(c)) if c == component)
+        && accessor.type_ == Checked::Valid(kind)
 }
 
-#[derive(Serialize, Deserialize)]
-pub(super) struct BufferViewJson {
-    pub(super) buffer: usize,
-    #[serde(default, rename = "byteOffset")]
-    pub(super) byte_offset: u64,
-    #[serde(rename = "byteLength")]
-    pub(super) byte_length: u64,
-    #[serde(
-        default,
-        rename = "byteStride",
-        skip_serializing_if = "Option::is_none"
-    )]
-    pub(super) byte_stride: Option<u64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(super) target: Option<u32>,
+/// A document's `extras` (the root's or a mesh's) as a JSON value.
+pub(super) fn extras_value(extras: &gltf_json::Extras) -> Option<serde_json::Value> {
+    serde_json::from_str(extras.as_ref()?.get()).ok()
 }
 
-#[derive(Serialize, Deserialize)]
-pub(super) struct BufferJson {
-    #[serde(rename = "byteLength")]
-    pub(super) byte_length: u64,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(super) uri: Option<String>,
+/// `extras.prt` of the document's first mesh, where a baked mesh keeps it.
+pub(super) fn mesh_prt(doc: &Document) -> Option<serde_json::Value> {
+    let mut extras = extras_value(&doc.meshes.first()?.extras)?;
+    Some(extras.get_mut("prt")?.take())
+}
+
+/// `values` as JSON numbers that print as serde prints an `f32` (the shortest decimal that
+/// reads back as it) rather than as the `f64` a `serde_json::Value` holds.
+pub(super) fn f32_values(values: &[f32]) -> serde_json::Value {
+    let text = serde_json::to_string(values).expect("finite floats serialize");
+    serde_json::from_str(&text).expect("serde_json reads what it writes")
+}
+
+/// The JSON chunk of `doc`: every glTF the tool writes is encoded here. gltf-json writes some
+/// absent optional properties as null (`KHR_texture_transform`'s `texCoord`), which glTF does
+/// not allow, so they are dropped; the keys come out in name order.
+pub(super) fn encode_document(doc: &Document) -> Result<Vec<u8>> {
+    fn drop_nulls(value: &mut serde_json::Value) {
+        match value {
+            serde_json::Value::Object(fields) => {
+                fields.retain(|_, v| !v.is_null());
+                fields.values_mut().for_each(drop_nulls);
+            }
+            serde_json::Value::Array(items) => items.iter_mut().for_each(drop_nulls),
+            _ => {}
+        }
+    }
+    let encode =
+        |e: serde_json::Error| Error::Geometry(format!("cannot encode the glTF JSON: {e}"));
+    let mut value = serde_json::to_value(doc).map_err(encode)?;
+    drop_nulls(&mut value);
+    serde_json::to_vec(&value).map_err(encode)
+}
+
+/// `extras` as the raw JSON gltf-json keeps.
+pub(super) fn raw_extras<X: Serialize>(extras: &X) -> Result<gltf_json::Extras> {
+    serde_json::value::to_raw_value(extras)
+        .map(Some)
+        .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))
 }
 
 #[derive(Serialize)]

@@ -26,8 +26,8 @@ use serde::{Deserialize, Serialize};
 
 use super::compressed::{self, floats, u32s, CpcaExtras};
 use super::{
-    encode_mesh_views, mesh_accessors, mesh_glb, parse_document, split_chunks, BufferViewJson,
-    Document, FLOAT, UNSIGNED_INT,
+    accessor_is, accessor_start, encode_mesh_views, mesh_accessors, mesh_glb, mesh_prt,
+    parse_document, split_chunks, BufferViewJson, ComponentType, Document, Type,
 };
 use crate::bake::bounce::GatherMatrix;
 use crate::error::{Error, Result};
@@ -272,17 +272,9 @@ pub fn decode_local_glb(bytes: &[u8], path: &Path) -> Result<LocalBake> {
     decode_parts(&doc, bin).map_err(|message| Error::baked(path, message))
 }
 
-fn decode_parts(
-    doc: &Document<serde_json::Value>,
-    bin: &[u8],
-) -> std::result::Result<LocalBake, String> {
-    let extras = doc
-        .meshes
-        .first()
-        .and_then(|mesh| mesh.extras.as_ref())
-        .and_then(|extras| extras.get("prt"))
-        .ok_or("no extras.prt: not a baked file")?;
-    let prt: LocalPrtExtras = serde_json::from_value(extras.clone())
+fn decode_parts(doc: &Document, bin: &[u8]) -> std::result::Result<LocalBake, String> {
+    let extras = mesh_prt(doc).ok_or("no extras.prt: not a baked file")?;
+    let prt: LocalPrtExtras = serde_json::from_value(extras)
         .map_err(|e| format!("extras.prt is not a local-lights bake: {e}"))?;
     let local = &prt.local;
     if prt.mode != "local" || local.layout != LOCAL_LAYOUT {
@@ -334,27 +326,23 @@ fn decode_parts(
 }
 
 /// The mesh of views 0–3 as [`encode_mesh_views`] writes them (accessors 0–3, tightly packed).
-fn decode_mesh(
-    doc: &Document<serde_json::Value>,
-    bin: &[u8],
-    v: usize,
-) -> std::result::Result<Scene, String> {
+fn decode_mesh(doc: &Document, bin: &[u8], v: usize) -> std::result::Result<Scene, String> {
+    let vec3s = (ComponentType::F32, Type::Vec3, Some(v));
     let expected = [
-        (FLOAT, "VEC3", v),
-        (FLOAT, "VEC3", v),
-        (FLOAT, "VEC3", v),
-        (UNSIGNED_INT, "SCALAR", usize::MAX),
+        vec3s,
+        vec3s,
+        vec3s,
+        (ComponentType::U32, Type::Scalar, None),
     ];
-    for (i, (component, kind, count)) in expected.iter().enumerate() {
+    for (i, (component, kind, count)) in expected.into_iter().enumerate() {
         let accessor = doc
             .accessors
             .get(i)
             .ok_or(format!("accessor {i} is missing"))?;
-        let fits = accessor.buffer_view == Some(i)
-            && accessor.byte_offset == 0
-            && accessor.component_type == *component
-            && accessor.kind == *kind
-            && (*count == usize::MAX || accessor.count == *count as u64)
+        let fits = accessor.buffer_view.map(|view| view.value()) == Some(i)
+            && accessor_start(accessor) == 0
+            && accessor_is(accessor, component, kind)
+            && count.is_none_or(|count| accessor.count.0 == count as u64)
             && doc
                 .buffer_views
                 .get(i)
@@ -371,7 +359,8 @@ fn decode_mesh(
             .map(|c| glam::Vec3::new(c[0], c[1], c[2]))
             .collect())
     };
-    let index_count = doc.accessors[3].count as usize;
+    let index_count = usize::try_from(doc.accessors[3].count.0)
+        .map_err(|_| "the index count overflows".to_string())?;
     if !index_count.is_multiple_of(3) {
         return Err(format!("{index_count} indices are not whole triangles"));
     }
@@ -400,7 +389,7 @@ fn check_offsets(offsets: &[u32], total: usize, what: &str) -> std::result::Resu
 }
 
 fn decode_gather(
-    doc: &Document<serde_json::Value>,
+    doc: &Document,
     bin: &[u8],
     extras: &GatherExtras,
     v: usize,
@@ -441,7 +430,7 @@ fn decode_gather(
 }
 
 fn decode_operator(
-    doc: &Document<serde_json::Value>,
+    doc: &Document,
     bin: &[u8],
     e: &OperatorExtras,
     v: usize,

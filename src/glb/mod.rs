@@ -371,11 +371,10 @@ fn mesh_prt_extras(bytes: &[u8], path: &Path) -> Result<PrtExtrasIn> {
         .ok_or_else(|| Error::baked(path, "too short to be a glTF binary (.glb) file"))?;
     let json_len = check_head(head, bytes.len() as u64, path)?;
     let doc = parse_document(&bytes[20..20 + json_len], path)?;
-    let mesh = doc
-        .meshes
-        .first()
-        .ok_or_else(|| Error::baked(path, "the file contains no mesh"))?;
-    prt_extras(mesh).map_err(|m| Error::baked(path, m))
+    if doc.meshes.is_empty() {
+        return Err(Error::baked(path, "the file contains no mesh"));
+    }
+    prt_extras(&doc).map_err(|m| Error::baked(path, m))
 }
 
 /// Encodes `stored` as a `.glb` in memory. A lightmap is referred to as

@@ -90,22 +90,23 @@ pub fn decode_probes(bytes: &[u8], path: &Path) -> Result<Option<ProbeSet>> {
     let (json, bin) = split_chunks(bytes, path)?;
     let doc = parse_document(json, path)?;
     // A baked mesh's first mesh holds them; a scene baked in place, its root.
-    fn probes_in(extras: Option<&serde_json::Value>) -> Option<&serde_json::Value> {
-        extras?.get("prt")?.get("probes")
+    fn probes_in(extras: &gltf_json::Extras) -> Option<serde_json::Value> {
+        Some(extras_value(extras)?.get("prt")?.get("probes")?.clone())
     }
-    let Some(value) = probes_in(doc.meshes.first().and_then(|mesh| mesh.extras.as_ref()))
-        .or_else(|| probes_in(doc.extras.as_ref()))
+    let Some(value) = (doc.meshes.first())
+        .and_then(|mesh| probes_in(&mesh.extras))
+        .or_else(|| probes_in(&doc.extras))
     else {
         return Ok(None);
     };
     let bad = |message: String| Error::baked(path, message);
-    let extras: ProbesExtras = serde_json::from_value(value.clone())
+    let extras: ProbesExtras = serde_json::from_value(value)
         .map_err(|e| bad(format!("invalid extras.prt.probes: {e}")))?;
     decode_with(&doc, bin, &extras).map(Some).map_err(bad)
 }
 
 fn decode_with(
-    doc: &Document<serde_json::Value>,
+    doc: &Document,
     bin: &[u8],
     extras: &ProbesExtras,
 ) -> std::result::Result<ProbeSet, String> {
@@ -179,7 +180,7 @@ fn decode_with(
 
 /// The `size` bytes of view `index`, which must hold exactly them.
 fn view_bytes<'b>(
-    doc: &Document<serde_json::Value>,
+    doc: &Document,
     bin: &'b [u8],
     index: usize,
     size: usize,
@@ -187,13 +188,13 @@ fn view_bytes<'b>(
     let view = doc.buffer_views.get(index).ok_or(format!(
         "extras.prt.probes names view {index}, which does not exist"
     ))?;
-    if view.byte_length != size as u64 {
+    let length = view.byte_length.0;
+    if length != size as u64 {
         return Err(format!(
-            "probe view {index} holds {} bytes where its probes need {size}",
-            view.byte_length
+            "probe view {index} holds {length} bytes where its probes need {size}"
         ));
     }
-    let start = usize::try_from(view.byte_offset).map_err(|_| "a view's offset overflows")?;
+    let start = usize::try_from(view_start(view)).map_err(|_| "a view's offset overflows")?;
     bin.get(start..start.checked_add(size).ok_or("a view's end overflows")?)
         .ok_or(format!("probe view {index} runs past the BIN chunk"))
 }

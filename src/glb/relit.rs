@@ -30,7 +30,11 @@ use std::path::Path;
 
 use serde_json::{json, Value};
 
-use super::{glb_container, split_chunks, ARRAY_BUFFER, FLOAT};
+use super::{
+    accessor, accessor_is, accessor_start, array_view, attribute, encode_document, extras_value,
+    glb_container, index, parse_document, raw_extras, semantic, split_chunks, view_start,
+    ComponentType, Document, Target, Type, USize64,
+};
 use crate::error::{Error, Result};
 use crate::fs::{check_destination, write_atomically};
 use crate::scene::gltf::GltfScene;
@@ -109,8 +113,7 @@ pub fn with_relit_colors(
     let damaged = |message: String| Error::baked(path, message);
     let (json, bin) = split_chunks(bytes, path)?;
     let mut bin = bin.to_vec();
-    let mut doc: serde_json::Value =
-        serde_json::from_slice(json).map_err(|e| damaged(format!("invalid glTF JSON: {e}")))?;
+    let mut doc = parse_document(json, path)?;
     let range = color_range(&doc, radiance.len()).map_err(damaged)?;
     let target = bin
         .get_mut(range)
@@ -119,25 +122,33 @@ pub fn with_relit_colors(
     for (slot, value) in target.chunks_exact_mut(4).zip(radiance.iter().flatten()) {
         slot.copy_from_slice(&(value.max(0.0) / scale).to_le_bytes());
     }
-    let prt = doc
-        .pointer_mut("/meshes/0/extras/prt")
-        .and_then(|p| p.as_object_mut())
-        .ok_or_else(|| damaged("no extras.prt: not a baked file".into()))?;
-    prt.insert(
-        "relit".into(),
-        serde_json::json!({
-            "color_0": RELIT_COLOR,
-            "scale": scale,
-            "radiance": RELIT_RADIANCE,
-            "light": light,
-        }),
-    );
+    let mut relit = json!({
+        "color_0": RELIT_COLOR,
+        "scale": scale,
+        "radiance": RELIT_RADIANCE,
+        "light": light,
+    });
     if let Some(lightmap) = lightmap {
-        prt["relit"]["lightmap"] = lightmap_extras(lightmap, RELIT_LIGHTMAP);
+        relit["lightmap"] = lightmap_extras(lightmap, RELIT_LIGHTMAP);
     }
-    let accessor = append_vec3s(&mut doc, &mut bin, radiance.iter().copied()).map_err(damaged)?;
+    let mesh = doc.meshes.first_mut();
+    let extras = mesh.map(|mesh| &mut mesh.extras);
+    add_relit(extras, relit).ok_or_else(|| damaged("no extras.prt: not a baked file".into()))?;
+    let accessor = append_vec3s(&mut doc, &mut bin, radiance.iter().copied());
     set_attribute(&mut doc, 0, 0, RADIANCE_ATTRIBUTE, accessor).map_err(damaged)?;
     finish(doc, bin, scale)
+}
+
+/// `extras` with `relit` added to its `prt` object; `None` where it has none.
+fn add_relit(extras: Option<&mut gltf_json::Extras>, relit: Value) -> Option<()> {
+    let extras = extras?;
+    let mut value = extras_value(extras)?;
+    value
+        .get_mut("prt")?
+        .as_object_mut()?
+        .insert("relit".into(), relit);
+    *extras = raw_extras(&value).ok()?;
+    Some(())
 }
 
 /// The largest component of `values` where it exceeds 1, else 1: what `COLOR_0` is divided by
@@ -169,10 +180,8 @@ pub fn with_relit_scene_colors(
     let damaged = |message: String| Error::baked(path, message);
     let (json, bin) = split_chunks(bytes, path)?;
     let mut bin = bin.to_vec();
-    let mut doc: Value =
-        serde_json::from_slice(json).map_err(|e| damaged(format!("invalid glTF JSON: {e}")))?;
-    let one_buffer = doc["buffers"].as_array().is_some_and(|b| b.len() == 1)
-        && doc["buffers"][0].get("uri").is_none();
+    let mut doc = parse_document(json, path)?;
+    let one_buffer = matches!(&doc.buffers[..], [buffer] if buffer.uri.is_none());
     if !one_buffer {
         return Err(damaged(
             "a scene baked in place holds one buffer, its BIN chunk; this one does not".into(),
@@ -200,190 +209,154 @@ pub fn with_relit_scene_colors(
                 )));
             };
             let colors = shaded.iter().map(|c| c.map(|x| x.max(0.0) / scale));
-            let color = append_vec3s(&mut doc, &mut bin, colors).map_err(damaged)?;
-            let radiant =
-                append_vec3s(&mut doc, &mut bin, radiant.iter().copied()).map_err(damaged)?;
+            let color = append_vec3s(&mut doc, &mut bin, colors);
+            let radiant = append_vec3s(&mut doc, &mut bin, radiant.iter().copied());
             let (mesh, primitive) = (instance.mesh, span.primitive);
             set_attribute(&mut doc, mesh, primitive, "COLOR_0", color).map_err(damaged)?;
-            set_attribute(&mut doc, mesh, primitive, RADIANCE_ATTRIBUTE, radiant)
+            let material = set_attribute(&mut doc, mesh, primitive, RADIANCE_ATTRIBUTE, radiant)
                 .map_err(damaged)?;
-            match doc["meshes"][mesh]["primitives"][primitive]["material"].as_u64() {
+            match material {
                 Some(material) => {
-                    materials.insert(material as usize);
+                    materials.insert(material);
                 }
                 None => unmaterialled.push((mesh, primitive)),
             }
         }
     }
     make_unlit(&mut doc, &materials, &unmaterialled).map_err(damaged)?;
-    let prt = doc
-        .pointer_mut("/extras/prt")
-        .and_then(Value::as_object_mut)
-        .ok_or_else(|| damaged("no extras.prt: not a scene baked in place".into()))?;
-    prt.insert(
-        "relit".into(),
-        json!({
-            "color_0": RELIT_SCENE_COLOR,
-            "scale": scale,
-            "radiance": RELIT_RADIANCE,
-            "materials": format!("{UNLIT} on every baked primitive's material"),
-            "light": light,
-        }),
-    );
+    let mut relit = json!({
+        "color_0": RELIT_SCENE_COLOR,
+        "scale": scale,
+        "radiance": RELIT_RADIANCE,
+        "materials": format!("{UNLIT} on every baked primitive's material"),
+        "light": light,
+    });
     if let Some(lightmap) = lightmap {
-        prt["relit"]["lightmap"] = lightmap_extras(lightmap, RELIT_SCENE_LIGHTMAP);
+        relit["lightmap"] = lightmap_extras(lightmap, RELIT_SCENE_LIGHTMAP);
     }
+    add_relit(Some(&mut doc.extras), relit)
+        .ok_or_else(|| damaged("no extras.prt: not a scene baked in place".into()))?;
     finish(doc, bin, scale)
 }
 
 /// The materials `materials` made unlit, and the primitives `unmaterialled` given one white
 /// unlit material of their own; the extension listed as used.
 fn make_unlit(
-    doc: &mut Value,
+    doc: &mut Document,
     materials: &BTreeSet<usize>,
     unmaterialled: &[(usize, usize)],
 ) -> std::result::Result<(), String> {
+    let unlit = |material: &mut gltf_json::Material| {
+        let extensions = material.extensions.get_or_insert_with(Default::default);
+        extensions.others.insert(UNLIT.into(), json!({}));
+    };
     for &material in materials {
         let material = doc
-            .pointer_mut(&format!("/materials/{material}"))
-            .and_then(Value::as_object_mut)
+            .materials
+            .get_mut(material)
             .ok_or(format!("material {material} does not exist"))?;
-        let extensions = material.entry("extensions").or_insert_with(|| json!({}));
-        extensions
-            .as_object_mut()
-            .ok_or("a material's extensions are not an object")?
-            .insert(UNLIT.into(), json!({}));
+        unlit(material);
     }
     if !unmaterialled.is_empty() {
-        let white = json!({
-            "name": "prt-gpu relit (unlit white)",
-            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0]},
-            "extensions": {UNLIT: {}},
-        });
-        let index = push(doc, "materials", white)?;
+        let mut white = gltf_json::Material {
+            name: Some("prt-gpu relit (unlit white)".into()),
+            ..Default::default()
+        };
+        unlit(&mut white);
+        doc.materials.push(white);
+        let white = index(doc.materials.len() - 1);
         for &(mesh, primitive) in unmaterialled {
-            doc["meshes"][mesh]["primitives"][primitive]["material"] = index.into();
+            doc.meshes[mesh].primitives[primitive].material = Some(white);
         }
     }
-    let root = doc
-        .as_object_mut()
-        .ok_or("the glTF JSON is not an object")?;
-    let used = root.entry("extensionsUsed").or_insert_with(|| json!([]));
-    let used = used
-        .as_array_mut()
-        .ok_or("extensionsUsed is not an array")?;
-    if !used.iter().any(|name| name == UNLIT) {
-        used.push(UNLIT.into());
+    if !doc.extensions_used.iter().any(|name| name == UNLIT) {
+        doc.extensions_used.push(UNLIT.into());
     }
     Ok(())
 }
 
 /// The document and BIN chunk as a .glb, the buffer's length brought up to date.
-fn finish(mut doc: Value, bin: Vec<u8>, scale: f32) -> Result<(Vec<u8>, f32)> {
+fn finish(mut doc: Document, bin: Vec<u8>, scale: f32) -> Result<(Vec<u8>, f32)> {
     let mut bin = bin;
     bin.resize(bin.len().next_multiple_of(4), 0);
-    if let Some(buffer) = doc.pointer_mut("/buffers/0").and_then(Value::as_object_mut) {
-        buffer.insert("byteLength".into(), bin.len().into());
+    if let Some(buffer) = doc.buffers.first_mut() {
+        buffer.byte_length = USize64::from(bin.len());
     }
-    let json = serde_json::to_vec(&doc)
-        .map_err(|e| Error::Geometry(format!("cannot encode the glTF JSON: {e}")))?;
-    Ok((glb_container(json, bin)?, scale))
+    Ok((glb_container(encode_document(&doc)?, bin)?, scale))
 }
 
 /// Appends `values` to the BIN chunk as a new buffer view (of vertex data, so its target is
 /// set) and float `VEC3` accessor; gives the accessor's index.
 fn append_vec3s(
-    doc: &mut Value,
+    doc: &mut Document,
     bin: &mut Vec<u8>,
     values: impl ExactSizeIterator<Item = [f32; 3]>,
-) -> std::result::Result<usize, String> {
+) -> usize {
     let count = values.len();
     bin.resize(bin.len().next_multiple_of(4), 0);
     let offset = bin.len();
     bin.extend(values.flatten().flat_map(|x| x.to_le_bytes()));
-    let view = push(
-        doc,
-        "bufferViews",
-        json!({
-            "buffer": 0,
-            "byteOffset": offset,
-            "byteLength": 12 * count,
-            "target": ARRAY_BUFFER,
-        }),
-    )?;
-    push(
-        doc,
-        "accessors",
-        json!({"bufferView": view, "componentType": FLOAT, "count": count, "type": "VEC3"}),
-    )
+    let view = doc.buffer_views.len();
+    doc.buffer_views
+        .push(array_view(offset, 12 * count, None, Target::ArrayBuffer));
+    let vec3s = accessor(view, 0, ComponentType::F32, count, Type::Vec3);
+    doc.accessors.push(gltf_json::Accessor {
+        byte_offset: None,
+        ..vec3s
+    });
+    doc.accessors.len() - 1
 }
 
-/// Pushes `item` onto the document's array `array` (created if missing); gives its index.
-fn push(doc: &mut Value, array: &str, item: Value) -> std::result::Result<usize, String> {
-    let root = doc
-        .as_object_mut()
-        .ok_or("the glTF JSON is not an object")?;
-    let list = root
-        .entry(array)
-        .or_insert_with(|| json!([]))
-        .as_array_mut()
-        .ok_or(format!("{array} is not an array"))?;
-    list.push(item);
-    Ok(list.len() - 1)
-}
-
-/// Points attribute `name` of mesh `mesh`'s primitive `primitive` at `accessor`.
+/// Points attribute `name` of mesh `mesh`'s primitive `primitive` at `accessor`; gives the
+/// primitive's material.
 fn set_attribute(
-    doc: &mut Value,
+    doc: &mut Document,
     mesh: usize,
     primitive: usize,
     name: &str,
     accessor: usize,
-) -> std::result::Result<(), String> {
-    doc.pointer_mut(&format!("/meshes/{mesh}/primitives/{primitive}/attributes"))
-        .and_then(Value::as_object_mut)
-        .ok_or(format!(
-            "mesh {mesh} has no primitive {primitive} with attributes"
-        ))?
-        .insert(name.into(), accessor.into());
-    Ok(())
+) -> std::result::Result<Option<usize>, String> {
+    let primitive = doc
+        .meshes
+        .get_mut(mesh)
+        .and_then(|mesh| mesh.primitives.get_mut(primitive))
+        .ok_or(format!("mesh {mesh} has no primitive {primitive}"))?;
+    primitive.attributes.insert(semantic(name), index(accessor));
+    Ok(primitive.material.map(|material| material.value()))
 }
 
 /// The BIN byte range of the first primitive's `COLOR_0`, which must be tightly packed float
 /// `VEC3`, one per vertex.
 fn color_range(
-    doc: &serde_json::Value,
+    doc: &Document,
     vertices: usize,
 ) -> std::result::Result<std::ops::Range<usize>, String> {
-    let index = doc
-        .pointer("/meshes/0/primitives/0/attributes/COLOR_0")
-        .and_then(|i| i.as_u64())
+    let primitive = doc.meshes.first().and_then(|mesh| mesh.primitives.first());
+    let index = primitive
+        .and_then(|primitive| attribute(primitive, "COLOR_0"))
         .ok_or("the file has no COLOR_0 to hold the radiance")?;
     let accessor = doc
-        .pointer(&format!("/accessors/{index}"))
+        .accessors
+        .get(index)
         .ok_or("COLOR_0's accessor does not exist")?;
-    let field = |name: &str| accessor.get(name).and_then(|v| v.as_u64());
-    let is_vec3 = accessor.get("type").and_then(|t| t.as_str()) == Some("VEC3");
-    if field("componentType") != Some(FLOAT as u64)
-        || !is_vec3
-        || field("count") != Some(vertices as u64)
+    if !accessor_is(accessor, ComponentType::F32, Type::Vec3) || accessor.count.0 != vertices as u64
     {
         return Err(format!("COLOR_0 is not {vertices} float VEC3 values"));
     }
-    let view = field("bufferView").ok_or("COLOR_0 has no buffer view")?;
+    let view = accessor
+        .buffer_view
+        .ok_or("COLOR_0 has no buffer view")?
+        .value();
     let view = doc
-        .pointer(&format!("/bufferViews/{view}"))
+        .buffer_views
+        .get(view)
         .ok_or("COLOR_0's buffer view does not exist")?;
-    let stride = view
-        .get("byteStride")
-        .and_then(|s| s.as_u64())
-        .unwrap_or(12);
+    let stride = view.byte_stride.map_or(12, |stride| stride.0);
     if stride != 12 {
         return Err(format!("COLOR_0 is interleaved (stride {stride})"));
     }
-    let start = view.get("byteOffset").and_then(|o| o.as_u64()).unwrap_or(0)
-        + field("byteOffset").unwrap_or(0);
-    let start = start as usize;
+    let start = view_start(view) + accessor_start(accessor);
+    let start = usize::try_from(start).map_err(|_| "COLOR_0's offset overflows")?;
     Ok(start..start + 12 * vertices)
 }
 

@@ -13,7 +13,7 @@ use super::scene::SceneWrite;
 use super::zonal::{write_run, ZonalView};
 use super::{
     array_view, check_finite_coeffs, encode_json, encode_mesh_views, glb_head, groups,
-    planar_bytes, planar_view, put_planar_block, validate_shape, Precision, Shape, ARRAY_BUFFER,
+    planar_bytes, planar_view, put_planar_block, validate_shape, Precision, Shape, Target,
 };
 use crate::bake::adaptive::{AdaptiveReport, ReceiverErrors};
 use crate::bake::spill::Spill;
@@ -70,7 +70,7 @@ impl GlbStream {
                 tail.resize(tail.len().next_multiple_of(4), 0);
                 let start = tail_start + tail.len();
                 tail.extend_from_slice(&bytes);
-                views.push(array_view(start, bytes.len(), None, ARRAY_BUFFER));
+                views.push(array_view(start, bytes.len(), None, Target::ArrayBuffer));
                 views.len() - 1
             })
         });
@@ -83,7 +83,12 @@ impl GlbStream {
             super::zonal::reserve(shape, v, |len, stride| {
                 reserved = reserved.next_multiple_of(4);
                 zonal_starts.push(tail_start + reserved);
-                views.push(array_view(tail_start + reserved, len, stride, ARRAY_BUFFER));
+                views.push(array_view(
+                    tail_start + reserved,
+                    len,
+                    stride,
+                    Target::ArrayBuffer,
+                ));
                 reserved += len;
                 views.len() - 1
             })

@@ -39,7 +39,7 @@ pub const AXIS_ATTRIBUTE: &str = "_PRT_ZH_AXIS";
 /// view, and returns its index); what `extras.prt.zonal` says of them.
 pub(super) fn encode(
     zonal: &ZonalTransfer,
-    mut push_view: impl FnMut(Vec<u8>, Option<u64>) -> usize,
+    mut push_view: impl FnMut(Vec<u8>, Option<usize>) -> usize,
 ) -> ZonalExtras {
     let shape = (zonal.bands(), zonal.channels(), zonal.axis());
     let mut coefficients = Vec::new();
@@ -64,7 +64,7 @@ pub(super) fn encode(
 pub(super) fn reserve(
     (bands, channels, axis): (u32, u32, ZonalAxis),
     vertices: usize,
-    mut push_view: impl FnMut(usize, Option<u64>) -> usize,
+    mut push_view: impl FnMut(usize, Option<usize>) -> usize,
 ) -> ZonalExtras {
     let blocks = channels as usize * groups_of(bands as usize);
     // Several accessors read the coefficients' view, so the spec asks for its stride.
@@ -144,27 +144,28 @@ pub(crate) fn groups_of(bands: usize) -> usize {
 pub(super) fn add_accessors(
     extras: &ZonalExtras,
     vertices: usize,
-    (accessors, attributes): (&mut Vec<AccessorJson>, &mut BTreeMap<String, usize>),
+    (accessors, attributes): (&mut Vec<AccessorJson>, &mut Attributes),
 ) {
     let groups = groups_of(extras.bands as usize);
     for channel in 0..extras.channels as usize {
         for group in 0..groups {
             let block = channel * groups + group;
             let name = zonal_attribute_name(extras.channels, channel as u32, group);
-            attributes.insert(name, accessors.len());
+            attributes.insert(semantic(&name), index(accessors.len()));
             let view = extras.coefficients_buffer_view;
+            let offset = block * vertices * 16;
             accessors.push(accessor(
                 view,
-                block * vertices * 16,
-                FLOAT,
+                offset,
+                ComponentType::F32,
                 vertices,
-                "VEC4",
+                Type::Vec4,
             ));
         }
     }
     if let Some(view) = extras.axes_buffer_view {
-        attributes.insert(AXIS_ATTRIBUTE.into(), accessors.len());
-        accessors.push(accessor(view, 0, FLOAT, vertices, "VEC3"));
+        attributes.insert(semantic(AXIS_ATTRIBUTE), index(accessors.len()));
+        accessors.push(accessor(view, 0, ComponentType::F32, vertices, Type::Vec3));
     }
 }
 
@@ -201,15 +202,13 @@ pub(super) fn decode_mesh_zonal(
         .meshes
         .first()
         .ok_or(bad("the file has no mesh".into()))?;
-    let Some(value) = mesh
-        .extras
-        .as_ref()
-        .and_then(|extras| extras.get("prt")?.get("zonal"))
+    let Some(value) =
+        extras_value(&mesh.extras).and_then(|extras| extras.get("prt")?.get("zonal").cloned())
     else {
         return Ok(None);
     };
-    let extras: ZonalExtras = serde_json::from_value(value.clone())
-        .map_err(|e| bad(format!("invalid extras.prt.zonal: {e}")))?;
+    let extras: ZonalExtras =
+        serde_json::from_value(value).map_err(|e| bad(format!("invalid extras.prt.zonal: {e}")))?;
     let normals = match extras.axes_buffer_view {
         Some(_) => None,
         None => Some(normals()?),
@@ -253,7 +252,7 @@ impl ZonalExtras {
 }
 
 fn decode_with(
-    doc: &Document<serde_json::Value>,
+    doc: &Document,
     bin: &[u8],
     extras: &ZonalExtras,
     normals: Option<Vec<Vec3>>,
@@ -272,7 +271,7 @@ fn decode_with(
     let vertices = doc
         .accessors
         .first()
-        .map(|a| a.count as usize)
+        .and_then(|a| usize::try_from(a.count.0).ok())
         .ok_or("the file has no POSITION accessor")?;
     let (bands, channels) = (extras.bands as usize, extras.channels as usize);
     let groups = groups_of(bands);

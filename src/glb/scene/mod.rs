@@ -154,24 +154,7 @@ fn encode_scene(
         "prt-gpu {} (bake in place)",
         env!("CARGO_PKG_VERSION")
     ));
-    let encode =
-        |e: serde_json::Error| Error::Geometry(format!("cannot encode the glTF JSON: {e}"));
-    let mut document = serde_json::to_value(&root).map_err(encode)?;
-    // gltf-json writes some absent optional properties as null, which glTF does not allow.
-    drop_nulls(&mut document);
-    let json_bytes = serde_json::to_vec(&document).map_err(encode)?;
-    Ok((json_bytes, bin, report))
-}
-
-fn drop_nulls(value: &mut Value) {
-    match value {
-        Value::Object(fields) => {
-            fields.retain(|_, v| !v.is_null());
-            fields.values_mut().for_each(drop_nulls);
-        }
-        Value::Array(items) => items.iter_mut().for_each(drop_nulls),
-        _ => {}
-    }
+    Ok((super::encode_document(&root)?, bin, report))
 }
 
 fn raw(value: &Value) -> Result<gltf_json::Extras> {
@@ -534,12 +517,12 @@ fn add_zonal(
                 .into_iter();
             super::zonal::reserve(shape, vertices.len(), |len, stride| {
                 let at = (vertices.clone(), holds.next().expect("two views at most"));
-                bin.reserve(len, at, stride.map(|s| s as usize), target) as usize
+                bin.reserve(len, at, stride, target) as usize
             })
         }
         false => super::zonal::encode(
             &zonal.select(&vertex_map[vertices.clone()]),
-            |bytes, stride| bin.push(&bytes, stride.map(|s| s as usize), target) as usize,
+            |bytes, stride| bin.push(&bytes, stride, target) as usize,
         ),
     };
     let vertices = vertices.len();

@@ -12,8 +12,8 @@ pub(super) const TRANSFER_VIEW: usize = 4;
 pub(super) const TEXCOORD_VIEW: usize = 5;
 
 // ---------------------------------------------------------------------------------------------
-// gltf-json's structs serialize their fields in declaration order, so the key order, and with
-// it the bytes, never change; unknown fields are ignored on reading, as glTF asks of readers.
+// Written through `encode_document`, keys in name order, so the bytes never change; unknown
+// fields are ignored on reading, as glTF asks of readers.
 
 pub(super) use gltf_json::accessor::{ComponentType, GenericComponentType, Type};
 pub(super) use gltf_json::buffer::{Stride, Target};

@@ -4,7 +4,7 @@
 //! and a reader needs nothing but a JSON parser and a way to view little-endian floats
 //! (see [`PYTHON_READER`]).
 //!
-//! Layout (byte for byte deterministic: no timestamps, struct-ordered JSON keys):
+//! Layout (byte for byte deterministic: no timestamps, JSON keys in name order):
 //! - one buffer, the BIN chunk, holding five 4-byte aligned buffer views:
 //!   0 positions, 1 normals, 2 albedo (`COLOR_0`), all `VEC3` float; 3 indices (`u32`);
 //!   4 the transfer coefficients.

@@ -55,6 +55,9 @@ pub trait Progress: Sync {
     fn stage(&self, _name: &str, _total: u64) {}
     /// `done` more items of the current stage are finished.
     fn advance(&self, _done: u64) {}
+    /// What the current stage is doing now, in a few words ("" for nothing more than its
+    /// name): a long step inside one of its items.
+    fn detail(&self, _text: &str) {}
 }
 
 /// Progress that goes nowhere.
@@ -162,7 +165,7 @@ pub fn bake_from(
     let set = uv_set.as_ref().map(|set| set.set);
 
     let (scene, receivers, points) = (&planned.scene, &planned.receivers, &planned.points);
-    let fitting = (options.fit == Fit::LeastSquares).then(|| Fitting::new(scene, points));
+    let fitting = (options.fit == Fit::LeastSquares).then(|| Fitting::new(scene, points, progress));
     let albedo = reflecting_albedo(receivers, options);
 
     let started = Instant::now();
@@ -582,6 +585,10 @@ impl Progress for Advancing<'_> {
     fn advance(&self, done: u64) {
         self.0.advance(done);
     }
+
+    fn detail(&self, text: &str) {
+        self.0.detail(text);
+    }
 }
 
 /// What the direct pass gives: albedo-free transfer `[receiver][k]`, the gather matrix
@@ -646,5 +653,65 @@ mod tests {
             assert_eq!(rays, whole.1, "rays in chunks of {chunk}");
             assert!(transfer == whole.0, "transfer in chunks of {chunk}");
         }
+    }
+
+    /// What a bake told its progress: stages with the items advanced in each, and details.
+    #[derive(Default)]
+    struct Recorded {
+        stages: std::sync::Mutex<Vec<(String, u64, u64)>>,
+        details: std::sync::Mutex<Vec<String>>,
+    }
+
+    impl Progress for Recorded {
+        fn stage(&self, name: &str, total: u64) {
+            self.stages.lock().unwrap().push((name.into(), total, 0));
+        }
+
+        fn advance(&self, done: u64) {
+            if let Some(stage) = self.stages.lock().unwrap().last_mut() {
+                stage.2 += done;
+            }
+        }
+
+        fn detail(&self, text: &str) {
+            self.details.lock().unwrap().push(text.into());
+        }
+    }
+
+    #[test]
+    fn a_least_squares_solve_shows_how_far_it_has_come() {
+        let options = BakeOptions {
+            mode: Mode::Interreflected,
+            bounces: 1,
+            samples: 16,
+            fit: Fit::LeastSquares,
+            ..BakeOptions::default()
+        };
+        let recorded = Recorded::default();
+        bake(default_scene(), &options, &CpuBackend, &recorded).unwrap();
+        let stages = recorded.stages.into_inner().unwrap();
+        // The direct light's solve is a stage of its own, run to its end.
+        let fit = stages.iter().find(|(name, ..)| name == "fit");
+        assert_eq!(
+            fit.map(|(_, total, done)| (*total, *done)),
+            Some((100, 100))
+        );
+        // The bounce's is a detail of the bounces' stage, rising, then cleared.
+        let bounces = stages.last().unwrap();
+        assert_eq!((bounces.0.as_str(), bounces.2), ("bounces", 1));
+        let details = recorded.details.into_inner().unwrap();
+        let percents: Vec<u64> = details
+            .iter()
+            .filter_map(|d| {
+                d.strip_prefix("(fitting, ")?
+                    .strip_suffix("%)")?
+                    .parse()
+                    .ok()
+            })
+            .collect();
+        assert!(!percents.is_empty(), "{details:?}");
+        assert!(percents.windows(2).all(|w| w[0] < w[1]), "{percents:?}");
+        assert_eq!(percents.last(), Some(&100));
+        assert_eq!(details.last().map(String::as_str), Some(""));
     }
 }

@@ -18,7 +18,7 @@ use super::stream::SpilledRows;
 use super::{direct_or_adaptive, tint_by_albedo, Advancing, Backend, BakeOptions, Progress};
 use super::{Mode, Planned};
 use crate::error::Result;
-use crate::receivers::fit::{FitOptions, FitReport, FitSystem, RightHandSide};
+use crate::receivers::fit::{solved_fraction, FitOptions, FitReport, FitSystem, RightHandSide};
 use crate::receivers::SurfacePoint;
 use crate::scene::Scene;
 use crate::sh::coeff_count;
@@ -32,10 +32,20 @@ pub(super) struct Fitting<'a> {
     /// The direct light's right-hand side norms, once it is solved: the scale every bounce's
     /// solve is held to ([`FitSystem::solve_to_scale`]).
     direct_scale: OnceLock<Vec<f64>>,
+    /// Where a solve says how far it has come: a solve of the direct light is a stage of its
+    /// own, a bounce's a detail of the bounces' stage.
+    progress: &'a dyn Progress,
 }
 
+/// A solve's progress: percent of the decades its residual must fall.
+const SOLVE_STEPS: u64 = 100;
+
 impl<'a> Fitting<'a> {
-    pub(super) fn new(scene: &'a Scene, points: &'a [SurfacePoint]) -> Fitting<'a> {
+    pub(super) fn new(
+        scene: &'a Scene,
+        points: &'a [SurfacePoint],
+        progress: &'a dyn Progress,
+    ) -> Fitting<'a> {
         let options = FitOptions::default();
         Fitting {
             scene,
@@ -43,7 +53,34 @@ impl<'a> Fitting<'a> {
             system: FitSystem::of(scene, points, &options),
             options,
             direct_scale: OnceLock::new(),
+            progress,
         }
+    }
+
+    /// Percent of the way to the tolerance at `relative_residual`.
+    fn percent_solved(&self, relative_residual: f64) -> u64 {
+        let fraction = solved_fraction(relative_residual, self.options.tolerance);
+        (fraction * SOLVE_STEPS as f64) as u64
+    }
+
+    /// Solves `rhs` (held to `scale`) as a stage of its own, `name`, of [`SOLVE_STEPS`].
+    fn solve_as_stage(
+        &self,
+        name: &str,
+        rhs: RightHandSide,
+        scale: Option<&[f64]>,
+    ) -> (Vec<f32>, FitReport) {
+        self.progress.stage(name, SOLVE_STEPS);
+        let mut shown = 0;
+        let solved = self
+            .system
+            .solve_to_scale(rhs, &self.options, scale, &mut |residual| {
+                let percent = self.percent_solved(residual).max(shown);
+                self.progress.advance(percent - shown);
+                shown = percent;
+            });
+        self.progress.advance(SOLVE_STEPS - shown);
+        solved
     }
 
     /// The right-hand side of `values` (`columns` a point) at every point.
@@ -61,7 +98,7 @@ impl<'a> Fitting<'a> {
 
     /// The vertex values whose interpolation best fits the values summed in `rhs`.
     pub(super) fn solve(&self, rhs: RightHandSide) -> (Vec<f32>, FitReport) {
-        self.system.solve(rhs, &self.options)
+        self.solve_as_stage("fit", rhs, None)
     }
 
     /// [`solve`](Self::solve) for the direct light's RGB values, keeping their scale for the
@@ -79,7 +116,18 @@ impl<'a> Fitting<'a> {
     fn solve_bounce(&self, rhs: RightHandSide) -> (Vec<f32>, FitReport) {
         let scale = self.direct_scale.get().map(Vec::as_slice);
         debug_assert!(scale.is_some(), "bounces follow the direct light");
-        self.system.solve_to_scale(rhs, &self.options, scale)
+        let mut shown = None;
+        let solved = self
+            .system
+            .solve_to_scale(rhs, &self.options, scale, &mut |residual| {
+                let percent = self.percent_solved(residual);
+                if shown.is_none_or(|shown| percent > shown) {
+                    self.progress.detail(&format!("(fitting, {percent}%)"));
+                    shown = Some(percent);
+                }
+            });
+        self.progress.detail("");
+        solved
     }
 
     /// The vertex values that best fit `values` at every point, the values let go before the

@@ -28,15 +28,16 @@ pub(crate) fn batch_bar(total: u64) -> ProgressBar {
 /// A progress bar on stderr; indicatif hides it when stderr is not a terminal.
 #[derive(Default)]
 pub(crate) struct BarProgress {
-    bar: Mutex<Option<ProgressBar>>,
+    /// The running stage's bar and its name (its message before any detail).
+    bar: Mutex<Option<(ProgressBar, String)>>,
     /// In a batch, which mesh of how many: "[2/5] bunny".
     prefix: String,
 }
 
 impl Progress for BarProgress {
     fn stage(&self, name: &str, total: u64) {
-        let bar =
-            bars().add(ProgressBar::new(total).with_message(format!("{}{name}", self.prefix)));
+        let name = format!("{}{name}", self.prefix);
+        let bar = bars().add(ProgressBar::new(total).with_message(name.clone()));
         bar.set_style(
             ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len}, eta {eta}")
                 .expect("static template")
@@ -46,15 +47,24 @@ impl Progress for BarProgress {
             .bar
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .replace(bar)
+            .replace((bar, name))
         {
-            old.finish_and_clear();
+            old.0.finish_and_clear();
         }
     }
 
     fn advance(&self, done: u64) {
-        if let Some(bar) = self.bar.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
+        if let Some((bar, _)) = self.bar.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
             bar.inc(done);
+        }
+    }
+
+    fn detail(&self, text: &str) {
+        if let Some((bar, name)) = self.bar.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
+            match text {
+                "" => bar.set_message(name.clone()),
+                text => bar.set_message(format!("{name} {text}")),
+            }
         }
     }
 }
@@ -68,7 +78,7 @@ impl BarProgress {
     }
 
     pub(crate) fn finish(&self) {
-        if let Some(bar) = self.bar.lock().unwrap_or_else(|e| e.into_inner()).take() {
+        if let Some((bar, _)) = self.bar.lock().unwrap_or_else(|e| e.into_inner()).take() {
             bar.finish_and_clear();
         }
     }

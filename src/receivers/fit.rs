@@ -241,7 +241,7 @@ impl FitSystem {
 
     /// The vertex values that solve the system for `rhs`, and what the solve did.
     pub fn solve(&self, rhs: RightHandSide, options: &FitOptions) -> (Vec<f32>, FitReport) {
-        self.solve_to_scale(rhs, options, None)
+        self.solve_to_scale(rhs, options, None, &mut |_| {})
     }
 
     /// [`solve`](Self::solve), each column's residual measured against `scale` (one norm a
@@ -250,14 +250,18 @@ impl FitSystem {
     /// of their own. A bounce's right-hand side is a fraction of the direct light's, and noisier
     /// (rougher, which conjugate gradients resolve last), so held to its own norm it took six
     /// times the direct solve's iterations for a change far below the bake's noise.
+    /// `watch` is told the largest relative residual after every iteration
+    /// ([`solved_fraction`] turns it into progress).
     pub fn solve_to_scale(
         &self,
         rhs: RightHandSide,
         options: &FitOptions,
         scale: Option<&[f64]>,
+        watch: &mut dyn FnMut(f64),
     ) -> (Vec<f32>, FitReport) {
+        let system = (&self.matrix, rhs.columns);
         let (solution, iterations, relative_residual) =
-            conjugate_gradients(&self.matrix, rhs.sums, rhs.columns, options, scale);
+            conjugate_gradients(system, rhs.sums, options, scale, watch);
         let report = FitReport {
             iterations,
             relative_residual,
@@ -330,11 +334,11 @@ fn add_edge_term(matrix: &mut SparseMatrix, smoothness: f64) {
 /// tolerance of its right-hand side's norm (or of `scale`'s, where larger). Returns x, the
 /// iterations run and the largest relative residual.
 fn conjugate_gradients(
-    matrix: &SparseMatrix,
+    (matrix, columns): (&SparseMatrix, usize),
     rhs: Vec<f64>,
-    columns: usize,
     options: &FitOptions,
     scale: Option<&[f64]>,
+    watch: &mut dyn FnMut(f64),
 ) -> (Vec<f64>, u32, f64) {
     let rows = rhs.len() / columns.max(1);
     let factor = IncompleteCholesky::of(matrix);
@@ -408,8 +412,24 @@ fn conjugate_gradients(
         rz = rz_next;
         iterations += 1;
         worst = worst_of(&rr);
+        watch(worst);
     }
     (x, iterations, worst)
+}
+
+/// How far a solve that starts at a relative residual of 1 has come on its way down to
+/// `tolerance`, in [0, 1]: the decades done over the decades to go (conjugate gradients lose
+/// residual at a roughly steady rate a decade, not a unit).
+pub fn solved_fraction(relative_residual: f64, tolerance: f64) -> f64 {
+    if relative_residual <= tolerance {
+        return 1.0;
+    }
+    let under_way = (0.0..1.0).contains(&relative_residual);
+    let meaningful = tolerance > 0.0 && tolerance < 1.0;
+    if !(under_way && meaningful) {
+        return 0.0;
+    }
+    (relative_residual.ln() / tolerance.ln()).clamp(0.0, 1.0)
 }
 
 #[cfg(test)]
@@ -493,12 +513,18 @@ mod tests {
         let (plain, plain_report) = system.solve(rhs(), &options);
         // A scale below every column's own norm changes nothing, bit for bit.
         let smaller: Vec<f64> = own.iter().map(|n| 0.5 * n).collect();
-        let (same, same_report) = system.solve_to_scale(rhs(), &options, Some(&smaller));
+        let mut watched = Vec::new();
+        let (same, same_report) =
+            system.solve_to_scale(rhs(), &options, Some(&smaller), &mut |r| watched.push(r));
         assert_eq!(same, plain);
         assert_eq!(same_report, plain_report);
+        // The watch sees every iteration's residual, the last the report's.
+        assert_eq!(watched.len(), plain_report.iterations as usize);
+        assert_eq!(watched.last(), Some(&plain_report.relative_residual));
         // A hundred times larger: fewer iterations, the residual within the tolerance of it.
         let larger: Vec<f64> = own.iter().map(|n| 100.0 * n).collect();
-        let (looser, looser_report) = system.solve_to_scale(rhs(), &options, Some(&larger));
+        let (looser, looser_report) =
+            system.solve_to_scale(rhs(), &options, Some(&larger), &mut |_| {});
         assert!(
             looser_report.iterations < plain_report.iterations,
             "{looser_report:?} against {plain_report:?}"
@@ -511,6 +537,23 @@ mod tests {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f32::max);
         assert!(moved < 1e-6, "moved by {moved}");
+    }
+
+    #[test]
+    fn a_solve_is_as_far_along_as_the_decades_its_residual_has_fallen() {
+        let tolerance = 1e-9;
+        assert_eq!(solved_fraction(1.0, tolerance), 0.0);
+        assert_eq!(solved_fraction(3.0, tolerance), 0.0);
+        assert_eq!(solved_fraction(f64::NAN, tolerance), 0.0);
+        assert!((solved_fraction(1e-3, tolerance) - 1.0 / 3.0).abs() < 1e-12);
+        assert_eq!(solved_fraction(1e-9, tolerance), 1.0);
+        assert_eq!(solved_fraction(0.0, tolerance), 1.0);
+        let mut last = 0.0;
+        for decade in 0..=9 {
+            let fraction = solved_fraction(10f64.powi(-decade), tolerance);
+            assert!(fraction >= last, "{decade}: {fraction} < {last}");
+            last = fraction;
+        }
     }
 
     #[test]

@@ -185,6 +185,7 @@ fn bake_atlas_scattering(
     let mut valid = texels.valid_mask(&leaking)?;
     let (width, height) = (atlas.width, atlas.height);
     if options.denoise {
+        progress.stage("denoise", 1);
         let guide = denoise_guide(
             (atlas, &texels, &receivers),
             (&image, stride),
@@ -192,6 +193,7 @@ fn bake_atlas_scattering(
             &valid,
         );
         image = backend.denoise(&guide, &image, stride)?;
+        progress.advance(1);
     }
     let owner = chart_owners(atlas, &texels);
     let anchor = seam_anchors(atlas, &texels, &valid);
@@ -208,7 +210,15 @@ fn bake_atlas_scattering(
     let seams = seams::seams(scene, atlas);
     if stitching == Seams::Stitched {
         let rows = seams::seam_rows(width, height, &seams);
-        seams::solve((width, height), &mut image, stride, &rows, &anchor);
+        progress.stage("seams", seams::solve_steps(stride, &rows));
+        let solved = &mut |coefficients| progress.advance(coefficients);
+        seams::solve(
+            (width, height),
+            (&mut image, stride),
+            &rows,
+            &anchor,
+            solved,
+        );
     }
     let texcoords = atlas
         .corners

@@ -155,13 +155,14 @@ pub fn seam_rows(width: u32, height: u32, seams: &[Seam]) -> Vec<Row> {
 
 /// Solves for the texels `rows` read, in place in a `width` x `height` image of `stride`
 /// values a texel (row-major; see the module's notes). `anchor` weighs, per texel, how firmly
-/// it keeps its value (empty: 1 for all). Texels no row reads keep their values.
+/// it keeps its value (empty: 1 for all). Texels no row reads keep their values. `solved` is
+/// told of every coefficient solved, [`solve_steps`] in all.
 pub fn solve(
     (width, height): (u32, u32),
-    image: &mut [f32],
-    stride: usize,
+    (image, stride): (&mut [f32], usize),
     rows: &[Row],
     anchor: &[f32],
+    solved: &mut dyn FnMut(u64),
 ) {
     let count = width as usize * height as usize;
     if rows.is_empty() || stride == 0 || image.len() != count * stride {
@@ -175,21 +176,31 @@ pub fn solve(
     let groups: Vec<usize> = (0..stride).step_by(COLUMNS).collect();
     let wave = rayon::current_num_threads().clamp(1, GROUPS_IN_FLIGHT);
     for firsts in groups.chunks(wave) {
-        let solved: Vec<(usize, Vec<f64>)> = firsts
+        let done: Vec<(usize, Vec<f64>)> = firsts
             .par_iter()
             .map(|&first| {
                 let columns = first..stride.min(first + COLUMNS);
                 (first, system.solve_columns(image, stride, columns))
             })
             .collect();
-        for (first, x) in solved {
+        for (first, x) in done {
             let columns = first..stride.min(first + COLUMNS);
+            solved(columns.len() as u64);
             for (&t, values) in system.texels.iter().zip(x.chunks_exact(columns.len())) {
                 for (at, &v) in image[t * stride..][columns.clone()].iter_mut().zip(values) {
                     *at = v as f32;
                 }
             }
         }
+    }
+}
+
+/// The steps [`solve`] reports for an image of `stride` values a texel: one a coefficient,
+/// none where nothing is stitched.
+pub fn solve_steps(stride: usize, rows: &[Row]) -> u64 {
+    match rows.is_empty() {
+        true => 0,
+        false => stride as u64,
     }
 }
 
@@ -479,7 +490,11 @@ mod tests {
         crate::receivers::texels::dilate(w, h, &mut image, 2, &mut valid, 4).unwrap();
         let before = seam_difference(&found, w, h, &image, 2);
         let baked = image.clone();
-        solve((w, h), &mut image, 2, &seam_rows(w, h, &found), &[]);
+        let rows = seam_rows(w, h, &found);
+        let mut reported = 0;
+        solve((w, h), (&mut image, 2), &rows, &[], &mut |n| reported += n);
+        assert_eq!(reported, solve_steps(2, &rows));
+        assert_eq!(reported, 2);
         let after = seam_difference(&found, w, h, &image, 2);
         assert!(before > 0.5, "{before}");
         assert!(after < 0.1 * before, "{before} -> {after}");
@@ -492,7 +507,7 @@ mod tests {
             assert_eq!(image[2 * t..2 * t + 2], baked[2 * t..2 * t + 2]);
         }
         let mut again = baked.clone();
-        solve((w, h), &mut again, 2, &seam_rows(w, h, &found), &[]);
+        solve((w, h), (&mut again, 2), &rows, &[], &mut |_| {});
         assert_eq!(again, image);
     }
 }

@@ -201,10 +201,10 @@ impl Planned<'_> {
         let compressed = match spec.compression() {
             Some(compression) => Some(compress_transfer(
                 &mesh,
-                compression,
-                spec.storage.precision,
+                (compression, spec.storage.precision),
                 backend.gpu_context(),
                 &mut notes,
+                progress,
             )?),
             None => None,
         };
@@ -510,13 +510,14 @@ impl fmt::Display for Compressed {
 
 /// The baked transfer compressed as `compression` asks and rounded as a file at `precision`
 /// stores it. The assignment steps run on `gpu` where it pays
-/// (`GpuAssigner::where_it_pays`; where it does not for a reason, a note says so).
+/// (`GpuAssigner::where_it_pays`; where it does not for a reason, a note says so). A search
+/// for the shape that meets an error is a stage, a step a shape.
 fn compress_transfer(
     baked: &BakedMesh,
-    compression: Compression,
-    precision: Precision,
+    (compression, precision): (Compression, Precision),
     gpu: Option<&GpuContext>,
     notes: &mut Vec<String>,
+    progress: &dyn Progress,
 ) -> Result<(Cpca, Compressed)> {
     let started = Instant::now();
     let transfer = &baked.transfer;
@@ -559,7 +560,16 @@ fn compress_transfer(
             )
         }
         Compression::Target { error } => {
-            compress::choose_with(transfer, error, CpcaOptions::default().seed, assigner)?
+            progress.stage("compress", compress::choose_steps(transfer) as u64);
+            let mut shown = 0;
+            let trying = &mut |step: usize, options: &CpcaOptions| {
+                progress.advance(step as u64 - shown);
+                shown = step as u64;
+                let (k, m) = (options.clusters, options.components);
+                progress.detail(&format!("({k} clusters x {m} components)"));
+            };
+            let seed = CpcaOptions::default().seed;
+            compress::choose_with(transfer, error, seed, assigner, trying)?
         }
     };
     let cpca = cpca.rounded(precision);

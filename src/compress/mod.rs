@@ -592,15 +592,29 @@ pub fn choose(
     target_relative_error: f64,
     seed: u64,
 ) -> Result<(Cpca, CpcaOptions)> {
-    choose_with(transfer, target_relative_error, seed, &CpuAssigner)
+    choose_with(
+        transfer,
+        target_relative_error,
+        seed,
+        &CpuAssigner,
+        &mut |_, _| {},
+    )
 }
 
-/// [`choose`] with the assignment steps on `assigner`.
+/// The shapes [`choose`] may try for `transfer`, in order: what `trying` counts up to.
+pub fn choose_steps(transfer: &Transfer) -> usize {
+    let dimension = transfer.channels() as usize * transfer.coeffs_per_channel();
+    grid(dimension, transfer.vertex_count()).len()
+}
+
+/// [`choose`] with the assignment steps on `assigner`; `trying` is told of each shape before
+/// it is tried, with its place among the [`choose_steps`] (a shape skipped has one too).
 pub fn choose_with(
     transfer: &Transfer,
     target_relative_error: f64,
     seed: u64,
     assigner: &dyn Assigner,
+    trying: &mut dyn FnMut(usize, &CpcaOptions),
 ) -> Result<(Cpca, CpcaOptions)> {
     if !(target_relative_error >= 0.0 && target_relative_error.is_finite()) {
         return Err(Error::Options(format!(
@@ -612,7 +626,7 @@ pub fn choose_with(
     let vertices = transfer.vertex_count();
     let mut missed: Vec<(u32, u32)> = Vec::new();
     let mut best_missed = f64::INFINITY;
-    for (clusters, components) in grid(dimension, vertices) {
+    for (step, (clusters, components)) in grid(dimension, vertices).into_iter().enumerate() {
         if missed
             .iter()
             .any(|&(k, m)| clusters <= k && components <= m)
@@ -625,6 +639,7 @@ pub fn choose_with(
             seed,
             ..CpcaOptions::default()
         };
+        trying(step, &options);
         let cpca = compress_with(transfer, &options, assigner)?;
         let error = relative_error(transfer, &cpca);
         if error <= target_relative_error {

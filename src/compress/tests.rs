@@ -321,7 +321,19 @@ fn rounding_to_half_floats_stays_within_its_bound() {
 #[test]
 fn choose_finds_a_small_shape_that_meets_the_target() {
     let transfer = baked();
-    let (cpca, chosen) = choose(transfer, 0.05, 1).unwrap();
+    let mut tried = Vec::new();
+    let (cpca, chosen) = choose_with(transfer, 0.05, 1, &CpuAssigner, &mut |step, options| {
+        tried.push((step, options.clusters, options.components))
+    })
+    .unwrap();
+    // Told of every shape tried, in order, the last the one chosen.
+    assert!(tried.windows(2).all(|w| w[0].0 < w[1].0), "{tried:?}");
+    assert!(tried
+        .iter()
+        .all(|&(step, ..)| step < choose_steps(transfer)));
+    let last = tried.last().map(|&(_, k, m)| (k, m));
+    assert_eq!(last, Some((chosen.clusters, chosen.components)));
+    assert_eq!((cpca.clone(), chosen), choose(transfer, 0.05, 1).unwrap());
     let error = relative_error(transfer, &cpca);
     println!(
         "chose {} clusters x {} components: error {error:.4}, {} of {} bytes",

@@ -43,6 +43,9 @@ impl Progress for BarProgress {
                 .expect("static template")
                 .progress_chars("=> "),
         );
+        // Redrawn on a clock: a draw that comes within indicatif's rate limit of the last is
+        // dropped, so a stage begun just after another ended would show only at its first step.
+        bar.enable_steady_tick(std::time::Duration::from_millis(250));
         if let Some(old) = self
             .bar
             .lock()

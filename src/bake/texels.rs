@@ -209,16 +209,7 @@ fn bake_atlas_scattering(
     keep_wide_leaks(leaks, (&mut image, stride), &mut valid);
     let seams = seams::seams(scene, atlas);
     if stitching == Seams::Stitched {
-        let rows = seams::seam_rows(width, height, &seams);
-        progress.stage("seams", seams::solve_steps(stride, &rows));
-        let solved = &mut |coefficients| progress.advance(coefficients);
-        seams::solve(
-            (width, height),
-            (&mut image, stride),
-            &rows,
-            &anchor,
-            solved,
-        );
+        stitch(&seams, atlas, (&mut image, stride), &anchor, progress);
     }
     let texcoords = atlas
         .corners
@@ -248,6 +239,22 @@ fn bake_atlas_scattering(
             .expect("one row of coefficients for every texel"),
     };
     Ok((bake, report))
+}
+
+/// Stitches `seams` of `atlas` in `image` (`stride` values a texel), each texel held to its
+/// value as firmly as `anchor` says: a stage of `progress`, a step a coefficient.
+fn stitch(
+    seams: &[seams::Seam],
+    atlas: &Atlas,
+    (image, stride): (&mut [f32], usize),
+    anchor: &[f32],
+    progress: &dyn Progress,
+) {
+    let size = (atlas.width, atlas.height);
+    let rows = seams::seam_rows(size.0, size.1, seams);
+    progress.stage("seams", seams::solve_steps(stride, &rows));
+    let solved = &mut |coefficients| progress.advance(coefficients);
+    seams::solve(size, (image, stride), &rows, anchor, solved);
 }
 
 /// A texel bake's scene, vertex transfer and atlas, and the medium its texels are in.

@@ -77,11 +77,7 @@ fn a_least_squares_bake_says_so_in_its_report_and_file() {
             .to_string()
     };
     let fitted = bounce_line("least-squares");
-    let iterations: u32 = fitted
-        .split("its fit solved in ")
-        .nth(1)
-        .and_then(|rest| rest.split(' ').next())
-        .and_then(|n| n.parse().ok())
+    let iterations: u32 = common::number_after(&fitted, "its fit solved in ", ' ')
         .unwrap_or_else(|| panic!("no fit iterations in {fitted:?}"));
     assert!(iterations > 0, "{fitted}");
     assert!(!bounce_line("point").contains("fit"));

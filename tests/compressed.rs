@@ -279,11 +279,7 @@ fn an_error_target_chooses_a_shape_that_meets_it() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     // "compressed: K clusters x M components ...; coefficient error E%, ..."
-    let error: f64 = stderr
-        .split("coefficient error ")
-        .nth(1)
-        .and_then(|rest| rest.split('%').next())
-        .and_then(|e| e.parse().ok())
+    let error: f64 = common::number_after(&stderr, "coefficient error ", '%')
         .unwrap_or_else(|| panic!("no error reported: {stderr}"));
     assert!(error <= 5.0, "{stderr}");
     // Against the same bake uncompressed, the stored form meets the target.

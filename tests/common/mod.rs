@@ -57,6 +57,13 @@ pub fn prt_gpu(args: &[&str], dir: &Path) -> std::process::Output {
         .expect("run prt-gpu")
 }
 
+/// The number printed in `text` right after `marker`, up to `end` (a report line's figure:
+/// `number_after(stderr, "coefficient error ", '%')`); `None` where there is none.
+pub fn number_after<T: std::str::FromStr>(text: &str, marker: &str, end: char) -> Option<T> {
+    let rest = text.split(marker).nth(1)?;
+    rest.split(end).next()?.parse().ok()
+}
+
 /// The glTF scene with the most parts among the test files: 115 primitives, meshes shown by
 /// several nodes.
 pub const ENGINE_GLB: &str = concat!(

@@ -10,6 +10,7 @@ use std::time::Instant;
 use glam::Vec3;
 
 use crate::bake::subsurface::SceneMedia;
+use crate::bake::StagePosition;
 use crate::bake::{self, Backend, BakeOptions, BakeReport, BakedMesh, DirectSource, Progress};
 use crate::compress::{self, Cpca, CpcaOptions};
 use crate::device::GpuContext;
@@ -561,10 +562,9 @@ fn compress_transfer(
         }
         Compression::Target { error } => {
             progress.stage("compress", compress::choose_steps(transfer) as u64);
-            let mut shown = 0;
+            let mut position = StagePosition::new(progress);
             let trying = &mut |step: usize, options: &CpcaOptions| {
-                progress.advance(step as u64 - shown);
-                shown = step as u64;
+                position.move_to(step as u64);
                 let (k, m) = (options.clusters, options.components);
                 progress.detail(&format!("({k} clusters x {m} components)"));
             };

@@ -591,6 +591,28 @@ impl Progress for Advancing<'_> {
     }
 }
 
+/// A stage's position, moved to where a step says it is rather than by increments (a solve's
+/// share of its decades, a search's place in its grid); it never moves back.
+pub struct StagePosition<'a> {
+    progress: &'a dyn Progress,
+    at: u64,
+}
+
+impl<'a> StagePosition<'a> {
+    /// At the start of the stage just begun on `progress`.
+    pub fn new(progress: &'a dyn Progress) -> StagePosition<'a> {
+        StagePosition { progress, at: 0 }
+    }
+
+    /// Advances the stage to `position`, where that is further on.
+    pub fn move_to(&mut self, position: u64) {
+        if position > self.at {
+            self.progress.advance(position - self.at);
+            self.at = position;
+        }
+    }
+}
+
 /// What the direct pass gives: albedo-free transfer `[receiver][k]`, the gather matrix
 /// (interreflected mode: rows are receivers, columns the scene's vertices), the rays cast,
 /// and for an error-targeted pass each receiver's samples and error.

@@ -15,6 +15,7 @@ use glam::Vec3;
 use super::adaptive::ReceiverErrors;
 use super::spill::Spill;
 use super::stream::SpilledRows;
+use super::StagePosition;
 use super::{direct_or_adaptive, tint_by_albedo, Advancing, Backend, BakeOptions, Progress};
 use super::{Mode, Planned};
 use crate::error::Result;
@@ -71,15 +72,13 @@ impl<'a> Fitting<'a> {
         scale: Option<&[f64]>,
     ) -> (Vec<f32>, FitReport) {
         self.progress.stage(name, SOLVE_STEPS);
-        let mut shown = 0;
+        let mut position = StagePosition::new(self.progress);
         let solved = self
             .system
             .solve_to_scale(rhs, &self.options, scale, &mut |residual| {
-                let percent = self.percent_solved(residual).max(shown);
-                self.progress.advance(percent - shown);
-                shown = percent;
+                position.move_to(self.percent_solved(residual))
             });
-        self.progress.advance(SOLVE_STEPS - shown);
+        position.move_to(SOLVE_STEPS);
         solved
     }
 

@@ -14,20 +14,30 @@ use crate::scene::Scene;
 /// 3t, 3t + 1, 3t + 2), and the vertex transfer copied to them: the mesh a lightmap's
 /// per-corner coordinates belong to.
 pub fn split_corners(scene: &Scene, transfer: &Transfer) -> (Scene, Transfer) {
-    let picked: Vec<u32> = scene.triangles.iter().flatten().copied().collect();
+    let picked = corner_vertices(scene);
     (
-        split_scene_corners(scene),
+        corner_scene(scene, &picked),
         picked_transfer(transfer, &picked),
     )
 }
 
 /// The scene of [`split_corners`], without transfer.
 pub fn split_scene_corners(scene: &Scene) -> Scene {
-    let picked: Vec<u32> = scene.triangles.iter().flatten().copied().collect();
+    corner_scene(scene, &corner_vertices(scene))
+}
+
+/// Each triangle corner's vertex, corner i of triangle t at `3t + i`.
+fn corner_vertices(scene: &Scene) -> Vec<u32> {
+    scene.triangles.iter().flatten().copied().collect()
+}
+
+/// The scene whose vertices are the corners `picked` ([`corner_vertices`]), each triangle
+/// over its own three.
+fn corner_scene(scene: &Scene, picked: &[u32]) -> Scene {
     let triangles = (0..scene.triangles.len() as u32)
         .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
         .collect();
-    picked_scene(scene, &picked, triangles)
+    picked_scene(scene, picked, triangles)
 }
 
 /// The scene split only where its lightmap's charts meet, and the vertex transfer copied to

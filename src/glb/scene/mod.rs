@@ -149,18 +149,12 @@ fn encode_scene(
     if let Some(probes) = probes {
         prt["probes"] = json!(probes);
     }
-    root.extras = raw(&json!({ "prt": prt }))?;
+    root.extras = super::raw_extras(&json!({ "prt": prt }))?;
     root.asset.generator = Some(format!(
         "prt-gpu {} (bake in place)",
         env!("CARGO_PKG_VERSION")
     ));
     Ok((super::encode_document(&root)?, bin, report))
-}
-
-fn raw(value: &Value) -> Result<gltf_json::Extras> {
-    serde_json::value::to_raw_value(value)
-        .map(Some)
-        .map_err(|e| Error::Geometry(format!("cannot encode extras: {e}")))
 }
 
 /// The BIN chunk being built and its buffer views. A streamed bake's transfer views are
@@ -305,7 +299,8 @@ fn add_transfer(
                     prt["zonal"] = json!(zonal);
                 }
                 let primitive = &mut root.meshes[mesh].primitives[span.primitive];
-                primitive.extras = raw(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
+                primitive.extras =
+                    super::raw_extras(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
                 first_cpca.get_or_insert((span.count, extras));
                 report.primitives_baked += 1;
                 continue;
@@ -329,7 +324,8 @@ fn add_transfer(
             if let Some(zonal) = &zonal {
                 prt["zonal"] = json!(zonal);
             }
-            primitive.extras = raw(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
+            primitive.extras =
+                super::raw_extras(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
             first_primitive.get_or_insert((span.count, view));
             report.primitives_baked += 1;
         }
@@ -382,7 +378,7 @@ fn mesh_extras(
             }
         }
     }
-    raw(&json!({ "prt": prt })).map_err(|e| e.to_string())
+    super::raw_extras(&json!({ "prt": prt })).map_err(|e| e.to_string())
 }
 
 /// The clusters and weights of the vertices `map` names, as the views of a compressed

@@ -44,7 +44,7 @@ pub use read::{
 use super::compressed::{self, CpcaExtras};
 use super::zonal::{groups_of, zonal_attribute_name, ZonalExtras, ZonalView, AXIS_ATTRIBUTE};
 use super::{
-    glb_container, groups, transfer_attribute_name, LightmapExtras, Stored, FLOAT16,
+    glb_container, groups, raw_extras, transfer_attribute_name, LightmapExtras, Stored, FLOAT16,
     TRANSFER_LAYOUT, TRANSFER_LAYOUT_F16,
 };
 use crate::bake::{BakeMetadata, Transfer};
@@ -149,7 +149,7 @@ fn encode_scene(
     if let Some(probes) = probes {
         prt["probes"] = json!(probes);
     }
-    root.extras = super::raw_extras(&json!({ "prt": prt }))?;
+    root.extras = raw_extras(&json!({ "prt": prt }))?;
     root.asset.generator = Some(format!(
         "prt-gpu {} (bake in place)",
         env!("CARGO_PKG_VERSION")
@@ -299,8 +299,7 @@ fn add_transfer(
                     prt["zonal"] = json!(zonal);
                 }
                 let primitive = &mut root.meshes[mesh].primitives[span.primitive];
-                primitive.extras =
-                    super::raw_extras(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
+                primitive.extras = raw_extras(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
                 first_cpca.get_or_insert((span.count, extras));
                 report.primitives_baked += 1;
                 continue;
@@ -324,8 +323,7 @@ fn add_transfer(
             if let Some(zonal) = &zonal {
                 prt["zonal"] = json!(zonal);
             }
-            primitive.extras =
-                super::raw_extras(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
+            primitive.extras = raw_extras(&json!({ "prt": prt })).map_err(|e| e.to_string())?;
             first_primitive.get_or_insert((span.count, view));
             report.primitives_baked += 1;
         }
@@ -378,7 +376,7 @@ fn mesh_extras(
             }
         }
     }
-    super::raw_extras(&json!({ "prt": prt })).map_err(|e| e.to_string())
+    raw_extras(&json!({ "prt": prt })).map_err(|e| e.to_string())
 }
 
 /// The clusters and weights of the vertices `map` names, as the views of a compressed

@@ -201,7 +201,12 @@ impl Planned<'_> {
         let probe_seconds = probes_started.elapsed().as_secs_f64();
         let compressed = match spec.compression() {
             Some(compression) => Some(compress_transfer(
-                &mesh,
+                &mut compress::Points {
+                    data: mesh.transfer.coeffs(),
+                    dimension: mesh.transfer.channels() as usize
+                        * mesh.transfer.coeffs_per_channel(),
+                },
+                (mesh.transfer.bands(), mesh.transfer.channels()),
                 (compression, spec.storage.precision),
                 backend.gpu_context(),
                 &mut notes,
@@ -243,6 +248,8 @@ impl Planned<'_> {
         check_container(self.spec, gltf)?;
         let streamed = bake::stream::StreamedBake::plan(self.scene, &self.spec.options())?;
         let precision = self.spec.storage.precision;
+        // Compressed, what half floats cost is in the compression's errors.
+        let tally_half_floats = precision == Precision::F16 && self.spec.compression().is_none();
         // Built at the first chunk, of its bands (with --bands auto, those chosen).
         let mut half_float: Option<HalfFloatTally> = None;
         let mut preview_light = None;
@@ -250,7 +257,7 @@ impl Planned<'_> {
         let albedo_free = streamed.metadata(backend, 0).albedo_free;
         let albedo = &streamed.scene().albedo;
         let mut each_chunk = |transfer: &bake::Transfer| {
-            if precision == Precision::F16 {
+            if tally_half_floats {
                 if half_float.is_none() {
                     half_float = Some(HalfFloatTally::new(transfer.bands())?);
                 }
@@ -298,11 +305,27 @@ impl Planned<'_> {
                 None => None,
             },
             zonal: self.spec.storage.zonal,
+            compressed: self.spec.compression().is_some(),
         };
-        let written = glb::stream::bake_streamed(&streamed, backend, chunk, sink, progress)?;
+        let mut written = glb::stream::bake_streamed(&streamed, backend, chunk, sink, progress)?;
+        let mut notes = self.notes;
+        let (compressed, scene_write, scene) = match written.held.take() {
+            Some(held) => {
+                let compression = self.spec.compression().expect("held to be compressed");
+                let (made, scene_write, scene) = compress_held(
+                    held,
+                    (compression, precision),
+                    (streamed.into_scene(), written.probes.as_ref()),
+                    (path, gltf, &written.report.vertex_map),
+                    (backend.gpu_context(), &mut notes, progress),
+                )?;
+                (Some(made), scene_write, scene)
+            }
+            None => (None, written.scene_write.take(), streamed.into_scene()),
+        };
         Ok(Streamed {
             report: written.report,
-            scene_write: written.scene_write,
+            scene_write,
             bands_chosen: written.bands_chosen.zip(bands_auto).map(
                 |((bands, beyond), threshold)| BandsChosen {
                     bands,
@@ -311,19 +334,63 @@ impl Planned<'_> {
                 },
             ),
             half_float: half_float.map(|tally| tally.cost()),
-            preview: preview.then(|| (streamed.into_scene(), radiance)),
+            preview: preview.then_some((scene, radiance)),
             probes: written.probes,
             probe_seconds: written.probe_seconds,
             zonal: written.zonal,
+            compressed,
+            notes,
         })
     }
 }
+
+/// A streamed bake's `held` transfer compressed as `compression` asks (its rows read from the
+/// scratch file a chunk at a time) and written at `precision` to `path` with the prepared
+/// `scene` and its `probes`: a baked mesh, or `gltf` in place (`vertex_map` its vertices'
+/// places). The bytes are those of the whole bake's file. Gives back what the compression
+/// made, what writing a scene did with its seconds, and the scene.
+fn compress_held(
+    mut held: glb::stream::HeldTransfer,
+    (compression, precision): (Compression, Precision),
+    (scene, probes): (Scene, Option<&ProbeSet>),
+    (path, gltf, vertex_map): (&Path, Option<&GltfScene>, &[u32]),
+    (gpu, notes, progress): (Option<&GpuContext>, &mut Vec<String>, &dyn Progress),
+) -> Result<(Compressed, SceneWritten, Scene)> {
+    let (bands, channels) = held.shape();
+    let shaping = (compression, precision);
+    let (cpca, compressed) =
+        compress_transfer(&mut held, (bands, channels), shaping, gpu, notes, progress)?;
+    let baked = BakedMesh {
+        scene,
+        transfer: bake::Transfer::zeros(bands, channels, 0),
+        metadata: held.metadata.clone(),
+        lightmap: None,
+    };
+    let stored = glb::Stored::compressed(&baked, &cpca, precision)?
+        .with_probes(probes)?
+        .with_zonal(held.zonal.as_ref())?;
+    let writing = Instant::now();
+    let written = match gltf {
+        Some(gltf) => {
+            let write = glb::scene::write_scene_glb(path, gltf, stored, vertex_map)?;
+            Some((write, writing.elapsed().as_secs_f64()))
+        }
+        None => {
+            glb::write_glb(path, stored)?;
+            None
+        }
+    };
+    Ok((compressed, written, baked.scene))
+}
+
+/// What writing a glTF scene in place did, and its seconds (`None` for a baked mesh).
+pub type SceneWritten = Option<(glb::scene::SceneWrite, f64)>;
 
 /// What a streamed bake gives besides its file.
 pub struct Streamed {
     pub report: BakeReport,
     /// What writing a glTF scene in place did, and its seconds.
-    pub scene_write: Option<(glb::scene::SceneWrite, f64)>,
+    pub scene_write: SceneWritten,
     /// The bands `--bands auto` chose.
     pub bands_chosen: Option<BandsChosen>,
     pub half_float: Option<HalfFloatCost>,
@@ -335,6 +402,10 @@ pub struct Streamed {
     pub probe_seconds: f64,
     /// What the zonal transfer's fit cost, when the file holds one.
     pub zonal: Option<ZonalFit>,
+    /// What clustered PCA made of the transfer, where the file stores it compressed.
+    pub compressed: Option<Compressed>,
+    /// Side notes of the stages, one line each.
+    pub notes: Vec<String>,
 }
 
 /// The media of `gltf`'s scattering volumes (`scene` as `gltf::load` made it), where `spec`
@@ -509,31 +580,29 @@ impl fmt::Display for Compressed {
     }
 }
 
-/// The baked transfer compressed as `compression` asks and rounded as a file at `precision`
+/// The baked transfer, rows of `(bands, channels)` read from `rows` (in memory, or a streamed
+/// bake's scratch file), compressed as `compression` asks and rounded as a file at `precision`
 /// stores it. The assignment steps run on `gpu` where it pays
 /// (`GpuAssigner::where_it_pays`; where it does not for a reason, a note says so). A search
 /// for the shape that meets an error is a stage, a step a shape.
 fn compress_transfer(
-    baked: &BakedMesh,
+    rows: &mut dyn compress::Rows,
+    (bands, channels): (u32, u32),
     (compression, precision): (Compression, Precision),
     gpu: Option<&GpuContext>,
     notes: &mut Vec<String>,
     progress: &dyn Progress,
 ) -> Result<(Cpca, Compressed)> {
     let started = Instant::now();
-    let transfer = &baked.transfer;
-    let points = compress::Points {
-        data: transfer.coeffs(),
-        dimension: transfer.channels() as usize * transfer.coeffs_per_channel(),
-    };
+    let (dimension, vertices) = (rows.dimension(), rows.len());
     let most_components = match compression {
         Compression::Shape { components, .. } => components as usize,
-        Compression::Target { .. } => points.dimension,
+        Compression::Target { .. } => dimension,
     };
     let gpu_assigner = match gpu {
         Some(context) => {
             let (assigner, why_not) =
-                compress::gpu::GpuAssigner::where_it_pays(context, points, most_components)?;
+                compress::gpu::GpuAssigner::where_it_pays(context, rows, most_components)?;
             if let Some(why) = why_not {
                 notes.push(format!("{why}; clustering on the CPU"));
             }
@@ -555,13 +624,12 @@ fn compress_transfer(
                 components,
                 ..CpcaOptions::default()
             };
-            (
-                compress::compress_with(transfer, &options, assigner)?,
-                options,
-            )
+            let cpca = compress::compress_from(rows, (bands, channels), &options, assigner)?;
+            (cpca, options)
         }
         Compression::Target { error } => {
-            progress.stage("compress", compress::choose_steps(transfer) as u64);
+            let steps = compress::choose_steps(dimension, vertices);
+            progress.stage("compress", steps as u64);
             let mut position = StagePosition::new(progress);
             let trying = &mut |step: usize, options: &CpcaOptions| {
                 position.move_to(step as u64);
@@ -569,12 +637,13 @@ fn compress_transfer(
                 progress.detail(&format!("({k} clusters x {m} components)"));
             };
             let seed = CpcaOptions::default().seed;
-            compress::choose_with(transfer, error, seed, assigner, trying)?
+            let searching = (seed, assigner);
+            compress::choose_from(rows, (bands, channels), error, searching, trying)?
         }
     };
     let cpca = cpca.rounded(precision);
     let seconds = started.elapsed().as_secs_f64();
-    let light = light::preview_light(transfer.bands())?;
+    let light = light::preview_light(bands)?;
     let compressed = Compressed {
         clusters: options.clusters,
         components: options.components,
@@ -582,9 +651,9 @@ fn compress_transfer(
         ran_on,
         precision,
         bytes: cpca.byte_size(precision),
-        bytes_uncompressed: compress::uncompressed_bytes(transfer),
-        coefficient_error: compress::relative_error(transfer, &cpca),
-        relit_error: compress::relit_error(transfer, &cpca, &light)?,
+        bytes_uncompressed: 4 * vertices * dimension,
+        coefficient_error: compress::relative_error_of(rows, &cpca)?,
+        relit_error: compress::relit_error_of(rows, channels, &cpca, &light)?,
     };
     Ok((cpca, compressed))
 }

@@ -107,6 +107,18 @@ impl ZonalTransfer {
         ZonalTransfer::new(shape, axes, coeffs.concat()).map_err(Error::Geometry)
     }
 
+    /// Adds `more`'s vertices after this one's (the next run of a streamed bake, fitted with
+    /// the same spec).
+    pub fn append(&mut self, more: ZonalTransfer) {
+        assert_eq!(
+            (self.bands, self.channels, self.axis),
+            (more.bands, more.channels, more.axis),
+            "runs of one zonal fit"
+        );
+        self.axes.extend(more.axes);
+        self.coeffs.extend(more.coeffs);
+    }
+
     pub fn bands(&self) -> u32 {
         self.bands
     }

@@ -162,15 +162,16 @@ impl Cell {
         }
     }
 
-    /// Whether the cell streams under a memory limit below its whole need.
+    /// Whether the cell streams under a memory limit below its whole need (compressed, its
+    /// chunks wait in a scratch file that the clustering reads a chunk at a time).
     fn streams(&self) -> bool {
-        self.receivers == Receivers::Vertices && !self.compressed
+        self.receivers == Receivers::Vertices
     }
 
     /// Whether the cell, under a memory limit below its whole need, bakes its least-squares
     /// fit's points a run at a time.
     fn points_in_runs(&self) -> bool {
-        self.receivers == Receivers::LeastSquares && !self.compressed
+        self.receivers == Receivers::LeastSquares
     }
 }
 
@@ -321,6 +322,11 @@ fn check_sinks(dir: &Path, input: &str, scene: &prt_gpu::scene::Scene, cell: Cel
         let points = spread_point_count(scene, options.point_density);
         need = need.with_fit_points(points as u64, &options);
     }
+    if cell.compressed {
+        // --compress 8x4 of RGB rows of 4 bands.
+        let group = prt_gpu::compress::covariance_group(48);
+        need = need.with_compression((8, 4), 48, group as u64);
+    }
     // Chunks of 300 receivers where the cell streams (the glTF scene, of fewer vertices,
     // streams in one chunk of all of them; tests/memory.rs streams a larger one in many), runs
     // of 300 points where the fit's points bake in runs; half its need where it cannot.
@@ -354,7 +360,9 @@ fn check_sinks(dir: &Path, input: &str, scene: &prt_gpu::scene::Scene, cell: Cel
     if cell.streams() || cell.points_in_runs() {
         assert!(out.status.success(), "{name} streamed: {stderr}");
         let said = match cell.streams() {
-            true => format!("chunks of {chunk} receivers"),
+            // Compressed, the chunks may be larger: the clustering after the last one needs
+            // the room of more than one.
+            true => format!("chunks of {} receivers", need.chunk_within(limit).unwrap()),
             false => "points in runs of about".into(),
         };
         assert!(stderr.contains(&said), "{name}: {stderr}");

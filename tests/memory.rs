@@ -27,6 +27,33 @@ fn bunny_need(options: &BakeOptions) -> MemoryNeed {
     MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), options)
 }
 
+/// `need` with the clustering `extra`'s `--compress` asks for (if it does), of rows of `bands`
+/// bands in RGB for `vertices` vertices, as the CLI estimates it.
+fn with_compression(need: MemoryNeed, extra: &[&str], bands: u32, vertices: usize) -> MemoryNeed {
+    let Some(at) = extra.iter().position(|&a| a == "--compress") else {
+        return need;
+    };
+    let dimension = 3 * (bands * bands) as usize;
+    let (clusters, components) = match extra[at + 1].split_once('x') {
+        Some((k, m)) => (k.parse().unwrap(), m.parse().unwrap()),
+        None => prt_gpu::compress::largest_search_shape(dimension, vertices),
+    };
+    let group = prt_gpu::compress::covariance_group(dimension);
+    need.with_compression(
+        (clusters as u64, components as u64),
+        dimension as u64,
+        group as u64,
+    )
+}
+
+/// `line` without the seconds it states (" in 0.05 s"): a clustering's time is its own.
+fn without_seconds(line: String) -> String {
+    match line.split_once(" in ") {
+        Some((before, after)) => format!("{before}{}", &after[after.find(" s").unwrap_or(0)..]),
+        None => line,
+    }
+}
+
 fn bake(dir: &Path, args: &[&str]) -> std::process::Output {
     let mut all = vec!["bake", BUNNY, "--samples", "64"];
     all.extend(args);
@@ -39,8 +66,34 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
     let d = dir.path();
     const INTERREFLECTED: [&str; 2] = ["--mode", "interreflected"];
     const TARGET: [&str; 4] = ["--target-error", "0.05", "--max-samples", "1024"];
-    let cases: [&[&str]; 18] = [
+    let cases: [&[&str]; 22] = [
         &["--device", "cpu"],
+        // Clustered PCA: the chunks wait in a scratch file, and every pass of the clustering
+        // reads them back a chunk at a time.
+        &["--device", "cpu", "--compress", "8x4"],
+        &[
+            "--device",
+            "cpu",
+            "--compress",
+            "auto:0.05",
+            "--bands",
+            "auto",
+            "--storage",
+            "lean",
+            "--precision",
+            "f16",
+            "--zonal",
+            "2",
+        ],
+        &[
+            "--device",
+            "cpu",
+            "--mode",
+            "interreflected",
+            "--compress",
+            "16x6",
+        ],
+        &["--device", "gpu", "--compress", "8x4", "--zonal", "3"],
         // An error target: the chunks wait until the mean samples the file records are known.
         &[
             "--device", "cpu", TARGET[0], TARGET[1], TARGET[2], TARGET[3],
@@ -152,8 +205,12 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             Some(at) => bunny_need(&options).with_zonal(extra[at + 1].parse().unwrap()),
             None => bunny_need(&options),
         };
-        // Chunks of 300 receivers: seven of them for the bunny's 1,839 vertices.
+        let need = with_compression(need, extra, options.bands, need.receivers as usize);
+        // Chunks of 300 receivers: seven of them for the bunny's 1,839 vertices (compressed,
+        // more where the clustering after the last chunk needs more room than one chunk).
         let limit = need.streamed(300);
+        let chunk = need.chunk_within(limit).unwrap();
+        assert!(chunk == 300 || extra.contains(&"--compress"), "{chunk}");
         assert!(
             limit < need.whole(),
             "the limit must be below the whole bake's need"
@@ -169,7 +226,7 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{extra:?}: {stderr}");
         assert!(
-            stderr.contains("chunks of 300 receivers"),
+            stderr.contains(&format!("chunks of {chunk} receivers")),
             "{extra:?}: {stderr}"
         );
         let same = std::fs::read(d.join("whole.glb")).unwrap()
@@ -183,16 +240,22 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
         // streamed bake states the same.
         let whole_stderr = String::from_utf8_lossy(&whole.stderr);
         for (prefix, asked) in [
-            ("precision f16:", extra.contains(&"f16")),
+            // Compressed, what half floats cost is in the compression's line.
+            (
+                "precision f16:",
+                extra.contains(&"f16") && !extra.contains(&"--compress"),
+            ),
             ("bands auto:", extra.contains(&"auto")),
             ("target error:", extra.contains(&TARGET[0])),
             ("zonal:", zonal.is_some()),
+            ("compressed:", extra.contains(&"--compress")),
         ] {
             // The zonal fit's seconds are its own; what it costs is the whole fit's.
             let without_time = |line: String| match line.split_once(" in ") {
                 Some((before, after)) if prefix == "zonal:" => {
                     format!("{before}{}", &after[after.find(';').unwrap_or(0)..])
                 }
+                _ if prefix == "compressed:" => without_seconds(line),
                 _ => line,
             };
             let stated = line_starting(&whole_stderr, prefix).map(without_time);
@@ -212,9 +275,20 @@ fn a_gltf_scene_streamed_in_chunks_writes_the_whole_bakes_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (gltf, scene) = prt_gpu::scene::gltf::load(Path::new(common::ENGINE_GLB)).unwrap();
-    let cases: [&[&str]; 7] = [
+    let cases: [&[&str]; 9] = [
         &["--device", "cpu"],
         &["--device", "cpu", "--storage", "lean", "--precision", "f16"],
+        // Clustered PCA: every placement's clusters and weights written at the end, from the
+        // clustering of the transfer held in a scratch file.
+        &[
+            "--device",
+            "cpu",
+            "--compress",
+            "16x4",
+            "--precision",
+            "f16",
+        ],
+        &["--device", "cpu", "--compress", "8x2", "--zonal", "2"],
         // Zonal transfer: each chunk's fit waits in a scratch file of its own and fills every
         // placement's zonal views at the end (dropped vertices get no lobe, as whole).
         &["--device", "cpu", "--zonal", "3", "--zonal-axis", "fitted"],
@@ -256,7 +330,9 @@ fn a_gltf_scene_streamed_in_chunks_writes_the_whole_bakes_bytes() {
         if let Some(at) = extra.iter().position(|&a| a == "--zonal") {
             need = need.with_zonal(extra[at + 1].parse().unwrap());
         }
+        let need = with_compression(need, extra, 4, scene.vertex_count());
         let limit = need.streamed(4096);
+        let chunk = need.chunk_within(limit).unwrap();
         assert!(limit < need.whole());
         let run = |output: &str, limit: &str| {
             let mut args = vec!["bake", common::ENGINE_GLB, "--samples", "32", "-o", output];
@@ -270,7 +346,7 @@ fn a_gltf_scene_streamed_in_chunks_writes_the_whole_bakes_bytes() {
         let whole = run("whole.glb", "1T");
         let streamed = run("streamed.glb", &limit.to_string());
         assert!(
-            streamed.contains("chunks of 4096 receivers"),
+            streamed.contains(&format!("chunks of {chunk} receivers")),
             "{extra:?}: {streamed}"
         );
         // The same report of what was written in place (primitives, copies).
@@ -280,6 +356,13 @@ fn a_gltf_scene_streamed_in_chunks_writes_the_whole_bakes_bytes() {
             line.split(',').next().unwrap().to_string() + line.split(';').nth(1).unwrap_or("")
         };
         assert_eq!(in_place(&whole), in_place(&streamed), "{extra:?}");
+        let compressed = |stderr: &str| line_starting(stderr, "compressed:").map(without_seconds);
+        assert_eq!(compressed(&whole), compressed(&streamed), "{extra:?}");
+        assert_eq!(
+            compressed(&whole).is_some(),
+            extra.contains(&"--compress"),
+            "{whole}"
+        );
         assert!(in_place(&whole).contains("115 primitive(s)"), "{whole}");
         let same = std::fs::read(d.join("whole.glb")).unwrap()
             == std::fs::read(d.join("streamed.glb")).unwrap();
@@ -311,8 +394,8 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
             "and the larger of its solve over every vertex",
         ),
         (
-            &["--memory-limit", &below_whole, "--compress", "8x4"],
-            "clusters every vertex's transfer at once, so it does not stream in chunks",
+            &["--memory-limit", &below_any_chunk, "--compress", "8x4"],
+            "and the clusters and weights",
         ),
         (
             &["--memory-limit", &below_whole, "--lightmap", "256"],

@@ -24,23 +24,47 @@ const DRAGON: &str = concat!(
     "/tests/data/dragon_vrip_res3.ply.gz"
 );
 
-/// The bytes allocated at the peak of loading `mesh`, baking it as `spec` asks (a fit's points
-/// `point_chunk` at a time where given) and writing it, beyond what was live before; and the
-/// estimate the bake plans by.
-fn measured((spec, point_chunk): &(BakeSpec, Option<usize>), mesh: &str, dir: &Path) -> (u64, u64) {
+/// How a case bakes: whole, a least-squares fit's points in runs of this many, or streamed in
+/// chunks of this many vertices.
+#[derive(Clone, Copy)]
+enum Run {
+    Whole,
+    PointsInRuns(usize),
+    Streamed(usize),
+}
+
+/// The bytes allocated at the peak of loading `mesh`, baking it as `spec` asks (as `run` says)
+/// and writing it, beyond what was live before; and the estimate the bake plans by.
+fn measured((spec, run): &(BakeSpec, Run), mesh: &str, dir: &Path) -> (u64, u64) {
     let before = counting::start();
     let scene = scene::load(Path::new(mesh)).unwrap();
     let planned = pipeline::plan(spec, scene, None).unwrap();
     let need = pipeline::memory_need(spec, (planned.scene(), None));
-    let (planned, need) = match *point_chunk {
-        Some(chunk) => (planned.with_point_chunk(chunk), need.points_chunked(chunk)),
-        None => (planned, need.whole()),
+    let path = dir.join("baked.glb");
+    let need = match *run {
+        Run::Whole => {
+            let baked = planned
+                .run(&CpuBackend, DirectSource::Compute, &NoProgress)
+                .unwrap();
+            pipeline::write(spec, &baked, None, &path).unwrap();
+            need.whole()
+        }
+        Run::PointsInRuns(chunk) => {
+            let baked = planned
+                .with_point_chunk(chunk)
+                .run(&CpuBackend, DirectSource::Compute, &NoProgress)
+                .unwrap();
+            pipeline::write(spec, &baked, None, &path).unwrap();
+            need.points_chunked(chunk)
+        }
+        Run::Streamed(chunk) => {
+            let sink = (path.as_path(), None);
+            planned
+                .run_streamed(&CpuBackend, chunk, sink, false, &NoProgress)
+                .unwrap();
+            need.streamed(chunk)
+        }
     };
-    let baked = planned
-        .run(&CpuBackend, DirectSource::Compute, &NoProgress)
-        .unwrap();
-    pipeline::write(spec, &baked, None, &dir.join("baked.glb")).unwrap();
-    drop(baked);
     let peak = counting::peak_since(before);
     (peak as u64, need)
 }
@@ -59,18 +83,24 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
         s.receivers.fit = Fit::LeastSquares;
         interreflected(s);
     };
-    let whole = |spec: BakeSpec| (spec, None);
-    let cases: Vec<(&str, (BakeSpec, Option<usize>))> = vec![
+    let whole = |spec: BakeSpec| (spec, Run::Whole);
+    let compressed = |s: &mut BakeSpec| {
+        s.storage.layout = StoredLayout::Cpca(Compression::Shape {
+            clusters: 16,
+            components: 4,
+        })
+    };
+    let cases: Vec<(&str, (BakeSpec, Run))> = vec![
         ("vertices, shadowed", whole(spec(&|_| {}))),
         ("vertices, interreflected", whole(spec(&interreflected))),
+        ("compressed", whole(spec(&compressed))),
         (
-            "compressed",
-            whole(spec(&|s| {
-                s.storage.layout = StoredLayout::Cpca(Compression::Shape {
-                    clusters: 16,
-                    components: 4,
-                })
-            })),
+            "vertices, shadowed, streamed in chunks of 2,000",
+            (spec(&|_| {}), Run::Streamed(2000)),
+        ),
+        (
+            "compressed, streamed in chunks of 2,000",
+            (spec(&compressed), Run::Streamed(2000)),
         ),
         (
             "least squares, shadowed",
@@ -87,7 +117,7 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
                     least_squares_interreflected(s);
                     s.transfer.samples = 64;
                 }),
-                Some(20_000),
+                Run::PointsInRuns(20_000),
             ),
         ),
         (

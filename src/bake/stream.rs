@@ -54,6 +54,9 @@ pub struct MemoryNeed {
     pub beside_vertices: u64,
     /// A least-squares fit's points and its solve ([`MemoryNeed::with_fit_points`]).
     pub fit: Option<FitNeed>,
+    /// Clustered PCA's model and each vertex's clusters and weights
+    /// ([`MemoryNeed::with_compression`]), held whole and streamed alike.
+    pub compression: u64,
 }
 
 /// What a least-squares fit adds to a bake's need: its points, held whatever the chunking,
@@ -153,6 +156,7 @@ impl MemoryNeed {
             receivers: v,
             beside_vertices: 0,
             fit: None,
+            compression: 0,
         }
     }
 
@@ -205,6 +209,33 @@ impl MemoryNeed {
         }
     }
 
+    /// The need with the transfer compressed by clustered PCA (`--compress`) into `clusters`
+    /// of `components` directions, its rows of `dimension` floats (RGB), `group` covariances
+    /// accumulated at once (`compress::covariance_group`): the model in f64 (and the previous
+    /// round's), the covariances, and for each vertex its clusters (three assignments), its
+    /// residual and seeding distance in f64, its weights as fitted and rounded, and their
+    /// bytes in the file twice. The file then holds no per-vertex transfer. The rows the
+    /// clustering reads and reconstructs (all at once whole, a chunk at a time streamed) are
+    /// fewer bytes than the direct pass and the file blocks it runs after, so they add nothing
+    /// to the peak.
+    pub fn with_compression(
+        self,
+        (clusters, components): (u64, u64),
+        dimension: u64,
+        group: u64,
+    ) -> MemoryNeed {
+        let model = 2 * 8 * clusters * dimension * (components + 1);
+        let covariances = clusters.min(group) * 8 * dimension * dimension;
+        let per_vertex = 3 * 4 + 2 * 8 + 2 * 4 * components + 2 * (4 * components + 4);
+        let file_transfer = 16 * (dimension / 3).div_ceil(4) * 3;
+        MemoryNeed {
+            compression: model + covariances + self.receivers * per_vertex,
+            per_receiver_whole: self.per_receiver_whole - 2 * file_transfer,
+            per_receiver_streamed: self.per_receiver_streamed - file_transfer,
+            ..self
+        }
+    }
+
     /// The need with probes of `bytes` (`probes::memory_need`), held whatever the chunking.
     pub fn with_probes(self, bytes: u64) -> MemoryNeed {
         MemoryNeed {
@@ -250,6 +281,7 @@ impl MemoryNeed {
             + self.probes
             + self.receivers * self.per_receiver_whole
             + self.beside_vertices
+            + self.compression
             + self.fit.map_or(0, |fit| fit.whole())
     }
 
@@ -302,8 +334,11 @@ impl MemoryNeed {
     }
 
     /// The need of a bake streamed `chunk` receivers at a time.
+    ///
+    /// Clustered PCA runs once the last chunk is written to the scratch file, in the room the
+    /// chunks leave.
     pub fn streamed(&self, chunk: usize) -> u64 {
-        self.held() + chunk as u64 * self.per_receiver_streamed
+        self.held() + (chunk as u64 * self.per_receiver_streamed).max(self.compression)
     }
 
     /// The need of one of `shards` shards of the bake: the mesh and its BVH, and
@@ -348,7 +383,7 @@ impl MemoryNeed {
         let held = self.held();
         let room = limit.saturating_sub(held) / self.per_receiver_streamed.max(1);
         let chunk = (room as usize).min(self.receivers as usize);
-        if chunk < MIN_CHUNK.min(self.receivers as usize) {
+        if chunk < MIN_CHUNK.min(self.receivers as usize) || held + self.compression > limit {
             let bounce = match self.held_streamed {
                 0 => String::new(),
                 held => format!(", the previous bounce {}", format_bytes(held)),
@@ -364,9 +399,14 @@ impl MemoryNeed {
                 0 => String::new(),
                 bytes => format!(", the probes {}", format_bytes(bytes)),
             };
+            let clusters = match self.compression {
+                0 => String::new(),
+                bytes => format!(" and the clusters and weights {}", format_bytes(bytes)),
+            };
             return Err(Error::Options(format!(
                 "--memory-limit {}: this bake needs at least {} (the mesh and its BVH \
-                 {}{document}{bounce}{probes}, one chunk of {MIN_CHUNK} receivers {})",
+                 {}{document}{bounce}{probes}, and the larger of one chunk of {MIN_CHUNK} \
+                 receivers {}{clusters})",
                 format_bytes(limit),
                 format_bytes(self.streamed(MIN_CHUNK)),
                 format_bytes(self.fixed),

@@ -17,35 +17,9 @@
 use rayon::prelude::*;
 
 use super::eigen::{dot, top_eigenvectors};
+use super::rows::{for_each_block, read_row, Points, Rows};
 use crate::error::Result;
 use crate::sampling::Pcg32;
-
-/// The transfer vectors, one row of `dimension` floats per vertex.
-#[derive(Clone, Copy)]
-pub struct Points<'a> {
-    pub data: &'a [f32],
-    pub dimension: usize,
-}
-
-impl Points<'_> {
-    pub fn len(&self) -> usize {
-        self.data.len() / self.dimension
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    fn row(&self, i: usize) -> impl Iterator<Item = f64> + '_ {
-        self.data[i * self.dimension..(i + 1) * self.dimension]
-            .iter()
-            .map(|&x| x as f64)
-    }
-
-    fn row_f64(&self, i: usize) -> Vec<f64> {
-        self.row(i).collect()
-    }
-}
 
 /// Vertices per parallel work item: large enough that rayon's bookkeeping stays small, fixed
 /// so that the split does not depend on the thread count.
@@ -152,16 +126,24 @@ impl Model {
 
 /// Where the assignment step — nearly all of a compression's time — runs.
 pub trait Assigner {
-    /// Every point's best cluster and residual under `model` (ties: the lower index).
-    fn assign(&self, points: Points, model: &Model) -> Result<(Vec<u32>, Vec<f64>)>;
+    /// Every row's best cluster and residual under `model` (ties: the lower index).
+    fn assign(&self, rows: &mut dyn Rows, model: &Model) -> Result<(Vec<u32>, Vec<f64>)>;
 }
 
 /// The assignment on the CPU, in f64: the reference.
 pub struct CpuAssigner;
 
 impl Assigner for CpuAssigner {
-    fn assign(&self, points: Points, model: &Model) -> Result<(Vec<u32>, Vec<f64>)> {
-        Ok(assign(points, model))
+    fn assign(&self, rows: &mut dyn Rows, model: &Model) -> Result<(Vec<u32>, Vec<f64>)> {
+        let mut clusters = Vec::with_capacity(rows.len());
+        let mut residuals = Vec::with_capacity(rows.len());
+        for_each_block(rows, |_, block| {
+            let (c, r) = assign(block, model);
+            clusters.extend(c);
+            residuals.extend(r);
+            Ok(())
+        })?;
+        Ok((clusters, residuals))
     }
 }
 
@@ -181,30 +163,34 @@ pub fn assign(points: Points, model: &Model) -> (Vec<u32>, Vec<f64>) {
 /// k-means++ (Arthur & Vassilvitskii 2007): the first centre uniformly, each next one with
 /// probability proportional to the squared distance to the nearest centre so far, which
 /// spreads the seeds over the data. Returns the seeds' vertex indices.
-pub fn kmeans_plus_plus(points: Points, clusters: usize, seed: u64) -> Vec<usize> {
+pub fn kmeans_plus_plus(rows: &mut dyn Rows, clusters: usize, seed: u64) -> Result<Vec<usize>> {
     let mut rng = Pcg32::new(seed);
-    let count = points.len();
+    let count = rows.len();
     let first = ((rng.next_u32() as u64 * count as u64) >> 32) as usize;
     let mut centres = vec![first];
     let mut nearest = vec![f64::INFINITY; count];
     while centres.len() < clusters {
-        let centre = points.row_f64(*centres.last().expect("the first centre is chosen above"));
-        nearest
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(chunk, out)| {
-                for (i, d) in out.iter_mut().enumerate() {
-                    let to_centre: f64 = points
-                        .row(chunk * CHUNK + i)
-                        .zip(&centre)
-                        .map(|(x, c)| (x - c) * (x - c))
-                        .sum();
-                    *d = d.min(to_centre);
-                }
-            });
+        let last = *centres.last().expect("the first centre is chosen above");
+        let centre = read_row(rows, last)?;
+        for_each_block(rows, |first, block| {
+            nearest[first..first + block.len()]
+                .par_chunks_mut(CHUNK)
+                .enumerate()
+                .for_each(|(chunk, out)| {
+                    for (i, d) in out.iter_mut().enumerate() {
+                        let to_centre: f64 = block
+                            .row(chunk * CHUNK + i)
+                            .zip(&centre)
+                            .map(|(x, c)| (x - c) * (x - c))
+                            .sum();
+                        *d = d.min(to_centre);
+                    }
+                });
+            Ok(())
+        })?;
         centres.push(draw_proportional(&nearest, &centres, &mut rng));
     }
-    centres
+    Ok(centres)
 }
 
 /// An index drawn with probability proportional to `weights`; when all are zero (fewer
@@ -240,28 +226,59 @@ fn unit_f64(rng: &mut Pcg32) -> f64 {
     (high * 16_777_216.0 + low) / 281_474_976_710_656.0
 }
 
-/// The mean and leading directions of every cluster's members (see [`fit_cluster`]).
+/// Covariances a fit accumulates at once, in bytes, beyond one per thread: a cluster's is
+/// `dimension^2` f64 (4.7 MB at 16 bands RGB), so clusters of long rows are fitted a group
+/// at a time, each group a pass over the rows.
+const COVARIANCE_BYTES: usize = 32 << 20;
+
+/// The clusters one pass of [`fit`] accumulates the covariances of, for rows of `dimension`.
+pub fn covariance_group(dimension: usize) -> usize {
+    let one = (dimension * dimension * 8).max(1);
+    (COVARIANCE_BYTES / one).max(rayon::current_num_threads())
+}
+
+/// The mean and leading directions of every cluster's members (see [`fit_cluster`]): one pass
+/// over the rows for the means, then one for each [`covariance_group`] of clusters.
 pub fn fit(
-    points: Points,
+    rows: &mut dyn Rows,
     assignment: &[u32],
-    clusters: usize,
-    components: usize,
+    (clusters, components): (usize, usize),
     warm: Option<&Model>,
-) -> Model {
+) -> Result<Model> {
+    let group = covariance_group(rows.dimension());
+    fit_in_groups(rows, assignment, (clusters, components), warm, group)
+}
+
+/// [`fit`], the covariances of `group` clusters accumulated in each pass over the rows.
+pub(super) fn fit_in_groups(
+    rows: &mut dyn Rows,
+    assignment: &[u32],
+    (clusters, components): (usize, usize),
+    warm: Option<&Model>,
+    group: usize,
+) -> Result<Model> {
+    let n = rows.dimension();
     let members = members(assignment, clusters);
-    let fits: Vec<(Vec<f64>, Vec<f64>)> = members
-        .par_iter()
-        .enumerate()
-        .map(|(cluster, members)| {
-            let warm = warm
-                .filter(|w| cluster < w.clusters())
-                .map(|w| w.basis(cluster))
-                .unwrap_or(&[]);
-            fit_cluster(points, members, components, warm)
-        })
-        .collect();
-    let (means, bases): (Vec<_>, Vec<_>) = fits.into_iter().unzip();
-    Model::new(points.dimension, components, means.concat(), bases.concat())
+    let means = member_means(rows, &members)?;
+    let mut bases = Vec::with_capacity(clusters);
+    for first in (0..clusters).step_by(group.max(1)) {
+        let in_group = first..(first + group).min(clusters);
+        let covariances =
+            member_covariances(rows, &members[in_group.clone()], &means[in_group.clone()])?;
+        let fitted: Vec<Vec<f64>> = covariances
+            .par_iter()
+            .zip(in_group)
+            .map(|(covariance, cluster)| {
+                let warm = warm
+                    .filter(|w| cluster < w.clusters())
+                    .map(|w| w.basis(cluster))
+                    .unwrap_or(&[]);
+                fit_cluster(covariance, n, components, warm)
+            })
+            .collect();
+        bases.extend(fitted);
+    }
+    Ok(Model::new(n, components, means.concat(), bases.concat()))
 }
 
 /// Each cluster's members in vertex order.
@@ -273,69 +290,111 @@ fn members(assignment: &[u32], clusters: usize) -> Vec<Vec<u32>> {
     members
 }
 
-/// The members' mean and the `components` leading eigenvectors of their covariance. `warm`
-/// (the cluster's previous basis, possibly with fewer rows) starts the eigen-solver; with as
-/// many rows as wanted, it is kept if it captures more variance than what the solver found.
-fn fit_cluster(
-    points: Points,
-    members: &[u32],
-    components: usize,
-    warm: &[f64],
-) -> (Vec<f64>, Vec<f64>) {
-    let n = points.dimension;
-    let mean = member_mean(points, members);
-    let covariance = member_covariance(points, members, &mean);
-    let (values, basis) = top_eigenvectors(&covariance, n, components, warm);
+/// The members of one cluster that lie in the block ending before row `end`, from `next` on
+/// (which moves past them): the blocks come in order, so each cluster's members are visited in
+/// vertex order.
+fn members_before<'m>(members: &'m [u32], next: &mut usize, end: usize) -> &'m [u32] {
+    let start = *next;
+    while *next < members.len() && (members[*next] as usize) < end {
+        *next += 1;
+    }
+    &members[start..*next]
+}
+
+/// The leading `components` eigenvectors of a cluster's `covariance` (`n` x `n`). `warm` (the
+/// cluster's previous basis, possibly with fewer rows) starts the eigen-solver; with as many
+/// rows as wanted, it is kept if it captures more variance than what the solver found.
+fn fit_cluster(covariance: &[f64], n: usize, components: usize, warm: &[f64]) -> Vec<f64> {
+    let (values, basis) = top_eigenvectors(covariance, n, components, warm);
     if warm.len() == basis.len() && !warm.is_empty() {
         let captured_before: f64 = warm
             .chunks_exact(n)
-            .map(|b| dot(b, &mat_vec(&covariance, b)))
+            .map(|b| dot(b, &mat_vec(covariance, b)))
             .sum();
         if captured_before > values.iter().sum::<f64>() {
-            return (mean, warm.to_vec());
+            return warm.to_vec();
         }
     }
-    (mean, basis)
+    basis
 }
 
-fn member_mean(points: Points, members: &[u32]) -> Vec<f64> {
-    let mut sum = vec![0.0; points.dimension];
-    for &v in members {
-        sum.iter_mut()
-            .zip(points.row(v as usize))
-            .for_each(|(s, x)| *s += x);
+/// Every cluster's mean: its members summed in vertex order, over their count.
+fn member_means(rows: &mut dyn Rows, members: &[Vec<u32>]) -> Result<Vec<Vec<f64>>> {
+    let mut sums = vec![vec![0.0; rows.dimension()]; members.len()];
+    let mut next = vec![0usize; members.len()];
+    for_each_block(rows, |first, block| {
+        let end = first + block.len();
+        sums.par_iter_mut()
+            .zip(&mut next)
+            .zip(members)
+            .for_each(|((sum, next), members)| {
+                for &v in members_before(members, next, end) {
+                    sum.iter_mut()
+                        .zip(block.row(v as usize - first))
+                        .for_each(|(s, x)| *s += x);
+                }
+            });
+        Ok(())
+    })?;
+    for (sum, members) in sums.iter_mut().zip(members) {
+        let count = members.len().max(1) as f64;
+        sum.iter_mut().for_each(|s| *s /= count);
     }
-    let count = members.len().max(1) as f64;
-    sum.iter_mut().for_each(|s| *s /= count);
-    sum
+    Ok(sums)
 }
 
-/// `sum (x - mean)(x - mean)^T` over the members (not divided by the count: only the
-/// directions matter, and the eigenvalues are then the variance captured in absolute terms).
-fn member_covariance(points: Points, members: &[u32], mean: &[f64]) -> Vec<f64> {
-    let n = points.dimension;
-    let mut covariance = vec![0.0; n * n];
-    let mut centred = vec![0.0; n];
-    for &v in members {
-        centred
-            .iter_mut()
-            .zip(points.row(v as usize).zip(mean))
-            .for_each(|(c, (x, m))| *c = x - m);
-        // The upper triangle only; mirrored below.
-        for i in 0..n {
-            let ci = centred[i];
-            let row = &mut covariance[i * n + i..(i + 1) * n];
-            row.iter_mut()
-                .zip(&centred[i..])
-                .for_each(|(a, cj)| *a += ci * cj);
-        }
+/// `sum (x - mean)(x - mean)^T` over each cluster's members (not divided by the count: only
+/// the directions matter, and the eigenvalues are then the variance captured in absolute
+/// terms).
+fn member_covariances(
+    rows: &mut dyn Rows,
+    members: &[Vec<u32>],
+    means: &[Vec<f64>],
+) -> Result<Vec<Vec<f64>>> {
+    let n = rows.dimension();
+    let mut covariances = vec![vec![0.0; n * n]; members.len()];
+    let mut next = vec![0usize; members.len()];
+    for_each_block(rows, |first, block| {
+        let end = first + block.len();
+        covariances
+            .par_iter_mut()
+            .zip(&mut next)
+            .zip(members.par_iter().zip(means.par_iter()))
+            .for_each(|((covariance, next), (members, mean))| {
+                let mut centred = vec![0.0; n];
+                for &v in members_before(members, next, end) {
+                    centred
+                        .iter_mut()
+                        .zip(block.row(v as usize - first).zip(mean))
+                        .for_each(|(c, (x, m))| *c = x - m);
+                    add_upper_outer(covariance, &centred);
+                }
+            });
+        Ok(())
+    })?;
+    covariances.iter_mut().for_each(|c| mirror_upper(c, n));
+    Ok(covariances)
+}
+
+/// Adds `x x^T` to the upper triangle of `covariance`.
+fn add_upper_outer(covariance: &mut [f64], x: &[f64]) {
+    let n = x.len();
+    for i in 0..n {
+        let xi = x[i];
+        let row = &mut covariance[i * n + i..(i + 1) * n];
+        row.iter_mut()
+            .zip(&x[i..])
+            .for_each(|(a, xj)| *a += xi * xj);
     }
+}
+
+/// Copies the upper triangle below the diagonal.
+fn mirror_upper(covariance: &mut [f64], n: usize) {
     for i in 0..n {
         for j in 0..i {
             covariance[i * n + j] = covariance[j * n + i];
         }
     }
-    covariance
 }
 
 fn mat_vec(c: &[f64], x: &[f64]) -> Vec<f64> {
@@ -346,11 +405,11 @@ fn mat_vec(c: &[f64], x: &[f64]) -> Vec<f64> {
 /// than one member, made that cluster's mean. There is always such a point while a cluster is
 /// empty, because there are at least as many points as clusters.
 pub fn fill_empty_clusters(
-    points: Points,
+    rows: &mut dyn Rows,
     model: &mut Model,
     assignment: &mut [u32],
     residuals: &mut [f64],
-) {
+) -> Result<()> {
     let mut counts = vec![0usize; model.clusters()];
     assignment.iter().for_each(|&c| counts[c as usize] += 1);
     for cluster in 0..model.clusters() {
@@ -364,20 +423,21 @@ pub fn fill_empty_clusters(
                 worst = Some(v);
             }
         }
-        let Some(v) = worst else { return };
+        let Some(v) = worst else { return Ok(()) };
         counts[assignment[v] as usize] -= 1;
         counts[cluster] = 1;
         assignment[v] = cluster as u32;
         residuals[v] = 0.0;
-        model.recentre(cluster, &points.row_f64(v));
+        model.recentre(cluster, &read_row(rows, v)?);
     }
+    Ok(())
 }
 
 /// CPCA rounds from `assignment`: fit, then reassign (and re-seed emptied clusters), for at
 /// most `rounds` rounds or until the assignment stops changing. Ends on an assignment step,
 /// which never raises the error, so the model and assignment returned belong together.
 pub fn iterate(
-    points: Points,
+    rows: &mut dyn Rows,
     mut assignment: Vec<u32>,
     (clusters, components): (usize, usize),
     rounds: u32,
@@ -386,9 +446,9 @@ pub fn iterate(
 ) -> Result<(Model, Vec<u32>)> {
     let mut model = warm;
     for _ in 0..rounds.max(1) {
-        let mut fitted = fit(points, &assignment, clusters, components, model.as_ref());
-        let (mut next, mut residuals) = assigner.assign(points, &fitted)?;
-        fill_empty_clusters(points, &mut fitted, &mut next, &mut residuals);
+        let mut fitted = fit(rows, &assignment, (clusters, components), model.as_ref())?;
+        let (mut next, mut residuals) = assigner.assign(rows, &fitted)?;
+        fill_empty_clusters(rows, &mut fitted, &mut next, &mut residuals)?;
         model = Some(fitted);
         let converged = next == assignment;
         assignment = next;

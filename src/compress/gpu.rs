@@ -10,7 +10,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::cluster::{Assigner, Model, Points};
+use super::cluster::{Assigner, Model};
+use super::rows::Rows;
 use crate::bake::gpu::{encode_pass, pipeline};
 use crate::device::GpuContext;
 use crate::error::{Error, Result};
@@ -54,36 +55,32 @@ pub struct GpuAssigner<'c> {
 }
 
 impl<'c> GpuAssigner<'c> {
-    /// Uploads `points`. Refuses rows too long for one cluster per pass.
-    pub fn new(context: &'c GpuContext, points: Points, components: usize) -> Result<Self> {
-        if clusters_per_pass(points.dimension, components).is_none() {
+    /// Uploads `rows`, a block at a time. Refuses rows too long for one cluster per pass.
+    pub fn new(context: &'c GpuContext, rows: &mut dyn Rows, components: usize) -> Result<Self> {
+        let dimension = rows.dimension();
+        if clusters_per_pass(dimension, components).is_none() {
             return Err(Error::Options(format!(
-                "compress on a GPU: {} floats per vertex with {components} components exceed \
-                 one pass of the assignment kernel",
-                points.dimension
+                "compress on a GPU: {dimension} floats per vertex with {components} components \
+                 exceed one pass of the assignment kernel"
             )));
         }
         let kernel = context.checked("compiling the CPCA kernel", || {
             pipeline(context, "cpca assign", cpca_assign_kernel())
         })?;
-        let row_bytes = (points.dimension * 4) as u64;
+        let row_bytes = (dimension * 4) as u64;
         let by_binding = (context.limits.max_storage_buffer_binding_size / row_bytes) as usize;
         let by_dispatch =
             context.limits.max_compute_workgroups_per_dimension as usize * WORKGROUP_SIZE as usize;
         let per_chunk = by_binding.min(by_dispatch).max(1);
-        let chunks = (0..points.len())
-            .step_by(per_chunk)
-            .map(|first| {
-                let count = per_chunk.min(points.len() - first);
-                let rows =
-                    &points.data[first * points.dimension..(first + count) * points.dimension];
-                (first, count, context.storage("cpca points", rows))
-            })
-            .collect();
+        let mut chunks = Vec::new();
+        for first in (0..rows.len()).step_by(per_chunk) {
+            let count = per_chunk.min(rows.len() - first);
+            chunks.push((first, count, upload(context, rows, first..first + count)?));
+        }
         Ok(GpuAssigner {
             context,
             kernel,
-            dimension: points.dimension,
+            dimension,
             chunks,
         })
     }
@@ -94,13 +91,13 @@ impl<'c> GpuAssigner<'c> {
     /// returned beside it, for a note).
     pub fn where_it_pays(
         context: &'c GpuContext,
-        points: Points,
+        rows: &mut dyn Rows,
         components: usize,
     ) -> Result<(Option<Self>, Option<String>)> {
         if context.adapter.is_software() {
             return Ok((None, None));
         }
-        match GpuAssigner::new(context, points, components) {
+        match GpuAssigner::new(context, rows, components) {
             Ok(assigner) => Ok((Some(assigner), None)),
             Err(Error::Options(why)) => Ok((None, Some(why))),
             Err(e) => Err(e),
@@ -169,13 +166,13 @@ impl<'c> GpuAssigner<'c> {
 }
 
 impl Assigner for GpuAssigner<'_> {
-    fn assign(&self, points: Points, model: &Model) -> Result<(Vec<u32>, Vec<f64>)> {
+    fn assign(&self, rows: &mut dyn Rows, model: &Model) -> Result<(Vec<u32>, Vec<f64>)> {
         let uploaded: usize = self.chunks.iter().map(|c| c.1).sum();
-        if points.dimension != self.dimension || points.len() != uploaded {
+        if rows.dimension() != self.dimension || rows.len() != uploaded {
             return Err(Error::Options(format!(
                 "compress on a GPU: {} rows of {} floats, but {uploaded} of {} were uploaded",
-                points.len(),
-                points.dimension,
+                rows.len(),
+                rows.dimension(),
                 self.dimension
             )));
         }
@@ -183,8 +180,8 @@ impl Assigner for GpuAssigner<'_> {
         let ctx = self.context;
         let means = ctx.storage("cpca means", &narrow(&model.means));
         let bases = ctx.storage("cpca bases", &narrow(&model.bases));
-        let mut clusters = Vec::with_capacity(points.len());
-        let mut residuals = Vec::with_capacity(points.len());
+        let mut clusters = Vec::with_capacity(rows.len());
+        let mut residuals = Vec::with_capacity(rows.len());
         for (_, count, buffer) in &self.chunks {
             let (c, r) = self.assign_chunk((*count, buffer), model, (&means, &bases))?;
             clusters.extend(c);
@@ -194,10 +191,36 @@ impl Assigner for GpuAssigner<'_> {
     }
 }
 
+/// The rows `range` in one storage buffer: in one piece where a block holds them all (the
+/// transfer in memory), else block by block, each flushed before the next is read so that one
+/// block at a time waits in the queue's staging memory.
+fn upload(
+    context: &GpuContext,
+    rows: &mut dyn Rows,
+    range: std::ops::Range<usize>,
+) -> Result<wgpu::Buffer> {
+    let (n, block) = (rows.dimension(), rows.block().max(1));
+    if range.len() <= block {
+        return Ok(context.storage("cpca points", &rows.read(range)?));
+    }
+    let buffer = context.output("cpca points", (range.len() * n * 4) as u64);
+    for first in range.clone().step_by(block) {
+        let end = (first + block).min(range.end);
+        let offset = ((first - range.start) * n * 4) as u64;
+        let piece = rows.read(first..end)?;
+        context
+            .queue
+            .write_buffer(&buffer, offset, bytemuck::cast_slice(&piece));
+        context.queue.submit([]);
+    }
+    Ok(buffer)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::bake::{bake, BakeOptions, CpuBackend, NoProgress, Transfer};
+    use crate::compress::Points;
     use crate::compress::{compress, compress_with, relative_error, CpcaOptions, CpuAssigner};
     use crate::scene::builtin::default_scene;
 
@@ -216,6 +239,29 @@ mod tests {
         Points {
             data: transfer.coeffs(),
             dimension: transfer.channels() as usize * transfer.coeffs_per_channel(),
+        }
+    }
+
+    /// Rows read 100 at a time as copies.
+    struct InBlocks<'a>(Points<'a>);
+
+    impl Rows for InBlocks<'_> {
+        fn dimension(&self) -> usize {
+            self.0.dimension
+        }
+
+        fn len(&self) -> usize {
+            self.0.len()
+        }
+
+        fn block(&self) -> usize {
+            100
+        }
+
+        fn read(&mut self, range: std::ops::Range<usize>) -> Result<std::borrow::Cow<'_, [f32]>> {
+            assert!(range.len() <= 100);
+            let n = self.0.dimension;
+            Ok(self.0.data[range.start * n..range.end * n].to_vec().into())
         }
     }
 
@@ -238,7 +284,7 @@ mod tests {
             return;
         };
         let transfer = transfer();
-        let points = points(&transfer);
+        let mut points = points(&transfer);
         for clusters in [40, 200] {
             let options = CpcaOptions {
                 clusters,
@@ -249,9 +295,9 @@ mod tests {
             let cpca = compress(&transfer, &options).unwrap();
             let widen = |v: &[f32]| v.iter().map(|&x| x as f64).collect::<Vec<f64>>();
             let model = Model::new(points.dimension, 4, widen(&cpca.means), widen(&cpca.bases));
-            let (cpu_clusters, cpu_residuals) = CpuAssigner.assign(points, &model).unwrap();
-            let gpu = GpuAssigner::new(&context, points, 4).unwrap();
-            let (gpu_clusters, gpu_residuals) = gpu.assign(points, &model).unwrap();
+            let (cpu_clusters, cpu_residuals) = CpuAssigner.assign(&mut points, &model).unwrap();
+            let gpu = GpuAssigner::new(&context, &mut points, 4).unwrap();
+            let (gpu_clusters, gpu_residuals) = gpu.assign(&mut points, &model).unwrap();
             let mut differ = 0;
             for v in 0..points.len() {
                 let x: Vec<f64> = points.data[v * points.dimension..(v + 1) * points.dimension]
@@ -295,10 +341,18 @@ mod tests {
             components: 6,
             ..CpcaOptions::default()
         };
-        let gpu = GpuAssigner::new(&context, points(&transfer), 6).unwrap();
+        let gpu = GpuAssigner::new(&context, &mut points(&transfer), 6).unwrap();
         let first = compress_with(&transfer, &options, &gpu).unwrap();
         let second = compress_with(&transfer, &options, &gpu).unwrap();
         assert_eq!(first, second);
+        // Uploaded a block at a time (a streamed bake's scratch file), the same bits.
+        let mut blocks = InBlocks(points(&transfer));
+        let uploaded_in_blocks = GpuAssigner::new(&context, &mut blocks, 6).unwrap();
+        let in_blocks = compress_with(&transfer, &options, &uploaded_in_blocks).unwrap();
+        assert!(
+            in_blocks == first,
+            "uploaded in blocks: another compression"
+        );
         let on_cpu = compress(&transfer, &options).unwrap();
         let (gpu_error, cpu_error) = (
             relative_error(&transfer, &first),

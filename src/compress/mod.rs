@@ -16,11 +16,14 @@
 //! takes about 0.25 ms per vertex at 64 x 8.
 //!
 //! - `cluster.rs` runs the iteration (k-means++ seeding, assignment, refits);
-//! - `eigen.rs` finds a cluster's principal directions (Jacobi, subspace iteration).
+//! - `eigen.rs` finds a cluster's principal directions (Jacobi, subspace iteration);
+//! - `rows.rs` is where the rows come from: the transfer in memory, or the scratch file of a
+//!   bake in bounded memory, read a block at a time with the same bits.
 
 mod cluster;
 pub mod eigen;
 pub mod gpu;
+mod rows;
 
 use rayon::prelude::*;
 
@@ -28,7 +31,8 @@ use crate::bake::Transfer;
 use crate::error::{Error, Result};
 use crate::light::ShLight;
 use crate::precision::Precision;
-pub use cluster::{Assigner, CpuAssigner, Model, Points};
+pub use cluster::{covariance_group, Assigner, CpuAssigner, Model};
+pub use rows::{for_each_block, Points, Rows};
 
 /// How hard to compress.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -88,14 +92,23 @@ pub fn compress_with(
     options: &CpcaOptions,
     assigner: &dyn Assigner,
 ) -> Result<Cpca> {
-    let points = checked_points(transfer, options)?;
-    let (model, assignment) = compress_points(points, options, assigner)?;
-    Ok(finish(
-        (transfer.bands(), transfer.channels()),
-        points,
-        &model,
-        assignment,
-    ))
+    let shape = (transfer.bands(), transfer.channels());
+    compress_from(&mut points_of(transfer), shape, options, assigner)
+}
+
+/// [`compress_with`] of transfer rows of `(bands, channels)` read from `rows` (a scratch file
+/// of a bake in bounded memory, a block at a time): the bits [`compress_with`] gives for the
+/// same rows in memory.
+pub fn compress_from(
+    rows: &mut dyn Rows,
+    (bands, channels): (u32, u32),
+    options: &CpcaOptions,
+    assigner: &dyn Assigner,
+) -> Result<Cpca> {
+    check_rows(rows)?;
+    check_options(options, rows.dimension(), rows.len())?;
+    let (model, assignment) = compress_points(rows, options, assigner)?;
+    finish((bands, channels), rows, &model, assignment)
 }
 
 /// Compresses any rows of `dimension` floats (hemispherical depth maps, clustering
@@ -118,28 +131,31 @@ pub fn compress_rows(rows: &[f32], dimension: usize, options: &CpcaOptions) -> R
         )));
     }
     check_options(options, dimension, rows.len() / dimension)?;
-    let points = Points {
+    let mut points = Points {
         data: rows,
         dimension,
     };
-    let (model, assignment) = compress_points(points, options, &CpuAssigner)?;
-    Ok(finish((0, 0), points, &model, assignment))
+    let (model, assignment) = compress_points(&mut points, options, &CpuAssigner)?;
+    finish((0, 0), &mut points, &model, assignment)
 }
 
 /// k-means++ seeding from `options.seed`, then CPCA rounds: the model and the assignment.
 fn compress_points(
-    points: Points,
+    rows: &mut dyn Rows,
     options: &CpcaOptions,
     assigner: &dyn Assigner,
 ) -> Result<(Model, Vec<u32>)> {
     let clusters = options.clusters as usize;
-    let seeds = cluster::kmeans_plus_plus(points, clusters, options.seed);
-    let seed_means = seeds.iter().flat_map(|&v| point(points, v)).collect();
-    let mut seeding = Model::new(points.dimension, 0, seed_means, Vec::new());
-    let (mut assignment, mut residuals) = assigner.assign(points, &seeding)?;
-    cluster::fill_empty_clusters(points, &mut seeding, &mut assignment, &mut residuals);
+    let seeds = cluster::kmeans_plus_plus(rows, clusters, options.seed)?;
+    let mut seed_means = Vec::with_capacity(clusters * rows.dimension());
+    for &v in &seeds {
+        seed_means.extend(rows::read_row(rows, v)?);
+    }
+    let mut seeding = Model::new(rows.dimension(), 0, seed_means, Vec::new());
+    let (mut assignment, mut residuals) = assigner.assign(rows, &seeding)?;
+    cluster::fill_empty_clusters(rows, &mut seeding, &mut assignment, &mut residuals)?;
     cluster::iterate(
-        points,
+        rows,
         assignment,
         (clusters, options.components as usize),
         options.iterations,
@@ -158,7 +174,9 @@ fn compress_points(
 /// solution this way gives errors that fall monotonically, which separate [`compress`] runs
 /// (local optima from different seedings) do not promise.
 pub fn refine(transfer: &Transfer, start: &Cpca, options: &CpcaOptions) -> Result<Cpca> {
-    let points = checked_points(transfer, options)?;
+    check_transfer(transfer)?;
+    let mut points = points_of(transfer);
+    check_options(options, points.dimension, transfer.vertex_count())?;
     check_start(transfer, start, options)?;
     let warm = Model::new(
         start.dimension,
@@ -167,51 +185,51 @@ pub fn refine(transfer: &Transfer, start: &Cpca, options: &CpcaOptions) -> Resul
         widen(&start.bases),
     );
     let (model, assignment) = cluster::iterate(
-        points,
+        &mut points,
         start.assignment.clone(),
         (options.clusters as usize, options.components as usize),
         options.iterations,
         Some(warm),
         &CpuAssigner,
     )?;
-    Ok(finish(
+    finish(
         (transfer.bands(), transfer.channels()),
-        points,
+        &mut points,
         &model,
         assignment,
-    ))
+    )
 }
 
 fn widen(values: &[f32]) -> Vec<f64> {
     values.iter().map(|&x| x as f64).collect()
 }
 
-fn point(points: Points, vertex: usize) -> Vec<f64> {
-    widen(&points.data[vertex * points.dimension..(vertex + 1) * points.dimension])
-}
-
-/// The model in f32 with every vertex's coordinates.
+/// The model in f32 with every row's coordinates, the rows read a block at a time.
 fn finish(
     (bands, channels): (u32, u32),
-    points: Points,
+    rows: &mut dyn Rows,
     model: &Model,
     assignment: Vec<u32>,
-) -> Cpca {
+) -> Result<Cpca> {
     let components = model.components;
     let mut weights = vec![0.0f32; assignment.len() * components];
     if components > 0 {
-        weights
-            .par_chunks_mut(components)
-            .zip(&assignment)
-            .enumerate()
-            .for_each(|(v, (w, &c))| {
-                let x = point(points, v);
-                w.iter_mut()
-                    .zip(model.coordinates(c as usize, &x))
-                    .for_each(|(w, x)| *w = x as f32);
-            });
+        for_each_block(rows, |first, block| {
+            let end = first + block.len();
+            weights[first * components..end * components]
+                .par_chunks_mut(components)
+                .zip(&assignment[first..end])
+                .enumerate()
+                .for_each(|(i, (w, &c))| {
+                    let x = block.row_f64(i);
+                    w.iter_mut()
+                        .zip(model.coordinates(c as usize, &x))
+                        .for_each(|(w, x)| *w = x as f32);
+                });
+            Ok(())
+        })?;
     }
-    Cpca {
+    Ok(Cpca {
         bands,
         channels,
         dimension: model.dimension,
@@ -220,36 +238,40 @@ fn finish(
         bases: narrow(&model.bases),
         assignment,
         weights,
-    }
+    })
 }
 
 fn narrow(values: &[f64]) -> Vec<f32> {
     values.iter().map(|&x| x as f32).collect()
 }
 
-/// The transfer as points, after checking it and the options.
-fn checked_points<'t>(transfer: &'t Transfer, options: &CpcaOptions) -> Result<Points<'t>> {
-    check_transfer(transfer)?;
-    let dimension = transfer.channels() as usize * transfer.coeffs_per_channel();
-    check_options(options, dimension, transfer.vertex_count())?;
-    Ok(Points {
+/// The transfer's rows, one per vertex, in memory.
+fn points_of(transfer: &Transfer) -> Points<'_> {
+    Points {
         data: transfer.coeffs(),
-        dimension,
-    })
+        dimension: transfer.channels() as usize * transfer.coeffs_per_channel(),
+    }
 }
 
 /// Refuses a non-finite coefficient (the shape holds by construction).
 fn check_transfer(transfer: &Transfer) -> Result<()> {
-    let per_vertex = transfer.channels() as usize * transfer.coeffs_per_channel();
-    if let Some(i) = transfer.coeffs().iter().position(|c| !c.is_finite()) {
-        return Err(Error::Options(format!(
-            "compress: transfer coefficient {} of vertex {} is {}",
-            i % per_vertex,
-            i / per_vertex,
-            transfer.coeffs()[i]
-        )));
-    }
-    Ok(())
+    check_rows(&mut points_of(transfer))
+}
+
+/// Refuses a non-finite value, naming its row.
+fn check_rows(rows: &mut dyn Rows) -> Result<()> {
+    let n = rows.dimension();
+    for_each_block(rows, |first, block| {
+        match block.data.iter().position(|c| !c.is_finite()) {
+            Some(i) => Err(Error::Options(format!(
+                "compress: transfer coefficient {} of vertex {} is {}",
+                i % n,
+                first + i / n,
+                block.data[i]
+            ))),
+            None => Ok(()),
+        }
+    })
 }
 
 fn check_options(options: &CpcaOptions, dimension: usize, vertices: usize) -> Result<()> {
@@ -348,15 +370,22 @@ impl Cpca {
 
     /// The transfer the compressed form stands for: `mean + sum_j w_j basis_j` per vertex.
     pub fn reconstruct(&self) -> Transfer {
+        let coeffs = self.reconstruct_rows(0..self.vertex_count());
+        Transfer::new(self.bands, self.channels, self.vertex_count(), coeffs)
+            .expect("one reconstructed row for each vertex")
+    }
+
+    /// The rows of the vertices `range` as [`Cpca::reconstruct`] gives them.
+    pub fn reconstruct_rows(&self, range: std::ops::Range<usize>) -> Vec<f32> {
         let n = self.dimension;
         let m = self.components;
-        let mut coeffs = vec![0.0f32; self.vertex_count() * n];
+        let mut coeffs = vec![0.0f32; range.len() * n];
         coeffs
             .par_chunks_mut(n.max(1))
-            .zip(&self.assignment)
+            .zip(&self.assignment[range.clone()])
             .enumerate()
-            .for_each(|(v, (out, &c))| {
-                let c = c as usize;
+            .for_each(|(i, (out, &c))| {
+                let (v, c) = (range.start + i, c as usize);
                 let mut sum: Vec<f64> = widen(&self.means[c * n..(c + 1) * n]);
                 let weights = &self.weights[v * m..(v + 1) * m];
                 let basis = &self.bases[c * m * n..(c + 1) * m * n];
@@ -367,8 +396,7 @@ impl Cpca {
                 }
                 out.iter_mut().zip(&sum).for_each(|(o, s)| *o = *s as f32);
             });
-        Transfer::new(self.bands, self.channels, self.vertex_count(), coeffs)
-            .expect("one reconstructed row for each vertex")
+        coeffs
     }
 
     /// Per-vertex exit radiance as a run-time computes it: the light dotted into each
@@ -497,11 +525,21 @@ fn check_light(light: &ShLight) -> Result<()> {
 /// RMS of the coefficient difference over the RMS of the original coefficients (0 for an
 /// all-zero original reconstructed exactly; infinite if only the original is zero).
 pub fn relative_error(original: &Transfer, cpca: &Cpca) -> f64 {
-    let reconstructed = cpca.reconstruct();
-    relative_rms(
-        original.coeffs().iter().map(|&x| x as f64),
-        reconstructed.coeffs().iter().map(|&x| x as f64),
-    )
+    relative_error_of(&mut points_of(original), cpca).expect("rows in memory read")
+}
+
+/// [`relative_error`] of the original rows read from `rows`, summed in the same order.
+pub fn relative_error_of(rows: &mut dyn Rows, cpca: &Cpca) -> Result<f64> {
+    let mut sums = RelativeRms::default();
+    for_each_block(rows, |first, block| {
+        let reconstructed = cpca.reconstruct_rows(first..first + block.len());
+        sums.add(
+            block.data.iter().map(|&x| x as f64),
+            reconstructed.iter().map(|&x| x as f64),
+        );
+        Ok(())
+    })?;
+    Ok(sums.value())
 }
 
 /// The relit-radiance error under `light`: RMS over vertices and channels of the difference
@@ -509,25 +547,43 @@ pub fn relative_error(original: &Transfer, cpca: &Cpca) -> f64 {
 /// original.
 pub fn relit_error(original: &Transfer, cpca: &Cpca, light: &ShLight) -> Result<f64> {
     check_transfer(original)?;
+    relit_error_of(&mut points_of(original), original.channels(), cpca, light)
+}
+
+/// [`relit_error`] of the original rows of `channels` channels read from `rows`.
+pub fn relit_error_of(
+    rows: &mut dyn Rows,
+    channels: u32,
+    cpca: &Cpca,
+    light: &ShLight,
+) -> Result<f64> {
     let approximate = cpca.relight(light)?;
-    if approximate.len() != original.vertex_count() {
+    if approximate.len() != rows.len() {
         return Err(Error::Options(format!(
             "relit error: {} compressed vertices for {} original ones",
             approximate.len(),
-            original.vertex_count()
+            rows.len()
         )));
     }
-    Ok(radiance_error(&radiance(original, light), &approximate))
+    let mut sums = RelativeRms::default();
+    for_each_block(rows, |first, block| {
+        let reference = rows_radiance(block, channels as usize, light);
+        sums.add_radiance(&reference, &approximate[first..first + block.len()]);
+        Ok(())
+    })?;
+    Ok(sums.value())
 }
 
 /// Every vertex's radiance from `transfer` (one or three channels) under `light`, summed in
 /// f64: the reference the compressed and the zonal forms are measured against.
 pub fn radiance(transfer: &Transfer, light: &ShLight) -> Vec<[f32; 3]> {
-    let per_vertex = transfer.channels() as usize * transfer.coeffs_per_channel();
-    transfer
-        .coeffs()
-        .par_chunks_exact(per_vertex.max(1))
-        .map(|t| vector_radiance(t, transfer.channels() as usize, light))
+    rows_radiance(points_of(transfer), transfer.channels() as usize, light)
+}
+
+fn rows_radiance(rows: Points, channels: usize, light: &ShLight) -> Vec<[f32; 3]> {
+    rows.data
+        .par_chunks_exact(rows.dimension.max(1))
+        .map(|t| vector_radiance(t, channels, light))
         .collect()
 }
 
@@ -535,12 +591,6 @@ pub fn radiance(transfer: &Transfer, light: &ShLight) -> Vec<[f32; 3]> {
 pub fn radiance_error(reference: &[[f32; 3]], approximate: &[[f32; 3]]) -> f64 {
     let mut sums = RelativeRms::default();
     sums.add_radiance(reference, approximate);
-    sums.value()
-}
-
-fn relative_rms(reference: impl Iterator<Item = f64>, other: impl Iterator<Item = f64>) -> f64 {
-    let mut sums = RelativeRms::default();
-    sums.add(reference, other);
     sums.value()
 }
 
@@ -592,28 +642,30 @@ pub fn choose(
     target_relative_error: f64,
     seed: u64,
 ) -> Result<(Cpca, CpcaOptions)> {
-    choose_with(
-        transfer,
+    let shape = (transfer.bands(), transfer.channels());
+    choose_from(
+        &mut points_of(transfer),
+        shape,
         target_relative_error,
-        seed,
-        &CpuAssigner,
+        (seed, &CpuAssigner),
         &mut |_, _| {},
     )
 }
 
-/// The shapes [`choose`] may try for `transfer`, in order: what `trying` counts up to.
-pub fn choose_steps(transfer: &Transfer) -> usize {
-    let dimension = transfer.channels() as usize * transfer.coeffs_per_channel();
-    grid(dimension, transfer.vertex_count()).len()
+/// The shapes [`choose`] may try for rows of `dimension` floats of `vertices` vertices, in
+/// order: what `trying` counts up to.
+pub fn choose_steps(dimension: usize, vertices: usize) -> usize {
+    grid(dimension, vertices).len()
 }
 
-/// [`choose`] with the assignment steps on `assigner`; `trying` is told of each shape before
-/// it is tried, with its place among the [`choose_steps`] (a shape skipped has one too).
-pub fn choose_with(
-    transfer: &Transfer,
+/// [`choose`] of transfer rows of `(bands, channels)` read from `rows`, with the assignment
+/// steps on `assigner`; `trying` is told of each shape before it is tried, with its place
+/// among the [`choose_steps`] (a shape skipped has one too).
+pub fn choose_from(
+    rows: &mut dyn Rows,
+    shape: (u32, u32),
     target_relative_error: f64,
-    seed: u64,
-    assigner: &dyn Assigner,
+    (seed, assigner): (u64, &dyn Assigner),
     trying: &mut dyn FnMut(usize, &CpcaOptions),
 ) -> Result<(Cpca, CpcaOptions)> {
     if !(target_relative_error >= 0.0 && target_relative_error.is_finite()) {
@@ -621,9 +673,8 @@ pub fn choose_with(
             "choose: target relative error {target_relative_error} (need a finite number >= 0)"
         )));
     }
-    check_transfer(transfer)?;
-    let dimension = transfer.channels() as usize * transfer.coeffs_per_channel();
-    let vertices = transfer.vertex_count();
+    check_rows(rows)?;
+    let (dimension, vertices) = (rows.dimension(), rows.len());
     let mut missed: Vec<(u32, u32)> = Vec::new();
     let mut best_missed = f64::INFINITY;
     for (step, (clusters, components)) in grid(dimension, vertices).into_iter().enumerate() {
@@ -640,8 +691,8 @@ pub fn choose_with(
             ..CpcaOptions::default()
         };
         trying(step, &options);
-        let cpca = compress_with(transfer, &options, assigner)?;
-        let error = relative_error(transfer, &cpca);
+        let cpca = compress_from(rows, shape, &options, assigner)?;
+        let error = relative_error_of(rows, &cpca)?;
         if error <= target_relative_error {
             return Ok((cpca, options));
         }
@@ -651,6 +702,16 @@ pub fn choose_with(
     Err(Error::Options(format!(
         "choose: no compression reaches relative error {target_relative_error} (best {best_missed:.3e})"
     )))
+}
+
+/// The most clusters and the most components of any shape [`choose`] may try for rows of
+/// `dimension` floats of `vertices` vertices: what its memory is bounded by.
+pub fn largest_search_shape(dimension: usize, vertices: usize) -> (usize, usize) {
+    grid(dimension, vertices)
+        .into_iter()
+        .fold((0, 0), |(k, m), (clusters, components)| {
+            (k.max(clusters as usize), m.max(components as usize))
+        })
 }
 
 /// (clusters, components) shapes to try, smallest stored size first.

@@ -322,15 +322,20 @@ fn rounding_to_half_floats_stays_within_its_bound() {
 fn choose_finds_a_small_shape_that_meets_the_target() {
     let transfer = baked();
     let mut tried = Vec::new();
-    let (cpca, chosen) = choose_with(transfer, 0.05, 1, &CpuAssigner, &mut |step, options| {
-        tried.push((step, options.clusters, options.components))
-    })
+    let shape = (transfer.bands(), transfer.channels());
+    let (cpca, chosen) = choose_from(
+        &mut points_of(transfer),
+        shape,
+        0.05,
+        (1, &CpuAssigner),
+        &mut |step, options| tried.push((step, options.clusters, options.components)),
+    )
     .unwrap();
     // Told of every shape tried, in order, the last the one chosen.
     assert!(tried.windows(2).all(|w| w[0].0 < w[1].0), "{tried:?}");
     assert!(tried
         .iter()
-        .all(|&(step, ..)| step < choose_steps(transfer)));
+        .all(|&(step, ..)| step < choose_steps(48, transfer.vertex_count())));
     let last = tried.last().map(|&(_, k, m)| (k, m));
     assert_eq!(last, Some((chosen.clusters, chosen.components)));
     assert_eq!((cpca.clone(), chosen), choose(transfer, 0.05, 1).unwrap());
@@ -526,4 +531,118 @@ fn bad_rows_are_one_line_errors() {
         compress_rows(&[1.0; 6], 3, &options(3, 1)).is_err(),
         "more clusters than rows"
     );
+}
+
+/// A transfer's rows read `block` at a time as copies, as a bake's scratch file gives them.
+struct InBlocks<'a> {
+    points: Points<'a>,
+    block: usize,
+}
+
+impl Rows for InBlocks<'_> {
+    fn dimension(&self) -> usize {
+        self.points.dimension
+    }
+
+    fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    fn block(&self) -> usize {
+        self.block
+    }
+
+    fn read(&mut self, range: std::ops::Range<usize>) -> Result<std::borrow::Cow<'_, [f32]>> {
+        assert!(
+            range.len() <= self.block,
+            "{range:?} read in blocks of {}",
+            self.block
+        );
+        let n = self.points.dimension;
+        Ok(self.points.data[range.start * n..range.end * n]
+            .to_vec()
+            .into())
+    }
+}
+
+#[test]
+fn clustering_rows_read_a_block_at_a_time_gives_the_same_bits() {
+    let transfer = baked();
+    let shape = (transfer.bands(), transfer.channels());
+    let options = CpcaOptions {
+        clusters: 24,
+        components: 5,
+        iterations: 6,
+        seed: 3,
+    };
+    let whole = compress(transfer, &options).unwrap();
+    let light = crate::light::preview_light(transfer.bands()).unwrap();
+    let whole_errors = (
+        relative_error(transfer, &whole),
+        relit_error(transfer, &whole, &light).unwrap(),
+    );
+    // 6,400 rows: blocks that do not divide them, and one smaller than a parallel work item.
+    for block in [97, 1000, 6400] {
+        let mut rows = InBlocks {
+            points: points_of(transfer),
+            block,
+        };
+        let streamed = compress_from(&mut rows, shape, &options, &CpuAssigner).unwrap();
+        assert!(streamed == whole, "blocks of {block}: another compression");
+        let errors = (
+            relative_error_of(&mut rows, &streamed).unwrap(),
+            relit_error_of(&mut rows, transfer.channels(), &streamed, &light).unwrap(),
+        );
+        assert_eq!(errors, whole_errors, "blocks of {block}");
+    }
+    let mut rows = InBlocks {
+        points: points_of(transfer),
+        block: 500,
+    };
+    let searched = choose_from(&mut rows, shape, 0.05, (1, &CpuAssigner), &mut |_, _| {});
+    assert!(searched.unwrap() == choose(transfer, 0.05, 1).unwrap());
+    // A non-finite value is named by its place, whichever block it lies in.
+    let mut broken = transfer.coeffs().to_vec();
+    broken[4321 * 48 + 7] = f32::NAN;
+    let mut rows = InBlocks {
+        points: Points {
+            data: &broken,
+            dimension: 48,
+        },
+        block: 1000,
+    };
+    let error = compress_from(&mut rows, shape, &options, &CpuAssigner).unwrap_err();
+    assert!(
+        error
+            .to_string()
+            .contains("coefficient 7 of vertex 4321 is NaN"),
+        "{error}"
+    );
+}
+
+#[test]
+fn covariances_fitted_a_group_of_clusters_at_a_time_give_the_same_model() {
+    let transfer = baked();
+    let options = CpcaOptions {
+        clusters: 9,
+        components: 3,
+        iterations: 2,
+        seed: 8,
+    };
+    let cpca = compress(transfer, &options).unwrap();
+    let fitted = |group: usize| {
+        let mut rows = InBlocks {
+            points: points_of(transfer),
+            block: 700,
+        };
+        cluster::fit_in_groups(&mut rows, &cpca.assignment, (9, 3), None, group).unwrap()
+    };
+    let all_at_once = fitted(9);
+    for group in [1, 2, 4] {
+        let model = fitted(group);
+        assert!(
+            (&model.means, &model.bases) == (&all_at_once.means, &all_at_once.bases),
+            "groups of {group}"
+        );
+    }
 }

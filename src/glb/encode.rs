@@ -12,7 +12,11 @@ pub(super) fn put_f32s(bin: &mut Vec<u8>, values: impl IntoIterator<Item = f32>)
 /// the mesh carries the transfer.
 pub(super) fn encode_valid(stored: Stored, lightmap_uri: Option<&str>) -> Result<Vec<u8>> {
     let (baked, cpca, precision) = (stored.baked(), stored.cpca(), stored.precision());
-    validate_mesh(baked)?;
+    let shape = Shape {
+        transfer: stored.transfer_shape(),
+        ..Shape::of(baked)
+    };
+    validate_shape(shape)?;
     let (mut bin, mut views) = encode_bin(baked, cpca.is_none(), precision);
     let cpca_extras = cpca.map(|cpca| compressed::encode(cpca, precision, &mut bin, &mut views));
     let probes = stored.probes().map(|set| {
@@ -28,7 +32,6 @@ pub(super) fn encode_valid(stored: Stored, lightmap_uri: Option<&str>) -> Result
         })
     });
     bin.resize(bin.len().next_multiple_of(4), 0);
-    let shape = Shape::of(baked);
     let extras = Extras {
         cpca: cpca_extras,
         probes,

@@ -11,6 +11,9 @@ use crate::zonal::ZonalTransfer;
 #[derive(Clone, Copy)]
 pub struct Stored<'a> {
     baked: &'a BakedMesh,
+    /// The transfer's shape: the baked mesh's, or (compressed from a streamed bake's scratch
+    /// file) the shape of a transfer no one held whole.
+    shape: TransferShape,
     cpca: Option<&'a Cpca>,
     precision: Precision,
     probes: Option<&'a ProbeSet>,
@@ -42,7 +45,48 @@ impl<'a> Stored<'a> {
         }
         Ok(Stored {
             baked,
+            shape: baked.transfer.shape(),
             cpca,
+            precision,
+            probes: None,
+            zonal: None,
+        })
+    }
+
+    /// `baked` (its transfer the shape of the compressed one, for no vertex) stored as `cpca`
+    /// at `precision`: a streamed bake's transfer, compressed from its scratch file. Refuses a
+    /// compressed transfer of other bands, channels or vertices than the mesh.
+    pub fn compressed(
+        baked: &'a BakedMesh,
+        cpca: &'a Cpca,
+        precision: Precision,
+    ) -> Result<Stored<'a>> {
+        let shape = TransferShape {
+            vertex_count: cpca.vertex_count(),
+            ..baked.transfer.shape()
+        };
+        if (cpca.bands, cpca.channels) != (shape.bands, shape.channels) {
+            return Err(Error::Geometry(format!(
+                "the compressed transfer has {} bands and {} channels, the mesh {} and {}",
+                cpca.bands, cpca.channels, shape.bands, shape.channels
+            )));
+        }
+        let vertices = baked.scene.positions.len();
+        if baked.transfer.vertex_count() != 0 || baked.lightmap.is_some() {
+            return Err(Error::Geometry(
+                "a compressed streamed bake's mesh carries no transfer of its own".into(),
+            ));
+        }
+        if vertices != 0 && vertices != cpca.vertex_count() {
+            return Err(Error::Geometry(format!(
+                "compressed transfer of {} vertices for a mesh of {vertices}",
+                cpca.vertex_count()
+            )));
+        }
+        Ok(Stored {
+            baked,
+            shape,
+            cpca: Some(cpca),
             precision,
             probes: None,
             zonal: None,
@@ -60,6 +104,7 @@ impl<'a> Stored<'a> {
     pub(super) fn streamed(shape: &'a BakedMesh, precision: Precision) -> Stored<'a> {
         Stored {
             baked: shape,
+            shape: shape.transfer.shape(),
             cpca: None,
             precision,
             probes: None,
@@ -78,10 +123,7 @@ impl<'a> Stored<'a> {
     /// The same, with `zonal` (fitted to this mesh's transfer) in the file beside it.
     pub fn with_zonal(self, zonal: Option<&'a ZonalTransfer>) -> Result<Stored<'a>> {
         if let Some(zonal) = zonal {
-            let (vertices, channels) = (
-                self.baked.scene.positions.len(),
-                self.baked.transfer.channels(),
-            );
+            let (vertices, channels) = (self.shape.vertex_count, self.shape.channels);
             if zonal.vertex_count() != vertices || zonal.channels() != channels {
                 return Err(Error::Geometry(format!(
                     "zonal transfer of {} vertices and {} channels for a mesh of {vertices} \
@@ -104,6 +146,11 @@ impl<'a> Stored<'a> {
 
     pub fn baked(&self) -> &'a BakedMesh {
         self.baked
+    }
+
+    /// The transfer's bands, channels and vertices.
+    pub fn transfer_shape(&self) -> TransferShape {
+        self.shape
     }
 
     pub fn cpca(&self) -> Option<&'a Cpca> {

@@ -4,6 +4,7 @@
 //! and each chunk's coefficients go to their places in the planar transfer view. The bytes are
 //! those [`super::write_glb`] writes for the same bake.
 
+use std::borrow::Cow;
 use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
@@ -22,6 +23,7 @@ use crate::bake::{
     truncate_bands, Backend, BakeMetadata, BakeReport, BandEnergy, Mode, Progress, Transfer,
     TransferShape,
 };
+use crate::compress::Rows;
 use crate::error::{Error, Result};
 use crate::fs::AtomicFile;
 use crate::probes::ProbeSet;
@@ -188,6 +190,9 @@ pub struct StreamSink<'a> {
     /// The zonal transfer the file holds beside the SH transfer, fitted a chunk at a time (a
     /// baked mesh only).
     pub zonal: Option<ZonalSpec>,
+    /// Whether the file stores the transfer compressed: then no file is started, and the
+    /// chunks wait in a scratch file ([`StreamedWrite::held`]) for clustered PCA to read.
+    pub compressed: bool,
 }
 
 /// What bakes a streamed file's probes ([`StreamSink::probes`]).
@@ -304,9 +309,11 @@ pub fn bake_streamed(
     };
     let target = bake.target_error();
     // --bands auto: the bands are known once every chunk is baked, and the file's layout
-    // depends on them; an error target: the file records the mean samples of all receivers.
-    // The chunks then wait in a scratch file (at the most bands).
-    let mut held = match sink.bands_auto.is_some() || target.is_some() {
+    // depends on them; an error target: the file records the mean samples of all receivers;
+    // compressed, the clustering reads every chunk many times. The chunks then wait in a
+    // scratch file (at the most bands).
+    let hold = sink.bands_auto.is_some() || target.is_some() || sink.compressed;
+    let mut held = match hold {
         true => Some(HeldChunks::bake(
             &ranges,
             &mut |range| source.next(range, metadata.channels),
@@ -325,8 +332,18 @@ pub fn bake_streamed(
     let (probes, probe_seconds) =
         probe_stage(&mut sink, source.interreflected.as_mut(), metadata.bands)?;
     let (_, vertex_map, _) = bake.prepared();
-    let mut file = Streaming::create(bake, (&metadata, probes.as_ref()), &sink, vertex_map, chunk)?;
+    let mut file = match sink.compressed {
+        false => Some(Streaming::create(
+            bake,
+            (&metadata, probes.as_ref()),
+            &sink,
+            vertex_map,
+            chunk,
+        )?),
+        true => None,
+    };
     let mut zonal = sink.zonal.map(ZonalTally::new);
+    let mut zonal_held: Option<ZonalTransfer> = None;
     let normals = bake.scene().normals.as_deref().unwrap_or_default();
     for range in ranges {
         let first = range.start;
@@ -335,14 +352,33 @@ pub fn bake_streamed(
             None => source.next(range.clone(), metadata.channels)?,
         };
         (sink.each_chunk)(&transfer)?;
-        file.put(first, &transfer)?;
+        if let Some(file) = &mut file {
+            file.put(first, &transfer)?;
+        }
         if let Some(tally) = &mut zonal {
             let normals = normals.get(range).unwrap_or_default();
-            file.put_zonal(first, &tally.fit(&transfer, normals)?)?;
+            let fitted = tally.fit(&transfer, normals)?;
+            match (&mut file, &mut zonal_held) {
+                (Some(file), _) => file.put_zonal(first, &fitted)?,
+                (None, Some(so_far)) => so_far.append(fitted),
+                (None, None) => zonal_held = Some(fitted),
+            }
         }
     }
-    let written = file.commit()?;
+    let written = file.map(Streaming::commit).transpose()?.flatten();
     let seconds = started.elapsed().as_secs_f64();
+    let bands_chosen = held
+        .as_ref()
+        .filter(|_| sink.bands_auto.is_some())
+        .map(|held| (held.bands, held.beyond));
+    let held = held.filter(|_| sink.compressed).map(|chunks| HeldTransfer {
+        chunks,
+        channels: metadata.channels,
+        block: chunk,
+        vertices: receivers,
+        metadata: metadata.clone(),
+        zonal: zonal_held,
+    });
     Ok(StreamedWrite {
         report: BakeReport {
             adaptive,
@@ -354,12 +390,11 @@ pub fn bake_streamed(
             )
         },
         scene_write: written,
-        bands_chosen: held
-            .filter(|_| sink.bands_auto.is_some())
-            .map(|held| (held.bands, held.beyond)),
+        bands_chosen,
         probes,
         probe_seconds,
         zonal: zonal.and_then(|tally| tally.measured()),
+        held,
     })
 }
 
@@ -507,4 +542,45 @@ pub struct StreamedWrite {
     pub probe_seconds: f64,
     /// What the zonal transfer's fit cost, when the file holds one.
     pub zonal: Option<ZonalFit>,
+    /// The transfer, where the sink stores it compressed and no file was written.
+    pub held: Option<HeldTransfer>,
+}
+
+/// A streamed bake's transfer held in its scratch file, for clustered PCA to read a block of
+/// chunks at a time ([`crate::compress::Rows`]), with what the file it becomes records.
+pub struct HeldTransfer {
+    chunks: HeldChunks,
+    channels: u32,
+    /// Rows a block: the bake's chunk.
+    block: usize,
+    vertices: usize,
+    pub metadata: BakeMetadata,
+    /// The zonal transfer, fitted as the chunks came, where the file holds one.
+    pub zonal: Option<ZonalTransfer>,
+}
+
+impl HeldTransfer {
+    /// The transfer's bands (with `--bands auto`, those chosen) and channels.
+    pub fn shape(&self) -> (u32, u32) {
+        (self.chunks.bands, self.channels)
+    }
+}
+
+impl Rows for HeldTransfer {
+    fn dimension(&self) -> usize {
+        self.channels as usize * coeff_count(self.chunks.bands)
+    }
+
+    fn len(&self) -> usize {
+        self.vertices
+    }
+
+    fn block(&self) -> usize {
+        self.block
+    }
+
+    fn read(&mut self, range: Range<usize>) -> Result<Cow<'_, [f32]>> {
+        let chunk = self.chunks.read(range, self.channels)?;
+        Ok(Cow::Owned(chunk.into_coeffs()))
+    }
 }

@@ -4,12 +4,14 @@
 use super::scene_media;
 use crate::bake;
 use crate::bake::stream::{format_bytes, MemoryNeed};
+use crate::compress;
 use crate::error::Error;
 use crate::probes;
 use crate::receivers::spread_point_count;
 use crate::scene::gltf::GltfScene;
 use crate::scene::Scene;
-use crate::spec::{BakeSpec, Layout};
+use crate::sh::coeff_count;
+use crate::spec::{BakeSpec, Compression};
 use crate::Result;
 
 /// How a bake fits the memory it may use.
@@ -51,11 +53,8 @@ pub fn plan_memory(
     }
     let translucent =
         gltf.is_some_and(|gltf| scene_media(spec, (scene, gltf), &mut Vec::new()).is_some());
-    // What the bake holds beside its receivers that no chunking shrinks, or that a chunked
-    // bake cannot give: a compressed layout's clustering, a medium's scattering matrices.
-    let chunkable = spec.storage.layout == Layout::PerVertex
-        && spec.transfer.subsurface.is_none()
-        && !translucent;
+    // What a chunked bake cannot give: a medium's scattering matrices.
+    let chunkable = spec.transfer.subsurface.is_none() && !translucent;
     let streamable = bake::stream::streams(&options) && chunkable;
     let points_chunk =
         options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
@@ -127,9 +126,6 @@ fn why_whole(spec: &BakeSpec, translucent: bool) -> &'static str {
     if spec.receivers.lightmap.is_some() {
         "a lightmap is baked, stitched at its seams and denoised as one image of every texel, \
          so it does not stream in chunks"
-    } else if spec.compression().is_some() {
-        "clustered PCA (--compress) clusters every vertex's transfer at once, so it does not \
-         stream in chunks"
     } else if spec.transfer.subsurface.is_some() || translucent {
         "subsurface scattering carries light from every vertex to those around it over the \
          whole surface, so it does not stream in chunks"
@@ -164,6 +160,24 @@ pub fn memory_need(spec: &BakeSpec, (scene, gltf): (&Scene, Option<&GltfScene>))
     }
     if let Some(size) = spec.receivers.lightmap {
         need = need.with_lightmap(size, &options);
+    }
+    if let Some(compression) = spec.compression() {
+        // RGB: a lean bake may keep three channels where its albedo is coloured.
+        let dimension = 3 * coeff_count(options.bands);
+        let vertices = scene.vertex_count();
+        let (clusters, components) = match compression {
+            Compression::Shape {
+                clusters,
+                components,
+            } => (clusters as usize, components as usize),
+            // The largest shape the search may try.
+            Compression::Target { .. } => compress::largest_search_shape(dimension, vertices),
+        };
+        need = need.with_compression(
+            (clusters as u64, components as u64),
+            dimension as u64,
+            compress::covariance_group(dimension) as u64,
+        );
     }
     need
 }

@@ -189,6 +189,12 @@ fn report_streamed(
     if let Some(chosen) = &streamed.bands_chosen {
         eprintln!("{chosen}");
     }
+    for note in &streamed.notes {
+        eprintln!("note: {note}");
+    }
+    if let Some(compressed) = &streamed.compressed {
+        eprintln!("{compressed}");
+    }
     if let Some(cost) = &streamed.half_float {
         eprintln!("{cost}");
     }

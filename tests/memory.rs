@@ -395,7 +395,7 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
         ),
         (
             &["--memory-limit", &below_any_chunk, "--compress", "8x4"],
-            "and the clusters and weights",
+            "the clustering's model, clusters and weights",
         ),
         (
             &["--memory-limit", &below_whole, "--lightmap", "256"],

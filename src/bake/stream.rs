@@ -57,6 +57,10 @@ pub struct MemoryNeed {
     /// Clustered PCA's model and each vertex's clusters and weights
     /// ([`MemoryNeed::with_compression`]), held whole and streamed alike.
     pub compression: u64,
+    /// What each row of a streamed bake's chunk costs while clustered PCA reads it back.
+    pub compression_per_row: u64,
+    /// What the bake holds that is let go before clustered PCA starts: the BVH.
+    pub bvh: u64,
 }
 
 /// What a least-squares fit adds to a bake's need: its points, held whatever the chunking,
@@ -157,6 +161,8 @@ impl MemoryNeed {
             beside_vertices: 0,
             fit: None,
             compression: 0,
+            compression_per_row: 0,
+            bvh,
         }
     }
 
@@ -213,11 +219,11 @@ impl MemoryNeed {
     /// of `components` directions, its rows of `dimension` floats (RGB), `group` covariances
     /// accumulated at once (`compress::covariance_group`): the model in f64 (and the previous
     /// round's), the covariances, and for each vertex its clusters (three assignments), its
-    /// residual and seeding distance in f64, its weights as fitted and rounded, and their
-    /// bytes in the file twice. The file then holds no per-vertex transfer. The rows the
-    /// clustering reads and reconstructs (all at once whole, a chunk at a time streamed) are
-    /// fewer bytes than the direct pass and the file blocks it runs after, so they add nothing
-    /// to the peak.
+    /// residual and seeding distance in f64, its weights as fitted and rounded, and their bytes
+    /// in the file twice. The file then holds no per-vertex transfer. Whole, the error is
+    /// measured on rows reconstructed a run at a time (`compress::RECONSTRUCTED_ROWS`);
+    /// streamed, the clustering runs once the last chunk is baked, each chunk read back from
+    /// the scratch file and cut to the bands kept, or reconstructed beside it: two copies.
     pub fn with_compression(
         self,
         (clusters, components): (u64, u64),
@@ -226,10 +232,14 @@ impl MemoryNeed {
     ) -> MemoryNeed {
         let model = 2 * 8 * clusters * dimension * (components + 1);
         let covariances = clusters.min(group) * 8 * dimension * dimension;
+        let reconstructed =
+            (crate::compress::RECONSTRUCTED_ROWS as u64).min(self.receivers) * 4 * dimension;
         let per_vertex = 3 * 4 + 2 * 8 + 2 * 4 * components + 2 * (4 * components + 4);
         let file_transfer = 16 * (dimension / 3).div_ceil(4) * 3;
         MemoryNeed {
             compression: model + covariances + self.receivers * per_vertex,
+            compression_per_row: 2 * 4 * dimension,
+            beside_vertices: self.beside_vertices + reconstructed,
             per_receiver_whole: self.per_receiver_whole - 2 * file_transfer,
             per_receiver_streamed: self.per_receiver_streamed - file_transfer,
             ..self
@@ -338,7 +348,13 @@ impl MemoryNeed {
     /// Clustered PCA runs once the last chunk is written to the scratch file, in the room the
     /// chunks leave.
     pub fn streamed(&self, chunk: usize) -> u64 {
-        self.held() + (chunk as u64 * self.per_receiver_streamed).max(self.compression)
+        let chunk = chunk as u64;
+        // The BVH is let go before the clustering starts.
+        let clustering = match self.compression {
+            0 => 0,
+            held => (held + chunk * self.compression_per_row).saturating_sub(self.bvh),
+        };
+        self.held() + (chunk * self.per_receiver_streamed).max(clustering)
     }
 
     /// The need of one of `shards` shards of the bake: the mesh and its BVH, and
@@ -382,8 +398,14 @@ impl MemoryNeed {
     pub fn chunk_within(&self, limit: u64) -> Result<usize> {
         let held = self.held();
         let room = limit.saturating_sub(held) / self.per_receiver_streamed.max(1);
-        let chunk = (room as usize).min(self.receivers as usize);
-        if chunk < MIN_CHUNK.min(self.receivers as usize) || held + self.compression > limit {
+        let clustering_room = match self.compression {
+            0 => u64::MAX,
+            clusters => {
+                (limit + self.bvh).saturating_sub(held + clusters) / self.compression_per_row.max(1)
+            }
+        };
+        let chunk = (room.min(clustering_room) as usize).min(self.receivers as usize);
+        if chunk < MIN_CHUNK.min(self.receivers as usize) {
             let bounce = match self.held_streamed {
                 0 => String::new(),
                 held => format!(", the previous bounce {}", format_bytes(held)),
@@ -399,18 +421,24 @@ impl MemoryNeed {
                 0 => String::new(),
                 bytes => format!(", the probes {}", format_bytes(bytes)),
             };
-            let clusters = match self.compression {
-                0 => String::new(),
-                bytes => format!(" and the clusters and weights {}", format_bytes(bytes)),
+            let one_chunk = format_bytes(MIN_CHUNK as u64 * self.per_receiver_streamed);
+            let chunk_or_clusters = match self.compression {
+                0 => format!("one chunk of {MIN_CHUNK} receivers {one_chunk}"),
+                clusters => format!(
+                    "the larger of one chunk of {MIN_CHUNK} receivers {one_chunk} and the \
+                     clustering's model, clusters and weights read back with it, less the BVH {}",
+                    format_bytes(
+                        (clusters + MIN_CHUNK as u64 * self.compression_per_row)
+                            .saturating_sub(self.bvh)
+                    )
+                ),
             };
             return Err(Error::Options(format!(
                 "--memory-limit {}: this bake needs at least {} (the mesh and its BVH \
-                 {}{document}{bounce}{probes}, and the larger of one chunk of {MIN_CHUNK} \
-                 receivers {}{clusters})",
+                 {}{document}{bounce}{probes}, {chunk_or_clusters})",
                 format_bytes(limit),
                 format_bytes(self.streamed(MIN_CHUNK)),
                 format_bytes(self.fixed),
-                format_bytes(MIN_CHUNK as u64 * self.per_receiver_streamed)
             )));
         }
         Ok(chunk.max(1))

@@ -528,15 +528,22 @@ pub fn relative_error(original: &Transfer, cpca: &Cpca) -> f64 {
     relative_error_of(&mut points_of(original), cpca).expect("rows in memory read")
 }
 
+/// Rows [`relative_error_of`] reconstructs at once: the transfer in memory is not copied whole.
+pub const RECONSTRUCTED_ROWS: usize = 4096;
+
 /// [`relative_error`] of the original rows read from `rows`, summed in the same order.
 pub fn relative_error_of(rows: &mut dyn Rows, cpca: &Cpca) -> Result<f64> {
     let mut sums = RelativeRms::default();
+    let n = rows.dimension();
     for_each_block(rows, |first, block| {
-        let reconstructed = cpca.reconstruct_rows(first..first + block.len());
-        sums.add(
-            block.data.iter().map(|&x| x as f64),
-            reconstructed.iter().map(|&x| x as f64),
-        );
+        for start in (0..block.len()).step_by(RECONSTRUCTED_ROWS) {
+            let end = (start + RECONSTRUCTED_ROWS).min(block.len());
+            let reconstructed = cpca.reconstruct_rows(first + start..first + end);
+            sums.add(
+                block.data[start * n..end * n].iter().map(|&x| x as f64),
+                reconstructed.iter().map(|&x| x as f64),
+            );
+        }
         Ok(())
     })?;
     Ok(sums.value())

@@ -624,7 +624,11 @@ fn compress_transfer(
                 components,
                 ..CpcaOptions::default()
             };
-            let cpca = compress::compress_from(rows, (bands, channels), &options, assigner)?;
+            progress.stage("compress", compress::compress_steps(&options));
+            let mut position = StagePosition::new(progress);
+            let watch = &mut |step: u64| position.move_to(step);
+            let shape = (bands, channels);
+            let cpca = compress::compress_watched(rows, shape, &options, (assigner, watch))?;
             (cpca, options)
         }
         Compression::Target { error } => {

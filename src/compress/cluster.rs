@@ -436,22 +436,25 @@ pub fn fill_empty_clusters(
 /// CPCA rounds from `assignment`: fit, then reassign (and re-seed emptied clusters), for at
 /// most `rounds` rounds or until the assignment stops changing. Ends on an assignment step,
 /// which never raises the error, so the model and assignment returned belong together.
+///
+/// `each_round` is told how many rounds are done after each one (and `rounds` once converged).
 pub fn iterate(
     rows: &mut dyn Rows,
     mut assignment: Vec<u32>,
     (clusters, components): (usize, usize),
     rounds: u32,
     warm: Option<Model>,
-    assigner: &dyn Assigner,
+    (assigner, each_round): (&dyn Assigner, &mut dyn FnMut(u32)),
 ) -> Result<(Model, Vec<u32>)> {
     let mut model = warm;
-    for _ in 0..rounds.max(1) {
+    for round in 1..=rounds.max(1) {
         let mut fitted = fit(rows, &assignment, (clusters, components), model.as_ref())?;
         let (mut next, mut residuals) = assigner.assign(rows, &fitted)?;
         fill_empty_clusters(rows, &mut fitted, &mut next, &mut residuals)?;
         model = Some(fitted);
         let converged = next == assignment;
         assignment = next;
+        each_round(if converged { rounds } else { round });
         if converged {
             break;
         }

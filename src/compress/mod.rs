@@ -101,13 +101,29 @@ pub fn compress_with(
 /// same rows in memory.
 pub fn compress_from(
     rows: &mut dyn Rows,
-    (bands, channels): (u32, u32),
+    shape: (u32, u32),
     options: &CpcaOptions,
     assigner: &dyn Assigner,
 ) -> Result<Cpca> {
+    compress_watched(rows, shape, options, (assigner, &mut |_| {}))
+}
+
+/// The steps [`compress_watched`] reports: the seeding, then each round.
+pub fn compress_steps(options: &CpcaOptions) -> u64 {
+    options.iterations.max(1) as u64 + 1
+}
+
+/// [`compress_from`], telling `watch` how many of its [`compress_steps`] are done after each
+/// (all of them once the assignment stops changing).
+pub fn compress_watched(
+    rows: &mut dyn Rows,
+    (bands, channels): (u32, u32),
+    options: &CpcaOptions,
+    (assigner, watch): (&dyn Assigner, &mut dyn FnMut(u64)),
+) -> Result<Cpca> {
     check_rows(rows)?;
     check_options(options, rows.dimension(), rows.len())?;
-    let (model, assignment) = compress_points(rows, options, assigner)?;
+    let (model, assignment) = compress_points(rows, options, (assigner, watch))?;
     finish((bands, channels), rows, &model, assignment)
 }
 
@@ -135,7 +151,7 @@ pub fn compress_rows(rows: &[f32], dimension: usize, options: &CpcaOptions) -> R
         data: rows,
         dimension,
     };
-    let (model, assignment) = compress_points(&mut points, options, &CpuAssigner)?;
+    let (model, assignment) = compress_points(&mut points, options, (&CpuAssigner, &mut |_| {}))?;
     finish((0, 0), &mut points, &model, assignment)
 }
 
@@ -143,7 +159,7 @@ pub fn compress_rows(rows: &[f32], dimension: usize, options: &CpcaOptions) -> R
 fn compress_points(
     rows: &mut dyn Rows,
     options: &CpcaOptions,
-    assigner: &dyn Assigner,
+    (assigner, watch): (&dyn Assigner, &mut dyn FnMut(u64)),
 ) -> Result<(Model, Vec<u32>)> {
     let clusters = options.clusters as usize;
     let seeds = cluster::kmeans_plus_plus(rows, clusters, options.seed)?;
@@ -154,13 +170,14 @@ fn compress_points(
     let mut seeding = Model::new(rows.dimension(), 0, seed_means, Vec::new());
     let (mut assignment, mut residuals) = assigner.assign(rows, &seeding)?;
     cluster::fill_empty_clusters(rows, &mut seeding, &mut assignment, &mut residuals)?;
+    watch(1);
     cluster::iterate(
         rows,
         assignment,
         (clusters, options.components as usize),
         options.iterations,
         None,
-        assigner,
+        (assigner, &mut |round| watch(round.max(1) as u64 + 1)),
     )
 }
 
@@ -190,7 +207,7 @@ pub fn refine(transfer: &Transfer, start: &Cpca, options: &CpcaOptions) -> Resul
         (options.clusters as usize, options.components as usize),
         options.iterations,
         Some(warm),
-        &CpuAssigner,
+        (&CpuAssigner, &mut |_| {}),
     )?;
     finish(
         (transfer.bands(), transfer.channels()),

@@ -646,3 +646,34 @@ fn covariances_fitted_a_group_of_clusters_at_a_time_give_the_same_model() {
         );
     }
 }
+
+#[test]
+fn a_compression_reports_its_seeding_and_every_round() {
+    let transfer = baked();
+    let shape = (transfer.bands(), transfer.channels());
+    for iterations in [1, 3, 40] {
+        let options = CpcaOptions {
+            clusters: 12,
+            components: 3,
+            iterations,
+            seed: 2,
+        };
+        let mut steps = Vec::new();
+        let watched = compress_watched(
+            &mut points_of(transfer),
+            shape,
+            &options,
+            (&CpuAssigner, &mut |step| steps.push(step)),
+        )
+        .unwrap();
+        assert!(watched == compress(transfer, &options).unwrap());
+        // The seeding, then one step a round, rising to all of them (40 rounds end early,
+        // once the assignment stops changing, and say so).
+        assert_eq!(steps.first(), Some(&1), "{steps:?}");
+        assert!(steps.windows(2).all(|w| w[0] < w[1]), "{steps:?}");
+        assert_eq!(steps.last(), Some(&compress_steps(&options)), "{steps:?}");
+        if iterations == 40 {
+            assert!(steps.len() < 41, "{steps:?}: no early end to test");
+        }
+    }
+}

@@ -201,11 +201,7 @@ impl Planned<'_> {
         let probe_seconds = probes_started.elapsed().as_secs_f64();
         let compressed = match spec.compression() {
             Some(compression) => Some(compress_transfer(
-                &mut compress::Points {
-                    data: mesh.transfer.coeffs(),
-                    dimension: mesh.transfer.channels() as usize
-                        * mesh.transfer.coeffs_per_channel(),
-                },
+                &mut compress::Points::of_transfer(&mesh.transfer),
                 (mesh.transfer.bands(), mesh.transfer.channels()),
                 (compression, spec.storage.precision),
                 backend.gpu_context(),

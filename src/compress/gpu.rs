@@ -236,10 +236,7 @@ mod tests {
     }
 
     fn points(transfer: &Transfer) -> Points<'_> {
-        Points {
-            data: transfer.coeffs(),
-            dimension: transfer.channels() as usize * transfer.coeffs_per_channel(),
-        }
+        Points::of_transfer(transfer)
     }
 
     /// Rows read 100 at a time as copies.

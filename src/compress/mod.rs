@@ -93,7 +93,7 @@ pub fn compress_with(
     assigner: &dyn Assigner,
 ) -> Result<Cpca> {
     let shape = (transfer.bands(), transfer.channels());
-    compress_from(&mut points_of(transfer), shape, options, assigner)
+    compress_from(&mut Points::of_transfer(transfer), shape, options, assigner)
 }
 
 /// [`compress_with`] of transfer rows of `(bands, channels)` read from `rows` (a scratch file
@@ -192,7 +192,7 @@ fn compress_points(
 /// (local optima from different seedings) do not promise.
 pub fn refine(transfer: &Transfer, start: &Cpca, options: &CpcaOptions) -> Result<Cpca> {
     check_transfer(transfer)?;
-    let mut points = points_of(transfer);
+    let mut points = Points::of_transfer(transfer);
     check_options(options, points.dimension, transfer.vertex_count())?;
     check_start(transfer, start, options)?;
     let warm = Model::new(
@@ -262,17 +262,9 @@ fn narrow(values: &[f64]) -> Vec<f32> {
     values.iter().map(|&x| x as f32).collect()
 }
 
-/// The transfer's rows, one per vertex, in memory.
-fn points_of(transfer: &Transfer) -> Points<'_> {
-    Points {
-        data: transfer.coeffs(),
-        dimension: transfer.channels() as usize * transfer.coeffs_per_channel(),
-    }
-}
-
 /// Refuses a non-finite coefficient (the shape holds by construction).
 fn check_transfer(transfer: &Transfer) -> Result<()> {
-    check_rows(&mut points_of(transfer))
+    check_rows(&mut Points::of_transfer(transfer))
 }
 
 /// Refuses a non-finite value, naming its row.
@@ -542,7 +534,7 @@ fn check_light(light: &ShLight) -> Result<()> {
 /// RMS of the coefficient difference over the RMS of the original coefficients (0 for an
 /// all-zero original reconstructed exactly; infinite if only the original is zero).
 pub fn relative_error(original: &Transfer, cpca: &Cpca) -> f64 {
-    relative_error_of(&mut points_of(original), cpca).expect("rows in memory read")
+    relative_error_of(&mut Points::of_transfer(original), cpca).expect("rows in memory read")
 }
 
 /// Rows [`relative_error_of`] reconstructs at once: the transfer in memory is not copied whole.
@@ -571,7 +563,12 @@ pub fn relative_error_of(rows: &mut dyn Rows, cpca: &Cpca) -> Result<f64> {
 /// original.
 pub fn relit_error(original: &Transfer, cpca: &Cpca, light: &ShLight) -> Result<f64> {
     check_transfer(original)?;
-    relit_error_of(&mut points_of(original), original.channels(), cpca, light)
+    relit_error_of(
+        &mut Points::of_transfer(original),
+        original.channels(),
+        cpca,
+        light,
+    )
 }
 
 /// [`relit_error`] of the original rows of `channels` channels read from `rows`.
@@ -601,7 +598,11 @@ pub fn relit_error_of(
 /// Every vertex's radiance from `transfer` (one or three channels) under `light`, summed in
 /// f64: the reference the compressed and the zonal forms are measured against.
 pub fn radiance(transfer: &Transfer, light: &ShLight) -> Vec<[f32; 3]> {
-    rows_radiance(points_of(transfer), transfer.channels() as usize, light)
+    rows_radiance(
+        Points::of_transfer(transfer),
+        transfer.channels() as usize,
+        light,
+    )
 }
 
 fn rows_radiance(rows: Points, channels: usize, light: &ShLight) -> Vec<[f32; 3]> {
@@ -668,7 +669,7 @@ pub fn choose(
 ) -> Result<(Cpca, CpcaOptions)> {
     let shape = (transfer.bands(), transfer.channels());
     choose_from(
-        &mut points_of(transfer),
+        &mut Points::of_transfer(transfer),
         shape,
         target_relative_error,
         (seed, &CpuAssigner),

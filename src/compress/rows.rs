@@ -7,6 +7,7 @@
 use std::borrow::Cow;
 use std::ops::Range;
 
+use crate::bake::Transfer;
 use crate::error::Result;
 
 /// Rows of [`Rows::dimension`] floats, one per vertex.
@@ -34,7 +35,15 @@ pub struct Points<'a> {
     pub dimension: usize,
 }
 
-impl Points<'_> {
+impl<'a> Points<'a> {
+    /// The transfer's rows, one per vertex (its channels one after the other).
+    pub fn of_transfer(transfer: &'a Transfer) -> Points<'a> {
+        Points {
+            data: transfer.coeffs(),
+            dimension: transfer.channels() as usize * transfer.coeffs_per_channel(),
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.data.len() / self.dimension
     }

@@ -324,7 +324,7 @@ fn choose_finds_a_small_shape_that_meets_the_target() {
     let mut tried = Vec::new();
     let shape = (transfer.bands(), transfer.channels());
     let (cpca, chosen) = choose_from(
-        &mut points_of(transfer),
+        &mut Points::of_transfer(transfer),
         shape,
         0.05,
         (1, &CpuAssigner),
@@ -584,7 +584,7 @@ fn clustering_rows_read_a_block_at_a_time_gives_the_same_bits() {
     // 6,400 rows: blocks that do not divide them, and one smaller than a parallel work item.
     for block in [97, 1000, 6400] {
         let mut rows = InBlocks {
-            points: points_of(transfer),
+            points: Points::of_transfer(transfer),
             block,
         };
         let streamed = compress_from(&mut rows, shape, &options, &CpuAssigner).unwrap();
@@ -596,7 +596,7 @@ fn clustering_rows_read_a_block_at_a_time_gives_the_same_bits() {
         assert_eq!(errors, whole_errors, "blocks of {block}");
     }
     let mut rows = InBlocks {
-        points: points_of(transfer),
+        points: Points::of_transfer(transfer),
         block: 500,
     };
     let searched = choose_from(&mut rows, shape, 0.05, (1, &CpuAssigner), &mut |_, _| {});
@@ -632,7 +632,7 @@ fn covariances_fitted_a_group_of_clusters_at_a_time_give_the_same_model() {
     let cpca = compress(transfer, &options).unwrap();
     let fitted = |group: usize| {
         let mut rows = InBlocks {
-            points: points_of(transfer),
+            points: Points::of_transfer(transfer),
             block: 700,
         };
         cluster::fit_in_groups(&mut rows, &cpca.assignment, (9, 3), None, group).unwrap()
@@ -660,7 +660,7 @@ fn a_compression_reports_its_seeding_and_every_round() {
         };
         let mut steps = Vec::new();
         let watched = compress_watched(
-            &mut points_of(transfer),
+            &mut Points::of_transfer(transfer),
             shape,
             &options,
             (&CpuAssigner, &mut |step| steps.push(step)),

@@ -20,8 +20,7 @@ use crate::bake::adaptive::{AdaptiveReport, ReceiverErrors};
 use crate::bake::spill::Spill;
 use crate::bake::stream::{Interreflected, StreamedBake};
 use crate::bake::{
-    truncate_bands, Backend, BakeMetadata, BakeReport, BandEnergy, Mode, Progress, Transfer,
-    TransferShape,
+    Backend, BakeMetadata, BakeReport, BandEnergy, Mode, Progress, Transfer, TransferShape,
 };
 use crate::compress::Rows;
 use crate::error::{Error, Result};
@@ -376,6 +375,7 @@ pub fn bake_streamed(
         channels: metadata.channels,
         block: chunk,
         vertices: receivers,
+        buffer: Vec::new(),
         metadata: metadata.clone(),
         zonal: zonal_held,
     });
@@ -515,18 +515,38 @@ impl HeldChunks {
         })
     }
 
+    /// The rows of the receivers `range` at the chosen bands, read into `buffer` (grown as
+    /// needed, so that a reader of many chunks allocates once): how many floats they are.
+    fn read_into(
+        &mut self,
+        range: Range<usize>,
+        channels: u32,
+        buffer: &mut Vec<f32>,
+    ) -> Result<usize> {
+        let (baked, kept) = (coeff_count(self.baked_bands), coeff_count(self.bands));
+        let floats = range.len() * channels as usize * baked;
+        if buffer.len() < floats {
+            buffer.resize(floats, 0.0);
+        }
+        let at = (range.start * channels as usize * baked * 4) as u64;
+        self.spill.read_at(at, &mut buffer[..floats])?;
+        // Each channel's first `kept` coefficients moved forward in place: a destination
+        // never lies after its source.
+        if kept < baked {
+            for segment in 0..range.len() * channels as usize {
+                buffer.copy_within(segment * baked..segment * baked + kept, segment * kept);
+            }
+        }
+        Ok(floats / baked * kept)
+    }
+
     /// The chunk of the receivers `range` at the chosen bands.
     fn read(&mut self, range: Range<usize>, channels: u32) -> Result<Transfer> {
-        let per_vertex = channels as usize * coeff_count(self.baked_bands);
-        let at = (range.start * per_vertex * 4) as u64;
-        let baked = Transfer::new(
-            self.baked_bands,
-            channels,
-            range.len(),
-            self.spill.read_vec(at, range.len() * per_vertex)?,
-        )
-        .expect("the spilled chunk's rows");
-        Ok(truncate_bands(&baked, self.bands))
+        let mut rows = Vec::new();
+        let floats = self.read_into(range.clone(), channels, &mut rows)?;
+        rows.truncate(floats);
+        Ok(Transfer::new(self.bands, channels, range.len(), rows)
+            .expect("the spilled chunk's rows"))
     }
 }
 
@@ -554,6 +574,8 @@ pub struct HeldTransfer {
     /// Rows a block: the bake's chunk.
     block: usize,
     vertices: usize,
+    /// The last rows read, in place of a new allocation each read.
+    buffer: Vec<f32>,
     pub metadata: BakeMetadata,
     /// The zonal transfer, fitted as the chunks came, where the file holds one.
     pub zonal: Option<ZonalTransfer>,
@@ -580,7 +602,9 @@ impl Rows for HeldTransfer {
     }
 
     fn read(&mut self, range: Range<usize>) -> Result<Cow<'_, [f32]>> {
-        let chunk = self.chunks.read(range, self.channels)?;
-        Ok(Cow::Owned(chunk.into_coeffs()))
+        let floats = self
+            .chunks
+            .read_into(range, self.channels, &mut self.buffer)?;
+        Ok(Cow::Borrowed(&self.buffer[..floats]))
     }
 }

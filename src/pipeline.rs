@@ -248,10 +248,12 @@ impl Planned<'_> {
         let tally_half_floats = precision == Precision::F16 && self.spec.compression().is_none();
         // Built at the first chunk, of its bands (with --bands auto, those chosen).
         let mut half_float: Option<HalfFloatTally> = None;
-        let mut preview_light = None;
-        let mut radiance = Vec::new();
         let albedo_free = streamed.metadata(backend, 0).albedo_free;
-        let albedo = &streamed.scene().albedo;
+        let mut previewed = PreviewTally {
+            light: None,
+            radiance: Vec::new(),
+            albedo: albedo_free.then_some(&streamed.scene().albedo[..]),
+        };
         let mut each_chunk = |transfer: &bake::Transfer| {
             if tally_half_floats {
                 if half_float.is_none() {
@@ -259,19 +261,10 @@ impl Planned<'_> {
                 }
                 half_float.as_mut().expect("built above").add(transfer)?;
             }
-            if preview {
-                if preview_light.is_none() {
-                    preview_light = Some(light::preview_light(transfer.bands())?);
-                }
-                let first = radiance.len();
-                let light = preview_light.as_ref().expect("built above");
-                let mut relit = render::relight(transfer, light)?;
-                if albedo_free {
-                    render::tint_by(&mut relit, &albedo[first..]);
-                }
-                radiance.extend(relit);
+            match preview {
+                true => previewed.add(transfer),
+                false => Ok(()),
             }
-            Ok(())
         };
         let bands_auto = match self.spec.transfer.bands {
             Bands::Auto { threshold } => Some(threshold),
@@ -304,6 +297,7 @@ impl Planned<'_> {
             compressed: self.spec.compression().is_some(),
         };
         let mut written = glb::stream::bake_streamed(&streamed, backend, chunk, sink, progress)?;
+        let PreviewTally { radiance, .. } = previewed;
         let mut notes = self.notes;
         let (compressed, scene_write, scene) = match written.held.take() {
             Some(held) => {
@@ -337,6 +331,32 @@ impl Planned<'_> {
             compressed,
             notes,
         })
+    }
+}
+
+/// The radiance a streamed bake's preview draws, summed a chunk at a time: each vertex's under
+/// the preview light, times its `albedo` where the transfer leaves the albedo out.
+struct PreviewTally<'s> {
+    /// Built at the first chunk, of its bands.
+    light: Option<light::ShLight>,
+    radiance: Vec<[f32; 3]>,
+    albedo: Option<&'s [Vec3]>,
+}
+
+impl PreviewTally<'_> {
+    /// Adds the next chunk's vertices.
+    fn add(&mut self, transfer: &bake::Transfer) -> Result<()> {
+        if self.light.is_none() {
+            self.light = Some(light::preview_light(transfer.bands())?);
+        }
+        let first = self.radiance.len();
+        let light = self.light.as_ref().expect("built above");
+        let mut relit = render::relight(transfer, light)?;
+        if let Some(albedo) = self.albedo {
+            render::tint_by(&mut relit, &albedo[first..]);
+        }
+        self.radiance.extend(relit);
+        Ok(())
     }
 }
 

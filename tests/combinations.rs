@@ -324,8 +324,9 @@ fn check_sinks(dir: &Path, input: &str, scene: &prt_gpu::scene::Scene, cell: Cel
     }
     if cell.compressed {
         // --compress 8x4 of RGB rows of 4 bands.
-        let group = prt_gpu::compress::covariance_group(48);
-        need = need.with_compression((8, 4), 48, group as u64);
+        let group = prt_gpu::compress::covariance_group(48) as u64;
+        let reconstructed = prt_gpu::compress::RECONSTRUCTED_ROWS as u64;
+        need = need.with_compression((8, 4), 48, (group, reconstructed));
     }
     // Chunks of 300 receivers where the cell streams (the glTF scene, of fewer vertices,
     // streams in one chunk of all of them; tests/memory.rs streams a larger one in many), runs

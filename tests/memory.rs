@@ -39,10 +39,11 @@ fn with_compression(need: MemoryNeed, extra: &[&str], bands: u32, vertices: usiz
         None => prt_gpu::compress::largest_search_shape(dimension, vertices),
     };
     let group = prt_gpu::compress::covariance_group(dimension);
+    let reconstructed = prt_gpu::compress::RECONSTRUCTED_ROWS as u64;
     need.with_compression(
         (clusters as u64, components as u64),
         dimension as u64,
-        group as u64,
+        (group as u64, reconstructed),
     )
 }
 

@@ -217,23 +217,22 @@ impl MemoryNeed {
 
     /// The need with the transfer compressed by clustered PCA (`--compress`) into `clusters`
     /// of `components` directions, its rows of `dimension` floats (RGB), `group` covariances
-    /// accumulated at once (`compress::covariance_group`): the model in f64 (and the previous
+    /// accumulated at once (`compress::covariance_group`) and `reconstructed_rows` rebuilt at
+    /// once to measure the error (`compress::RECONSTRUCTED_ROWS`): the model in f64 (and the previous
     /// round's), the covariances, and for each vertex its clusters (three assignments), its
     /// residual and seeding distance in f64, its weights as fitted and rounded, and their bytes
     /// in the file twice. The file then holds no per-vertex transfer. Whole, the error is
-    /// measured on rows reconstructed a run at a time (`compress::RECONSTRUCTED_ROWS`);
-    /// streamed, the clustering runs once the last chunk is baked, each chunk read back from
+    /// measured on rows reconstructed a run at a time; streamed, the clustering runs once the last chunk is baked, each chunk read back from
     /// the scratch file and cut to the bands kept, or reconstructed beside it: two copies.
     pub fn with_compression(
         self,
         (clusters, components): (u64, u64),
         dimension: u64,
-        group: u64,
+        (group, reconstructed_rows): (u64, u64),
     ) -> MemoryNeed {
         let model = 2 * 8 * clusters * dimension * (components + 1);
         let covariances = clusters.min(group) * 8 * dimension * dimension;
-        let reconstructed =
-            (crate::compress::RECONSTRUCTED_ROWS as u64).min(self.receivers) * 4 * dimension;
+        let reconstructed = reconstructed_rows.min(self.receivers) * 4 * dimension;
         let per_vertex = 3 * 4 + 2 * 8 + 2 * 4 * components + 2 * (4 * components + 4);
         let file_transfer = 16 * (dimension / 3).div_ceil(4) * 3;
         MemoryNeed {

@@ -276,24 +276,7 @@ pub fn bake_streamed(
 ) -> Result<StreamedWrite> {
     let started = Instant::now();
     let receivers = bake.receivers();
-    if chunk == 0 || receivers != bake.scene().vertex_count() {
-        return Err(Error::Options(format!(
-            "a streamed bake needs chunks of at least one receiver, one per vertex ({receivers} \
-             receivers, {} vertices)",
-            bake.scene().vertex_count()
-        )));
-    }
-    // Interreflection finishes every bounce before the file starts: the file records how
-    // many bounces ran, and each bounce reads every vertex's last.
-    let interreflected = match bake.mode() {
-        Mode::Interreflected => Some(bake.interreflected(chunk, backend, progress)?),
-        _ => None,
-    };
-    let bounces = interreflected.as_ref().map_or(0, |i| i.bounces.len());
-    let mut metadata: BakeMetadata = bake.metadata(backend, bounces);
-    if interreflected.is_none() {
-        progress.stage("transfer", receivers as u64);
-    }
+    let (interreflected, mut metadata) = begin(bake, backend, chunk, progress)?;
     let ranges: Vec<Range<usize>> = (0..receivers)
         .step_by(chunk)
         .map(|first| first..(first + chunk).min(receivers))
@@ -331,39 +314,26 @@ pub fn bake_streamed(
     let (probes, probe_seconds) =
         probe_stage(&mut sink, source.interreflected.as_mut(), metadata.bands)?;
     let (_, vertex_map, _) = bake.prepared();
+    let recorded = (&metadata, probes.as_ref());
     let mut file = match sink.compressed {
-        false => Some(Streaming::create(
-            bake,
-            (&metadata, probes.as_ref()),
-            &sink,
-            vertex_map,
-            chunk,
-        )?),
+        false => Some(Streaming::create(bake, recorded, &sink, vertex_map, chunk)?),
         true => None,
     };
     let mut zonal = sink.zonal.map(ZonalTally::new);
-    let mut zonal_held: Option<ZonalTransfer> = None;
-    let normals = bake.scene().normals.as_deref().unwrap_or_default();
-    for range in ranges {
-        let first = range.start;
-        let transfer = match &mut held {
-            Some(held) => held.read(range.clone(), metadata.channels)?,
-            None => source.next(range.clone(), metadata.channels)?,
-        };
-        (sink.each_chunk)(&transfer)?;
-        if let Some(file) = &mut file {
-            file.put(first, &transfer)?;
-        }
-        if let Some(tally) = &mut zonal {
-            let normals = normals.get(range).unwrap_or_default();
-            let fitted = tally.fit(&transfer, normals)?;
-            match (&mut file, &mut zonal_held) {
-                (Some(file), _) => file.put_zonal(first, &fitted)?,
-                (None, Some(so_far)) => so_far.append(fitted),
-                (None, None) => zonal_held = Some(fitted),
-            }
-        }
-    }
+    let channels = metadata.channels;
+    let zonal_held = pass_chunks(
+        ranges,
+        &mut |range| match &mut held {
+            Some(held) => held.read(range, channels),
+            None => source.next(range, channels),
+        },
+        &mut *sink.each_chunk,
+        &mut file,
+        (
+            zonal.as_mut(),
+            bake.scene().normals.as_deref().unwrap_or_default(),
+        ),
+    )?;
     let written = file.map(Streaming::commit).transpose()?.flatten();
     let seconds = started.elapsed().as_secs_f64();
     let bands_chosen = held
@@ -396,6 +366,66 @@ pub fn bake_streamed(
         zonal: zonal.and_then(|tally| tally.measured()),
         held,
     })
+}
+
+/// Checks `chunk` and runs what must finish before the first chunk: an interreflected bake's
+/// bounces (the file records how many ran, and each bounce reads every vertex's last). The
+/// bounces, and the metadata the file records.
+fn begin(
+    bake: &StreamedBake,
+    backend: &dyn Backend,
+    chunk: usize,
+    progress: &dyn Progress,
+) -> Result<(Option<Interreflected>, BakeMetadata)> {
+    let receivers = bake.receivers();
+    if chunk == 0 || receivers != bake.scene().vertex_count() {
+        return Err(Error::Options(format!(
+            "a streamed bake needs chunks of at least one receiver, one per vertex ({receivers} \
+             receivers, {} vertices)",
+            bake.scene().vertex_count()
+        )));
+    }
+    let interreflected = match bake.mode() {
+        Mode::Interreflected => Some(bake.interreflected(chunk, backend, progress)?),
+        _ => None,
+    };
+    let bounces = interreflected.as_ref().map_or(0, |i| i.bounces.len());
+    if interreflected.is_none() {
+        progress.stage("transfer", receivers as u64);
+    }
+    Ok((interreflected, bake.metadata(backend, bounces)))
+}
+
+/// Passes the transfer of each of `ranges`, in order, from `next_chunk` to `each_chunk` and to
+/// `file` (none where the file stores it compressed), fitting the zonal transfer as they come
+/// (`zonal`, with every vertex's normal): the zonal transfer is given back where no file holds
+/// it.
+fn pass_chunks(
+    ranges: Vec<Range<usize>>,
+    next_chunk: &mut dyn FnMut(Range<usize>) -> Result<Transfer>,
+    each_chunk: &mut dyn FnMut(&Transfer) -> Result<()>,
+    file: &mut Option<Streaming>,
+    (mut zonal, normals): (Option<&mut ZonalTally>, &[glam::Vec3]),
+) -> Result<Option<ZonalTransfer>> {
+    let mut zonal_held: Option<ZonalTransfer> = None;
+    for range in ranges {
+        let first = range.start;
+        let transfer = next_chunk(range.clone())?;
+        each_chunk(&transfer)?;
+        if let Some(file) = file {
+            file.put(first, &transfer)?;
+        }
+        if let Some(tally) = &mut zonal {
+            let normals = normals.get(range).unwrap_or_default();
+            let fitted = tally.fit(&transfer, normals)?;
+            match (&mut *file, &mut zonal_held) {
+                (Some(file), _) => file.put_zonal(first, &fitted)?,
+                (None, Some(so_far)) => so_far.append(fitted),
+                (None, None) => zonal_held = Some(fitted),
+            }
+        }
+    }
+    Ok(zonal_held)
 }
 
 /// The probes the sink asks for, baked once the transfer is known (`interreflected`: a bake's

@@ -173,10 +173,11 @@ pub fn memory_need(spec: &BakeSpec, (scene, gltf): (&Scene, Option<&GltfScene>))
             // The largest shape the search may try.
             Compression::Target { .. } => compress::largest_search_shape(dimension, vertices),
         };
+        let group = compress::covariance_group(dimension) as u64;
         need = need.with_compression(
             (clusters as u64, components as u64),
             dimension as u64,
-            compress::covariance_group(dimension) as u64,
+            (group, compress::RECONSTRUCTED_ROWS as u64),
         );
     }
     need

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use prt_gpu::bake::{bake, BakeOptions, BakedMesh, CpuBackend, NoProgress, Storage};
 use prt_gpu::compress::{
-    compress, radiance_error, relative_error, uncompressed_bytes, CpcaOptions,
+    compress, radiance_error, relative_error, uncompressed_bytes, CpcaOptions, Points,
 };
 use prt_gpu::light::ShLight;
 use prt_gpu::precision::Precision;
@@ -41,7 +41,7 @@ fn main() -> prt_gpu::Result<()> {
         .iter()
         .map(|m| prt_gpu::light::load(&data.join(m), rgb.bands(), None, false).map(|l| l.light))
         .collect::<prt_gpu::Result<Vec<_>>>()?;
-    let full = uncompressed_bytes(rgb);
+    let full = uncompressed_bytes(&Points::of_transfer(rgb));
     let references = lights
         .iter()
         .map(|l| relight(rgb, l))

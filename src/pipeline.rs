@@ -671,7 +671,7 @@ fn compress_transfer(
         ran_on,
         precision,
         bytes: cpca.byte_size(precision),
-        bytes_uncompressed: 4 * vertices * dimension,
+        bytes_uncompressed: compress::uncompressed_bytes(rows),
         coefficient_error: compress::relative_error_of(rows, &cpca)?,
         relit_error: compress::relit_error_of(rows, channels, &cpca, &light)?,
     };

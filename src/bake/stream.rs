@@ -218,12 +218,13 @@ impl MemoryNeed {
     /// The need with the transfer compressed by clustered PCA (`--compress`) into `clusters`
     /// of `components` directions, its rows of `dimension` floats (RGB), `group` covariances
     /// accumulated at once (`compress::covariance_group`) and `reconstructed_rows` rebuilt at
-    /// once to measure the error (`compress::RECONSTRUCTED_ROWS`): the model in f64 (and the previous
-    /// round's), the covariances, and for each vertex its clusters (three assignments), its
-    /// residual and seeding distance in f64, its weights as fitted and rounded, and their bytes
-    /// in the file twice. The file then holds no per-vertex transfer. Whole, the error is
-    /// measured on rows reconstructed a run at a time; streamed, the clustering runs once the last chunk is baked, each chunk read back from
-    /// the scratch file and cut to the bands kept, or reconstructed beside it: two copies.
+    /// once to measure the error (`compress::RECONSTRUCTED_ROWS`). It holds the model in f64
+    /// (and the previous round's), the covariances, and for each vertex its clusters (three
+    /// assignments), its residual and seeding distance in f64, its weights as fitted and
+    /// rounded, and their bytes in the file twice; the file then holds no per-vertex transfer.
+    /// Whole, the error is measured on rows reconstructed a run at a time. Streamed, the
+    /// clustering runs once the last chunk is baked, each chunk read back from the scratch file
+    /// (cut to the bands kept in place) beside its reconstruction: two copies.
     pub fn with_compression(
         self,
         (clusters, components): (u64, u64),
@@ -239,8 +240,8 @@ impl MemoryNeed {
             compression: model + covariances + self.receivers * per_vertex,
             compression_per_row: 2 * 4 * dimension,
             beside_vertices: self.beside_vertices + reconstructed,
-            per_receiver_whole: self.per_receiver_whole - 2 * file_transfer,
-            per_receiver_streamed: self.per_receiver_streamed - file_transfer,
+            per_receiver_whole: self.per_receiver_whole.saturating_sub(2 * file_transfer),
+            per_receiver_streamed: self.per_receiver_streamed.saturating_sub(file_transfer),
             ..self
         }
     }

@@ -220,6 +220,7 @@ fn upload(
 mod tests {
     use super::*;
     use crate::bake::{bake, BakeOptions, CpuBackend, NoProgress, Transfer};
+    use crate::compress::rows::InBlocks;
     use crate::compress::Points;
     use crate::compress::{compress, compress_with, relative_error, CpcaOptions, CpuAssigner};
     use crate::scene::builtin::default_scene;
@@ -233,33 +234,6 @@ mod tests {
             .unwrap()
             .0
             .transfer
-    }
-
-    fn points(transfer: &Transfer) -> Points<'_> {
-        Points::of_transfer(transfer)
-    }
-
-    /// Rows read 100 at a time as copies.
-    struct InBlocks<'a>(Points<'a>);
-
-    impl Rows for InBlocks<'_> {
-        fn dimension(&self) -> usize {
-            self.0.dimension
-        }
-
-        fn len(&self) -> usize {
-            self.0.len()
-        }
-
-        fn block(&self) -> usize {
-            100
-        }
-
-        fn read(&mut self, range: std::ops::Range<usize>) -> Result<std::borrow::Cow<'_, [f32]>> {
-            assert!(range.len() <= 100);
-            let n = self.0.dimension;
-            Ok(self.0.data[range.start * n..range.end * n].to_vec().into())
-        }
     }
 
     #[test]
@@ -281,7 +255,7 @@ mod tests {
             return;
         };
         let transfer = transfer();
-        let mut points = points(&transfer);
+        let mut points = Points::of_transfer(&transfer);
         for clusters in [40, 200] {
             let options = CpcaOptions {
                 clusters,
@@ -338,12 +312,15 @@ mod tests {
             components: 6,
             ..CpcaOptions::default()
         };
-        let gpu = GpuAssigner::new(&context, &mut points(&transfer), 6).unwrap();
+        let gpu = GpuAssigner::new(&context, &mut Points::of_transfer(&transfer), 6).unwrap();
         let first = compress_with(&transfer, &options, &gpu).unwrap();
         let second = compress_with(&transfer, &options, &gpu).unwrap();
         assert_eq!(first, second);
         // Uploaded a block at a time (a streamed bake's scratch file), the same bits.
-        let mut blocks = InBlocks(points(&transfer));
+        let mut blocks = InBlocks {
+            points: Points::of_transfer(&transfer),
+            block: 100,
+        };
         let uploaded_in_blocks = GpuAssigner::new(&context, &mut blocks, 6).unwrap();
         let in_blocks = compress_with(&transfer, &options, &uploaded_in_blocks).unwrap();
         assert!(
@@ -363,7 +340,7 @@ mod tests {
         // Other points than were uploaded are refused, not misread.
         let half = Points {
             data: &transfer.coeffs()[..transfer.coeffs().len() / 2],
-            dimension: points(&transfer).dimension,
+            dimension: Points::of_transfer(&transfer).dimension,
         };
         assert!(compress_with(
             &Transfer::new(

@@ -146,13 +146,11 @@ pub fn compress_rows(rows: &[f32], dimension: usize, options: &CpcaOptions) -> R
             rows[i]
         )));
     }
-    check_options(options, dimension, rows.len() / dimension)?;
     let mut points = Points {
         data: rows,
         dimension,
     };
-    let (model, assignment) = compress_points(&mut points, options, (&CpuAssigner, &mut |_| {}))?;
-    finish((0, 0), &mut points, &model, assignment)
+    compress_from(&mut points, (0, 0), options, &CpuAssigner)
 }
 
 /// k-means++ seeding from `options.seed`, then CPCA rounds: the model and the assignment.
@@ -500,9 +498,9 @@ pub fn index_bytes(clusters: usize, precision: Precision) -> usize {
     }
 }
 
-/// Bytes of the transfer as float32: 4 per coefficient.
-pub fn uncompressed_bytes(transfer: &Transfer) -> usize {
-    4 * transfer.coeffs().len()
+/// Bytes of the transfer rows as float32: 4 per coefficient.
+pub fn uncompressed_bytes(rows: &dyn Rows) -> usize {
+    4 * rows.len() * rows.dimension()
 }
 
 /// `L_c = sum_k light[k][c] * t[c][k]` over the bands both have; channel `c` of a

@@ -109,3 +109,38 @@ pub fn for_each_block(
 pub fn read_row(rows: &mut dyn Rows, i: usize) -> Result<Vec<f64>> {
     Ok(rows.read(i..i + 1)?.iter().map(|&x| x as f64).collect())
 }
+
+/// A transfer's rows read `block` at a time as copies, as a bake's scratch file gives them:
+/// what the tests read in blocks through.
+#[cfg(test)]
+pub(super) struct InBlocks<'a> {
+    pub points: Points<'a>,
+    pub block: usize,
+}
+
+#[cfg(test)]
+impl Rows for InBlocks<'_> {
+    fn dimension(&self) -> usize {
+        self.points.dimension
+    }
+
+    fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    fn block(&self) -> usize {
+        self.block
+    }
+
+    fn read(&mut self, range: Range<usize>) -> Result<Cow<'_, [f32]>> {
+        assert!(
+            range.len() <= self.block,
+            "{range:?} read in blocks of {}",
+            self.block
+        );
+        let n = self.points.dimension;
+        Ok(self.points.data[range.start * n..range.end * n]
+            .to_vec()
+            .into())
+    }
+}

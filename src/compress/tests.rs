@@ -3,6 +3,7 @@
 
 use std::sync::OnceLock;
 
+use super::rows::InBlocks;
 use super::*;
 use crate::bake::{bake, BakeOptions, CpuBackend, NoProgress};
 use crate::sampling::Pcg32;
@@ -270,7 +271,10 @@ fn sizes_follow_the_stated_formula() {
         cpca.byte_size(Precision::F16),
         2 * 16 * 48 * 5 + 2 * vertices * 4 + vertices
     );
-    assert_eq!(uncompressed_bytes(transfer), 4 * 48 * vertices);
+    assert_eq!(
+        uncompressed_bytes(&Points::of_transfer(transfer)),
+        4 * 48 * vertices
+    );
     let shape = |clusters| stored_bytes((clusters, 1), 3, 10, Precision::F16);
     assert_eq!(shape(256), 2 * 256 * 3 * 2 + 20 + 10);
     assert_eq!(shape(257), 2 * 257 * 3 * 2 + 20 + 20);
@@ -345,10 +349,12 @@ fn choose_finds_a_small_shape_that_meets_the_target() {
         chosen.clusters,
         chosen.components,
         cpca.byte_size(Precision::F32),
-        uncompressed_bytes(transfer)
+        uncompressed_bytes(&Points::of_transfer(transfer))
     );
     assert!(error <= 0.05);
-    assert!(cpca.byte_size(Precision::F32) < uncompressed_bytes(transfer) / 2);
+    assert!(
+        cpca.byte_size(Precision::F32) < uncompressed_bytes(&Points::of_transfer(transfer)) / 2
+    );
     assert_eq!(cpca, compress(transfer, &chosen).unwrap());
     assert!(choose(transfer, f64::NAN, 1).is_err());
 }
@@ -441,8 +447,8 @@ fn dragon_compression_time_size_and_error() {
             "dragon {} vertices, {clusters} x {components}: {seconds:.2} s, {} of {} bytes ({:.1}x), coefficient error {:.4}, relit error {:.4}",
             transfer.vertex_count(),
             cpca.byte_size(Precision::F32),
-            uncompressed_bytes(&transfer),
-            uncompressed_bytes(&transfer) as f64 / cpca.byte_size(Precision::F32) as f64,
+            uncompressed_bytes(&Points::of_transfer(&transfer)),
+            uncompressed_bytes(&Points::of_transfer(&transfer)) as f64 / cpca.byte_size(Precision::F32) as f64,
             relative_error(&transfer, &cpca),
             relit_error(&transfer, &cpca, &light).unwrap(),
         );
@@ -531,38 +537,6 @@ fn bad_rows_are_one_line_errors() {
         compress_rows(&[1.0; 6], 3, &options(3, 1)).is_err(),
         "more clusters than rows"
     );
-}
-
-/// A transfer's rows read `block` at a time as copies, as a bake's scratch file gives them.
-struct InBlocks<'a> {
-    points: Points<'a>,
-    block: usize,
-}
-
-impl Rows for InBlocks<'_> {
-    fn dimension(&self) -> usize {
-        self.points.dimension
-    }
-
-    fn len(&self) -> usize {
-        self.points.len()
-    }
-
-    fn block(&self) -> usize {
-        self.block
-    }
-
-    fn read(&mut self, range: std::ops::Range<usize>) -> Result<std::borrow::Cow<'_, [f32]>> {
-        assert!(
-            range.len() <= self.block,
-            "{range:?} read in blocks of {}",
-            self.block
-        );
-        let n = self.points.dimension;
-        Ok(self.points.data[range.start * n..range.end * n]
-            .to_vec()
-            .into())
-    }
 }
 
 #[test]

@@ -152,6 +152,22 @@ impl AtomicFile {
             .map_err(|e| Error::io(&self.path, e))
     }
 
+    /// The file itself, for a writer that streams into it (and seeks within it).
+    pub fn file_mut(&mut self) -> &mut File {
+        self.file.as_mut().expect("open until committed")
+    }
+
+    /// The file's first `len` bytes (all of it, where it is shorter), as written so far.
+    pub fn read_prefix(&mut self, len: u64) -> Result<Vec<u8>> {
+        use std::io::{Read, Seek, SeekFrom};
+        let file = self.file.as_mut().expect("open until committed");
+        let mut bytes = Vec::new();
+        file.seek(SeekFrom::Start(0))
+            .and_then(|_| Read::by_ref(file).take(len).read_to_end(&mut bytes))
+            .map_err(|e| Error::io(&self.path, e))?;
+        Ok(bytes)
+    }
+
     /// Makes the file `len` bytes long (zeros where nothing was written yet).
     pub fn set_len(&mut self, len: u64) -> Result<()> {
         let file = self.file.as_mut().expect("open until committed");

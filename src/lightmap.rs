@@ -18,12 +18,18 @@
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
-use std::io::Cursor;
+use std::io::{Cursor, Write};
+use std::ops::Range;
 use std::path::Path;
+use std::sync::Mutex;
 
+use exr::block::{BlockIndex, UncompressedBlock};
+use exr::image::write::channels::{ChannelsWriter, WritableChannels};
+use exr::math::RoundingMode;
+use exr::meta::attribute::{ChannelDescription, ChannelList, LevelMode, SampleType};
+use exr::meta::header::Header;
 use exr::prelude::{
-    f16, AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer,
-    LayerAttributes, SmallVec, Text, WritableImage,
+    f16, AttributeValue, Encoding, Image, Layer, LayerAttributes, Text, Vec2, WritableImage,
 };
 
 use crate::error::{one_line, Error, Result};
@@ -95,22 +101,10 @@ impl Lightmap<'_> {
         sh::coeff_count(self.bands)
     }
 
-    /// `Ok` for a lightmap that can be written: a known band count, 1 or 3 channels, at least
-    /// one texel, as many values as those say, each finite and within half-float range.
+    /// `Ok` for a lightmap that can be written: a shape a file holds ([`LightmapShape::check`]),
+    /// as many values as it says, each finite and within half-float range.
     pub fn check(&self) -> Result<()> {
-        sh::check_bands(self.bands)?;
-        if self.channels != 1 && self.channels != 3 {
-            return Err(Error::Options(format!(
-                "a lightmap has 1 or 3 channels, not {}",
-                self.channels
-            )));
-        }
-        if self.width == 0 || self.height == 0 {
-            return Err(Error::Options(format!(
-                "a lightmap of {} x {} texels is empty",
-                self.width, self.height
-            )));
-        }
+        self.shape().check()?;
         let expected = (self.width as u64)
             * (self.height as u64)
             * (self.channels as u64)
@@ -143,51 +137,249 @@ impl Lightmap<'_> {
 /// Writes `lightmap` to `path` as OpenEXR (the layout in the module documentation), whole or
 /// not at all.
 pub fn write_lightmap(path: &Path, lightmap: &Lightmap) -> Result<()> {
-    let bytes = encode_lightmap(lightmap)
-        .map_err(|message| Error::baked(path, format!("OpenEXR: {message}")))?;
-    crate::fs::write_atomically(path, &bytes)
+    lightmap.check()?;
+    write_lightmap_rows(path, lightmap)
 }
+
+/// Writes the lightmap whose rows `rows` gives to `path`, a block of scan lines at a time, so
+/// that neither its half floats nor its compressed bytes are ever held whole; the file appears
+/// only once written. A value that is not a finite half float fails the write.
+pub fn write_lightmap_rows(path: &Path, rows: &dyn TexelRows) -> Result<()> {
+    let shape = rows.shape();
+    shape.check()?;
+    let mut file = crate::fs::AtomicFile::create(path)?;
+    let failed = |message: String| Error::baked(path, format!("OpenEXR: {message}"));
+    let writer = TexelChannels::new(rows);
+    {
+        let mut buffered = std::io::BufWriter::new(file.file_mut());
+        image_of(shape, &writer)
+            .write()
+            .to_buffered(&mut buffered)
+            .map_err(|e| failed(one_line(&e.to_string())))?;
+        buffered.flush().map_err(|e| Error::io(path, e))?;
+    }
+    writer.finish()?;
+    let header = file.read_prefix(HEADER_READ)?;
+    let mut sorted = header.clone();
+    crate::images::sort_exr_header_attributes(&mut sorted).map_err(failed)?;
+    if sorted != header {
+        file.write_at(0, &sorted)?;
+    }
+    file.commit()
+}
+
+/// Bytes read back to sort the header in place: an OpenEXR header of this tool's lightmaps
+/// (at most 16 bands in colour, 768 channels of about 25 bytes) is far shorter.
+const HEADER_READ: u64 = 1 << 20;
 
 /// The OpenEXR bytes of a lightmap; a lightmap that fails [`Lightmap::check`] is an error.
 pub fn encode_lightmap(lightmap: &Lightmap) -> std::result::Result<Vec<u8>, String> {
     lightmap.check().map_err(|e| e.to_string())?;
-    let size = (lightmap.width as usize, lightmap.height as usize);
-    let layer = Layer::new(
-        size,
-        lightmap_attributes(lightmap.bands),
-        Encoding::SMALL_LOSSLESS,
-        AnyChannels::sort(SmallVec::from_vec(channels_of(lightmap))),
-    );
+    let writer = TexelChannels::new(lightmap);
     let mut bytes = Cursor::new(Vec::new());
-    Image::from_layer(layer)
+    image_of(lightmap.shape(), &writer)
         .write()
         .to_buffered(&mut bytes)
         .map_err(|e| one_line(&e.to_string()))?;
+    writer.finish().map_err(|e| e.to_string())?;
     let mut bytes = bytes.into_inner();
     crate::images::sort_exr_header_attributes(&mut bytes)?;
     Ok(bytes)
 }
 
-/// One half-float channel per coefficient and colour, pixels row-major.
-fn channels_of(lightmap: &Lightmap) -> Vec<AnyChannel<FlatSamples>> {
-    let count = lightmap.coefficient_count();
-    let suffixes = channel_suffixes(lightmap.channels);
-    let stride = suffixes.len() * count;
-    let mut channels = Vec::with_capacity(stride);
-    for k in 0..count {
-        for (c, suffix) in suffixes.iter().enumerate() {
-            let samples = lightmap
-                .coefficients
-                .chunks_exact(stride)
-                .map(|texel| f16::from_f32(texel[c * count + k]))
-                .collect();
-            channels.push(AnyChannel::new(
-                channel_name(k, suffix).as_str(),
-                FlatSamples::F16(samples),
-            ));
+/// What a lightmap is without its values: its size, bands and colour channels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LightmapShape {
+    pub width: u32,
+    pub height: u32,
+    pub bands: u32,
+    /// 1 (grey transfer, channel `Y`) or 3 (`R`, `G`, `B`).
+    pub channels: u32,
+}
+
+impl LightmapShape {
+    /// Values a texel holds: every coefficient of every channel.
+    pub fn stride(&self) -> usize {
+        self.channels as usize * sh::coeff_count(self.bands)
+    }
+
+    /// `Ok` for a shape a file can hold: a known band count, 1 or 3 channels, a texel.
+    pub fn check(&self) -> Result<()> {
+        sh::check_bands(self.bands)?;
+        if self.channels != 1 && self.channels != 3 {
+            return Err(Error::Options(format!(
+                "a lightmap has 1 or 3 channels, not {}",
+                self.channels
+            )));
+        }
+        if self.width == 0 || self.height == 0 {
+            return Err(Error::Options(format!(
+                "a lightmap of {} x {} texels is empty",
+                self.width, self.height
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// A lightmap's texels as its encoder asks for them: whole rows, a block of scan lines at a
+/// time, from any thread.
+pub trait TexelRows: Sync {
+    fn shape(&self) -> LightmapShape;
+    /// The values of the texels of image rows `rows`, `[texel row-major][channel][k]` as in
+    /// [`Lightmap::coefficients`].
+    fn read_rows(&self, rows: Range<usize>) -> Result<Cow<'_, [f32]>>;
+}
+
+impl TexelRows for Lightmap<'_> {
+    fn shape(&self) -> LightmapShape {
+        LightmapShape {
+            width: self.width,
+            height: self.height,
+            bands: self.bands,
+            channels: self.channels,
         }
     }
-    channels
+
+    fn read_rows(&self, rows: Range<usize>) -> Result<Cow<'_, [f32]>> {
+        let row = self.width as usize * self.shape().stride();
+        Ok(Cow::Borrowed(
+            &self.coefficients[rows.start * row..rows.end * row],
+        ))
+    }
+}
+
+/// The one-layer image the encoder writes: the lightmap's channels under its attributes.
+fn image_of<'w, 'r>(
+    shape: LightmapShape,
+    channels: &'w TexelChannels<'r>,
+) -> Image<Layer<&'w TexelChannels<'r>>> {
+    let size = (shape.width as usize, shape.height as usize);
+    Image::from_layer(Layer::new(
+        size,
+        lightmap_attributes(shape.bands),
+        Encoding::SMALL_LOSSLESS,
+        channels,
+    ))
+}
+
+/// The encoder's view of [`TexelRows`]: one half-float channel per coefficient and colour, in
+/// name order as OpenEXR stores them, each block's rows read once for all its channels. A
+/// failed read or a value out of half's range is kept (the encoder's blocks cannot fail) and
+/// reported by [`TexelChannels::finish`].
+struct TexelChannels<'r> {
+    rows: &'r dyn TexelRows,
+    /// `(name, k, c)` of each channel in the file's order.
+    names: Vec<(Text, usize, usize)>,
+    failure: Mutex<Option<Error>>,
+}
+
+impl<'r> TexelChannels<'r> {
+    fn new(rows: &'r dyn TexelRows) -> Self {
+        let shape = rows.shape();
+        let suffixes = channel_suffixes(shape.channels);
+        let mut names: Vec<(Text, usize, usize)> = (0..sh::coeff_count(shape.bands))
+            .flat_map(|k| {
+                suffixes
+                    .iter()
+                    .enumerate()
+                    .map(move |(c, suffix)| (Text::from(channel_name(k, suffix).as_str()), k, c))
+            })
+            .collect();
+        names.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+        TexelChannels {
+            rows,
+            names,
+            failure: Mutex::new(None),
+        }
+    }
+
+    fn finish(&self) -> Result<()> {
+        match self.failure.lock().map(|mut failure| failure.take()) {
+            Ok(None) => Ok(()),
+            Ok(Some(error)) => Err(error),
+            Err(_) => Err(Error::Options("a lightmap block's encoder panicked".into())),
+        }
+    }
+
+    fn fail(&self, error: Error) {
+        if let Ok(mut failure) = self.failure.lock() {
+            failure.get_or_insert(error);
+        }
+    }
+
+    /// The rows of `block`, checked: every value a finite half float.
+    fn block_rows(&self, block: &BlockIndex) -> Result<Cow<'_, [f32]>> {
+        let first = block.pixel_position.y();
+        let values = self
+            .rows
+            .read_rows(first..first + block.pixel_size.height())?;
+        let stride = self.rows.shape().stride();
+        let texel_of = |i: usize| first * self.rows.shape().width as usize + i / stride;
+        match values
+            .iter()
+            .position(|v| !v.is_finite() || v.abs() > HALF_MAX)
+        {
+            Some(i) => Err(Error::Options(format!(
+                "lightmap value {} (texel {}) is not a finite half float",
+                values[i],
+                texel_of(i)
+            ))),
+            None => Ok(values),
+        }
+    }
+}
+
+impl<'w> WritableChannels<'w> for &'w TexelChannels<'_> {
+    fn infer_channel_list(&self) -> ChannelList {
+        ChannelList::new(
+            self.names
+                .iter()
+                .map(|(name, _, _)| ChannelDescription {
+                    name: name.clone(),
+                    sample_type: SampleType::F16,
+                    quantize_linearly: ChannelDescription::guess_quantization_linearity(name),
+                    sampling: Vec2(1, 1),
+                })
+                .collect(),
+        )
+    }
+
+    fn infer_level_modes(&self) -> (LevelMode, RoundingMode) {
+        (LevelMode::Singular, RoundingMode::Down)
+    }
+
+    type Writer = Self;
+
+    fn create_writer(&'w self, _header: &Header) -> Self {
+        self
+    }
+}
+
+impl ChannelsWriter for &TexelChannels<'_> {
+    fn extract_uncompressed_block(&self, header: &Header, block: BlockIndex) -> Vec<u8> {
+        let values = self.block_rows(&block).unwrap_or_else(|error| {
+            self.fail(error);
+            Cow::Owned(Vec::new())
+        });
+        let shape = self.rows.shape();
+        let (width, stride) = (shape.width as usize, shape.stride());
+        let count = sh::coeff_count(shape.bands);
+        let first = block.pixel_position.y();
+        UncompressedBlock::collect_block_data_from_lines(&header.channels, block, |line| {
+            let (_, k, c) = self.names[line.location.channel];
+            let start = (line.location.position.y() - first) * width + line.location.position.x();
+            let samples: Vec<f16> = (start..start + line.location.sample_count)
+                .map(|texel| {
+                    values
+                        .get(texel * stride + c * count + k)
+                        .map_or(f16::ZERO, |&v| f16::from_f32(v))
+                })
+                .collect();
+            // The line's bytes are sized for exactly its samples, so this cannot fail.
+            let _ = line.write_samples_from_slice(&samples);
+        })
+    }
 }
 
 fn lightmap_attributes(bands: u32) -> LayerAttributes {
@@ -380,6 +572,100 @@ mod tests {
             assert!(names.iter().any(|n| n == name), "{name} in {names:?}");
         }
         assert_eq!(decode_lightmap(&first).unwrap(), lightmap);
+    }
+
+    /// The exr crate's own encoder of in-memory channels (what this module used before it
+    /// streamed blocks), its header sorted as ours is.
+    fn encoded_by_exr_from_flat_channels(lightmap: &Lightmap) -> Vec<u8> {
+        use exr::prelude::{AnyChannel, AnyChannels, FlatSamples, SmallVec};
+        let count = lightmap.coefficient_count();
+        let suffixes = channel_suffixes(lightmap.channels);
+        let stride = suffixes.len() * count;
+        let mut channels = Vec::new();
+        for k in 0..count {
+            for (c, suffix) in suffixes.iter().enumerate() {
+                let samples = lightmap
+                    .coefficients
+                    .chunks_exact(stride)
+                    .map(|texel| f16::from_f32(texel[c * count + k]))
+                    .collect();
+                channels.push(AnyChannel::new(
+                    channel_name(k, suffix).as_str(),
+                    FlatSamples::F16(samples),
+                ));
+            }
+        }
+        let size = (lightmap.width as usize, lightmap.height as usize);
+        let layer = Layer::new(
+            size,
+            lightmap_attributes(lightmap.bands),
+            Encoding::SMALL_LOSSLESS,
+            AnyChannels::sort(SmallVec::from_vec(channels)),
+        );
+        let mut bytes = Cursor::new(Vec::new());
+        Image::from_layer(layer)
+            .write()
+            .to_buffered(&mut bytes)
+            .unwrap();
+        let mut bytes = bytes.into_inner();
+        crate::images::sort_exr_header_attributes(&mut bytes).unwrap();
+        bytes
+    }
+
+    /// Rows computed on request, a block at a time: the values of [`sample_lightmap`].
+    struct ComputedRows(LightmapShape, Option<usize>);
+
+    impl TexelRows for ComputedRows {
+        fn shape(&self) -> LightmapShape {
+            self.0
+        }
+
+        fn read_rows(&self, rows: Range<usize>) -> Result<Cow<'_, [f32]>> {
+            let row = self.0.width as usize * self.0.stride();
+            Ok(Cow::Owned(
+                (rows.start * row..rows.end * row)
+                    .map(|i| match self.1 {
+                        Some(bad) if bad == i => f32::NAN,
+                        _ => (i % 2048) as f32 / 64.0 - 16.0,
+                    })
+                    .collect(),
+            ))
+        }
+    }
+
+    #[test]
+    fn a_lightmap_streamed_a_block_at_a_time_is_the_file_exr_encodes_from_whole_channels() {
+        let dir = tempfile::tempdir().unwrap();
+        // 37 rows: two whole blocks of 16 scan lines and a short one; 100 coefficients in
+        // colour give three-digit channel names, which sort before some two-digit ones.
+        for (width, height, bands, channels) in [(9, 37, 3, 3), (5, 3, 1, 1), (4, 17, 11, 3)] {
+            let lightmap = sample_lightmap(width, height, bands, channels);
+            let expected = encoded_by_exr_from_flat_channels(&lightmap);
+            assert_eq!(encode_lightmap(&lightmap).unwrap(), expected);
+            let path = dir.path().join("map.exr");
+            write_lightmap(&path, &lightmap).unwrap();
+            assert_eq!(std::fs::read(&path).unwrap(), expected);
+            let computed = ComputedRows(lightmap.shape(), None);
+            write_lightmap_rows(&path, &computed).unwrap();
+            assert_eq!(std::fs::read(&path).unwrap(), expected);
+        }
+    }
+
+    #[test]
+    fn a_bad_value_met_while_streaming_fails_the_write_and_leaves_no_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("map.exr");
+        let shape = sample_lightmap(6, 40, 2, 3).shape();
+        // In the last block: the blocks before it are already written when it is met.
+        let bad = 38 * 6 * shape.stride() + 5;
+        let error = write_lightmap_rows(&path, &ComputedRows(shape, Some(bad))).unwrap_err();
+        let message = error.to_string();
+        assert!(
+            message.contains(&format!("(texel {}) is not a finite half float", 38 * 6)),
+            "{message}"
+        );
+        assert!(!message.contains('\n'), "{message}");
+        assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
     }
 
     #[test]

@@ -194,14 +194,14 @@ impl MemoryNeed {
     /// The need with a lightmap of at most `size` x `size` texels (`options` the bake's), at
     /// the larger of its two peaks: while its texels bake (each texel a receiver, as a fitted
     /// point is, with its transfer; interreflected, one chunk's gather rows at a time,
-    /// [`super::GATHER_CHUNK`]) and while it is written (the image in f32, its channels in
-    /// half floats, and the compressed file at most as large), beside the per-texel flags and
+    /// [`super::GATHER_CHUNK`]) and while it is written (the image in f32; the encoder takes a
+    /// block of scan lines at a time and writes it to the file), beside the per-texel flags and
     /// chart labels of the clean-up.
     pub fn with_lightmap(self, size: u32, options: &BakeOptions) -> MemoryNeed {
         let coeffs = coeff_count(options.bands) as u64;
         let texels = size as u64 * size as u64;
         let baking = 24 + 48 + 24 + 4 * coeffs + 12 * coeffs;
-        let writing = 12 * coeffs + 6 * coeffs + 6 * coeffs;
+        let writing = 12 * coeffs;
         // Interreflected, one chunk's gather rows and the bounce they gather.
         let gathering = match options.mode {
             Mode::Interreflected => {

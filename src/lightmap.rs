@@ -13,8 +13,10 @@
 //! - attributes: `prtBands` (int), `prtConvention` (the SH convention, [`crate::sh::CONVENTION`])
 //!   and `prtLayout` (this layout in a line), for readers that want to check.
 //!
-//! The file is encoded in memory and written through [`crate::fs::write_atomically`], so no
-//! partial file ever exists.
+//! The file is encoded a block of scan lines at a time (from memory, or from any [`TexelRows`]
+//! such as a lightmap held in a scratch file) into a temporary file beside the target, which is
+//! put in place only once written ([`crate::fs::AtomicFile`]), so no partial file ever exists
+//! and neither the half floats nor the compressed bytes are held whole.
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;

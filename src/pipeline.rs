@@ -101,6 +101,8 @@ pub struct Planned<'s> {
     notes: Vec<String>,
     /// A least-squares fit's points baked this many at a time (a plan of [`plan_memory`]).
     point_chunk: Option<usize>,
+    /// A lightmap's texels held in a scratch file (a plan of [`plan_memory`]).
+    texel_groups: Option<bake::texels::TexelGroups>,
 }
 
 /// Checks the bake of `scene` as `spec` asks (see [`run`]) and chooses what it can before any
@@ -133,6 +135,7 @@ pub fn plan<'s>(spec: &'s BakeSpec, scene: Scene, gltf: Option<&GltfScene>) -> R
         scene_media,
         notes,
         point_chunk: None,
+        texel_groups: None,
     })
 }
 
@@ -151,6 +154,15 @@ impl Planned<'_> {
         }
     }
 
+    /// The bake with its lightmap's texels held in a scratch file and cleaned up a group of
+    /// coefficients at a time (a plan of [`plan_memory`]): the same bytes in less memory.
+    pub fn with_texel_groups(self, groups: bake::texels::TexelGroups) -> Self {
+        Planned {
+            texel_groups: Some(groups),
+            ..self
+        }
+    }
+
     /// Bakes it: the transfer, then the stages that shape what is stored.
     pub fn run(
         self,
@@ -165,10 +177,12 @@ impl Planned<'_> {
             scene_media,
             mut notes,
             point_chunk,
+            texel_groups,
         } = self;
         let options = BakeOptions {
             scene_media,
             point_chunk,
+            texel_groups,
             ..spec.options()
         };
         let (mut mesh, report) =

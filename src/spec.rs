@@ -323,6 +323,7 @@ impl BakeSpec {
             subsurface: self.transfer.subsurface,
             scene_media: None,
             point_chunk: None,
+            texel_groups: None,
         }
     }
 

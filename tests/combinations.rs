@@ -173,6 +173,12 @@ impl Cell {
     fn points_in_runs(&self) -> bool {
         self.receivers == Receivers::LeastSquares
     }
+
+    /// Whether the cell, under a memory limit below its whole need, holds its lightmap's
+    /// texels in a scratch file and cleans them up a group of coefficients at a time.
+    fn texels_held(&self) -> bool {
+        self.receivers == Receivers::Lightmap
+    }
 }
 
 fn run(dir: &Path, args: &[String]) -> std::process::Output {
@@ -322,6 +328,9 @@ fn check_sinks(dir: &Path, input: &str, scene: &prt_gpu::scene::Scene, cell: Cel
         let points = spread_point_count(scene, options.point_density);
         need = need.with_fit_points(points as u64, &options);
     }
+    if let Some(size) = options.lightmap {
+        need = need.with_lightmap(size, &options);
+    }
     if cell.compressed {
         // --compress 8x4 of RGB rows of 4 bands.
         let group = prt_gpu::compress::covariance_group(48) as u64;
@@ -332,9 +341,11 @@ fn check_sinks(dir: &Path, input: &str, scene: &prt_gpu::scene::Scene, cell: Cel
     // streams in one chunk of all of them; tests/memory.rs streams a larger one in many), runs
     // of 300 points where the fit's points bake in runs; half its need where it cannot.
     let chunk = 300.min(scene.vertex_count());
-    let limit = match (cell.streams(), cell.points_in_runs()) {
-        (true, _) => need.streamed(chunk),
-        (_, true) => need.points_chunked(300),
+    let limit = match (cell.streams(), cell.points_in_runs(), cell.texels_held()) {
+        (true, _, _) => need.streamed(chunk),
+        (_, true, _) => need.points_chunked(300),
+        // Room for one group of the seam solve's four coefficients.
+        (_, _, true) => need.lightmap_held(4),
         _ => need.whole() / 2,
     };
     if cell.streams() && cell.input == Input::Gltf && limit >= need.whole() {
@@ -359,19 +370,29 @@ fn check_sinks(dir: &Path, input: &str, scene: &prt_gpu::scene::Scene, cell: Cel
     ]);
     let out = run(dir, &args);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    if cell.streams() || cell.points_in_runs() {
+    if cell.streams() || cell.points_in_runs() || cell.texels_held() {
         assert!(out.status.success(), "{name} streamed: {stderr}");
-        let said = match cell.streams() {
+        let said = match (cell.streams(), cell.points_in_runs()) {
             // Compressed, the chunks may be larger: the clustering after the last one needs
             // the room of more than one.
-            true => format!("chunks of {} receivers", need.chunk_within(limit).unwrap()),
-            false => "points in runs of about".into(),
+            (true, _) => format!("chunks of {} receivers", need.chunk_within(limit).unwrap()),
+            (_, true) => "points in runs of about".into(),
+            _ => "cleaned up 4 coefficients at a time".into(),
         };
         assert!(stderr.contains(&said), "{name}: {stderr}");
         assert!(
             std::fs::read(dir.join(&streamed)).unwrap() == whole,
             "{name}: streamed bytes differ"
         );
+        if cell.texels_held() {
+            let exr = |glb: &Path| {
+                std::fs::read(glb.with_file_name(prt_gpu::glb::lightmap_file_name(glb))).unwrap()
+            };
+            assert!(
+                exr(&dir.join(&streamed)) == exr(&dir.join(format!("{name}.glb"))),
+                "{name}: the held lightmap differs from the whole bake's"
+            );
+        }
     } else {
         assert!(
             !out.status.success(),

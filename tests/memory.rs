@@ -400,7 +400,7 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
         ),
         (
             &["--memory-limit", &below_whole, "--lightmap", "256"],
-            "denoised as one image of every texel, so it does not stream in chunks",
+            "with its lightmap held in a scratch file",
         ),
         (
             &["--memory-limit", &below_whole, "--subsurface", "marble"],
@@ -536,6 +536,67 @@ fn a_streamed_bake_draws_the_whole_bakes_preview() {
     // The bunny is drawn: the preview is not one colour.
     let first = whole.as_raw()[..3].to_vec();
     assert!(whole.as_raw().chunks(3).any(|p| p != first));
+}
+
+/// A lightmap held in a scratch file (its texels baked a chunk at a time, cleaned up a group of
+/// coefficients at a time, encoded a block of rows at a time) writes the whole bake's .glb and
+/// OpenEXR bytes, and draws the whole bake's preview; on the CPU and the GPU, shadowed,
+/// interreflected and denoised, and cut to the bands `--bands auto` chooses.
+#[test]
+fn a_lightmap_held_in_a_scratch_file_writes_the_whole_bakes_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cases: [&[&str]; 4] = [
+        &["--device", "cpu"],
+        &["--device", "cpu", "--mode", "interreflected", "--denoise"],
+        &["--device", "gpu", "--denoise", "--bands", "5"],
+        &["--device", "cpu", "--bands", "auto"],
+    ];
+    for extra in cases {
+        let options = BakeOptions {
+            samples: 64,
+            bands: match extra.iter().position(|&a| a == "--bands") {
+                Some(at) if extra[at + 1] == "auto" => prt_gpu::spec::AUTO_MAX_BANDS,
+                Some(at) => extra[at + 1].parse().unwrap(),
+                None => 4,
+            },
+            mode: match extra.contains(&"interreflected") {
+                true => prt_gpu::bake::Mode::Interreflected,
+                false => prt_gpu::bake::Mode::Shadowed,
+            },
+            denoise: extra.contains(&"--denoise"),
+            ..BakeOptions::default()
+        };
+        let need = bunny_need(&options).with_lightmap(96, &options);
+        // Room for the seam solve's four coefficients at a time, not for the whole map.
+        let limit = need.lightmap_held(4);
+        assert!(limit < need.whole(), "{extra:?}");
+        let mut outputs = Vec::new();
+        for (name, memory) in [("whole", "1T".to_string()), ("held", limit.to_string())] {
+            let sub = d.join(name);
+            std::fs::create_dir_all(&sub).unwrap();
+            let mut args = extra.to_vec();
+            args.extend(["--lightmap", "96", "-o", "out.glb", "--preview", "out.png"]);
+            args.extend(["--memory-limit", &memory]);
+            let out = bake(&sub, &args);
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert!(out.status.success(), "{extra:?} {name}: {stderr}");
+            assert_eq!(
+                stderr.contains("holding the lightmap's texels in a scratch file, cleaned up 4"),
+                name == "held",
+                "{extra:?} {name}: {stderr}"
+            );
+            let read = |file: &str| std::fs::read(sub.join(file)).unwrap();
+            outputs.push([read("out.glb"), read("out.lightmap.exr"), read("out.png")]);
+        }
+        let names = ["the .glb", "the lightmap", "the preview"];
+        for ((whole, held), what) in outputs[0].iter().zip(&outputs[1]).zip(names) {
+            assert!(
+                whole == held,
+                "{extra:?}: {what} differs from the whole bake's"
+            );
+        }
+    }
 }
 
 /// A least-squares fit's points baked a few hundred at a time (each run's values summed into

@@ -24,13 +24,15 @@ const DRAGON: &str = concat!(
     "/tests/data/dragon_vrip_res3.ply.gz"
 );
 
-/// How a case bakes: whole, a least-squares fit's points in runs of this many, or streamed in
-/// chunks of this many vertices.
+/// How a case bakes: whole, a least-squares fit's points in runs of this many, streamed in
+/// chunks of this many vertices, or its lightmap held and cleaned up this many coefficients at
+/// a time.
 #[derive(Clone, Copy)]
 enum Run {
     Whole,
     PointsInRuns(usize),
     Streamed(usize),
+    TexelsHeld(u64),
 }
 
 /// The bytes allocated at the peak of loading `mesh`, baking it as `spec` asks (as `run` says)
@@ -56,6 +58,19 @@ fn measured((spec, run): &(BakeSpec, Run), mesh: &str, dir: &Path) -> (u64, u64)
                 .unwrap();
             pipeline::write(spec, &baked, None, &path).unwrap();
             need.points_chunked(chunk)
+        }
+        Run::TexelsHeld(columns) => {
+            let lightmap = need.lightmap.expect("a lightmap's need");
+            let groups = prt_gpu::bake::texels::TexelGroups {
+                chunk: lightmap.chunk(columns),
+                columns: columns as usize,
+            };
+            let baked = planned
+                .with_texel_groups(groups)
+                .run(&CpuBackend, DirectSource::Compute, &NoProgress)
+                .unwrap();
+            pipeline::write(spec, &baked, None, &path).unwrap();
+            need.lightmap_held(columns)
         }
         Run::Streamed(chunk) => {
             let sink = (path.as_path(), None);
@@ -130,6 +145,24 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
                 s.receivers.lightmap = Some(512);
                 interreflected(s);
             })),
+        ),
+        (
+            "lightmap 512, held, 4 coefficients at a time",
+            (
+                spec(&|s| s.receivers.lightmap = Some(512)),
+                Run::TexelsHeld(4),
+            ),
+        ),
+        (
+            "lightmap 512, interreflected, denoised, held, 12 at a time",
+            (
+                spec(&|s| {
+                    s.receivers.lightmap = Some(512);
+                    s.receivers.denoise = true;
+                    interreflected(s);
+                }),
+                Run::TexelsHeld(12),
+            ),
         ),
     ];
     let mut failures = Vec::new();

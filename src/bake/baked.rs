@@ -155,8 +155,12 @@ pub struct TexelBake {
     /// The `TEXCOORD_n` set the coordinates are: 0 for a generated atlas, the scene's own
     /// lightmap set otherwise.
     pub set: u32,
-    /// The texels' transfer, row-major: `vertex_count` is `width * height`.
+    /// The texels' transfer, row-major: `vertex_count` is `width * height`; none (its
+    /// `vertex_count` 0, its bands and channels the map's) where `held` holds it.
     pub transfer: Transfer,
+    /// The texels' transfer waiting in a scratch file, for a lightmap baked in bounded memory
+    /// (`texels::bake_atlas_held`): what is written is read from there.
+    pub held: Option<super::texels::HeldLightmap>,
 }
 
 impl TexelBake {

@@ -84,6 +84,7 @@ pub fn truncate_baked(baked: &mut BakedMesh, bands: u32) {
     baked.transfer = truncate_bands(&baked.transfer, bands);
     if let Some(texels) = &mut baked.lightmap {
         texels.transfer = truncate_bands(&texels.transfer, bands);
+        texels.held = texels.held.as_ref().map(|held| held.truncated(bands));
     }
     baked.metadata.bands = bands;
 }

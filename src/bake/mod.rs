@@ -398,8 +398,12 @@ fn add_lightmap(
         of_vertex: &s.of_vertex,
         incoming: &s.incoming,
     });
-    let (mut lightmap, report) =
-        texels::bake_atlas_in(at, scatter.as_ref(), options, backend, progress)?;
+    let (mut lightmap, report) = match options.texel_groups {
+        Some(divided) if scatter.is_none() => {
+            texels::bake_atlas_held(at, options, backend, progress, divided)?
+        }
+        _ => texels::bake_atlas_in(at, scatter.as_ref(), options, backend, progress)?,
+    };
     lightmap.set = set.unwrap_or(0);
     let (scene, transfer) = match set {
         None => split::split_at_seams(&scene, &transfer, &lightmap.texcoords),
@@ -525,54 +529,97 @@ fn bake_at_gathering(
     progress: &dyn Progress,
     chunk: usize,
 ) -> Result<(Transfer, u64)> {
-    options.validate()?;
-    let owned = BakeInputs::with_tree(scene, receivers, bvh, options);
-    let albedo = match options.albedo {
-        Some(albedo) => vec![albedo; receivers.len()],
-        None => receivers.albedo.clone(),
-    };
     if options.mode != Mode::Interreflected {
+        options.validate()?;
+        let owned = BakeInputs::with_tree(scene, receivers, bvh, options);
         let direct = backend.direct_pass(&owned.view(), options.mode, progress)?;
-        let transfer = tint_by_albedo(&direct.scalar, &albedo, options.bands);
+        let transfer = tint_by_albedo(
+            &direct.scalar,
+            &receiver_albedo(receivers, options),
+            options.bands,
+        );
         return Ok((transfer, direct.rays_cast));
     }
-    let vertices = vertex_transfer
-        .filter(|t| t.vertex_count() == scene.vertex_count() && t.bands() == options.bands)
-        .ok_or_else(|| {
-            Error::Options(
-                "interreflected transfer at surface points gathers from the vertices' \
-                 transfer, and none of this scene and band count was given"
-                    .into(),
-            )
-        })?;
-    // Each receiver's gather row holds an entry per blocked ray, so the rows of a large
-    // lightmap's texels would take gigabytes at once; a chunk's rows are gathered and dropped
-    // before the next chunk's rays. A receiver's values are its own, whatever the chunk.
-    progress.stage("transfer", receivers.len() as u64);
     let mut coeffs = Vec::with_capacity(receivers.len() * 3 * coeff_count(options.bands));
-    let mut rays_cast = 0;
-    for first in (0..receivers.len()).step_by(chunk.max(1)) {
-        let chunk = first..receivers.len().min(first + chunk.max(1));
-        let part = owned.view().part(chunk.clone());
-        let direct = backend.direct_pass(&part, Mode::Interreflected, &Advancing(progress))?;
-        rays_cast += direct.rays_cast;
-        let matrix = direct
-            .matrix
-            .expect("an interreflected pass gives its gather matrix");
-        let gathered = backend
-            .gatherer(&matrix, &receivers.albedo[chunk.clone()], options.bands)?
-            .gather(vertices.coeffs())?;
-        let mut transfer = tint_by_albedo(&direct.scalar, &albedo[chunk], options.bands);
-        transfer
-            .coeffs_mut()
-            .iter_mut()
-            .zip(gathered)
-            .for_each(|(t, g)| *t += g);
-        coeffs.extend(transfer.into_coeffs());
-    }
+    let at = (receivers, bvh);
+    let rays_cast = bake_at_in_chunks(
+        scene,
+        at,
+        (options, backend, vertex_transfer),
+        (progress, chunk),
+        &mut |_, transfer| {
+            coeffs.extend(transfer.into_coeffs());
+            Ok(())
+        },
+    )?;
     let transfer = Transfer::new(options.bands, 3, receivers.len(), coeffs)
         .expect("three channels of every receiver's coefficients");
     Ok((transfer, rays_cast))
+}
+
+/// Each receiver's albedo: `options.albedo` where it replaces the receivers'.
+fn receiver_albedo(receivers: &Receivers, options: &BakeOptions) -> Vec<Vec3> {
+    match options.albedo {
+        Some(albedo) => vec![albedo; receivers.len()],
+        None => receivers.albedo.clone(),
+    }
+}
+
+/// [`bake_at_in`] `chunk` receivers at a time, each chunk's transfer handed to `each` with
+/// its first receiver and let go: no more than a chunk's transfer (and, interreflected, its
+/// gather rows) is held. A receiver's values are its own, whatever the chunk. Returns the
+/// rays cast.
+pub fn bake_at_in_chunks(
+    scene: &Scene,
+    (receivers, bvh): (&Receivers, Bvh),
+    (options, backend, vertex_transfer): (&BakeOptions, &dyn Backend, Option<&Transfer>),
+    (progress, chunk): (&dyn Progress, usize),
+    each: &mut dyn FnMut(usize, Transfer) -> Result<()>,
+) -> Result<u64> {
+    options.validate()?;
+    let owned = BakeInputs::with_tree(scene, receivers, bvh, options);
+    let albedo = receiver_albedo(receivers, options);
+    let vertices = match options.mode {
+        Mode::Interreflected => Some(
+            vertex_transfer
+                .filter(|t| t.vertex_count() == scene.vertex_count() && t.bands() == options.bands)
+                .ok_or_else(|| {
+                    Error::Options(
+                        "interreflected transfer at surface points gathers from the vertices' \
+                         transfer, and none of this scene and band count was given"
+                            .into(),
+                    )
+                })?,
+        ),
+        _ => None,
+    };
+    // Each receiver's gather row holds an entry per blocked ray, so the rows of a large
+    // lightmap's texels would take gigabytes at once; a chunk's rows are gathered and dropped
+    // before the next chunk's rays.
+    progress.stage("transfer", receivers.len() as u64);
+    let mut rays_cast = 0;
+    for first in (0..receivers.len()).step_by(chunk.max(1)) {
+        let chunk = first..receivers.len().min(first.saturating_add(chunk.max(1)));
+        let part = owned.view().part(chunk.clone());
+        let direct = backend.direct_pass(&part, options.mode, &Advancing(progress))?;
+        rays_cast += direct.rays_cast;
+        let mut transfer = tint_by_albedo(&direct.scalar, &albedo[chunk.clone()], options.bands);
+        if let Some(vertices) = vertices {
+            let matrix = direct
+                .matrix
+                .expect("an interreflected pass gives its gather matrix");
+            let gathered = backend
+                .gatherer(&matrix, &receivers.albedo[chunk], options.bands)?
+                .gather(vertices.coeffs())?;
+            transfer
+                .coeffs_mut()
+                .iter_mut()
+                .zip(gathered)
+                .for_each(|(t, g)| *t += g);
+        }
+        each(first, transfer)?;
+    }
+    Ok(rays_cast)
 }
 
 /// Receivers whose gather rows [`bake_at_in`] holds at once.

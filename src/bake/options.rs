@@ -104,6 +104,10 @@ pub struct BakeOptions {
     /// into the fit and let go, its gather rows in a scratch file (`points::PointChunks`), to
     /// bound memory; the bytes are the whole bake's. How the bake runs, not what it is.
     pub point_chunk: Option<usize>,
+    /// Lightmap: bake its texels a chunk at a time into a scratch file and clean them up a
+    /// group of coefficients at a time (`texels::bake_atlas_held`), to bound memory; the bytes
+    /// are the whole bake's. How the bake runs, not what it is.
+    pub texel_groups: Option<super::texels::TexelGroups>,
 }
 
 /// How the transfer is stored.
@@ -140,6 +144,7 @@ impl Default for BakeOptions {
             subsurface: None,
             scene_media: None,
             point_chunk: None,
+            texel_groups: None,
         }
     }
 }

@@ -142,6 +142,7 @@ mod tests {
                 texcoords: texcoords.clone(),
                 set: 0,
                 transfer: Transfer::zeros(1, 1, 1),
+                held: None,
             };
             let per_vertex = texels.vertex_texcoords(&split).expect("corners agree");
             // Every corner keeps its vertex's position and transfer, and its coordinates.

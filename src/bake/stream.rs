@@ -61,6 +61,8 @@ pub struct MemoryNeed {
     pub compression_per_row: u64,
     /// What the bake holds that is let go before clustered PCA starts: the BVH.
     pub bvh: u64,
+    /// A lightmap's texels held in a scratch file ([`MemoryNeed::with_lightmap`]).
+    pub lightmap: Option<super::texels::LightmapNeed>,
 }
 
 /// What a least-squares fit adds to a bake's need: its points, held whatever the chunking,
@@ -163,6 +165,7 @@ impl MemoryNeed {
             compression: 0,
             compression_per_row: 0,
             bvh,
+            lightmap: None,
         }
     }
 
@@ -187,30 +190,6 @@ impl MemoryNeed {
             fit: Some(fit),
             // The vertices gather nothing: the points do.
             per_receiver_whole: self.per_receiver_whole - gather_row_bytes(options),
-            ..self
-        }
-    }
-
-    /// The need with a lightmap of at most `size` x `size` texels (`options` the bake's), at
-    /// the larger of its two peaks: while its texels bake (each texel a receiver, as a fitted
-    /// point is, with its transfer; interreflected, one chunk's gather rows at a time,
-    /// [`super::GATHER_CHUNK`]) and while it is written (the image in f32; the encoder takes a
-    /// block of scan lines at a time and writes it to the file), beside the per-texel flags and
-    /// chart labels of the clean-up.
-    pub fn with_lightmap(self, size: u32, options: &BakeOptions) -> MemoryNeed {
-        let coeffs = coeff_count(options.bands) as u64;
-        let texels = size as u64 * size as u64;
-        let baking = 24 + 48 + 24 + 4 * coeffs + 12 * coeffs;
-        let writing = 12 * coeffs;
-        // Interreflected, one chunk's gather rows and the bounce they gather.
-        let gathering = match options.mode {
-            Mode::Interreflected => {
-                texels.min(super::GATHER_CHUNK as u64) * (gather_row_bytes(options) + 24 * coeffs)
-            }
-            _ => 0,
-        };
-        MemoryNeed {
-            beside_vertices: self.beside_vertices + texels * (baking.max(writing) + 16) + gathering,
             ..self
         }
     }
@@ -447,7 +426,7 @@ impl MemoryNeed {
 
 /// A receiver's gather row where light bounces (a column and a weight per blocked ray at
 /// most, as the rays find it and as the matrix holds it); 0 otherwise.
-fn gather_row_bytes(options: &BakeOptions) -> u64 {
+pub(super) fn gather_row_bytes(options: &BakeOptions) -> u64 {
     match options.mode {
         Mode::Interreflected => 2 * 8 * options.samples_used() as u64,
         _ => 0,

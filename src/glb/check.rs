@@ -179,8 +179,15 @@ pub(super) fn validate_lightmap(
                 .into(),
         );
     }
+    let held = texels.held.as_ref().map(|held| held.shape());
+    let texel_count = match held {
+        // Held in a scratch file, checked as the file is written.
+        Some(shape) if (shape.width, shape.height) == (texels.width, texels.height) => 0,
+        _ => texels.width as usize * texels.height as usize,
+    };
     if (map.bands(), map.channels()) != (transfer.bands, transfer.channels)
-        || map.vertex_count() != texels.width as usize * texels.height as usize
+        || held.is_some_and(|shape| (shape.bands, shape.channels) != (map.bands(), map.channels()))
+        || map.vertex_count() != texel_count
     {
         return Err(format!(
             "the lightmap holds {} texels of {} bands and {} channels for a {}x{} map of {} and {}",

@@ -133,7 +133,7 @@ pub fn write_glb(path: &Path, stored: Stored) -> Result<()> {
     let bytes = encode_valid(stored, Some(&name))?;
     let exr_path = path.with_file_name(&name);
     check_destination(&exr_path)?;
-    crate::lightmap::write_lightmap(&exr_path, &lightmap_of(texels))?;
+    write_texels(&exr_path, texels)?;
     write_atomically(path, &bytes).inspect_err(|_| {
         let _ = fs::remove_file(&exr_path);
     })
@@ -150,6 +150,15 @@ pub fn lightmap_file_name(glb: &Path) -> String {
         _ => name,
     };
     format!("{stem}.lightmap.exr")
+}
+
+/// Writes a texel bake's OpenEXR file to `path`: from memory, or read back from the scratch
+/// file of a lightmap baked in bounded memory.
+fn write_texels(path: &Path, texels: &TexelBake) -> Result<()> {
+    match &texels.held {
+        Some(held) => crate::lightmap::write_lightmap_rows(path, held),
+        None => crate::lightmap::write_lightmap(path, &lightmap_of(texels)),
+    }
 }
 
 /// The file form of a texel bake.
@@ -290,6 +299,7 @@ fn read_texels(
             map.coefficients.into_owned(),
         )
         .map_err(|e| Error::baked(&exr_path, e.to_string()))?,
+        held: None,
     })
 }
 
@@ -479,6 +489,7 @@ mod tests {
             texcoords,
             set: 0,
             transfer: Transfer::zeros(3, 1, 4),
+            held: None,
         });
         let bytes = Stored::plain(&baked).and_then(|s| encode_valid(s, Some("a.exr")));
         let doc = json_of(&bytes.unwrap());

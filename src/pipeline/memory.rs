@@ -15,13 +15,16 @@ use crate::spec::{BakeSpec, Compression};
 use crate::Result;
 
 /// How a bake fits the memory it may use.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct MemoryPlan {
     /// Streamed in chunks of this many receivers (`None`: whole).
     pub chunk: Option<usize>,
     /// A least-squares fit's points baked about this many at a time, the rest of the bake
     /// whole ([`super::Planned::with_point_chunk`]).
     pub point_chunk: Option<usize>,
+    /// A lightmap's texels baked into a scratch file and cleaned up in groups of
+    /// coefficients, the rest of the bake whole ([`super::Planned::with_texel_groups`]).
+    pub texel_groups: Option<bake::texels::TexelGroups>,
     /// What to tell the user: a `note:` that the bake streams, or a `warning:` that it needs
     /// more than the machine has.
     pub message: Option<String>,
@@ -38,11 +41,7 @@ pub fn plan_memory(
     limit: Option<u64>,
     available: Option<u64>,
 ) -> Result<MemoryPlan> {
-    let whole = MemoryPlan {
-        chunk: None,
-        point_chunk: None,
-        message: None,
-    };
+    let whole = MemoryPlan::default();
     let options = spec.options();
     let need = memory_need(spec, (scene, gltf));
     let Some(budget) = limit.or(available) else {
@@ -59,11 +58,13 @@ pub fn plan_memory(
     let points_chunk =
         options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
     let why_not = why_whole(spec, translucent);
+    if spec.receivers.lightmap.is_some() && chunkable {
+        return lightmap_held(&need, budget, limit.is_some());
+    }
     if points_chunk {
         let points = need.fit.map_or(0, |fit| fit.points);
         return match (need.point_chunk_within(budget), limit) {
             (Ok(chunk), _) => Ok(MemoryPlan {
-                chunk: None,
                 point_chunk: Some(chunk),
                 message: Some(format!(
                     "note: baking the least-squares fit's {points} points in runs of about \
@@ -72,11 +73,11 @@ pub fn plan_memory(
                     format_bytes(need.whole()),
                     format_bytes(need.points_chunked(chunk))
                 )),
+                ..MemoryPlan::default()
             }),
             (Err(error), Some(_)) => Err(error),
             // Over the machine's memory even in the smallest runs: those, and a warning.
             (Err(_), None) => Ok(MemoryPlan {
-                chunk: None,
                 point_chunk: Some(bake::stream::MIN_CHUNK),
                 message: Some(format!(
                     "warning: this bake needs at least {} with its fit's points baked in runs, \
@@ -84,6 +85,7 @@ pub fn plan_memory(
                     format_bytes(need.points_chunked(bake::stream::MIN_CHUNK)),
                     format_bytes(budget)
                 )),
+                ..MemoryPlan::default()
             }),
         };
     }
@@ -92,7 +94,6 @@ pub fn plan_memory(
             let chunk = need.chunk_within(budget)?;
             Ok(MemoryPlan {
                 chunk: Some(chunk),
-                point_chunk: None,
                 message: Some(format!(
                     "note: streaming the transfer in chunks of {chunk} receivers to stay within \
                      {} (about {} whole, {} streamed)",
@@ -100,6 +101,7 @@ pub fn plan_memory(
                     format_bytes(need.whole()),
                     format_bytes(need.streamed(chunk))
                 )),
+                ..MemoryPlan::default()
             })
         }
         (false, Some(_)) => Err(Error::Options(format!(
@@ -108,25 +110,61 @@ pub fn plan_memory(
             format_bytes(need.whole())
         ))),
         (false, None) => Ok(MemoryPlan {
-            chunk: None,
-            point_chunk: None,
             message: Some(format!(
                 "warning: this bake needs about {}, more than the {} this machine has \
                  available, and {why_not}",
                 format_bytes(need.whole()),
                 format_bytes(budget)
             )),
+            ..MemoryPlan::default()
         }),
     }
+}
+
+/// The plan of a lightmap bake over `budget`: its texels held in a scratch file, cleaned up as
+/// many coefficients at a time as fit. Over an explicit `limit` even one at a time, an error;
+/// over the machine's memory, one at a time and a warning.
+fn lightmap_held(need: &MemoryNeed, budget: u64, limit: bool) -> Result<MemoryPlan> {
+    let groups = match (need.texel_groups_within(budget), limit) {
+        (Ok(groups), _) => groups,
+        (Err(error), true) => return Err(error),
+        (Err(_), false) => {
+            let groups = bake::texels::TexelGroups {
+                chunk: need
+                    .lightmap
+                    .map_or(bake::stream::MIN_CHUNK, |l| l.chunk(1)),
+                columns: 1,
+            };
+            return Ok(MemoryPlan {
+                texel_groups: Some(groups),
+                message: Some(format!(
+                    "warning: this bake needs at least {} with its lightmap held in a scratch \
+                     file, more than the {} this machine has available",
+                    format_bytes(need.lightmap_held(1)),
+                    format_bytes(budget)
+                )),
+                ..MemoryPlan::default()
+            });
+        }
+    };
+    Ok(MemoryPlan {
+        texel_groups: Some(groups),
+        message: Some(format!(
+            "note: holding the lightmap's texels in a scratch file, cleaned up {} coefficients \
+             at a time, to stay within {} (about {} whole, {} so)",
+            groups.columns,
+            format_bytes(budget),
+            format_bytes(need.whole()),
+            format_bytes(need.lightmap_held(groups.columns as u64))
+        )),
+        ..MemoryPlan::default()
+    })
 }
 
 /// Why a bake that needs more than its limit is not split: what it does that needs every
 /// receiver at once.
 fn why_whole(spec: &BakeSpec, translucent: bool) -> &'static str {
-    if spec.receivers.lightmap.is_some() {
-        "a lightmap is baked, stitched at its seams and denoised as one image of every texel, \
-         so it does not stream in chunks"
-    } else if spec.transfer.subsurface.is_some() || translucent {
+    if spec.transfer.subsurface.is_some() || translucent {
         "subsurface scattering carries light from every vertex to those around it over the \
          whole surface, so it does not stream in chunks"
     } else {

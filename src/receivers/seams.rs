@@ -164,31 +164,57 @@ pub fn solve(
     anchor: &[f32],
     solved: &mut dyn FnMut(u64),
 ) {
-    let count = width as usize * height as usize;
-    if rows.is_empty() || stride == 0 || image.len() != count * stride {
-        return;
+    SeamSystem::new(rows, anchor).solve((width, height), (image, stride), solved);
+}
+
+/// The stitching's system, built once for images that share their seams and anchors (a
+/// lightmap stitched a group of coefficients at a time): [`Stitching::solve`] gives what
+/// [`solve`] gives.
+pub struct Stitching<'a>(SeamSystem<'a>);
+
+impl<'a> Stitching<'a> {
+    pub fn new(rows: &'a [Row], anchor: &[f32]) -> Self {
+        Stitching(SeamSystem::new(rows, anchor))
     }
-    let system = SeamSystem::new(rows, anchor);
-    // The same matrix for every coefficient: each solved on its own, [`COLUMNS`] side by side
-    // (one pass over the rows serves them all). Groups are solved in parallel, a wave of at
-    // most [`GROUPS_IN_FLIGHT`] at a time, each wave written back before the next: what the
-    // solve holds is a few groups' vectors, not every coefficient's solution.
-    let groups: Vec<usize> = (0..stride).step_by(COLUMNS).collect();
-    let wave = rayon::current_num_threads().clamp(1, GROUPS_IN_FLIGHT);
-    for firsts in groups.chunks(wave) {
-        let done: Vec<(usize, Vec<f64>)> = firsts
-            .par_iter()
-            .map(|&first| {
+
+    /// [`solve`] with this system's rows and anchors.
+    pub fn solve(&self, size: (u32, u32), image: (&mut [f32], usize), solved: &mut dyn FnMut(u64)) {
+        self.0.solve(size, image, solved);
+    }
+}
+
+impl SeamSystem<'_> {
+    fn solve(
+        &self,
+        (width, height): (u32, u32),
+        (image, stride): (&mut [f32], usize),
+        solved: &mut dyn FnMut(u64),
+    ) {
+        let count = width as usize * height as usize;
+        if self.rows.is_empty() || stride == 0 || image.len() != count * stride {
+            return;
+        }
+        // The same matrix for every coefficient: each solved on its own, [`COLUMNS`] side by
+        // side (one pass over the rows serves them all). Groups are solved in parallel, a wave
+        // of at most [`GROUPS_IN_FLIGHT`] at a time, each wave written back before the next:
+        // what the solve holds is a few groups' vectors, not every coefficient's solution.
+        let groups: Vec<usize> = (0..stride).step_by(COLUMNS).collect();
+        let wave = rayon::current_num_threads().clamp(1, GROUPS_IN_FLIGHT);
+        for firsts in groups.chunks(wave) {
+            let done: Vec<(usize, Vec<f64>)> = firsts
+                .par_iter()
+                .map(|&first| {
+                    let columns = first..stride.min(first + COLUMNS);
+                    (first, self.solve_columns(image, stride, columns))
+                })
+                .collect();
+            for (first, x) in done {
                 let columns = first..stride.min(first + COLUMNS);
-                (first, system.solve_columns(image, stride, columns))
-            })
-            .collect();
-        for (first, x) in done {
-            let columns = first..stride.min(first + COLUMNS);
-            solved(columns.len() as u64);
-            for (&t, values) in system.texels.iter().zip(x.chunks_exact(columns.len())) {
-                for (at, &v) in image[t * stride..][columns.clone()].iter_mut().zip(values) {
-                    *at = v as f32;
+                solved(columns.len() as u64);
+                for (&t, values) in self.texels.iter().zip(x.chunks_exact(columns.len())) {
+                    for (at, &v) in image[t * stride..][columns.clone()].iter_mut().zip(values) {
+                        *at = v as f32;
+                    }
                 }
             }
         }
@@ -320,7 +346,7 @@ impl<'a> SeamSystem<'a> {
 }
 
 /// Coefficients solved side by side by one [`conjugate_gradients`].
-const COLUMNS: usize = 4;
+pub const COLUMNS: usize = 4;
 
 /// Solves `A x = b` for the symmetric positive definite `A` given as `apply`, preconditioned
 /// by `precondition` (an approximate inverse), from `start`: `columns` systems at once, the

@@ -358,86 +358,98 @@ pub fn dilate_by_owner(
             valid.len()
         )));
     }
-    for _ in 0..passes {
-        let (filled, averages) = dilation_pass(w, h, values, channels, valid, owner);
-        if filled.is_empty() {
-            break;
-        }
-        for (i, &texel) in filled.iter().enumerate() {
-            values[texel * channels..(texel + 1) * channels]
-                .copy_from_slice(&averages[i * channels..(i + 1) * channels]);
-            valid[texel] = true;
-        }
-    }
+    plan_dilation((width, height), valid, owner, passes).apply(values, channels);
     Ok(())
 }
 
-/// The texels one pass of [`dilate`] fills and their new values (`[filled][channel]`), not
-/// yet written. Rows in parallel: a texel's average reads only the values before the pass, so
-/// the result does not depend on the threads.
-fn dilation_pass(
-    w: usize,
-    h: usize,
-    values: &[f32],
-    channels: usize,
-    valid: &[bool],
-    owner: &[u32],
-) -> (Vec<usize>, Vec<f32>) {
-    let rows: Vec<(Vec<usize>, Vec<f32>)> = (0..h)
-        .into_par_iter()
-        .map(|y| fill_row(w, h, y, (values, channels), valid, owner))
-        .collect();
-    let mut texels = Vec::new();
-    let mut averages = Vec::new();
-    for (row_texels, row_averages) in rows {
-        texels.extend(row_texels);
-        averages.extend(row_averages);
-    }
-    (texels, averages)
+/// What [`dilate_by_owner`] fills, pass by pass, from a mask alone: the values it averages
+/// never decide which texels fill, so one plan serves every group of channels of an image
+/// (a lightmap cleaned up a few coefficients at a time) with the same bits.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DilationPlan {
+    /// Each pass's filled texels, with the end of their neighbours in `neighbours`.
+    passes: Vec<Vec<(usize, usize)>>,
+    /// The valid neighbours each filled texel averages, in the order they are summed.
+    neighbours: Vec<u32>,
 }
 
-/// The invalid texels of row `y` with a valid 8-neighbour of the same owner, and the averages
-/// of those neighbours (summed in a fixed order).
-fn fill_row(
-    w: usize,
-    h: usize,
-    y: usize,
-    (values, channels): (&[f32], usize),
-    valid: &[bool],
+/// The plan of [`dilate_by_owner`] on `valid` (`width` x `height` flags, made valid where the
+/// passes fill) and `owner`: rows in parallel, a texel's neighbours read as valid before its
+/// pass, so the plan does not depend on the threads.
+pub fn plan_dilation(
+    (width, height): (u32, u32),
+    valid: &mut [bool],
     owner: &[u32],
-) -> (Vec<usize>, Vec<f32>) {
-    let mut texels = Vec::new();
-    let mut averages = Vec::new();
+    passes: u32,
+) -> DilationPlan {
+    let (w, h) = (width as usize, height as usize);
+    let mut plan = DilationPlan::default();
+    for _ in 0..passes {
+        let rows: Vec<Vec<(usize, Vec<u32>)>> = (0..h)
+            .into_par_iter()
+            .map(|y| fill_row(w, h, y, valid, owner))
+            .collect();
+        let mut pass = Vec::new();
+        for (texel, neighbours) in rows.into_iter().flatten() {
+            plan.neighbours.extend(neighbours);
+            pass.push((texel, plan.neighbours.len()));
+            valid[texel] = true;
+        }
+        if pass.is_empty() {
+            break;
+        }
+        plan.passes.push(pass);
+    }
+    plan
+}
+
+impl DilationPlan {
+    /// Fills `values` (`channels` a texel) as planned: each filled texel the mean of its
+    /// neighbours, summed in a fixed order. In place: a pass reads only texels valid before it,
+    /// which it never writes.
+    pub fn apply(&self, values: &mut [f32], channels: usize) {
+        let mut start = 0;
+        let mut sum = vec![0.0f32; channels];
+        for pass in &self.passes {
+            for &(texel, end) in pass {
+                let neighbours = &self.neighbours[start..end];
+                start = end;
+                sum.fill(0.0);
+                for &n in neighbours {
+                    let n = n as usize;
+                    let neighbour = &values[n * channels..(n + 1) * channels];
+                    sum.iter_mut().zip(neighbour).for_each(|(a, v)| *a += v);
+                }
+                let count = neighbours.len() as f32;
+                for (value, a) in values[texel * channels..(texel + 1) * channels]
+                    .iter_mut()
+                    .zip(&sum)
+                {
+                    *value = a / count;
+                }
+            }
+        }
+    }
+}
+
+/// The invalid texels of row `y` with a valid 8-neighbour of the same owner, and those
+/// neighbours in the order they are summed.
+fn fill_row(w: usize, h: usize, y: usize, valid: &[bool], owner: &[u32]) -> Vec<(usize, Vec<u32>)> {
+    let mut filled = Vec::new();
     for x in 0..w {
         if valid[y * w + x] {
             continue;
         }
-        let neighbours = || {
-            (y.saturating_sub(1)..(y + 2).min(h))
-                .flat_map(move |ny| {
-                    (x.saturating_sub(1)..(x + 2).min(w)).map(move |nx| ny * w + nx)
-                })
-                .filter(move |&n| valid[n] && (owner.is_empty() || owner[n] == owner[y * w + x]))
-        };
-        let count = neighbours().count();
-        if count == 0 {
-            continue;
+        let neighbours: Vec<u32> = (y.saturating_sub(1)..(y + 2).min(h))
+            .flat_map(|ny| (x.saturating_sub(1)..(x + 2).min(w)).map(move |nx| ny * w + nx))
+            .filter(|&n| valid[n] && (owner.is_empty() || owner[n] == owner[y * w + x]))
+            .map(|n| n as u32)
+            .collect();
+        if !neighbours.is_empty() {
+            filled.push((y * w + x, neighbours));
         }
-        let start = averages.len();
-        averages.resize(start + channels, 0.0);
-        for n in neighbours() {
-            let neighbour = &values[n * channels..(n + 1) * channels];
-            averages[start..]
-                .iter_mut()
-                .zip(neighbour)
-                .for_each(|(a, v)| *a += v);
-        }
-        averages[start..]
-            .iter_mut()
-            .for_each(|a| *a /= count as f32);
-        texels.push(y * w + x);
     }
-    (texels, averages)
+    filled
 }
 
 #[cfg(test)]

@@ -109,6 +109,30 @@ pub fn preview(
     }
 }
 
+/// Every texel of `texels` relit by `light`, RGB: those of a held lightmap read back a block of
+/// rows at a time.
+fn relit_texels(texels: &TexelBake, light: &ShLight) -> Result<Vec<f32>> {
+    let Some(held) = &texels.held else {
+        return Ok(relight(&texels.transfer, light)?
+            .into_iter()
+            .flatten()
+            .collect());
+    };
+    use crate::lightmap::TexelRows;
+    const ROWS: usize = 64;
+    let shape = held.shape();
+    let mut relit = Vec::with_capacity(shape.width as usize * shape.height as usize * 3);
+    for first in (0..shape.height as usize).step_by(ROWS) {
+        let rows = first..(first + ROWS).min(shape.height as usize);
+        let texel_count = rows.len() * shape.width as usize;
+        let values = held.read_rows(rows)?.into_owned();
+        let block = crate::bake::Transfer::new(shape.bands, shape.channels, texel_count, values)
+            .map_err(|e| crate::error::Error::Options(e.to_string()))?;
+        relit.extend(relight(&block, light)?.into_iter().flatten());
+    }
+    Ok(relit)
+}
+
 /// A lightmapped mesh: the texels relit, then looked up bilinearly at each pixel's lightmap
 /// coordinates (rasterised as the "radiance" of a first pass, interpolated perspective-correct
 /// as any vertex attribute), as a renderer samples a lightmap texture.
@@ -121,10 +145,7 @@ fn render_texels(
     width: u32,
     height: u32,
 ) -> Result<Vec<[f32; 4]>> {
-    let relit: Vec<f32> = relight(&texels.transfer, light)?
-        .into_iter()
-        .flatten()
-        .collect();
+    let relit = relit_texels(texels, light)?;
     let coordinates: Vec<[f32; 3]> = texels.texcoords.iter().map(|&[u, v]| [u, v, 0.0]).collect();
     // The coordinates are per triangle corner: a scene that shares vertices between corners (a
     // glTF scene's own UV set, a mesh split only where its charts meet) is drawn split at its

@@ -515,6 +515,7 @@ mod tests {
             texcoords: vec![[0.5; 2]; 3 * baked.scene.triangle_count()],
             set: 0,
             transfer: baked.transfer.clone(),
+            held: None,
         });
         let refused = viewer(&texels, &ShLight::constant(3, [1.0; 3])).unwrap_err();
         assert!(refused.to_string().contains("lightmap"), "{refused}");

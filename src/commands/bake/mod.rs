@@ -117,6 +117,9 @@ pub(crate) fn bake_one(
         if let Some(chunk) = plan.point_chunk {
             planned = planned.with_point_chunk(chunk);
         }
+        if let Some(groups) = plan.texel_groups {
+            planned = planned.with_texel_groups(groups);
+        }
         if let Some(chunk) = plan.chunk {
             let preview = execution.preview.is_some();
             let streamed = planned

@@ -86,7 +86,7 @@ pub fn write_scene_glb(
     let (bytes, report) = encode_scene_glb(gltf, stored, vertex_map, Some(&name))?;
     let exr_path = path.with_file_name(&name);
     check_destination(&exr_path)?;
-    crate::lightmap::write_lightmap(&exr_path, &super::lightmap_of(texels))?;
+    super::write_texels(&exr_path, texels)?;
     write_atomically(path, &bytes).inspect_err(|_| {
         let _ = std::fs::remove_file(&exr_path);
     })?;

@@ -28,6 +28,10 @@ use crate::receivers::{seams, Receivers, SurfacePoint};
 use crate::sampling::{cosine_hemisphere, SampleSet, VertexDirections};
 use crate::scene::Scene;
 
+mod held;
+
+pub use held::{bake_atlas_held, HeldLightmap, LightmapNeed, TexelGroups};
+
 /// Rays per texel of the leak test.
 pub const LEAK_RAYS: u32 = 16;
 
@@ -186,12 +190,11 @@ fn bake_atlas_scattering(
     let (width, height) = (atlas.width, atlas.height);
     if options.denoise {
         progress.stage("denoise", 1);
-        let guide = denoise_guide(
-            (atlas, &texels, &receivers),
-            (&image, stride),
-            options,
-            &valid,
-        );
+        let per_channel = stride / 3;
+        let dc = |_, at: usize| {
+            Vec3::from_array([0, 1, 2].map(|c| image[at * stride + c * per_channel]))
+        };
+        let guide = denoise_guide((atlas, &texels, &receivers), dc, options, &valid);
         image = backend.denoise(&guide, &image, stride)?;
         progress.advance(1);
     }
@@ -211,12 +214,6 @@ fn bake_atlas_scattering(
     if stitching == Seams::Stitched {
         stitch(&seams, atlas, (&mut image, stride), &anchor, progress);
     }
-    let texcoords = atlas
-        .corners
-        .iter()
-        .flatten()
-        .map(|c| [c.x / width as f32, c.y / height as f32])
-        .collect();
     let report = TexelReport {
         width,
         height,
@@ -233,12 +230,24 @@ fn bake_atlas_scattering(
     let bake = TexelBake {
         width,
         height,
-        texcoords,
+        texcoords: atlas_texcoords(atlas),
         set: 0,
         transfer: Transfer::new(bands, channels, (width * height) as usize, image)
             .expect("one row of coefficients for every texel"),
+        held: None,
     };
     Ok((bake, report))
+}
+
+/// Every triangle corner's coordinates on `atlas`, in [0, 1] ([`TexelBake::texcoords`]).
+pub fn atlas_texcoords(atlas: &Atlas) -> Vec<[f32; 2]> {
+    let size = glam::Vec2::new(atlas.width as f32, atlas.height as f32);
+    atlas
+        .corners
+        .iter()
+        .flatten()
+        .map(|c| [c.x / size.x, c.y / size.y])
+        .collect()
 }
 
 /// Stitches `seams` of `atlas` in `image` (`stride` values a texel), each texel held to its
@@ -357,11 +366,12 @@ fn chart_owners(atlas: &Atlas, texels: &TexelPoints) -> Vec<u32> {
 }
 
 /// What guides the denoiser at each texel of `atlas`: where its receiver lies, its normal, its
-/// level and noise (from `image` as baked, `stride` floats a texel, and the `samples` each
-/// cast), and its chart where it is `valid` ([`NO_CHART`] elsewhere: neither read nor written).
+/// level and noise (from its first coefficient of each channel as baked, `dc` of its covered
+/// index and its row-major index, and the `samples` each cast), and its chart where it is
+/// `valid` ([`NO_CHART`] elsewhere: neither read nor written).
 fn denoise_guide(
     (atlas, texels, receivers): (&Atlas, &TexelPoints, &Receivers),
-    (image, stride): (&[f32], usize),
+    dc: impl Fn(usize, usize) -> Vec3,
     options: &BakeOptions,
     valid: &[bool],
 ) -> DenoiseGuide {
@@ -369,13 +379,11 @@ fn denoise_guide(
     let (mut positions, mut normals) = (vec![Vec3::ZERO; count], vec![Vec3::Z; count]);
     let (mut levels, mut noise) = (vec![0.0; count], vec![1.0; count]);
     let mut charts = vec![NO_CHART; count];
-    // Texel transfer is RGB (`tint_by_albedo`): three channels of `stride / 3` coefficients.
-    let per_channel = stride / 3;
     for (i, (&(x, y), point)) in texels.texels.iter().zip(&texels.points).enumerate() {
         let at = (y * atlas.width + x) as usize;
         positions[at] = receivers.positions[i];
         normals[at] = receivers.normals[i];
-        let dc = Vec3::from_array([0, 1, 2].map(|c| image[at * stride + c * per_channel]));
+        let dc = dc(i, at);
         let albedo = options.albedo.unwrap_or(receivers.albedo[i]);
         (levels[at], noise[at]) = texel_level(dc, albedo, options.samples_used());
         if valid[at] {

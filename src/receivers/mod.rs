@@ -10,6 +10,7 @@
 
 pub mod atlas;
 pub mod denoise;
+pub mod dilation;
 pub mod fit;
 pub mod seams;
 pub mod texels;

@@ -25,8 +25,7 @@ use std::time::Instant;
 use glam::Vec3;
 
 use super::{
-    chart_owners, denoise_guide, keep_charts_with_no_valid_texel, leaking_or_covered_in,
-    seam_anchors, texel_length, TexelReport, COVER_TEXELS, DILATION_PASSES,
+    chart_owners, denoise_guide, seam_anchors, texel_receivers, TexelReport, DILATION_PASSES,
 };
 use crate::bake::spill::Spill;
 use crate::bake::stream::{format_bytes, gather_row_bytes, MemoryNeed, MIN_CHUNK};
@@ -37,7 +36,7 @@ use crate::lightmap::{LightmapShape, TexelRows};
 use crate::receivers::atlas::Atlas;
 use crate::receivers::dilation::plan_dilation;
 use crate::receivers::seams;
-use crate::receivers::texels::{rasterize, TexelPoints};
+use crate::receivers::texels::TexelPoints;
 use crate::receivers::Receivers;
 use crate::scene::Scene;
 use crate::sh;
@@ -153,12 +152,7 @@ pub fn bake_atlas_held(
     divided: TexelGroups,
 ) -> Result<(TexelBake, TexelReport)> {
     let started = Instant::now();
-    let texels = rasterize(atlas);
-    let receivers = Receivers::at_points(scene, &texels.points);
-    let bvh = Bvh::build(&scene.positions, &scene.triangles);
-    let cover = COVER_TEXELS * texel_length(scene, atlas);
-    let mut leaking = leaking_or_covered_in(scene, &bvh, &receivers, cover);
-    keep_charts_with_no_valid_texel(atlas, &texels.points, &mut leaking);
+    let (texels, receivers, bvh, leaking) = texel_receivers(scene, atlas);
     let turned = options.clone().with_turns(options.denoise);
     let casting = Instant::now();
     let baked = bake_in_chunks(
@@ -193,27 +187,17 @@ pub fn bake_atlas_held(
         .step_by(divided.columns.max(1))
         .map(|first| first..stride.min(first + divided.columns.max(1)))
         .collect();
-    let held = cleanup.run(baked, &groups, (backend, progress))?;
-    let report = TexelReport {
-        width: atlas.width,
-        height: atlas.height,
-        covered: texels.texels.len(),
-        charts: atlas.chart_count(),
-        seams: seams.len(),
-        stretch: atlas.stretch(scene),
-        leaking: leaking.iter().filter(|&&l| l).count(),
-        denoised: options.denoise,
-        rays_cast: held.1,
-        transfer_seconds,
-        seconds: started.elapsed().as_secs_f64(),
-    };
+    let (held, rays_cast) = cleanup.run(baked, &groups, (backend, progress))?;
+    let texels_of = (scene, atlas, &texels);
+    let report = TexelReport::of(texels_of, (&seams, &leaking), options.denoise, rays_cast)
+        .timed(transfer_seconds, started);
     let texels = TexelBake {
         width: atlas.width,
         height: atlas.height,
         texcoords: super::atlas_texcoords(atlas),
         set: 0,
         transfer: Transfer::new(options.bands, 3, 0, Vec::new()).expect("no texels in memory"),
-        held: Some(held.0),
+        held: Some(held),
     };
     Ok((texels, report))
 }

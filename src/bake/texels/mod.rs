@@ -78,6 +78,53 @@ pub struct TexelReport {
     pub seconds: f64,
 }
 
+impl TexelReport {
+    /// What a bake of `texels` on `atlas` did: its seams and `leaking` texels, whether it
+    /// `denoised`, the rays it cast; its times not yet stated.
+    fn of(
+        (scene, atlas, texels): (&Scene, &Atlas, &TexelPoints),
+        (seams, leaking): (&[seams::Seam], &[bool]),
+        denoised: bool,
+        rays_cast: u64,
+    ) -> TexelReport {
+        TexelReport {
+            width: atlas.width,
+            height: atlas.height,
+            covered: texels.texels.len(),
+            charts: atlas.chart_count(),
+            seams: seams.len(),
+            stretch: atlas.stretch(scene),
+            leaking: leaking.iter().filter(|&&l| l).count(),
+            denoised,
+            rays_cast,
+            transfer_seconds: 0.0,
+            seconds: 0.0,
+        }
+    }
+
+    /// The report with its rays' seconds, and the seconds since the bake `started`.
+    fn timed(self, transfer_seconds: f64, started: Instant) -> TexelReport {
+        TexelReport {
+            transfer_seconds,
+            seconds: started.elapsed().as_secs_f64(),
+            ..self
+        }
+    }
+}
+
+/// The covered texels of `atlas` and their receivers, the scene's tree, and which texels leak
+/// (inside geometry or covered by a sheet, charts with no other texel kept): where every texel
+/// bake starts.
+fn texel_receivers(scene: &Scene, atlas: &Atlas) -> (TexelPoints, Receivers, Bvh, Vec<bool>) {
+    let texels = rasterize(atlas);
+    let receivers = Receivers::at_points(scene, &texels.points);
+    let bvh = Bvh::build(&scene.positions, &scene.triangles);
+    let cover = COVER_TEXELS * texel_length(scene, atlas);
+    let mut leaking = leaking_or_covered_in(scene, &bvh, &receivers, cover);
+    keep_charts_with_no_valid_texel(atlas, &texels.points, &mut leaking);
+    (texels, receivers, bvh, leaking)
+}
+
 /// The atlas of a lightmap about `size` texels on its longer side for the prepared `scene`;
 /// fails (before any ray is cast) where the charts cannot fit that size.
 pub fn plan_atlas(scene: &Scene, size: u32) -> Result<Atlas> {
@@ -157,12 +204,7 @@ fn bake_atlas_scattering(
     stitching: Seams,
 ) -> Result<(TexelBake, TexelReport)> {
     let started = Instant::now();
-    let texels = rasterize(atlas);
-    let receivers = Receivers::at_points(scene, &texels.points);
-    let bvh = Bvh::build(&scene.positions, &scene.triangles);
-    let cover = COVER_TEXELS * texel_length(scene, atlas);
-    let mut leaking = leaking_or_covered_in(scene, &bvh, &receivers, cover);
-    keep_charts_with_no_valid_texel(atlas, &texels.points, &mut leaking);
+    let (texels, receivers, bvh, leaking) = texel_receivers(scene, atlas);
     let at = (&receivers, bvh);
     // Texels to be denoised each turn their samples by their own angle, so that their errors
     // are independent and the filter averages them out. In a medium they receive as white
@@ -214,19 +256,9 @@ fn bake_atlas_scattering(
     if stitching == Seams::Stitched {
         stitch(&seams, atlas, (&mut image, stride), &anchor, progress);
     }
-    let report = TexelReport {
-        width,
-        height,
-        covered: texels.texels.len(),
-        charts: atlas.chart_count(),
-        seams: seams.len(),
-        stretch: atlas.stretch(scene),
-        leaking: leaking.iter().filter(|&&l| l).count(),
-        denoised: options.denoise,
-        rays_cast,
-        transfer_seconds,
-        seconds: started.elapsed().as_secs_f64(),
-    };
+    let texels_of = (scene, atlas, &texels);
+    let report = TexelReport::of(texels_of, (&seams, &leaking), options.denoise, rays_cast)
+        .timed(transfer_seconds, started);
     let bake = TexelBake {
         width,
         height,

@@ -28,7 +28,7 @@ use crate::{glb, light, render, Result};
 
 mod memory;
 
-pub use memory::{memory_need, plan_memory, MemoryPlan};
+pub use memory::{memory_need, plan_memory, plan_merge_memory, MemoryPlan};
 
 /// A bake done and shaped as its spec stores it, not yet written.
 pub struct Baked {

@@ -118,6 +118,74 @@ fn merge_runs_the_rest_of_the_bake_as_the_whole_bake_does() {
     }
 }
 
+/// A merge under `--memory-limit` holds its lightmap's texels in a scratch file, as the whole
+/// bake does under the same limit: the same .glb and lightmap bytes as the merge without one.
+/// A merge without a lightmap, whose vertices are joined whole, refuses a limit below its need
+/// in one line and writes nothing.
+#[test]
+fn a_merge_under_a_memory_limit_holds_its_lightmap_and_refuses_what_cannot_shrink() {
+    use prt_gpu::bake::stream::MemoryNeed;
+    use prt_gpu::bake::BakeOptions;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let extra = ["--device", "cpu", "--samples", "64", "--lightmap", "96"];
+    let (_, merged) = whole_and_merged(Some(BUNNY), &extra, 3, d);
+    let exr = std::fs::read(d.join("merged.lightmap.exr")).unwrap();
+    let options = BakeOptions {
+        samples: 64,
+        ..BakeOptions::default()
+    };
+    let scene = prt_gpu::scene::load(Path::new(BUNNY)).unwrap();
+    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
+        .with_lightmap(96, &options);
+    let limit = need.lightmap_held(4).to_string();
+    std::fs::create_dir_all(d.join("held")).unwrap();
+    let args = [
+        "merge",
+        "shard0.part",
+        "shard1.part",
+        "shard2.part",
+        "-o",
+        "held/merged.glb",
+        "--memory-limit",
+        &limit,
+    ];
+    let out = prt_gpu(&args, d);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("holding the lightmap's texels in a scratch file, cleaned up 4"),
+        "{stderr}"
+    );
+    assert!(std::fs::read(d.join("held/merged.glb")).unwrap() == merged);
+    assert!(std::fs::read(d.join("held/merged.lightmap.exr")).unwrap() == exr);
+
+    // Without a lightmap, nothing of a merge shrinks.
+    let plain = tempfile::tempdir().unwrap();
+    let p = plain.path();
+    let (_, _) = whole_and_merged(Some(BUNNY), &extra[..4], 2, p);
+    let out = prt_gpu(
+        &[
+            "merge",
+            "shard0.part",
+            "shard1.part",
+            "-o",
+            "small.glb",
+            "--memory-limit",
+            "1M",
+        ],
+        p,
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("joins every vertex's direct pass"),
+        "{stderr}"
+    );
+    assert!(!p.join("small.glb").exists());
+}
+
 /// On the GPU backend (lavapipe in CI) too: the bounces of GPU parts run on a GPU in the merge.
 #[test]
 fn gpu_shards_merge_to_the_whole_gpu_bake() {

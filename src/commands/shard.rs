@@ -26,6 +26,10 @@ pub(crate) struct MergeArgs {
     /// Also render a preview of the result under a default sky and sun (.png or .exr).
     #[arg(long)]
     preview: Option<PathBuf>,
+    /// Most memory the merge may use, e.g. 512M or 8G (binary units): a lightmap that would
+    /// need more holds its texels in a scratch file; the parts' direct passes are joined whole.
+    #[arg(long, value_name = "SIZE", value_parser = super::args::parse_size)]
+    memory_limit: Option<u64>,
 }
 
 /// `bake … --shard I/N`: the direct pass of one shard's receivers, written as a part file.
@@ -127,7 +131,7 @@ pub(crate) fn run_merge(args: MergeArgs) -> Result<()> {
     let mesh = header.mesh.as_ref().map(|mesh| header.directory.join(mesh));
     let execution = Execution {
         preview: args.preview,
-        memory_limit: None,
+        memory_limit: args.memory_limit,
         chunking: Chunking::default(),
     };
     let backend = header.backend.clone();

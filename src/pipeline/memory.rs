@@ -121,6 +121,47 @@ pub fn plan_memory(
     }
 }
 
+/// How a merge of a sharded bake (`prt-gpu merge`) fits `limit` or the machine's `available`
+/// memory: it joins every vertex's direct pass from the parts, so only its lightmap can be held
+/// apart; a limit below the rest is refused.
+pub fn plan_merge_memory(
+    spec: &BakeSpec,
+    (scene, gltf): (&Scene, Option<&GltfScene>),
+    limit: Option<u64>,
+    available: Option<u64>,
+) -> Result<MemoryPlan> {
+    let need = memory_need(spec, (scene, gltf));
+    let Some(budget) = limit.or(available) else {
+        return Ok(MemoryPlan::default());
+    };
+    if need.whole() <= budget {
+        return Ok(MemoryPlan::default());
+    }
+    let translucent =
+        gltf.is_some_and(|gltf| scene_media(spec, (scene, gltf), &mut Vec::new()).is_some());
+    if spec.receivers.lightmap.is_some() && spec.transfer.subsurface.is_none() && !translucent {
+        return lightmap_held(&need, budget, limit.is_some());
+    }
+    let why = "a merge joins every vertex's direct pass from its parts, so it does not stream \
+               in chunks (more shards do not shrink it; a lightmap's texels can be held)";
+    match limit {
+        Some(_) => Err(Error::Options(format!(
+            "--memory-limit {}: this merge needs about {}, and {why}",
+            format_bytes(budget),
+            format_bytes(need.whole())
+        ))),
+        None => Ok(MemoryPlan {
+            message: Some(format!(
+                "warning: this merge needs about {}, more than the {} this machine has \
+                 available, and {why}",
+                format_bytes(need.whole()),
+                format_bytes(budget)
+            )),
+            ..MemoryPlan::default()
+        }),
+    }
+}
+
 /// The plan of a lightmap bake over `budget`: its texels held in a scratch file, cleaned up as
 /// many coefficients at a time as fit. Over an explicit `limit` even one at a time, an error;
 /// over the machine's memory, one at a time and a warning.

@@ -146,11 +146,11 @@ pub(crate) struct BakeArgs {
     /// Also render a preview of the result under a default sky and sun (.png or .exr).
     #[arg(long)]
     pub(crate) preview: Option<PathBuf>,
-    /// Most memory the bake may use, e.g. 512M or 8G (binary units). A per-vertex bake (any
-    /// mode, float32 or f16, with or without a preview) of OBJ, PLY or the built-in scene that
-    /// would need more streams its transfer to the
-    /// file in chunks that fit; one that cannot fit says so before it starts. Default: the
-    /// memory this machine has available (when that is too little, a warning).
+    /// Most memory the bake may use, e.g. 512M or 8G (binary units). A bake that would need
+    /// more streams its per-vertex transfer to the file in chunks that fit, bakes a
+    /// least-squares fit's points in runs, or holds a lightmap's texels in a scratch file; one
+    /// that cannot fit says so before it starts. Default: the memory this machine has
+    /// available (when that is too little, a warning).
     #[arg(long, value_name = "SIZE", value_parser = parse_size)]
     pub(crate) memory_limit: Option<u64>,
     /// Bake only shard I of N (counted from 0): a contiguous run of about 1/N of the receivers,

@@ -106,10 +106,18 @@ pub(crate) fn bake_one(
     note_samples_rounded(&options);
     let baker = device.get()?;
     let backend = backend_for(baker.as_ref(), execution.chunking);
-    if merged.is_none() {
-        let available = device::available_memory();
-        let limit = execution.memory_limit;
-        let scene_and_document = (planned.scene(), gltf.as_ref());
+    let available = device::available_memory();
+    let limit = execution.memory_limit;
+    let scene_and_document = (planned.scene(), gltf.as_ref());
+    if merged.is_some() {
+        let plan = pipeline::plan_merge_memory(spec, scene_and_document, limit, available)?;
+        if let Some(message) = plan.message {
+            eprintln!("{message}");
+        }
+        if let Some(groups) = plan.texel_groups {
+            planned = planned.with_texel_groups(groups);
+        }
+    } else {
         let plan = pipeline::plan_memory(spec, scene_and_document, limit, available)?;
         if let Some(message) = plan.message {
             eprintln!("{message}");

@@ -81,6 +81,27 @@ fn direct_source(
     Ok(bake::DirectSource::Given { direct, ran_on })
 }
 
+/// How the bake fits its memory (`pipeline::plan_memory`; a merge's, whose direct pass is
+/// given whole, `pipeline::plan_merge_memory`), its note or warning printed.
+fn memory_plan(
+    spec: &BakeSpec,
+    (planned, gltf): (&pipeline::Planned, Option<&prt_gpu::scene::gltf::GltfScene>),
+    execution: &Execution,
+    merging: bool,
+) -> Result<pipeline::MemoryPlan> {
+    let available = device::available_memory();
+    let limit = execution.memory_limit;
+    let scene_and_document = (planned.scene(), gltf);
+    let plan = match merging {
+        true => pipeline::plan_merge_memory(spec, scene_and_document, limit, available)?,
+        false => pipeline::plan_memory(spec, scene_and_document, limit, available)?,
+    };
+    if let Some(message) = &plan.message {
+        eprintln!("{message}");
+    }
+    Ok(plan)
+}
+
 /// One bake of `mesh` to `output` as `spec` says, its direct pass computed on the device
 /// (the CPU without one) or, merging, joined from the parts of a sharded bake of the same mesh
 /// and spec.
@@ -106,50 +127,34 @@ pub(crate) fn bake_one(
     note_samples_rounded(&options);
     let baker = device.get()?;
     let backend = backend_for(baker.as_ref(), execution.chunking);
-    let available = device::available_memory();
-    let limit = execution.memory_limit;
-    let scene_and_document = (planned.scene(), gltf.as_ref());
-    if merged.is_some() {
-        let plan = pipeline::plan_merge_memory(spec, scene_and_document, limit, available)?;
-        if let Some(message) = plan.message {
-            eprintln!("{message}");
-        }
-        if let Some(groups) = plan.texel_groups {
-            planned = planned.with_texel_groups(groups);
-        }
-    } else {
-        let plan = pipeline::plan_memory(spec, scene_and_document, limit, available)?;
-        if let Some(message) = plan.message {
-            eprintln!("{message}");
-        }
-        if let Some(chunk) = plan.point_chunk {
-            planned = planned.with_point_chunk(chunk);
-        }
-        if let Some(groups) = plan.texel_groups {
-            planned = planned.with_texel_groups(groups);
-        }
-        if let Some(chunk) = plan.chunk {
-            let preview = execution.preview.is_some();
-            let streamed = planned
-                .run_streamed(
-                    backend.as_ref(),
-                    chunk,
-                    (&output_path, gltf.as_ref()),
-                    preview,
-                    progress,
-                )
-                .map_err(naming)?;
-            progress.finish();
-            let said = (name.as_str(), seconds_load);
-            report_streamed(
-                spec,
-                execution,
-                &streamed,
-                (&output_path, baker.as_ref()),
-                said,
-            )?;
-            return Ok(());
-        }
+    let plan = memory_plan(spec, (&planned, gltf.as_ref()), execution, merged.is_some())?;
+    if let Some(chunk) = plan.point_chunk {
+        planned = planned.with_point_chunk(chunk);
+    }
+    if let Some(groups) = plan.texel_groups {
+        planned = planned.with_texel_groups(groups);
+    }
+    if let Some(chunk) = plan.chunk {
+        let preview = execution.preview.is_some();
+        let streamed = planned
+            .run_streamed(
+                backend.as_ref(),
+                chunk,
+                (&output_path, gltf.as_ref()),
+                preview,
+                progress,
+            )
+            .map_err(naming)?;
+        progress.finish();
+        let said = (name.as_str(), seconds_load);
+        report_streamed(
+            spec,
+            execution,
+            &streamed,
+            (&output_path, baker.as_ref()),
+            said,
+        )?;
+        return Ok(());
     }
     let merged_from = merged
         .as_ref()

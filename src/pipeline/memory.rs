@@ -41,25 +41,18 @@ pub fn plan_memory(
     limit: Option<u64>,
     available: Option<u64>,
 ) -> Result<MemoryPlan> {
-    let whole = MemoryPlan::default();
-    let options = spec.options();
-    let need = memory_need(spec, (scene, gltf));
-    let Some(budget) = limit.or(available) else {
-        return Ok(whole);
+    let Some(over) = over_budget(spec, (scene, gltf), limit, available) else {
+        return Ok(MemoryPlan::default());
     };
-    if need.whole() <= budget {
-        return Ok(whole);
-    }
-    let translucent =
-        gltf.is_some_and(|gltf| scene_media(spec, (scene, gltf), &mut Vec::new()).is_some());
+    let (need, budget) = (&over.need, over.budget);
+    let options = spec.options();
     // What a chunked bake cannot give: a medium's scattering matrices.
-    let chunkable = spec.transfer.subsurface.is_none() && !translucent;
+    let chunkable = spec.transfer.subsurface.is_none() && !over.translucent;
     let streamable = bake::stream::streams(&options) && chunkable;
     let points_chunk =
         options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
-    let why_not = why_whole(spec, translucent);
     if spec.receivers.lightmap.is_some() && chunkable {
-        return lightmap_held(&need, budget, limit.is_some());
+        return lightmap_held(need, budget, over.explicit);
     }
     if points_chunk {
         let points = need.fit.map_or(0, |fit| fit.points);
@@ -89,36 +82,21 @@ pub fn plan_memory(
             }),
         };
     }
-    match (streamable, limit) {
-        (true, _) => {
-            let chunk = need.chunk_within(budget)?;
-            Ok(MemoryPlan {
-                chunk: Some(chunk),
-                message: Some(format!(
-                    "note: streaming the transfer in chunks of {chunk} receivers to stay within \
-                     {} (about {} whole, {} streamed)",
-                    format_bytes(budget),
-                    format_bytes(need.whole()),
-                    format_bytes(need.streamed(chunk))
-                )),
-                ..MemoryPlan::default()
-            })
-        }
-        (false, Some(_)) => Err(Error::Options(format!(
-            "--memory-limit {}: this bake needs about {}, and {why_not}",
-            format_bytes(budget),
-            format_bytes(need.whole())
-        ))),
-        (false, None) => Ok(MemoryPlan {
-            message: Some(format!(
-                "warning: this bake needs about {}, more than the {} this machine has \
-                 available, and {why_not}",
-                format_bytes(need.whole()),
-                format_bytes(budget)
-            )),
-            ..MemoryPlan::default()
-        }),
+    if !streamable {
+        return over.refuse_or_warn("bake", why_whole(spec, over.translucent));
     }
+    let chunk = need.chunk_within(budget)?;
+    Ok(MemoryPlan {
+        chunk: Some(chunk),
+        message: Some(format!(
+            "note: streaming the transfer in chunks of {chunk} receivers to stay within {} \
+             (about {} whole, {} streamed)",
+            format_bytes(budget),
+            format_bytes(need.whole()),
+            format_bytes(need.streamed(chunk))
+        )),
+        ..MemoryPlan::default()
+    })
 }
 
 /// How a merge of a sharded bake (`prt-gpu merge`) fits `limit` or the machine's `available`
@@ -130,35 +108,72 @@ pub fn plan_merge_memory(
     limit: Option<u64>,
     available: Option<u64>,
 ) -> Result<MemoryPlan> {
-    let need = memory_need(spec, (scene, gltf));
-    let Some(budget) = limit.or(available) else {
+    let Some(over) = over_budget(spec, (scene, gltf), limit, available) else {
         return Ok(MemoryPlan::default());
     };
+    if spec.receivers.lightmap.is_some() && spec.transfer.subsurface.is_none() && !over.translucent
+    {
+        return lightmap_held(&over.need, over.budget, over.explicit);
+    }
+    over.refuse_or_warn(
+        "merge",
+        "a merge joins every vertex's direct pass from its parts, so it does not stream in \
+         chunks (more shards do not shrink it; a lightmap's texels can be held)",
+    )
+}
+
+/// A bake whose need is over its budget: the user's limit or, without one, the machine's
+/// available memory.
+struct OverBudget {
+    need: MemoryNeed,
+    budget: u64,
+    /// The budget is the user's `--memory-limit`, which a bake may not exceed.
+    explicit: bool,
+    /// The glTF scene has a translucent medium (its own subsurface scattering).
+    translucent: bool,
+}
+
+/// What the bake of `scene` as `spec` asks needs, where that is over `limit` or the machine's
+/// `available` memory; `None` where it fits whole (or nothing is known of the machine).
+fn over_budget(
+    spec: &BakeSpec,
+    (scene, gltf): (&Scene, Option<&GltfScene>),
+    limit: Option<u64>,
+    available: Option<u64>,
+) -> Option<OverBudget> {
+    let need = memory_need(spec, (scene, gltf));
+    let budget = limit.or(available)?;
     if need.whole() <= budget {
-        return Ok(MemoryPlan::default());
+        return None;
     }
     let translucent =
         gltf.is_some_and(|gltf| scene_media(spec, (scene, gltf), &mut Vec::new()).is_some());
-    if spec.receivers.lightmap.is_some() && spec.transfer.subsurface.is_none() && !translucent {
-        return lightmap_held(&need, budget, limit.is_some());
-    }
-    let why = "a merge joins every vertex's direct pass from its parts, so it does not stream \
-               in chunks (more shards do not shrink it; a lightmap's texels can be held)";
-    match limit {
-        Some(_) => Err(Error::Options(format!(
-            "--memory-limit {}: this merge needs about {}, and {why}",
-            format_bytes(budget),
-            format_bytes(need.whole())
-        ))),
-        None => Ok(MemoryPlan {
+    Some(OverBudget {
+        need,
+        budget,
+        explicit: limit.is_some(),
+        translucent,
+    })
+}
+
+impl OverBudget {
+    /// The end of a `what` (a bake, a merge) that cannot be split, for the reason `why`: over
+    /// an explicit limit, refused in one line; over the machine's memory, run whole with a
+    /// warning.
+    fn refuse_or_warn(&self, what: &str, why: &str) -> Result<MemoryPlan> {
+        let (need, budget) = (format_bytes(self.need.whole()), format_bytes(self.budget));
+        if self.explicit {
+            return Err(Error::Options(format!(
+                "--memory-limit {budget}: this {what} needs about {need}, and {why}"
+            )));
+        }
+        Ok(MemoryPlan {
             message: Some(format!(
-                "warning: this merge needs about {}, more than the {} this machine has \
-                 available, and {why}",
-                format_bytes(need.whole()),
-                format_bytes(budget)
+                "warning: this {what} needs about {need}, more than the {budget} this machine \
+                 has available, and {why}"
             )),
             ..MemoryPlan::default()
-        }),
+        })
     }
 }
 

@@ -26,7 +26,7 @@ pub fn dilate(
 }
 
 /// [`dilate`], each texel filled only from neighbours of its own owner (`owner`, one label per
-/// texel, such as [`nearest_owner`]'s chart; empty for one owner): a texel in the gutter takes
+/// texel, such as [`super::texels::nearest_owner`]'s chart; empty for one owner): a texel in the gutter takes
 /// the values of the chart it is nearest, whatever the texels of a nearer-filled neighbour
 /// chart hold.
 pub fn dilate_by_owner(

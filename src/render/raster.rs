@@ -8,10 +8,11 @@ use super::camera::{bounds, usable_radius, Camera};
 use super::relight::{relight, relight_baked};
 use crate::bake::split::split_scene_corners;
 use crate::bake::texels::sample_bilinear;
-use crate::bake::{BakedMesh, TexelBake};
+use crate::bake::{BakedMesh, TexelBake, Transfer};
 use crate::device::GpuContext;
 use crate::error::{Error, Result};
 use crate::light::ShLight;
+use crate::lightmap::TexelRows;
 use crate::scene::Scene;
 use crate::shaders;
 
@@ -118,7 +119,6 @@ fn relit_texels(texels: &TexelBake, light: &ShLight) -> Result<Vec<f32>> {
             .flatten()
             .collect());
     };
-    use crate::lightmap::TexelRows;
     const ROWS: usize = 64;
     let shape = held.shape();
     let mut relit = Vec::with_capacity(shape.width as usize * shape.height as usize * 3);
@@ -126,8 +126,8 @@ fn relit_texels(texels: &TexelBake, light: &ShLight) -> Result<Vec<f32>> {
         let rows = first..(first + ROWS).min(shape.height as usize);
         let texel_count = rows.len() * shape.width as usize;
         let values = held.read_rows(rows)?.into_owned();
-        let block = crate::bake::Transfer::new(shape.bands, shape.channels, texel_count, values)
-            .map_err(|e| crate::error::Error::Options(e.to_string()))?;
+        let block = Transfer::new(shape.bands, shape.channels, texel_count, values)
+            .expect("whole rows of the held map's shape");
         relit.extend(relight(&block, light)?.into_iter().flatten());
     }
     Ok(relit)

@@ -155,14 +155,18 @@ pub fn bake_atlas_held(
     let (texels, receivers, bvh, leaking) = texel_receivers(scene, atlas);
     let turned = options.clone().with_turns(options.denoise);
     let casting = Instant::now();
+    let stride = 3 * sh::coeff_count(options.bands);
+    let groups: Vec<Range<usize>> = (0..stride)
+        .step_by(divided.columns.max(1))
+        .map(|first| first..stride.min(first + divided.columns.max(1)))
+        .collect();
     let baked = bake_in_chunks(
         (scene, vertex_transfer),
         (&receivers, bvh),
         (&turned, backend, progress),
-        (&leaking, divided.chunk),
+        (&leaking, divided.chunk, &groups),
     )?;
     let transfer_seconds = casting.elapsed().as_secs_f64();
-    let stride = 3 * sh::coeff_count(options.bands);
     let valid = texels.valid_mask(&leaking)?;
     let guide = options.denoise.then(|| {
         let dc = |i: usize, _| Vec3::from_array(baked.dc[i]);
@@ -183,10 +187,6 @@ pub fn bake_atlas_held(
         guide: guide.as_ref(),
         bands: options.bands,
     };
-    let groups: Vec<Range<usize>> = (0..stride)
-        .step_by(divided.columns.max(1))
-        .map(|first| first..stride.min(first + divided.columns.max(1)))
-        .collect();
     let (held, rays_cast) = cleanup.run(baked, &groups, (backend, progress))?;
     let texels_of = (scene, atlas, &texels);
     let report = TexelReport::of(texels_of, (&seams, &leaking), options.denoise, rays_cast)
@@ -202,11 +202,14 @@ pub fn bake_atlas_held(
     Ok((texels, report))
 }
 
-/// The covered texels' transfer as baked, in a scratch file (`[texel][column]` in covered
-/// order from offset 0), with what the clean-up needs of it beside.
+/// The covered texels' transfer as baked, in a scratch file a group of coefficients after
+/// another (group `columns` from `covered * columns.start` values in: `[texel][column of the
+/// group]` in covered order), so that each group's clean-up reads its own values alone; with
+/// what the clean-up needs of it beside.
 struct BakedTexels {
     file: Spill,
-    /// Each covered texel's first coefficient of each channel, for the denoiser's guide.
+    /// Each covered texel's first coefficient of each channel, for the denoiser's guide (empty
+    /// when the bake is not denoised).
     dc: Vec<[f32; 3]>,
     /// The values as baked of the texels flagged as leaking, by covered index.
     leaks: Vec<(usize, Vec<f32>)>,
@@ -217,16 +220,18 @@ fn bake_in_chunks(
     (scene, vertex_transfer): (&Scene, &Transfer),
     at: (&Receivers, Bvh),
     (options, backend, progress): (&BakeOptions, &dyn Backend, &dyn Progress),
-    (leaking, chunk): (&[bool], usize),
+    (leaking, chunk, groups): (&[bool], usize, &[Range<usize>]),
 ) -> Result<BakedTexels> {
+    let covered = at.0.len();
     let mut baked = BakedTexels {
         file: Spill::new()?,
-        dc: Vec::with_capacity(at.0.len()),
+        dc: Vec::with_capacity(if options.denoise { covered } else { 0 }),
         leaks: Vec::new(),
         rays_cast: 0,
     };
     let per_channel = sh::coeff_count(options.bands);
     let stride = 3 * per_channel;
+    let mut block: Vec<f32> = Vec::new();
     baked.rays_cast = bake_at_in_chunks(
         scene,
         at,
@@ -234,12 +239,29 @@ fn bake_in_chunks(
         (progress, chunk),
         &mut |first, transfer| {
             for (i, values) in (first..).zip(transfer.coeffs().chunks_exact(stride)) {
-                baked.dc.push([0, 1, 2].map(|c| values[c * per_channel]));
+                if options.denoise {
+                    baked.dc.push([0, 1, 2].map(|c| values[c * per_channel]));
+                }
                 if leaking[i] {
                     baked.leaks.push((i, values.to_vec()));
                 }
             }
-            baked.file.append(transfer.coeffs()).map(|_| ())
+            for columns in groups {
+                let at = (covered * columns.start + first * columns.len()) as u64 * 4;
+                if columns.len() == stride {
+                    baked.file.write_at(at, transfer.coeffs())?;
+                    continue;
+                }
+                block.clear();
+                block.extend(
+                    transfer
+                        .coeffs()
+                        .chunks_exact(stride)
+                        .flat_map(|values| &values[columns.clone()]),
+                );
+                baked.file.write_at(at, &block)?;
+            }
+            Ok(())
         },
     )?;
     Ok(baked)
@@ -281,7 +303,7 @@ impl Cleanup<'_> {
         let mut end = (self.texels.texels.len() * stride * 4) as u64;
         for columns in groups {
             let group = columns.len();
-            let mut image = self.group_as_baked(&mut baked, columns.clone(), stride)?;
+            let mut image = self.group_as_baked(&mut baked, columns.clone())?;
             if let Some(guide) = self.guide {
                 image = backend.denoise(guide, &image, group)?;
             }
@@ -316,26 +338,22 @@ impl Cleanup<'_> {
 
     /// The image of coefficients `columns` as baked: each covered texel's values from the
     /// scratch file, zero elsewhere.
-    fn group_as_baked(
-        &self,
-        baked: &mut BakedTexels,
-        columns: Range<usize>,
-        stride: usize,
-    ) -> Result<Vec<f32>> {
+    fn group_as_baked(&self, baked: &mut BakedTexels, columns: Range<usize>) -> Result<Vec<f32>> {
         let group = columns.len();
         let width = self.atlas.width as usize;
+        let covered = &self.texels.texels;
         let mut image = vec![0.0f32; width * self.atlas.height as usize * group];
-        let mut row = vec![0.0f32; READ_TEXELS * stride];
-        for first in (0..self.texels.texels.len()).step_by(READ_TEXELS) {
-            let count = READ_TEXELS.min(self.texels.texels.len() - first);
-            let values = &mut row[..count * stride];
-            baked.file.read_at((first * stride * 4) as u64, values)?;
-            for (&(x, y), texel) in self.texels.texels[first..]
-                .iter()
-                .zip(values.chunks_exact(stride))
-            {
+        let mut block = vec![0.0f32; READ_TEXELS * group];
+        let start = covered.len() * columns.start;
+        for first in (0..covered.len()).step_by(READ_TEXELS) {
+            let count = READ_TEXELS.min(covered.len() - first);
+            let values = &mut block[..count * group];
+            baked
+                .file
+                .read_at(((start + first * group) * 4) as u64, values)?;
+            for (&(x, y), texel) in covered[first..].iter().zip(values.chunks_exact(group)) {
                 let at = y as usize * width + x as usize;
-                image[at * group..(at + 1) * group].copy_from_slice(&texel[columns.clone()]);
+                image[at * group..(at + 1) * group].copy_from_slice(texel);
             }
         }
         Ok(image)

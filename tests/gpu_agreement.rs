@@ -302,7 +302,7 @@ fn closest_hits_agree_on_coincident_faces() {
     let (scene, _) = prepare(scene::load(&data("gltf/2CylinderEngine.glb")).unwrap()).unwrap();
     // Single rays on the CPU for a set shared by all vertices, fan packets for the cosine set.
     for sampling in [Sampling::Stratified, Sampling::Cosine] {
-        let prepared = BakeInputs::with_sampling(&scene, 2, 64, 7, sampling);
+        let prepared = BakeInputs::with_sampling(&scene, 2, 16, 7, sampling);
         let inputs = prepared.view();
         let (cpu_hits, rays) = cpu::closest_hit_triangles(&inputs);
         let gpu_hits = prt_gpu::bake::gpu::closest_hits(

@@ -75,10 +75,17 @@ fn open_sphere_matches_the_geometric_series() {
     let z_cut = 0.3;
     let (scene, f) = open_sphere(4, z_cut);
     for backend in common::backends() {
+        // Lavapipe casts rays about ten times slower than the CPU: the GPU is held to the
+        // series at one and at four bounces (every bounce's pass runs in the second), the CPU
+        // at every count; the two agree bounce for bounce in the tests below.
+        let counts: &[u32] = match backend.gpu_context() {
+            None => &[0, 1, 2, 3, 4],
+            Some(_) => &[1, 4],
+        };
         for albedo in [1.0f32, 0.5] {
             let rho = albedo as f64;
             let mut previous: Option<Vec<f64>> = None;
-            for bounces in 0..=4u32 {
+            for &bounces in counts {
                 let (baked, report) = run(
                     &scene,
                     Mode::Interreflected,

@@ -314,9 +314,8 @@ mod tests {
         };
         let gpu = GpuAssigner::new(&context, &mut Points::of_transfer(&transfer), 6).unwrap();
         let first = compress_with(&transfer, &options, &gpu).unwrap();
-        let second = compress_with(&transfer, &options, &gpu).unwrap();
-        assert_eq!(first, second);
-        // Uploaded a block at a time (a streamed bake's scratch file), the same bits.
+        // Uploaded a block at a time (a streamed bake's scratch file) into another assigner,
+        // the same bits: the run is deterministic, whatever the upload.
         let mut blocks = InBlocks {
             points: Points::of_transfer(&transfer),
             block: 100,

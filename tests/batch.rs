@@ -57,6 +57,64 @@ fn a_batch_bakes_each_mesh_as_alone_and_skips_a_broken_one() {
     }
 }
 
+/// Local lights bake in batches too: one device, and each file the bake of its mesh alone.
+#[test]
+fn a_local_lights_batch_bakes_each_mesh_as_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (bunny, teapot) = (format!("{DATA}/bunny.obj"), format!("{DATA}/teapot.obj"));
+    // Small: the operator's clusters need no more receivers than these meshes have.
+    let options = [
+        "--mode",
+        "local",
+        "--device",
+        "cpu",
+        "--samples",
+        "32",
+        "--bounces",
+        "1",
+        "--depth-grid",
+        "4",
+        "--depth-compress",
+        "8x2",
+        "--operator-compress",
+        "8x4",
+        "--example-lights",
+        "16",
+    ];
+    let mut args = vec!["bake", &bunny, &teapot, "--out-dir", "baked"];
+    args.extend(options);
+    let out = prt_gpu(&args, d);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        stdout
+            .lines()
+            .filter(|l| l.starts_with("baked ") && l.contains("for local lights"))
+            .count(),
+        2,
+        "{stdout}"
+    );
+    assert!(stdout.contains("batch: 2 of 2 meshes baked"), "{stdout}");
+    for (mesh, baked) in [(&bunny, "bunny.prt.glb"), (&teapot, "teapot.prt.glb")] {
+        let batched = d.join("baked").join(baked);
+        let read = prt_gpu::glb::local::read_local_glb(&batched).unwrap();
+        assert!(read.scene.positions.len() > 100, "{baked}");
+        let mut alone = vec!["bake", mesh.as_str(), "-o", "alone.glb"];
+        alone.extend(options);
+        assert!(prt_gpu(&alone, d).status.success());
+        let same = std::fs::read(d.join("alone.glb")).unwrap() == std::fs::read(&batched).unwrap();
+        assert!(
+            same,
+            "{baked} differs from the local-lights bake of {mesh} alone"
+        );
+    }
+}
+
 #[test]
 fn batches_refuse_what_cannot_work_before_baking() {
     let dir = tempfile::tempdir().unwrap();

@@ -2,7 +2,10 @@
 
 use std::path::{Path, PathBuf};
 
-use super::bake::{bake_spec, check_bake_outputs, load_mesh, open_backend, stem, BakeArgs};
+use super::bake::{
+    bake_spec, check_bake_outputs, load_mesh, open_backend, run_batch, stem, BakeArgs, Device,
+    MeshBake,
+};
 use super::progress::BarProgress;
 use prt_gpu::bake::backend_for;
 use prt_gpu::bake::gpu::Chunking;
@@ -13,36 +16,83 @@ use prt_gpu::{glb, pipeline, scene, Error, Result};
 
 pub(crate) fn run_local_bake(args: BakeArgs) -> Result<()> {
     check_local_flags(&args)?;
-    let mesh = args.meshes.first().cloned();
-    // Any mesh, a glTF scene's too, bakes for local lights into a local-lights file.
-    let spec = BakeSpec {
-        container: Container::Mesh,
-        local: Some(local_options(&args)),
-        ..bake_spec(&args, &mesh)?
-    };
-    spec.validate()?;
-    let name = match &mesh {
-        Some(path) => stem(path),
-        None => "interior".to_string(),
-    };
+    let meshes = scene::batch::mesh_files(&args.meshes)?;
+    if meshes.len() > 1 || args.out_dir.is_some() {
+        return run_batch(&args, &meshes, &LocalBake { args: &args });
+    }
+    let mesh = meshes.first().cloned();
+    let spec = local_spec(&args, &mesh)?;
     let output = args
         .output
         .clone()
-        .unwrap_or_else(|| PathBuf::from(format!("{name}.prt.glb")));
+        .unwrap_or_else(|| PathBuf::from(format!("{}.prt.glb", local_name(&mesh))));
+    let device = Device::new(|| open_backend(args.device, args.adapter.as_deref()));
+    bake_local_one(&spec, &mesh, &output, &device, &BarProgress::default())
+}
+
+/// The spec of a local-lights bake of `mesh`: any mesh, a glTF scene's too, bakes for local
+/// lights into a local-lights file.
+fn local_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeSpec> {
+    let spec = BakeSpec {
+        container: Container::Mesh,
+        local: Some(local_options(args)),
+        ..bake_spec(args, mesh)?
+    };
+    spec.validate()?;
+    Ok(spec)
+}
+
+/// `mesh` (the built-in interior without one) baked for local lights as `spec` asks, written to
+/// `output` and reported; one bake, or one of a batch.
+fn bake_local_one(
+    spec: &BakeSpec,
+    mesh: &Option<PathBuf>,
+    output: &Path,
+    device: &Device,
+    progress: &BarProgress,
+) -> Result<()> {
     // --lightmap and --preview are refused above, so this checks the .glb alone.
-    check_bake_outputs(&spec, None, &mesh, &output, &[])?;
-    let scene = match &mesh {
+    check_bake_outputs(spec, None, mesh, output, &[])?;
+    let scene = match mesh {
         Some(path) => load_mesh(path)?,
         None => scene::builtin::interior_scene(),
     };
-    let baker = open_backend(args.device, args.adapter.as_deref())?;
+    let baker = device.get()?;
     let backend = backend_for(baker.as_ref(), Chunking::default());
-    let progress = BarProgress::default();
-    let (baked, report) = pipeline::run_local(&spec, scene, backend.as_ref(), &progress)?;
+    let (baked, report) = pipeline::run_local(spec, scene, backend.as_ref(), progress)?;
     progress.finish();
-    glb::local::write_local_glb(&output, &baked)?;
-    print_local_report(&name, &report, &output);
+    glb::local::write_local_glb(output, &baked)?;
+    print_local_report(&local_name(mesh), &report, output);
     Ok(())
+}
+
+/// Local lights, [`bake_local_one`] of each mesh of a batch.
+struct LocalBake<'a> {
+    args: &'a BakeArgs,
+}
+
+impl MeshBake for LocalBake<'_> {
+    fn spec(&self, mesh: &Option<PathBuf>) -> Result<BakeSpec> {
+        local_spec(self.args, mesh)
+    }
+
+    fn bake(
+        &self,
+        spec: &BakeSpec,
+        mesh: &Option<PathBuf>,
+        output: PathBuf,
+        device: &Device,
+        progress: &BarProgress,
+    ) -> Result<()> {
+        bake_local_one(spec, mesh, &output, device, progress)
+    }
+}
+
+fn local_name(mesh: &Option<PathBuf>) -> String {
+    match mesh {
+        Some(path) => stem(path),
+        None => "interior".to_string(),
+    }
 }
 
 /// Refuses what a local-lights bake cannot run as (the spec refuses what it cannot compute).
@@ -50,10 +100,6 @@ fn check_local_flags(args: &BakeArgs) -> Result<()> {
     let refused = [
         (args.preview.is_some(), "--preview"),
         (args.shard.is_some(), "--shard"),
-        (
-            args.out_dir.is_some() || args.meshes.len() > 1,
-            "a batch (--out-dir)",
-        ),
     ];
     match refused.iter().find(|(given, _)| *given) {
         Some((_, flag)) => Err(Error::Options(format!(

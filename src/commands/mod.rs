@@ -39,7 +39,11 @@ pub(crate) fn run_bake(args: BakeArgs) -> Result<()> {
         };
     }
     if meshes.len() > 1 || args.out_dir.is_some() {
-        return bake::run_batch(&args, &meshes);
+        let distant = bake::DistantBake {
+            args: &args,
+            execution: bake::Execution::of(&args),
+        };
+        return bake::run_batch(&args, &meshes, &distant);
     }
     bake::run_one(&args, meshes.first().cloned())
 }

@@ -477,6 +477,51 @@ fn cpu_and_gpu_agree() {
 }
 
 /// What only relights a local-lights bake is refused, in one line, for a distant-light one.
+/// What a local-lights bake cannot run as is refused in one line before anything is read or
+/// written, saying why.
+#[test]
+fn a_local_bake_refuses_what_it_cannot_run_as() {
+    for input in [
+        common::BadInput {
+            case: "a memory limit",
+            file: None,
+            args: &[
+                "bake",
+                "--mode",
+                "local",
+                "--memory-limit",
+                "2G",
+                "-o",
+                "o.glb",
+            ],
+            expect: "--memory-limit 2.0 GiB: a local-lights bake holds the example lights' \
+                     bounced light, its gather matrix and depth maps for every receiver at once",
+        },
+        common::BadInput {
+            case: "a preview",
+            file: None,
+            args: &[
+                "bake",
+                "--mode",
+                "local",
+                "--preview",
+                "p.png",
+                "-o",
+                "o.glb",
+            ],
+            expect: "--preview is for SH transfer",
+        },
+        common::BadInput {
+            case: "a shard",
+            file: None,
+            args: &["bake", "--mode", "local", "--shard", "0/2", "-o", "o.part"],
+            expect: "--shard is for SH transfer",
+        },
+    ] {
+        common::assert_clean_failure(&input);
+    }
+}
+
 #[test]
 fn local_only_options_are_refused_for_a_distant_bake() {
     let dir = tempfile::tempdir().unwrap();

@@ -477,6 +477,53 @@ fn cpu_and_gpu_agree() {
 }
 
 /// What only relights a local-lights bake is refused, in one line, for a distant-light one.
+/// Depth maps compressed into more bytes than they take whole (a small mesh, many clusters) are
+/// pointed out with the clusters that would take no more, and that suggestion holds.
+#[test]
+fn depth_maps_compressed_larger_than_whole_are_pointed_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj");
+    let bake = |depth_compress: &str| {
+        let args = [
+            "bake",
+            bunny,
+            "--mode",
+            "local",
+            "--device",
+            "cpu",
+            "--samples",
+            "16",
+            "--bounces",
+            "1",
+            "--depth-grid",
+            "8",
+            "--depth-compress",
+            depth_compress,
+            "--operator-compress",
+            "8x4",
+            "--example-lights",
+            "16",
+            "-o",
+            "bunny.glb",
+        ];
+        let out = common::prt_gpu(&args, dir.path());
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{stderr}");
+        stderr
+    };
+    // 1,839 receivers of 64 directions: 0.47 MB of maps, and 128 clusters' bases of 24
+    // components alone take 0.82 MB.
+    let stderr = bake("128x24");
+    assert!(
+        stderr.contains("note: the compressed depth maps take")
+            && stderr.contains("1839 receivers are few for 128 clusters of 24 components")
+            && stderr.contains("(--depth-compress 44x24 or fewer clusters take less)"),
+        "{stderr}"
+    );
+    let stderr = bake("44x24");
+    assert!(!stderr.contains("compressed depth maps take"), "{stderr}");
+}
+
 /// What a local-lights bake cannot run as is refused in one line before anything is read or
 /// written, saying why.
 #[test]

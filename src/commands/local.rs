@@ -64,7 +64,30 @@ fn bake_local_one(
     progress.finish();
     glb::local::write_local_glb(output, &baked)?;
     print_local_report(&local_name(mesh), &report, output);
+    if report.depth_bytes > report.depth_bytes_uncompressed {
+        eprintln!("{}", depth_maps_note(&report, &baked.options));
+    }
     Ok(())
+}
+
+/// What to tell a user whose compressed depth maps take more than the maps: how many clusters
+/// would take no more.
+fn depth_maps_note(report: &local::LocalReport, options: &LocalOptions) -> String {
+    let mb = |bytes: usize| bytes as f64 / 1e6;
+    let (clusters, components) = (options.depth_clusters, options.depth_components);
+    let cells = (options.grid_side * options.grid_side) as usize;
+    let fewer =
+        match local::depth_clusters_within_maps(report.receivers, cells, components as usize) {
+            Some(fit) => format!("--depth-compress {fit}x{components} or fewer clusters take less"),
+            None => "fewer components take less".to_string(),
+        };
+    format!(
+        "note: the compressed depth maps take {:.1} MB, more than the {:.1} MB of the maps: \
+         {} receivers are few for {clusters} clusters of {components} components ({fewer})",
+        mb(report.depth_bytes),
+        mb(report.depth_bytes_uncompressed),
+        report.receivers
+    )
 }
 
 /// Local lights, [`bake_local_one`] of each mesh of a batch.

@@ -27,8 +27,9 @@ use rayon::prelude::*;
 use crate::bake::bounce::GatherMatrix;
 use crate::bake::{self, Backend, BakeInputs, BakeOptions, Mode, Progress};
 use crate::bvh::Bvh;
-use crate::compress::{compress_rows, Cpca, CpcaOptions};
+use crate::compress::{compress_rows, stored_bytes, Cpca, CpcaOptions};
 use crate::error::Result;
+use crate::precision::Precision;
 use crate::ray::{blend_at, Ray, RAY_T_MAX};
 use crate::receivers::vertex_ray_starts;
 use crate::sampling::{tangent_frame, DirectionFrame, Pcg32, SampleSet, Sampling};
@@ -174,7 +175,7 @@ pub fn bake_prepared(
     progress.advance(1);
     report.depth_error = depth_error(&maps, &depth);
     report.depth_bytes_uncompressed = 4 * maps.depths.len();
-    report.depth_bytes = depth.byte_size(crate::precision::Precision::F32);
+    report.depth_bytes = depth.byte_size(Precision::F32);
     report.seconds_depth_compress = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
@@ -257,6 +258,21 @@ pub fn compress_depth_maps(maps: &DepthMaps, options: &LocalOptions) -> Result<C
             seed: options.seed,
         },
     )
+}
+
+/// The most clusters of `components` components whose compression of `receivers` depth maps
+/// of `cells` directions each takes no more bytes than the maps themselves (float32 both);
+/// `None` where not even one cluster does. Few receivers cannot pay for many clusters' bases.
+pub fn depth_clusters_within_maps(
+    receivers: usize,
+    cells: usize,
+    components: usize,
+) -> Option<u32> {
+    let maps = 4 * receivers * cells;
+    let stored = |clusters| stored_bytes((clusters, components), cells, receivers, Precision::F32);
+    let per_cluster = stored(1) - stored(0);
+    let clusters = maps.checked_sub(stored(0))? / per_cluster;
+    (clusters >= 1).then(|| clusters.min(u32::MAX as usize) as u32)
 }
 
 /// RMS error of the compressed depths over the RMS depth.

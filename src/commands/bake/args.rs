@@ -150,7 +150,8 @@ pub(crate) struct BakeArgs {
     /// more streams its per-vertex transfer to the file in chunks that fit, bakes a
     /// least-squares fit's points in runs, or holds a lightmap's texels in a scratch file; one
     /// that cannot fit says so before it starts. Default: the memory this machine has
-    /// available (when that is too little, a warning).
+    /// available (when that is too little, a warning). A local-lights bake (`--mode local`)
+    /// refuses a limit: it holds every receiver at once.
     #[arg(long, value_name = "SIZE", value_parser = parse_size)]
     pub(crate) memory_limit: Option<u64>,
     /// Bake only shard I of N (counted from 0): a contiguous run of about 1/N of the receivers,

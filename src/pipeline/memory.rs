@@ -46,13 +46,12 @@ pub fn plan_memory(
     };
     let (need, budget) = (&over.need, over.budget);
     let options = spec.options();
-    // What a chunked bake cannot give: a medium's scattering matrices.
-    let chunkable = spec.transfer.subsurface.is_none() && !over.translucent;
+    let chunkable = !over.scatters;
     let streamable = bake::stream::streams(&options) && chunkable;
     let points_chunk =
         options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
     if spec.receivers.lightmap.is_some() && chunkable {
-        return lightmap_held(need, budget, over.explicit);
+        return over.lightmap_held();
     }
     if points_chunk {
         let points = need.fit.map_or(0, |fit| fit.points);
@@ -83,7 +82,7 @@ pub fn plan_memory(
         };
     }
     if !streamable {
-        return over.refuse_or_warn("bake", why_whole(spec, over.translucent));
+        return over.refuse_or_warn("bake", why_whole(over.scatters));
     }
     let chunk = need.chunk_within(budget)?;
     Ok(MemoryPlan {
@@ -111,9 +110,8 @@ pub fn plan_merge_memory(
     let Some(over) = over_budget(spec, (scene, gltf), limit, available) else {
         return Ok(MemoryPlan::default());
     };
-    if spec.receivers.lightmap.is_some() && spec.transfer.subsurface.is_none() && !over.translucent
-    {
-        return lightmap_held(&over.need, over.budget, over.explicit);
+    if spec.receivers.lightmap.is_some() && !over.scatters {
+        return over.lightmap_held();
     }
     over.refuse_or_warn(
         "merge",
@@ -129,8 +127,9 @@ struct OverBudget {
     budget: u64,
     /// The budget is the user's `--memory-limit`, which a bake may not exceed.
     explicit: bool,
-    /// The glTF scene has a translucent medium (its own subsurface scattering).
-    translucent: bool,
+    /// The bake scatters light under the surface (`--subsurface`, or a glTF scene's translucent
+    /// medium): what a chunked bake cannot give, the medium's scattering matrices.
+    scatters: bool,
 }
 
 /// What the bake of `scene` as `spec` asks needs, where that is over `limit` or the machine's
@@ -152,7 +151,7 @@ fn over_budget(
         need,
         budget,
         explicit: limit.is_some(),
-        translucent,
+        scatters: spec.transfer.subsurface.is_some() || translucent,
     })
 }
 
@@ -175,52 +174,53 @@ impl OverBudget {
             ..MemoryPlan::default()
         })
     }
-}
 
-/// The plan of a lightmap bake over `budget`: its texels held in a scratch file, cleaned up as
-/// many coefficients at a time as fit. Over an explicit `limit` even one at a time, an error;
-/// over the machine's memory, one at a time and a warning.
-fn lightmap_held(need: &MemoryNeed, budget: u64, limit: bool) -> Result<MemoryPlan> {
-    let groups = match (need.texel_groups_within(budget), limit) {
-        (Ok(groups), _) => groups,
-        (Err(error), true) => return Err(error),
-        (Err(_), false) => {
-            let groups = bake::texels::TexelGroups {
-                chunk: need
-                    .lightmap
-                    .map_or(bake::stream::MIN_CHUNK, |l| l.chunk(1)),
-                columns: 1,
-            };
-            return Ok(MemoryPlan {
-                texel_groups: Some(groups),
-                message: Some(format!(
-                    "warning: this bake needs at least {} with its lightmap held in a scratch \
-                     file, more than the {} this machine has available",
-                    format_bytes(need.lightmap_held(1)),
-                    format_bytes(budget)
-                )),
-                ..MemoryPlan::default()
-            });
-        }
-    };
-    Ok(MemoryPlan {
-        texel_groups: Some(groups),
-        message: Some(format!(
-            "note: holding the lightmap's texels in a scratch file, cleaned up {} coefficients \
-             at a time, to stay within {} (about {} whole, {} so)",
-            groups.columns,
-            format_bytes(budget),
-            format_bytes(need.whole()),
-            format_bytes(need.lightmap_held(groups.columns as u64))
-        )),
-        ..MemoryPlan::default()
-    })
+    /// The plan of a lightmap bake over its budget: its texels held in a scratch file, cleaned
+    /// up as many coefficients at a time as fit. Over an explicit limit even one at a time, an
+    /// error; over the machine's memory, one at a time and a warning.
+    fn lightmap_held(&self) -> Result<MemoryPlan> {
+        let (need, budget) = (&self.need, self.budget);
+        let groups = match (need.texel_groups_within(budget), self.explicit) {
+            (Ok(groups), _) => groups,
+            (Err(error), true) => return Err(error),
+            (Err(_), false) => {
+                let groups = bake::texels::TexelGroups {
+                    chunk: need
+                        .lightmap
+                        .map_or(bake::stream::MIN_CHUNK, |l| l.chunk(1)),
+                    columns: 1,
+                };
+                return Ok(MemoryPlan {
+                    texel_groups: Some(groups),
+                    message: Some(format!(
+                        "warning: this bake needs at least {} with its lightmap held in a \
+                         scratch file, more than the {} this machine has available",
+                        format_bytes(need.lightmap_held(1)),
+                        format_bytes(budget)
+                    )),
+                    ..MemoryPlan::default()
+                });
+            }
+        };
+        Ok(MemoryPlan {
+            texel_groups: Some(groups),
+            message: Some(format!(
+                "note: holding the lightmap's texels in a scratch file, cleaned up {} \
+                 coefficients at a time, to stay within {} (about {} whole, {} so)",
+                groups.columns,
+                format_bytes(budget),
+                format_bytes(need.whole()),
+                format_bytes(need.lightmap_held(groups.columns as u64))
+            )),
+            ..MemoryPlan::default()
+        })
+    }
 }
 
 /// Why a bake that needs more than its limit is not split: what it does that needs every
 /// receiver at once.
-fn why_whole(spec: &BakeSpec, translucent: bool) -> &'static str {
-    if spec.transfer.subsurface.is_some() || translucent {
+fn why_whole(scatters: bool) -> &'static str {
+    if scatters {
         "subsurface scattering carries light from every vertex to those around it over the \
          whole surface, so it does not stream in chunks"
     } else {

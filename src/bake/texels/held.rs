@@ -105,7 +105,16 @@ impl TexelRows for HeldLightmap {
         let mut values = vec![0.0f32; texels * stride];
         let mut file = self.file.lock().expect("no reader panics holding the file");
         let mut part = Vec::new();
+        // A group holding none of the kept bands' coefficients is not read.
+        let (count, kept) = (
+            sh::coeff_count(self.stored_bands),
+            sh::coeff_count(self.shape.bands),
+        );
+        let holds_kept = |columns: &Range<usize>| columns.clone().any(|c| c % count < kept);
         for (columns, &offset) in self.groups.iter().zip(&self.offsets) {
+            if !holds_kept(columns) {
+                continue;
+            }
             let group = columns.len();
             part.resize(texels * group, 0.0f32);
             let at = offset + (rows.start * width * group * 4) as u64;
@@ -121,10 +130,6 @@ impl TexelRows for HeldLightmap {
             return Ok(Cow::Owned(values));
         }
         // Each channel's first coefficients: those of the bands kept.
-        let (count, kept) = (
-            sh::coeff_count(self.stored_bands),
-            sh::coeff_count(self.shape.bands),
-        );
         Ok(Cow::Owned(
             values
                 .chunks_exact(count)

@@ -1,18 +1,17 @@
 //! A bake from its spec to its file: the transfer (`bake`), then the stages that shape what is
 //! stored — bands chosen, clustered PCA, half-float rounding — then the writer the container
-//! asks for. The command line, library callers and `merge` all run it, so a stage that exists
-//! for one of them exists for all.
+//! asks for; or, where the spec's mode is local, the local-lights bake (`local`) and its file.
+//! The command line, library callers and `merge` all run it, so a stage that exists for one of
+//! them exists for all.
 
-use std::fmt;
 use std::path::Path;
 use std::time::Instant;
 
 use glam::Vec3;
 
 use crate::bake::subsurface::SceneMedia;
-use crate::bake::StagePosition;
 use crate::bake::{self, Backend, BakeOptions, BakeReport, BakedMesh, DirectSource, Progress};
-use crate::compress::{self, Cpca, CpcaOptions};
+use crate::compress::{self, Cpca};
 use crate::device::GpuContext;
 use crate::error::Error;
 use crate::local::{self, LocalBake, LocalReport};
@@ -22,13 +21,16 @@ use crate::receivers::uv_set::{self, UvSet};
 use crate::scene::gltf::volume::scattering_volumes;
 use crate::scene::gltf::GltfScene;
 use crate::scene::Scene;
-use crate::spec::{BakeSpec, Bands, Compression, Container, AUTO_MAX_BANDS};
+use crate::spec::{BakeSpec, Bands, Compression, Container};
 use crate::zonal::{ZonalFit, ZonalTransfer};
 use crate::{glb, light, render, Result};
 
 mod memory;
+mod shape;
 
 pub use memory::{memory_need, plan_memory, plan_merge_memory, MemoryPlan};
+use shape::{choose_auto_bands, compress_transfer, half_float_cost, HalfFloatTally};
+pub use shape::{BandsChosen, Compressed, HalfFloatCost};
 
 /// A bake done and shaped as its spec stores it, not yet written.
 pub struct Baked {
@@ -50,9 +52,56 @@ pub struct Baked {
     pub zonal: Option<(ZonalTransfer, ZonalFit)>,
 }
 
+/// What a bake made, by its mode: SH transfer shaped as its spec stores it, or, for lights
+/// inside the scene, depth maps and a direct-to-indirect operator ([`local::bake_local`]).
+pub enum Bake {
+    Transfer(Box<Baked>),
+    Local(Box<LocalBaked>),
+}
+
+/// A local-lights bake and what it did.
+pub struct LocalBaked {
+    pub bake: LocalBake,
+    pub report: LocalReport,
+}
+
+impl Bake {
+    /// The SH transfer, or why there is none: a local-lights bake computes none.
+    pub fn into_transfer(self) -> Result<Baked> {
+        match self {
+            Bake::Transfer(baked) => Ok(*baked),
+            Bake::Local(_) => Err(Error::Options(
+                "the spec's mode is local: its bake is depth maps and an operator, not SH \
+                 transfer"
+                    .into(),
+            )),
+        }
+    }
+
+    /// The SH transfer, where the bake is one.
+    pub fn transfer(&self) -> Option<&Baked> {
+        match self {
+            Bake::Transfer(baked) => Some(baked),
+            Bake::Local(_) => None,
+        }
+    }
+
+    /// The local-lights bake, or why there is none: an SH transfer bake is not one.
+    pub fn into_local(self) -> Result<LocalBaked> {
+        match self {
+            Bake::Local(baked) => Ok(*baked),
+            Bake::Transfer(baked) => Err(Error::Options(format!(
+                "the spec's mode is {}: its bake is SH transfer, not local lights",
+                baked.mesh.metadata.mode.name()
+            ))),
+        }
+    }
+}
+
 /// Bakes `scene` as `spec` asks, its direct pass from `source`, on `backend`; `gltf` is the
 /// document of a glTF scene (`scene` as `gltf::load` made it), which a spec whose container is
-/// the scene in place needs. ([`plan`], then [`Planned::run`].)
+/// the scene in place needs. Every mode runs here, local lights too. ([`plan`], then
+/// [`Planned::run`].)
 pub fn run(
     spec: &BakeSpec,
     scene: Scene,
@@ -60,34 +109,34 @@ pub fn run(
     backend: &dyn Backend,
     source: DirectSource,
     progress: &dyn Progress,
-) -> Result<Baked> {
+) -> Result<Bake> {
     plan(spec, scene, gltf)?.run(backend, source, progress)
 }
 
-/// Bakes `scene` for local lights as `spec` asks (its mode local): the gather matrix, depth
-/// maps and the compressed direct-to-indirect operator of `local::bake_local`, on `backend`,
-/// the spec's albedo replacing the materials' where it gives one. What it computes is not SH
-/// transfer, so it has a run of its own and its own file (`glb::local`).
-pub fn run_local(
-    spec: &BakeSpec,
+/// Bakes `scene` for local lights (`options`, the spec's local section): the gather matrix,
+/// depth maps and the compressed direct-to-indirect operator, the spec's albedo replacing the
+/// materials' where it gives one. Its direct pass is its own: a sharded bake's is SH transfer.
+fn bake_local(
+    (spec, options): (&BakeSpec, &local::LocalOptions),
     mut scene: Scene,
     backend: &dyn Backend,
+    source: DirectSource,
     progress: &dyn Progress,
-) -> Result<(LocalBake, LocalReport)> {
-    spec.validate()?;
-    let Some(options) = &spec.local else {
-        return Err(Error::Options(format!(
-            "the spec's mode is {}; local lights bake a spec whose mode is local",
-            spec.transfer.mode.name()
-        )));
-    };
+) -> Result<Bake> {
+    if let DirectSource::Given { .. } = source {
+        return Err(Error::Options(
+            "a local-lights bake computes its own light; a merged direct pass is SH transfer"
+                .into(),
+        ));
+    }
     if let Some(albedo) = spec.transfer.albedo {
         scene
             .albedo
             .iter_mut()
             .for_each(|a| *a = Vec3::from(albedo));
     }
-    local::bake_local(scene, options, backend, progress)
+    let (bake, report) = local::bake_local(scene, options, backend, progress)?;
+    Ok(Bake::Local(Box::new(LocalBaked { bake, report })))
 }
 
 /// A bake checked before any device is opened or ray cast: its spec valid and fit for its
@@ -109,13 +158,6 @@ pub struct Planned<'s> {
 /// ray: a glTF scene's lightmap UV set.
 pub fn plan<'s>(spec: &'s BakeSpec, scene: Scene, gltf: Option<&GltfScene>) -> Result<Planned<'s>> {
     spec.validate()?;
-    if spec.local.is_some() {
-        return Err(Error::Options(
-            "a local-lights spec bakes through pipeline::run_local (depth maps and an operator, \
-             not SH transfer)"
-                .into(),
-        ));
-    }
     check_container(spec, gltf)?;
     let mut notes = Vec::new();
     let uv_set = match (spec.receivers.lightmap, gltf) {
@@ -163,8 +205,23 @@ impl Planned<'_> {
         }
     }
 
-    /// Bakes it: the transfer, then the stages that shape what is stored.
+    /// Bakes it: the transfer, then the stages that shape what is stored; or, for local
+    /// lights, their depth maps and operator.
     pub fn run(
+        self,
+        backend: &dyn Backend,
+        source: DirectSource,
+        progress: &dyn Progress,
+    ) -> Result<Bake> {
+        if let Some(options) = &self.spec.local {
+            return bake_local((self.spec, options), self.scene, backend, source, progress);
+        }
+        self.run_transfer(backend, source, progress)
+            .map(|baked| Bake::Transfer(Box::new(baked)))
+    }
+
+    /// The SH transfer bake.
+    fn run_transfer(
         self,
         backend: &dyn Backend,
         source: DirectSource,
@@ -506,16 +563,23 @@ fn check_container(spec: &BakeSpec, gltf: Option<&GltfScene>) -> Result<()> {
     }
 }
 
-/// Writes `baked` to `path` in the spec's container: a baked mesh, or `gltf` written back with
-/// its transfer (what that repaired and copied is returned). The lightmap, if any, goes beside
-/// the file.
+/// Writes `bake` to `path` in the spec's container: a baked mesh, or `gltf` written back with
+/// its transfer (what that repaired and copied is returned); a local-lights bake to its own
+/// file (`glb::local`). The lightmap, if any, goes beside the file.
 pub fn write(
     spec: &BakeSpec,
-    baked: &Baked,
+    bake: &Bake,
     gltf: Option<&GltfScene>,
     path: &Path,
 ) -> Result<Option<glb::scene::SceneWrite>> {
     check_container(spec, gltf)?;
+    let baked = match bake {
+        Bake::Transfer(baked) => baked,
+        Bake::Local(local) => {
+            glb::local::write_local_glb(path, &local.bake)?;
+            return Ok(None);
+        }
+    };
     let stored = glb::Stored::new(&baked.mesh, baked.cpca.as_ref(), spec.storage.precision)?
         .with_probes(baked.probes.as_ref())?
         .with_zonal(baked.zonal.as_ref().map(|(zonal, _)| zonal))?;
@@ -529,238 +593,6 @@ pub fn write(
         None => {
             glb::write_glb(path, stored)?;
             Ok(None)
-        }
-    }
-}
-
-/// What `--bands auto` chose.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BandsChosen {
-    pub bands: u32,
-    /// The fraction of the transfer's energy in the bands left out.
-    pub beyond: f64,
-    pub threshold: f64,
-}
-
-impl fmt::Display for BandsChosen {
-    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
-        let BandsChosen {
-            bands,
-            beyond,
-            threshold,
-        } = *self;
-        write!(
-            f,
-            "bands auto: {bands} ({:.2}% of the transfer's energy lies in bands {bands} to {}, \
-             below --bands-threshold {threshold})",
-            100.0 * beyond,
-            AUTO_MAX_BANDS - 1,
-        )
-    }
-}
-
-/// `--bands auto`: the baked mesh cut to the bands the threshold asks for.
-fn choose_auto_bands(baked: &mut BakedMesh, threshold: f64) -> BandsChosen {
-    let (bands, beyond) = bake::choose_bands(&baked.transfer, threshold);
-    bake::truncate_baked(baked, bands);
-    BandsChosen {
-        bands,
-        beyond,
-        threshold,
-    }
-}
-
-/// What clustered PCA made of the transfer: its shape, where and how fast it ran, the sizes
-/// and the errors of the stored form.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Compressed {
-    pub clusters: u32,
-    pub components: u32,
-    pub seconds: f64,
-    pub ran_on: String,
-    pub precision: Precision,
-    pub bytes: usize,
-    pub bytes_uncompressed: usize,
-    pub coefficient_error: f64,
-    /// Under the preview light.
-    pub relit_error: f64,
-}
-
-impl fmt::Display for Compressed {
-    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
-        let half = match self.precision {
-            Precision::F32 => "",
-            Precision::F16 => " as half floats",
-        };
-        write!(
-            f,
-            "compressed: {} clusters x {} components in {:.2} s ({}), {} bytes{half} of {} \
-             ({:.1}x smaller); coefficient error {:.2}%, relit error {:.2}% under the preview \
-             light",
-            self.clusters,
-            self.components,
-            self.seconds,
-            self.ran_on,
-            self.bytes,
-            self.bytes_uncompressed,
-            self.bytes_uncompressed as f64 / self.bytes as f64,
-            100.0 * self.coefficient_error,
-            100.0 * self.relit_error
-        )
-    }
-}
-
-/// The baked transfer, rows of `(bands, channels)` read from `rows` (in memory, or a streamed
-/// bake's scratch file), compressed as `compression` asks and rounded as a file at `precision`
-/// stores it. The assignment steps run on `gpu` where it pays
-/// (`GpuAssigner::where_it_pays`; where it does not for a reason, a note says so). A search
-/// for the shape that meets an error is a stage, a step a shape.
-fn compress_transfer(
-    rows: &mut dyn compress::Rows,
-    (bands, channels): (u32, u32),
-    (compression, precision): (Compression, Precision),
-    gpu: Option<&GpuContext>,
-    notes: &mut Vec<String>,
-    progress: &dyn Progress,
-) -> Result<(Cpca, Compressed)> {
-    let started = Instant::now();
-    let (dimension, vertices) = (rows.dimension(), rows.len());
-    let most_components = match compression {
-        Compression::Shape { components, .. } => components as usize,
-        Compression::Target { .. } => dimension,
-    };
-    let gpu_assigner = match gpu {
-        Some(context) => {
-            let (assigner, why_not) =
-                compress::gpu::GpuAssigner::where_it_pays(context, rows, most_components)?;
-            if let Some(why) = why_not {
-                notes.push(format!("{why}; clustering on the CPU"));
-            }
-            assigner
-        }
-        None => None,
-    };
-    let (assigner, ran_on): (&dyn compress::Assigner, String) = match &gpu_assigner {
-        Some(assigner) => (assigner, format!("gpu: {}", assigner.label())),
-        None => (&compress::CpuAssigner, "cpu".into()),
-    };
-    let (cpca, options) = match compression {
-        Compression::Shape {
-            clusters,
-            components,
-        } => {
-            let options = CpcaOptions {
-                clusters,
-                components,
-                ..CpcaOptions::default()
-            };
-            progress.stage("compress", compress::compress_steps(&options));
-            let mut position = StagePosition::new(progress);
-            let watch = &mut |step: u64| position.move_to(step);
-            let shape = (bands, channels);
-            let cpca = compress::compress_watched(rows, shape, &options, (assigner, watch))?;
-            (cpca, options)
-        }
-        Compression::Target { error } => {
-            let steps = compress::choose_steps(dimension, vertices);
-            progress.stage("compress", steps as u64);
-            let mut position = StagePosition::new(progress);
-            let trying = &mut |step: usize, options: &CpcaOptions| {
-                position.move_to(step as u64);
-                let (k, m) = (options.clusters, options.components);
-                progress.detail(&format!("({k} clusters x {m} components)"));
-            };
-            let seed = CpcaOptions::default().seed;
-            let searching = (seed, assigner);
-            compress::choose_from(rows, (bands, channels), error, searching, trying)?
-        }
-    };
-    let cpca = cpca.rounded(precision);
-    let seconds = started.elapsed().as_secs_f64();
-    let light = light::preview_light(bands)?;
-    let compressed = Compressed {
-        clusters: options.clusters,
-        components: options.components,
-        seconds,
-        ran_on,
-        precision,
-        bytes: cpca.byte_size(precision),
-        bytes_uncompressed: compress::uncompressed_bytes(rows),
-        coefficient_error: compress::relative_error_of(rows, &cpca)?,
-        relit_error: compress::relit_error_of(rows, channels, &cpca, &light)?,
-    };
-    Ok((cpca, compressed))
-}
-
-/// What storing per-vertex transfer as half floats costs: bytes, and the relit error.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct HalfFloatCost {
-    pub bytes: usize,
-    pub bytes_f32: usize,
-    /// Under the preview light.
-    pub relit_error: f64,
-    /// The largest relative rounding of a coefficient of magnitude 1e-4 or more.
-    pub worst_coefficient: f32,
-}
-
-impl fmt::Display for HalfFloatCost {
-    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
-        write!(
-            f,
-            "precision f16: transfer {} bytes instead of {}; relit error {:.1e} under the preview \
-             light, worst coefficient {:.1e} relative (of those above 1e-4)",
-            self.bytes, self.bytes_f32, self.relit_error, self.worst_coefficient
-        )
-    }
-}
-
-fn half_float_cost(baked: &BakedMesh) -> Result<HalfFloatCost> {
-    let mut tally = HalfFloatTally::new(baked.transfer.bands())?;
-    tally.add(&baked.transfer)?;
-    Ok(tally.cost())
-}
-
-/// [`HalfFloatCost`] summed over runs of vertices in order: the whole transfer at once, or the
-/// chunks of a streamed bake, give the same figures.
-struct HalfFloatTally {
-    light: light::ShLight,
-    relit: compress::RelativeRms,
-    worst_coefficient: f32,
-    values: usize,
-}
-
-impl HalfFloatTally {
-    fn new(bands: u32) -> Result<HalfFloatTally> {
-        Ok(HalfFloatTally {
-            light: light::preview_light(bands)?,
-            relit: compress::RelativeRms::default(),
-            worst_coefficient: 0.0,
-            values: 0,
-        })
-    }
-
-    fn add(&mut self, transfer: &bake::Transfer) -> Result<()> {
-        let rounded = glb::rounded_to_f16(transfer);
-        let exact = render::relight(transfer, &self.light)?;
-        let stored = render::relight(&rounded, &self.light)?;
-        self.relit.add_radiance(&exact, &stored);
-        self.worst_coefficient = transfer
-            .coeffs()
-            .iter()
-            .zip(rounded.coeffs())
-            .filter(|(x, _)| x.abs() >= 1e-4)
-            .map(|(x, r)| ((r - x) / x).abs())
-            .fold(self.worst_coefficient, f32::max);
-        self.values += transfer.coeffs().len();
-        Ok(())
-    }
-
-    fn cost(&self) -> HalfFloatCost {
-        HalfFloatCost {
-            bytes: self.values * Precision::F16.bytes(),
-            bytes_f32: self.values * Precision::F32.bytes(),
-            relit_error: self.relit.value(),
-            worst_coefficient: self.worst_coefficient,
         }
     }
 }

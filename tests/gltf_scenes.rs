@@ -1331,7 +1331,10 @@ fn a_gltf_lightmap_on_its_own_uv_set_bakes_alike_on_the_cpu_and_the_gpu() {
                 source,
                 &NoProgress,
             );
-            let texels = baked.unwrap().mesh.lightmap.expect("a lightmap");
+            let baked = baked
+                .and_then(prt_gpu::pipeline::Bake::into_transfer)
+                .unwrap();
+            let texels = baked.mesh.lightmap.expect("a lightmap");
             assert_eq!((texels.width, texels.height, texels.set), (32, 32, 1));
             prt_gpu::render::relight(&texels.transfer, &light).unwrap()
         })

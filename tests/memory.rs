@@ -656,7 +656,8 @@ fn a_fit_whose_points_bake_in_runs_gives_the_whole_fits_bits() {
                     None => planned,
                 };
                 let source = DirectSource::Compute;
-                planned.run(backend.as_ref(), source, &NoProgress).unwrap()
+                let bake = planned.run(backend.as_ref(), source, &NoProgress);
+                bake.and_then(pipeline::Bake::into_transfer).unwrap()
             };
             let whole = run(None);
             let name = format!("{name} on {}", backend.describe());

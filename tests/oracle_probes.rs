@@ -96,6 +96,7 @@ fn bake(spec: &BakeSpec) -> (Scene, ProbeSet) {
         DirectSource::Compute,
         &NoProgress,
     )
+    .and_then(prt_gpu::pipeline::Bake::into_transfer)
     .unwrap();
     (baked.mesh.scene, baked.probes.unwrap())
 }

@@ -47,6 +47,7 @@ fn bake(scene: Scene, material: SubsurfaceMaterial, light: &ShLight) -> (Scene, 
         DirectSource::Compute,
         &NoProgress,
     )
+    .and_then(pipeline::Bake::into_transfer)
     .unwrap();
     let radiance = compress::radiance(&baked.mesh.transfer, light);
     (baked.mesh.scene, radiance)

@@ -77,7 +77,7 @@ fn cases() -> Vec<(BakeSpec, Vec<&'static str>)> {
 
 fn run_library(spec: &BakeSpec, backend: &dyn Backend, path: &Path) -> pipeline::Baked {
     let scene = scene::load(Path::new(TEAPOT)).unwrap();
-    let baked = pipeline::run(
+    let bake = pipeline::run(
         spec,
         scene,
         None,
@@ -86,8 +86,8 @@ fn run_library(spec: &BakeSpec, backend: &dyn Backend, path: &Path) -> pipeline:
         &NoProgress,
     )
     .unwrap();
-    assert!(pipeline::write(spec, &baked, None, path).unwrap().is_none());
-    baked
+    assert!(pipeline::write(spec, &bake, None, path).unwrap().is_none());
+    bake.into_transfer().unwrap()
 }
 
 #[test]
@@ -159,9 +159,10 @@ fn a_spec_the_file_formats_cannot_hold_is_refused_before_any_ray() {
     assert!(error.contains("--compress"), "{error}");
 }
 
-/// Local lights are a mode of the spec: a spec whose mode is local, run through the library
-/// (`pipeline::run_local`, then `glb::local::write_local_glb`), writes what `bake --mode local`
-/// writes for the same options, byte for byte; the SH transfer's run refuses it.
+/// Local lights are a mode of the spec and of the one run: a spec whose mode is local, run
+/// through the library (`pipeline::run`, then `pipeline::write`), writes what `bake --mode
+/// local` writes for the same options, byte for byte; asked for SH transfer, its bake says it
+/// has none.
 #[test]
 fn a_local_lights_spec_run_through_the_library_writes_the_command_lines_bytes() {
     let dir = tempfile::tempdir().unwrap();
@@ -212,13 +213,16 @@ fn a_local_lights_spec_run_through_the_library_writes_the_command_lines_bytes() 
     };
     spec.transfer.mode = Mode::Local;
     let scene = scene::builtin::interior_scene();
-    let (baked, _) = pipeline::run_local(&spec, scene.clone(), &CpuBackend, &NoProgress).unwrap();
+    let source = DirectSource::Compute;
+    let bake = pipeline::run(&spec, scene, None, &CpuBackend, source, &NoProgress).unwrap();
     let library = d.join("library.glb");
-    prt_gpu::glb::local::write_local_glb(&library, &baked).unwrap();
+    assert!(pipeline::write(&spec, &bake, None, &library)
+        .unwrap()
+        .is_none());
     assert!(
         std::fs::read(&library).unwrap() == std::fs::read(d.join("cli.glb")).unwrap(),
         "the library's local-lights file differs from the command line's"
     );
-    let error = refusal_of_run(&spec, scene);
-    assert!(error.contains("run_local"), "{error}");
+    let error = bake.into_transfer().err().expect("no SH transfer");
+    assert!(error.to_string().contains("mode is local"), "{error}");
 }

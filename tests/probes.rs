@@ -27,7 +27,7 @@ fn spec(mode: Mode, samples: u32, placement: ProbePlacement) -> BakeSpec {
     spec
 }
 
-fn bake(spec: &BakeSpec, scene: Scene, backend: &dyn Backend) -> pipeline::Baked {
+fn bake(spec: &BakeSpec, scene: Scene, backend: &dyn Backend) -> pipeline::Bake {
     pipeline::run(
         spec,
         scene,
@@ -40,7 +40,8 @@ fn bake(spec: &BakeSpec, scene: Scene, backend: &dyn Backend) -> pipeline::Baked
 }
 
 fn probes_of(spec: &BakeSpec, scene: Scene, backend: &dyn Backend) -> ProbeSet {
-    bake(spec, scene, backend).probes.expect("probes baked")
+    let baked = bake(spec, scene, backend).into_transfer().unwrap();
+    baked.probes.expect("probes baked")
 }
 
 fn points(points: &[[f32; 3]]) -> ProbePlacement {
@@ -237,9 +238,10 @@ fn the_file_holds_the_probes_for_every_reader() {
             ProbePlacement::Grid { spacing: 1.0 },
         );
         spec.probes.as_mut().unwrap().form = form;
-        let baked = bake(&spec, builtin::default_scene(), &CpuBackend);
+        let done = bake(&spec, builtin::default_scene(), &CpuBackend);
         let path = dir.path().join(name);
-        pipeline::write(&spec, &baked, None, &path).unwrap();
+        pipeline::write(&spec, &done, None, &path).unwrap();
+        let baked = done.transfer().unwrap();
         let probes = baked.probes.as_ref().unwrap();
         assert_eq!(
             probes.channels, 3,
@@ -307,9 +309,10 @@ fn a_gltf_scene_baked_in_place_carries_its_probes() {
         let (source, progress) = (DirectSource::Compute, &NoProgress);
         pipeline::run(spec, scene.clone(), gltf, &CpuBackend, source, progress).unwrap()
     };
-    let baked = run(&spec, Some(&gltf));
+    let bake = run(&spec, Some(&gltf));
     let path = dir.path().join("engine.glb");
-    pipeline::write(&spec, &baked, Some(&gltf), &path).unwrap();
+    pipeline::write(&spec, &bake, Some(&gltf), &path).unwrap();
+    let baked = bake.into_transfer().unwrap();
     let probes = baked.probes.as_ref().unwrap();
     assert!(probes.len() > 100, "{}", probes.describe());
     assert!(probes.status.contains(&ProbeStatus::Moved));
@@ -319,7 +322,8 @@ fn a_gltf_scene_baked_in_place_carries_its_probes() {
     assert_eq!(&read, probes);
     assert!(glb::is_scene_file(&std::fs::read(&path).unwrap()));
     spec.container = Container::Mesh;
-    assert_eq!(run(&spec, None).probes.as_ref(), Some(probes));
+    let mesh_bake = run(&spec, None).into_transfer().unwrap();
+    assert_eq!(mesh_bake.probes.as_ref(), Some(probes));
     if let Some(report) = validate_gltf(&path) {
         assert_eq!(report.num_errors, 0, "{}", report.listing());
         assert_eq!(report.num_warnings, 0, "{}", report.listing());
@@ -505,9 +509,10 @@ fn probes_go_with_every_receiver_storage_and_layout_of_a_baked_mesh() {
     for (name, edit) in cases {
         let mut spec = base.clone();
         edit(&mut spec);
-        let baked = bake(&spec, builtin::default_scene(), &CpuBackend);
+        let done = bake(&spec, builtin::default_scene(), &CpuBackend);
+        let baked = done.transfer().unwrap();
         let path = dir.path().join(format!("{name}.glb"));
-        pipeline::write(&spec, &baked, None, &path).unwrap();
+        pipeline::write(&spec, &done, None, &path).unwrap();
         let read = glb::probes::read_probes(&path)
             .unwrap()
             .expect("probes in the file");

@@ -409,6 +409,7 @@ fn gltf_scenes_baked_in_place_store_compressed_transfer() {
         .unwrap();
         let path = dir.path().join(format!("{storage:?}-{precision:?}.glb"));
         prt_gpu::pipeline::write(&spec, &baked, Some(&gltf), &path).unwrap();
+        let baked = baked.into_transfer().unwrap();
         sizes.push(std::fs::metadata(&path).unwrap().len());
         if let Some(report) = common::validate_gltf(&path) {
             assert_eq!(report.num_errors, 0, "{what}: {}", report.listing());

@@ -34,7 +34,9 @@ fn spec(mode: Mode, subsurface: Option<SubsurfaceMaterial>) -> BakeSpec {
 
 fn bake(spec: &BakeSpec, scene: Scene, backend: &dyn Backend) -> pipeline::Baked {
     let source = DirectSource::Compute;
-    pipeline::run(spec, scene, None, backend, source, &NoProgress).unwrap()
+    pipeline::run(spec, scene, None, backend, source, &NoProgress)
+        .and_then(pipeline::Bake::into_transfer)
+        .unwrap()
 }
 
 /// A medium in a scene measured in millimetres.
@@ -474,7 +476,9 @@ fn wax_medium() -> SubsurfaceMaterial {
 fn bake_in_place(spec: &BakeSpec, path: &Path, backend: &dyn Backend) -> pipeline::Baked {
     let (gltf, scene) = prt_gpu::scene::gltf::load(path).unwrap();
     let source = DirectSource::Compute;
-    pipeline::run(spec, scene, Some(&gltf), backend, source, &NoProgress).unwrap()
+    pipeline::run(spec, scene, Some(&gltf), backend, source, &NoProgress)
+        .and_then(pipeline::Bake::into_transfer)
+        .unwrap()
 }
 
 /// Radiance under the preview light at each loaded vertex of `range` (the bake's vertex map

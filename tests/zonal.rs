@@ -33,7 +33,9 @@ fn spec(zonal: Option<ZonalSpec>) -> BakeSpec {
 
 fn bake(spec: &BakeSpec, scene: Scene) -> pipeline::Baked {
     let source = DirectSource::Compute;
-    pipeline::run(spec, scene, None, &CpuBackend, source, &NoProgress).unwrap()
+    pipeline::run(spec, scene, None, &CpuBackend, source, &NoProgress)
+        .and_then(pipeline::Bake::into_transfer)
+        .unwrap()
 }
 
 /// `values` of a bake's prepared vertices, in the order of the vertices it was given

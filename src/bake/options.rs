@@ -165,7 +165,7 @@ impl BakeOptions {
         if self.mode == Mode::Local {
             return Err(Error::Options(
                 "--mode local bakes depth maps and a direct-to-indirect operator, not SH \
-                 transfer: its spec runs through pipeline::run_local"
+                 transfer: pipeline::run bakes its spec's local section"
                     .into(),
             ));
         }

@@ -26,10 +26,10 @@ pub(crate) use render::{run_render, RenderArgs};
 pub(crate) use shard::{run_merge, MergeArgs};
 pub(crate) use view::{run_export_x3d, run_view, ExportCommand, ViewArgs};
 
-/// `prt-gpu bake`: lights inside the scene, a shard, a batch, or one mesh.
+/// `prt-gpu bake`: a shard, a batch, or one mesh, for distant light or lights inside the scene.
 pub(crate) fn run_bake(args: BakeArgs) -> Result<()> {
     if args.transfer.mode == Mode::Local {
-        return local::run_local_bake(args);
+        local::check_local_flags(&args)?;
     }
     let meshes: Vec<PathBuf> = scene::batch::mesh_files(&args.meshes)?;
     if let Some(shard) = args.shard {
@@ -39,11 +39,7 @@ pub(crate) fn run_bake(args: BakeArgs) -> Result<()> {
         };
     }
     if meshes.len() > 1 || args.out_dir.is_some() {
-        let distant = bake::DistantBake {
-            args: &args,
-            execution: bake::Execution::of(&args),
-        };
-        return bake::run_batch(&args, &meshes, &distant);
+        return bake::run_batch(&args, &meshes);
     }
     bake::run_one(&args, meshes.first().cloned())
 }

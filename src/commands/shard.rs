@@ -45,13 +45,13 @@ pub(crate) fn run_shard(args: &BakeArgs, mesh: &Option<PathBuf>, shard: bake::Sh
     let output = args.output.clone().unwrap_or_else(|| {
         PathBuf::from(format!(
             "{}.prt.{}-of-{}.part",
-            bake_name(mesh),
+            bake_name(&spec, mesh),
             shard.index,
             shard.count
         ))
     });
     check_part_output(mesh, &output)?;
-    let (scene, _, name) = load_bake_input(mesh)?;
+    let (scene, _, name) = load_bake_input(&spec, mesh)?;
     check_shard_memory(args, &spec, &scene, shard)?;
     note_samples_rounded(&options);
     check_chunking(args)?;

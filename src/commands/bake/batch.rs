@@ -2,51 +2,17 @@
 
 use super::*;
 
-/// What a batch bakes each of its meshes with: distant-light transfer ([`DistantBake`]) or, from
-/// `commands::local`, local lights.
-pub(crate) trait MeshBake {
-    /// The checked spec of `mesh`'s bake (`None`: the rules that hold for any mesh).
-    fn spec(&self, mesh: &Option<PathBuf>) -> Result<BakeSpec>;
-    /// `mesh` baked as `spec` asks to `output`, and reported in a line.
-    fn bake(
-        &self,
-        spec: &BakeSpec,
-        mesh: &Option<PathBuf>,
-        output: PathBuf,
-        device: &Device,
-        progress: &BarProgress,
-    ) -> Result<()>;
+/// The checked spec of `mesh`'s bake (`None`: the rules that hold for any mesh).
+fn checked_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeSpec> {
+    let spec = bake_spec(args, mesh)?;
+    spec.validate()?;
+    Ok(spec)
 }
 
-/// Distant-light transfer, [`bake_one`] of each mesh.
-pub(crate) struct DistantBake<'a> {
-    pub(crate) args: &'a BakeArgs,
-    pub(crate) execution: Execution,
-}
-
-impl MeshBake for DistantBake<'_> {
-    fn spec(&self, mesh: &Option<PathBuf>) -> Result<BakeSpec> {
-        let spec = bake_spec(self.args, mesh)?;
-        spec.validate()?;
-        Ok(spec)
-    }
-
-    fn bake(
-        &self,
-        spec: &BakeSpec,
-        mesh: &Option<PathBuf>,
-        output: PathBuf,
-        device: &Device,
-        progress: &BarProgress,
-    ) -> Result<()> {
-        let execution = &self.execution;
-        bake_one(spec, execution, mesh, Some(output), device, None, progress)
-    }
-}
-
-/// `bake` of several meshes, each with `baker`: one device, one line per mesh and a total; a
-/// mesh that fails is reported and the others still bake, the exit failing at the end.
-pub(crate) fn run_batch(args: &BakeArgs, meshes: &[PathBuf], baker: &dyn MeshBake) -> Result<()> {
+/// `bake` of several meshes, each as [`bake_one`] bakes it alone: one device, one line per mesh
+/// and a total; a mesh that fails is reported and the others still bake, the exit failing at
+/// the end.
+pub(crate) fn run_batch(args: &BakeArgs, meshes: &[PathBuf]) -> Result<()> {
     for (given, flag) in [
         (
             args.output.is_some(),
@@ -78,10 +44,11 @@ pub(crate) fn run_batch(args: &BakeArgs, meshes: &[PathBuf], baker: &dyn MeshBak
     }
     // The rules that hold for any mesh, checked once; each mesh's container is checked as it
     // bakes.
-    baker.spec(&None)?;
+    checked_spec(args, &None)?;
     check_chunking(args)?;
     std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
     let device = Device::new(|| open_backend(args.device, args.adapter.as_deref()));
+    let execution = Execution::of(args);
     let started = std::time::Instant::now();
     let mut failed = Vec::new();
     let weights = scene::batch::work_weights(meshes);
@@ -90,9 +57,9 @@ pub(crate) fn run_batch(args: &BakeArgs, meshes: &[PathBuf], baker: &dyn MeshBak
         overall.set_message(format!("batch {}/{}", k + 1, meshes.len()));
         let progress = BarProgress::in_batch(k + 1, meshes.len(), &stem(mesh));
         let mesh = Some(mesh.clone());
-        let baked = baker
-            .spec(&mesh)
-            .and_then(|spec| baker.bake(&spec, &mesh, output, &device, &progress));
+        let output = Some(output);
+        let baked = checked_spec(args, &mesh)
+            .and_then(|spec| bake_one(&spec, &execution, &mesh, output, &device, None, &progress));
         if let Err(error) = baked {
             progress.finish();
             eprintln!("error: {error}");

@@ -3,23 +3,25 @@
 
 use super::*;
 
-/// What `bake` bakes: the mesh named on the command line (a glTF scene keeps its document,
-/// to be written back with its transfer), or the built-in scene; and a name for messages.
+/// What `bake` bakes as `spec` asks: the mesh named on the command line (a glTF scene keeps its
+/// document, to be written back with its transfer, unless its container is a mesh), or the
+/// built-in scene (the interior, for local lights); and a name for messages.
 pub(crate) fn load_bake_input(
+    spec: &BakeSpec,
     mesh: &Option<PathBuf>,
 ) -> Result<(scene::Scene, Option<scene::gltf::GltfScene>, String)> {
+    let name = bake_name(spec, mesh);
     match mesh {
-        Some(path) if scene::is_gltf(path) => {
+        Some(path) if spec.container == Container::GltfInPlace => {
             let (gltf, loaded) = scene::gltf::load(path)?;
             for note in &gltf.notes {
                 eprintln!("note: {note}");
             }
-            Ok((loaded, Some(gltf), stem(path)))
+            Ok((loaded, Some(gltf), name))
         }
-        _ => {
-            let (loaded, name) = load_scene(mesh)?;
-            Ok((loaded, None, name))
-        }
+        Some(path) => Ok((load_mesh(path)?, None, name)),
+        None if spec.local.is_some() => Ok((scene::builtin::interior_scene(), None, name)),
+        None => Ok((scene::builtin::default_scene(), None, name)),
     }
 }
 
@@ -103,16 +105,19 @@ pub(super) fn write_preview_or_undo(
     written
 }
 
-/// The name a bake of `mesh` reports and names its default output by: the mesh file's, or the
-/// built-in scene's.
-pub(crate) fn bake_name(mesh: &Option<PathBuf>) -> String {
-    mesh.as_ref()
-        .map_or_else(|| "default-scene".to_string(), |path| stem(path))
+/// The name a bake of `mesh` as `spec` asks reports and names its default output by: the mesh
+/// file's, or the built-in scene's.
+pub(crate) fn bake_name(spec: &BakeSpec, mesh: &Option<PathBuf>) -> String {
+    match mesh {
+        Some(path) => stem(path),
+        None if spec.local.is_some() => "interior".to_string(),
+        None => "default-scene".to_string(),
+    }
 }
 
-/// Where a bake of `mesh` goes without `-o`: `<mesh name>.prt.glb` in the current directory.
-pub(super) fn default_output(mesh: &Option<PathBuf>) -> PathBuf {
-    PathBuf::from(format!("{}.prt.glb", bake_name(mesh)))
+/// Where a bake of `mesh` goes without `-o`: `<its name>.prt.glb` in the current directory.
+pub(super) fn default_output(spec: &BakeSpec, mesh: &Option<PathBuf>) -> PathBuf {
+    PathBuf::from(format!("{}.prt.glb", bake_name(spec, mesh)))
 }
 
 /// The lightmap a bake to `glb` writes beside it.

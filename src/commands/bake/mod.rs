@@ -1,5 +1,5 @@
-//! `prt-gpu bake`: one mesh or a batch, distant-light transfer. Arguments become a spec
-//! ([`bake_spec`]), the pipeline bakes it ([`bake_one`]), the report is printed: the arguments in
+//! `prt-gpu bake`: one mesh or a batch, for distant light or lights inside the scene. Arguments
+//! become a spec ([`bake_spec`]), the pipeline bakes it ([`bake_one`]), the report is printed: the arguments in
 //! `args.rs`, the spec they ask for in `spec_args.rs`, the device in `backend.rs`, the files
 //! read and written in `files.rs`, the printed lines in `report.rs`, batches in `batch.rs`.
 
@@ -15,7 +15,8 @@ use prt_gpu::bake::adaptive::TargetError;
 use prt_gpu::bake::gpu::{Chunking, GpuBaker};
 use prt_gpu::bake::{self, backend_for, BakeOptions, BakeReport, Fit, Storage};
 use prt_gpu::device::{self, DeviceChoice, GpuContext};
-use prt_gpu::local::LocalOptions;
+use prt_gpu::local::build::OperatorShape;
+use prt_gpu::local::{self, LocalOptions};
 use prt_gpu::precision::Precision;
 use prt_gpu::probes::ProbeForm;
 use prt_gpu::receivers::PointDensity;
@@ -102,9 +103,9 @@ fn memory_plan(
     Ok(plan)
 }
 
-/// One bake of `mesh` to `output` as `spec` says, its direct pass computed on the device
-/// (the CPU without one) or, merging, joined from the parts of a sharded bake of the same mesh
-/// and spec.
+/// One bake of `mesh` to `output` as `spec` says, in any mode, its direct pass computed on the
+/// device (the CPU without one) or, merging, joined from the parts of a sharded bake of the same
+/// mesh and spec.
 pub(crate) fn bake_one(
     spec: &BakeSpec,
     execution: &Execution,
@@ -115,19 +116,20 @@ pub(crate) fn bake_one(
     progress: &BarProgress,
 ) -> Result<()> {
     spec.validate()?;
-    let output_path = output.unwrap_or_else(|| default_output(mesh));
+    let output_path = output.unwrap_or_else(|| default_output(spec, mesh));
     // Fail before the long part (and before reading the mesh), not after it.
     check_bake_outputs(spec, execution.preview.as_deref(), mesh, &output_path, &[])?;
     let loading = std::time::Instant::now();
-    let (scene, gltf, name) = load_bake_input(mesh)?;
+    let (scene, gltf, name) = load_bake_input(spec, mesh)?;
     let seconds_load = loading.elapsed().as_secs_f64();
     let naming = |e| naming_the_mesh(e, &mesh_shown(mesh));
     let mut planned = pipeline::plan(spec, scene, gltf.as_ref()).map_err(naming)?;
-    let options = spec.options();
-    note_samples_rounded(&options);
+    if spec.local.is_none() {
+        note_samples_rounded(&spec.options());
+    }
+    let plan = memory_plan(spec, (&planned, gltf.as_ref()), execution, merged.is_some())?;
     let baker = device.get()?;
     let backend = backend_for(baker.as_ref(), execution.chunking);
-    let plan = memory_plan(spec, (&planned, gltf.as_ref()), execution, merged.is_some())?;
     if let Some(chunk) = plan.point_chunk {
         planned = planned.with_point_chunk(chunk);
     }
@@ -160,11 +162,19 @@ pub(crate) fn bake_one(
         .as_ref()
         .map(|(header, _)| (header.shard_count, header.backend.clone()));
     let source = direct_source(spec, planned.scene(), mesh, merged)?;
-    let baked = planned
+    let bake = planned
         .run(backend.as_ref(), source, progress)
         .map_err(naming)?;
     progress.finish();
-    print_shaping_lines(&baked);
+    let baked = match &bake {
+        pipeline::Bake::Transfer(baked) => baked,
+        pipeline::Bake::Local(local) => {
+            pipeline::write(spec, &bake, None, &output_path)?;
+            print_local_report(&name, local, &output_path);
+            return Ok(());
+        }
+    };
+    print_shaping_lines(baked);
     // Rendered before the .glb is written, so that a preview that cannot be made leaves no bake.
     let preview = match &execution.preview {
         Some(path) => Some((
@@ -177,7 +187,7 @@ pub(crate) fn bake_one(
         None => None,
     };
     let writing = std::time::Instant::now();
-    let written = pipeline::write(spec, &baked, gltf.as_ref(), &output_path)?;
+    let written = pipeline::write(spec, &bake, gltf.as_ref(), &output_path)?;
     if let Some(cost) = &baked.half_float {
         eprintln!("{cost}");
     }

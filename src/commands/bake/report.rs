@@ -1,4 +1,5 @@
-//! What a bake prints: a line per stage that ran, and the summary line.
+//! What a bake prints: a line per stage that ran, and the summary line; for local lights, what
+//! each of their stages made.
 
 use super::*;
 
@@ -203,4 +204,62 @@ pub(crate) fn note_samples_rounded(options: &BakeOptions) {
             options.samples_used()
         );
     }
+}
+
+/// What a local-lights bake of `name` to `output` did, and a note where its compressed depth
+/// maps outweigh the maps.
+pub(super) fn print_local_report(name: &str, baked: &pipeline::LocalBaked, output: &Path) {
+    let report = &baked.report;
+    let mb = |bytes: usize| bytes as f64 / 1e6;
+    println!(
+        "local lights: {} receivers, {} triangles; gather matrix {} entries ({:.2} s); depth maps \
+         {:.2} s, compressed {:.1} -> {:.1} MB, depth error {:.2}% ({:.2} s); {} example lights \
+         ({:.2} s); operator {:.1} MB, {:.0}% of terms kept, error {:.2}% against the \
+         sparse bounces ({:.2} s)",
+        report.receivers,
+        report.triangles,
+        report.gather_entries,
+        report.seconds_gather,
+        report.seconds_depth,
+        mb(report.depth_bytes_uncompressed),
+        mb(report.depth_bytes),
+        100.0 * report.depth_error,
+        report.seconds_depth_compress,
+        report.example_lights,
+        report.seconds_examples,
+        mb(report.operator_bytes),
+        100.0 * report.operator_kept,
+        100.0 * report.operator_error,
+        report.seconds_operator
+    );
+    println!(
+        "baked {name} for local lights: {} rays, {:.2} s on {} -> {}",
+        report.rays_cast,
+        report.seconds(),
+        report.backend,
+        output.display()
+    );
+    if report.depth_bytes > report.depth_bytes_uncompressed {
+        eprintln!("{}", depth_maps_note(report, &baked.bake.options));
+    }
+}
+
+/// What to tell a user whose compressed depth maps take more than the maps: how many clusters
+/// would take no more.
+fn depth_maps_note(report: &local::LocalReport, options: &LocalOptions) -> String {
+    let mb = |bytes: usize| bytes as f64 / 1e6;
+    let (clusters, components) = (options.depth_clusters, options.depth_components);
+    let cells = (options.grid_side * options.grid_side) as usize;
+    let fewer =
+        match local::depth_clusters_within_maps(report.receivers, cells, components as usize) {
+            Some(fit) => format!("--depth-compress {fit}x{components} or fewer clusters take less"),
+            None => "fewer components take less".to_string(),
+        };
+    format!(
+        "note: the compressed depth maps take {:.1} MB, more than the {:.1} MB of the maps: \
+         {} receivers are few for {clusters} clusters of {components} components ({fewer})",
+        mb(report.depth_bytes),
+        mb(report.depth_bytes_uncompressed),
+        report.receivers
+    )
 }

@@ -1,4 +1,5 @@
-//! The spec `bake`'s arguments ask for: receivers, transfer, storage, container, probes.
+//! The spec `bake`'s arguments ask for: receivers, transfer, storage, container, probes, and
+//! what local lights compute.
 
 use super::*;
 
@@ -8,6 +9,7 @@ pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeS
     spec::check_bands_threshold(args.bands_threshold)?;
     let defaults = BakeSpec::default();
     let options = args.transfer.options();
+    let local = options.mode == bake::Mode::Local;
     Ok(BakeSpec {
         receivers: ReceiverSpec {
             fit: args.fit,
@@ -43,13 +45,38 @@ pub(crate) fn bake_spec(args: &BakeArgs, mesh: &Option<PathBuf>) -> Result<BakeS
             layout: args.compress.map_or(Layout::PerVertex, Layout::Cpca),
             zonal: zonal_spec(args)?,
         },
+        // A glTF scene baked for local lights is a mesh to them: their file holds no scene.
         container: match mesh {
-            Some(path) if scene::is_gltf(path) => Container::GltfInPlace,
+            Some(path) if scene::is_gltf(path) && !local => Container::GltfInPlace,
             _ => Container::Mesh,
         },
+        local: local.then(|| local_options(args)),
         probes: probe_spec(args)?,
         ..defaults
     })
+}
+
+/// What `--mode local` computes: the gather's rays, the depth maps and the operator.
+fn local_options(args: &BakeArgs) -> LocalOptions {
+    let local = &args.local;
+    LocalOptions {
+        samples: args
+            .transfer
+            .samples
+            .unwrap_or(LocalOptions::default().samples),
+        seed: args.seed,
+        bounces: args.bounces,
+        grid_side: local.depth_grid,
+        depth_clusters: local.depth_compress.0,
+        depth_components: local.depth_compress.1,
+        operator: OperatorShape {
+            clusters: local.operator_compress.0,
+            components: local.operator_compress.1,
+            sparsity: local.sparsity,
+            seed: args.seed,
+        },
+        example_lights: local.example_lights,
+    }
 }
 
 /// The medium `--subsurface` and the `--sss-*` options ask for.

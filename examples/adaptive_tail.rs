@@ -16,7 +16,7 @@
 
 use std::path::Path;
 
-use prt_gpu::bake::adaptive::{adaptive_direct_transfer, TargetError};
+use prt_gpu::bake::adaptive::{adaptive_direct_pass, TargetError};
 use prt_gpu::bake::{Backend, BakeInputs, CpuBackend, Mode, NoProgress};
 use prt_gpu::sampling::{Estimator, Sampling};
 
@@ -99,7 +99,7 @@ fn main() -> prt_gpu::Result<()> {
             relative,
             max_samples: REFERENCE_SAMPLES / 2,
         };
-        let (transfer, _, report) = adaptive_direct_transfer(
+        let pass = adaptive_direct_pass(
             &CpuBackend,
             &base,
             0..receivers,
@@ -107,6 +107,7 @@ fn main() -> prt_gpu::Result<()> {
             &target,
             &NoProgress,
         )?;
+        let (transfer, report) = (pass.scalar, pass.adaptive.expect("a target's receivers"));
         let mean = report.samples.iter().map(|&s| s as f64).sum::<f64>() / receivers as f64;
         rows.push(Row {
             label: format!("target {relative}"),

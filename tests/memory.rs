@@ -67,7 +67,7 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
     let d = dir.path();
     const INTERREFLECTED: [&str; 2] = ["--mode", "interreflected"];
     const TARGET: [&str; 4] = ["--target-error", "0.05", "--max-samples", "1024"];
-    let cases: [&[&str]; 22] = [
+    let cases: [&[&str]; 23] = [
         &["--device", "cpu"],
         // Clustered PCA: the chunks wait in a scratch file, and every pass of the clustering
         // reads them back a chunk at a time.
@@ -101,6 +101,17 @@ fn a_bake_streamed_in_chunks_writes_the_whole_bakes_bytes() {
         ],
         &[
             "--device", "gpu", TARGET[0], TARGET[1], TARGET[2], TARGET[3],
+        ],
+        // Interreflected to an error target: each chunk's gather rows come from its batches.
+        &[
+            "--device",
+            "cpu",
+            INTERREFLECTED[0],
+            INTERREFLECTED[1],
+            TARGET[0],
+            TARGET[1],
+            TARGET[2],
+            TARGET[3],
         ],
         // --bands auto: the chunks wait at the most bands until the bands are chosen.
         &["--device", "cpu", "--bands", "auto"],

@@ -23,6 +23,7 @@ use common::sky::sky;
 use std::sync::OnceLock;
 
 use glam::Vec3;
+use prt_gpu::bake::adaptive::TargetError;
 use prt_gpu::bake::texels::{bake_atlas, plan_atlas};
 use prt_gpu::bake::{bake, bake_at, BakeOptions, CpuBackend, Fit, Mode, NoProgress, Transfer};
 use prt_gpu::receivers::{self, Receivers};
@@ -245,7 +246,7 @@ fn shadowed_vertices_match_the_path_tracer() {
 }
 
 /// Interreflected transfer, 4 bands and 2 bounces, against the path tracer's paths of up to
-/// two bounces. The bounces gather the vertices' transfer interpolated where each ray lands,
+/// two bounces; at 1024 samples a vertex and to an error target. The bounces gather the vertices' transfer interpolated where each ray lands,
 /// which is not exact where the light changes within a triangle; but the bounced light is
 /// smooth and a small share of the whole, and measured, the error's excess over the noise is
 /// 0.2% (printed) against a tolerance of 1.6%, so no floor is added.
@@ -285,6 +286,28 @@ fn interreflected_vertices_match_the_path_tracer_with_two_bounces() {
     assert!(
         error_one_bounce > tolerance,
         "the comparison cannot tell 1 bounce from 2: {error_one_bounce:.4} <= {tolerance:.4}"
+    );
+    // To an error target, the bounces gathered through the rays the target chose: the same
+    // rule against the same paths.
+    let targeted = BakeOptions {
+        target_error: Some(TargetError {
+            relative: 0.01,
+            max_samples: 8192,
+        }),
+        ..options(2)
+    };
+    let (ours, again) = relit_vertices(&scene, &measured, &sky, &targeted);
+    let figures = Figures::of(&ours, &again, &traced);
+    let tolerance = SIGMAS * figures.sigma();
+    figures.print(
+        "built-in scene: interreflected vertices to an error target of 1%, 4 bands, 2 bounces",
+        tolerance,
+    );
+    assert!(
+        figures.error <= tolerance,
+        "interreflected transfer to an error target is off the path tracer by {:.4} > \
+         {tolerance:.4}",
+        figures.error
     );
 }
 

@@ -94,7 +94,7 @@ fn probes_are_baked_by_the_merge_as_by_the_whole_bake() {
 /// Fits, auto bands, lean storage and compression run in the merge, as in the whole bake.
 #[test]
 fn merge_runs_the_rest_of_the_bake_as_the_whole_bake_does() {
-    let cases: [&[&str]; 4] = [
+    let cases: [&[&str]; 5] = [
         &[
             "--fit",
             "least-squares",
@@ -103,6 +103,8 @@ fn merge_runs_the_rest_of_the_bake_as_the_whole_bake_does() {
             "--bounces",
             "2",
         ],
+        // Interreflected to an error target: the parts carry the gather rows of the batches.
+        &["--mode", "interreflected", "--target-error", "0.05"],
         &["--bands", "auto", "--storage", "lean"],
         &["--compress", "8x4", "--seed", "7"],
         // Each receiver's samples and error travel in the parts, so the merged file's mean

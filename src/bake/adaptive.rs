@@ -18,13 +18,20 @@
 //! transfer vector, relative to the norm of unoccluded transfer (the same for every normal). By
 //! Cauchy–Schwarz it bounds the relit radiance's error under any light, relative to what the
 //! same light could at most give an open receiver: no light is assumed.
+//!
+//! **Interreflection.** The blocked rays of every batch also find their closest hits, and a
+//! receiver's gather row is the mean of its batches' rows, as its direct transfer is the mean
+//! of their estimates: the bounces gather through the rays the target chose. The target
+//! measures the direct (shadowed) transfer; the bounces, which add a fraction of it per bounce
+//! (the albedo's), are as many rays' worth.
 
 use rayon::prelude::*;
 
 use glam::Vec3;
 
+use super::bounce::{gather_row, GatherMatrix};
 use super::cpu::{finish_transfer, transfer_scale};
-use super::{Backend, BakeInputs, DirectInputs, Mode, NoProgress, Progress};
+use super::{Backend, BakeInputs, DirectInputs, DirectPass, Mode, NoProgress, Progress};
 use crate::error::{Error, Result};
 use crate::sampling::{Estimator, SampleSet, Sampling};
 use crate::sh::{coeff_count, unshadowed_transfer, ShTable};
@@ -121,28 +128,27 @@ pub fn batch_seed(seed: u64, batch: u32) -> u64 {
     seed ^ (batch as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)
 }
 
-/// Albedo-free direct transfer of the receivers `range` of `base` (`[receiver][k]`) to the
-/// target error, on `backend`; the rays cast; and each receiver's samples and error. `base`
+/// The direct pass of the receivers `range` of `base` to the target error, on `backend`:
+/// albedo-free direct transfer (`[receiver][k]`), in interreflected mode the gather matrix of
+/// the same rays' closest hits, the rays cast, and each receiver's samples and error. `base`
 /// supplies the geometry and receivers; its own sample set is not used. Batch by batch, the
 /// receivers still short of the target cast the batch's samples; a receiver's result depends
 /// only on the receiver, the seed and the backend, so any split of the receivers gives the
 /// same values for each.
-pub fn adaptive_direct_transfer(
+pub fn adaptive_direct_pass(
     backend: &dyn Backend,
     base: &BakeInputs,
     range: std::ops::Range<usize>,
     (sampling, seed, mode): (Sampling, u64, Mode),
     target: &TargetError,
     progress: &dyn Progress,
-) -> Result<(Vec<f32>, u64, ReceiverErrors)> {
+) -> Result<DirectPass> {
     target.validate()?;
-    if mode == Mode::Interreflected {
-        return Err(Error::Options(
-            "--target-error bakes shadowed and unshadowed transfer (interreflection's gather \
-             needs one sample set for all receivers)"
-                .into(),
-        ));
-    }
+    // Interreflection's direct light is shadowed transfer; its bounces come from the rows.
+    let (direct_mode, mut rows) = match mode {
+        Mode::Interreflected => (Mode::Shadowed, Some(vec![Vec::new(); range.len()])),
+        mode => (mode, None),
+    };
     let bands = base.table.bands;
     let n = coeff_count(bands);
     let view = base.view();
@@ -182,8 +188,13 @@ pub fn adaptive_direct_transfer(
             turns: None,
             ..view
         };
-        let (sums, batch_rays) = backend.projected_sums(&batch, mode, &NoProgress)?;
+        let (sums, batch_rays) = backend.projected_sums(&batch, direct_mode, &NoProgress)?;
         rays += batch_rays;
+        if let Some(rows) = &mut rows {
+            // The same rays again, for their closest hits.
+            rays += batch_rays;
+            add_gather_rows(backend, &batch, &active, rows)?;
+        }
         let scale = transfer_scale(&batch);
         let last = b + 1 == target.max_batches();
         for (estimate, &i) in sums.chunks_exact(n).zip(&active) {
@@ -198,11 +209,62 @@ pub fn adaptive_direct_transfer(
     }
     let first_batch = first_batch.expect("a target has batches");
     let transfer = finish_means(&view, first_batch, &receivers, n);
+    let matrix = rows.map(|rows| mean_rows(rows, &receivers));
     let receivers = ReceiverErrors {
         samples: receivers.iter().map(|r| r.count * BATCH_SAMPLES).collect(),
         errors: receivers.iter().map(|r| r.error / open_norm).collect(),
     };
-    Ok((transfer, rays, receivers))
+    Ok(DirectPass {
+        scalar: transfer,
+        matrix,
+        rays_cast: rays,
+        adaptive: Some(receivers),
+    })
+}
+
+/// Adds to `rows[i]` the gather row of the batch's rays from each `active` receiver i (the
+/// batch's receivers, in that order): their closest hits, weighted as one batch's estimate.
+fn add_gather_rows(
+    backend: &dyn Backend,
+    batch: &DirectInputs,
+    active: &[usize],
+    rows: &mut [Vec<(u32, f32)>],
+) -> Result<()> {
+    let hits = backend.closest_hits(batch, &NoProgress)?;
+    let batch_rows: Vec<Vec<(u32, f32)>> = hits
+        .par_iter()
+        .enumerate()
+        .map(|(receiver, hits)| gather_row(batch, receiver, hits))
+        .collect();
+    for (&i, row) in active.iter().zip(batch_rows) {
+        rows[i].extend(row);
+    }
+    Ok(())
+}
+
+/// The gather matrix whose row i is the mean of receiver i's batch rows (`rows[i]`, their
+/// entries one after another): each column's weights summed over the batches, over the
+/// receiver's batch count, columns ascending as a [`GatherMatrix`] keeps them.
+fn mean_rows(rows: Vec<Vec<(u32, f32)>>, receivers: &[ReceiverBatches]) -> GatherMatrix {
+    let means = rows
+        .into_par_iter()
+        .zip(receivers)
+        .map(|(mut entries, receiver)| {
+            entries.sort_by_key(|&(column, _)| column);
+            let mut row: Vec<(u32, f64)> = Vec::with_capacity(entries.len());
+            for (column, weight) in entries {
+                match row.last_mut() {
+                    Some((last, sum)) if *last == column => *sum += weight as f64,
+                    _ => row.push((column, weight as f64)),
+                }
+            }
+            let count = receiver.count.max(1) as f64;
+            row.into_iter()
+                .map(|(column, sum)| (column, (sum / count) as f32))
+                .collect()
+        })
+        .collect();
+    GatherMatrix::from_rows(means)
 }
 
 /// Every receiver's transfer from the mean of its batches' projected sums, `[receiver][k]`
@@ -366,9 +428,9 @@ mod tests {
         };
         let run = |inputs: &BakeInputs| {
             let how = (options.sampling, options.seed, Mode::Shadowed);
-            adaptive_direct_transfer(&CpuBackend, inputs, 100..400, how, &target, &NoProgress)
+            adaptive_direct_pass(&CpuBackend, inputs, 100..400, how, &target, &NoProgress)
                 .unwrap()
-                .0
+                .scalar
         };
         assert_eq!(run(&plain), run(&turned));
     }

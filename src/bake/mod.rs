@@ -439,20 +439,14 @@ pub(super) fn direct_or_adaptive(
         return backend.direct_pass(&part, options.mode, progress);
     };
     progress.stage("transfer", range.len() as u64);
-    let (scalar, rays_cast, receivers) = adaptive::adaptive_direct_transfer(
+    adaptive::adaptive_direct_pass(
         backend,
         owned,
         range,
         (options.sampling, options.seed, options.mode),
         target,
         progress,
-    )?;
-    Ok(DirectPass {
-        scalar,
-        matrix: None,
-        rays_cast,
-        adaptive: Some(receivers),
-    })
+    )
 }
 
 /// The receivers of a bake: the vertices, or (least-squares fit) the points spread over the

@@ -206,12 +206,6 @@ impl BakeOptions {
         }
         if let Some(target) = &self.target_error {
             target.validate()?;
-            if self.mode == Mode::Interreflected {
-                return Err(Error::Options(
-                    "--target-error bakes shadowed and unshadowed transfer, not interreflected"
-                        .into(),
-                ));
-            }
         }
         if self.denoise && self.lightmap.is_none() {
             return Err(Error::Options(

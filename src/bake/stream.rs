@@ -427,8 +427,12 @@ impl MemoryNeed {
 /// A receiver's gather row where light bounces (a column and a weight per blocked ray at
 /// most, as the rays find it and as the matrix holds it); 0 otherwise.
 pub(super) fn gather_row_bytes(options: &BakeOptions) -> u64 {
+    // An error target may take any receiver to its most samples.
+    let samples = options
+        .target_error
+        .map_or(options.samples_used(), |target| target.max_samples);
     match options.mode {
-        Mode::Interreflected => 2 * 8 * options.samples_used() as u64,
+        Mode::Interreflected => 2 * 8 * samples as u64,
         _ => 0,
     }
 }
@@ -581,11 +585,18 @@ impl StreamedBake {
         let mut rows = Vec::with_capacity(ranges.len());
         let mut rays_cast = 0;
         let mut gather_entries = 0;
+        let mut adaptive: Option<ReceiverErrors> = None;
         progress.stage("transfer", receivers as u64);
         for range in &ranges {
-            let view = self.planned.inputs.view();
-            let part = view.part(range.clone());
-            let direct = backend.direct_pass(&part, Mode::Interreflected, &Advancing(progress))?;
+            let inputs = &self.planned.inputs;
+            let advancing = &Advancing(progress);
+            let direct =
+                direct_or_adaptive(inputs, range.clone(), &self.options, backend, advancing)?;
+            if let Some(errors) = direct.adaptive {
+                adaptive
+                    .get_or_insert_with(ReceiverErrors::default)
+                    .extend(errors);
+            }
             let matrix = direct.matrix.expect("an interreflected pass gathers");
             let tinted = tint_by_albedo(&direct.scalar, &albedo[range.clone()], bands);
             previous[range.start * stride..range.end * stride].copy_from_slice(tinted.coeffs());
@@ -633,6 +644,7 @@ impl StreamedBake {
             bounces,
             rays_cast,
             gather_entries,
+            adaptive,
         })
     }
 
@@ -670,6 +682,8 @@ pub struct Interreflected {
     pub bounces: Vec<BounceStat>,
     pub rays_cast: u64,
     pub gather_entries: usize,
+    /// With an error target, each receiver's samples and error.
+    pub adaptive: Option<ReceiverErrors>,
 }
 
 impl Interreflected {

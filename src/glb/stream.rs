@@ -276,7 +276,11 @@ pub fn bake_streamed(
 ) -> Result<StreamedWrite> {
     let started = Instant::now();
     let receivers = bake.receivers();
-    let (interreflected, mut metadata) = begin(bake, backend, chunk, progress)?;
+    let (mut interreflected, mut metadata) = begin(bake, backend, chunk, progress)?;
+    // An interreflected bake's direct pass is done: its receivers' samples and errors with it.
+    let adaptive = interreflected
+        .as_mut()
+        .and_then(|baked| baked.adaptive.take());
     let ranges: Vec<Range<usize>> = (0..receivers)
         .step_by(chunk)
         .map(|first| first..(first + chunk).min(receivers))
@@ -287,7 +291,7 @@ pub fn bake_streamed(
         progress,
         interreflected,
         rays_cast: 0,
-        adaptive: ReceiverErrors::default(),
+        adaptive: adaptive.unwrap_or_default(),
     };
     let target = bake.target_error();
     // --bands auto: the bands are known once every chunk is baked, and the file's layout

@@ -28,7 +28,7 @@ use crate::{glb, light, render, Result};
 mod memory;
 mod shape;
 
-pub use memory::{memory_need, plan_memory, plan_merge_memory, MemoryPlan};
+pub use memory::{local_memory_need, memory_need, plan_memory, plan_merge_memory, MemoryPlan};
 use shape::{choose_auto_bands, compress_transfer, half_float_cost, HalfFloatTally};
 pub use shape::{BandsChosen, Compressed, HalfFloatCost};
 

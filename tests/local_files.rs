@@ -524,25 +524,64 @@ fn depth_maps_compressed_larger_than_whole_are_pointed_out() {
     assert!(!stderr.contains("compressed depth maps take"), "{stderr}");
 }
 
+/// A local-lights bake runs whole: under a memory limit above its need it writes the bytes it
+/// writes without one (`tests/memory_need.rs` checks the need against what it allocates).
+#[test]
+fn a_local_bake_within_its_memory_limit_bakes_as_without_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let bunny = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj");
+    let bake = |output: &str, limit: &[&str]| {
+        let mut args = vec![
+            "bake",
+            bunny,
+            "--mode",
+            "local",
+            "--device",
+            "cpu",
+            "--samples",
+            "16",
+            "--depth-grid",
+            "8",
+            "--depth-compress",
+            "16x8",
+            "--operator-compress",
+            "8x4",
+            "--example-lights",
+            "16",
+            "-o",
+            output,
+        ];
+        args.extend(limit);
+        let out = common::prt_gpu(&args, dir.path());
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::fs::read(dir.path().join(output)).unwrap()
+    };
+    let limited = bake("limited.glb", &["--memory-limit", "1G"]);
+    assert!(limited == bake("whole.glb", &[]), "the files differ");
+}
+
 /// What a local-lights bake cannot run as is refused in one line before anything is read or
 /// written, saying why.
 #[test]
 fn a_local_bake_refuses_what_it_cannot_run_as() {
     for input in [
         common::BadInput {
-            case: "a memory limit",
+            case: "a memory limit below its need",
             file: None,
             args: &[
                 "bake",
                 "--mode",
                 "local",
                 "--memory-limit",
-                "2G",
+                "200M",
                 "-o",
                 "o.glb",
             ],
-            expect: "--memory-limit 2.0 GiB: a local-lights bake holds the example lights' \
-                     bounced light, its gather matrix and depth maps for every receiver at once",
+            expect: "--memory-limit 200.0 MiB: a local-lights bake of this mesh needs about",
         },
         common::BadInput {
             case: "a preview",

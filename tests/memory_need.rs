@@ -10,6 +10,7 @@ use std::path::Path;
 
 use common::counting::{self, Counting};
 use prt_gpu::bake::{CpuBackend, DirectSource, Fit, Mode, NoProgress};
+use prt_gpu::local::LocalOptions;
 use prt_gpu::spec::{BakeSpec, Compression, Layout as StoredLayout};
 use prt_gpu::{pipeline, scene};
 
@@ -19,6 +20,7 @@ static ALLOCATOR: Counting = Counting {
     refused: |_| {},
 };
 
+const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj");
 const DRAGON: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/tests/data/dragon_vrip_res3.ply.gz"
@@ -33,6 +35,8 @@ enum Run {
     PointsInRuns(usize),
     Streamed(usize),
     TexelsHeld(u64),
+    /// A local-lights spec: depth maps and an operator, held whole.
+    Local,
 }
 
 /// The bytes allocated at the peak of loading `mesh`, baking it as `spec` asks (as `run` says)
@@ -71,6 +75,15 @@ fn measured((spec, run): &(BakeSpec, Run), mesh: &str, dir: &Path) -> (u64, u64)
                 .unwrap();
             pipeline::write(spec, &baked, None, &path).unwrap();
             need.lightmap_held(columns)
+        }
+        Run::Local => {
+            let options = spec.local.as_ref().expect("a local-lights spec");
+            let need = pipeline::local_memory_need(options, planned.scene());
+            let baked = planned
+                .run(&CpuBackend, DirectSource::Compute, &NoProgress)
+                .unwrap();
+            pipeline::write(spec, &baked, None, &path).unwrap();
+            need
         }
         Run::Streamed(chunk) => {
             let sink = (path.as_path(), None);
@@ -165,9 +178,41 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
             ),
         ),
     ];
+    // Local lights: the bunny at the defaults, the dragon with a smaller operator and maps
+    // (at the defaults its depth maps' compression alone takes half a minute).
+    let local = |edit: &dyn Fn(&mut LocalOptions)| {
+        let mut options = LocalOptions::default();
+        edit(&mut options);
+        let mut spec = BakeSpec {
+            local: Some(options),
+            ..BakeSpec::default()
+        };
+        spec.transfer.mode = Mode::Local;
+        (spec, Run::Local)
+    };
+    let local_cases = [
+        ("local lights, bunny, defaults", local(&|_| {}), BUNNY),
+        (
+            "local lights, 64 samples, 64 lights, maps 8x8 in 16x8",
+            local(&|o| {
+                o.samples = 64;
+                o.example_lights = 64;
+                o.grid_side = 8;
+                o.depth_clusters = 16;
+                o.depth_components = 8;
+                o.operator.clusters = 32;
+                o.operator.components = 8;
+            }),
+            DRAGON,
+        ),
+    ];
+    let cases = cases
+        .into_iter()
+        .map(|(what, case)| (what, case, DRAGON))
+        .chain(local_cases);
     let mut failures = Vec::new();
-    for (what, case) in &cases {
-        let (peak, need) = measured(case, DRAGON, dir.path());
+    for (what, case, mesh) in cases {
+        let (peak, need) = measured(&case, mesh, dir.path());
         let ratio = need as f64 / peak as f64;
         eprintln!(
             "{what:<58} peak {:>8.1} MiB  estimate {:>8.1} MiB  estimate/peak {ratio:.2}",

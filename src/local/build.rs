@@ -16,7 +16,7 @@ use crate::error::Result;
 pub use crate::spec::OperatorShape;
 
 /// Columns sent through the bounces together (bounds the bake's memory).
-const COLUMNS_PER_BATCH: usize = 64;
+pub(crate) const COLUMNS_PER_BATCH: usize = 64;
 
 /// The linear operator the compressed form approximates: the gather matrix, the albedo and
 /// the bounce count.

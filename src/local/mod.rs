@@ -106,17 +106,46 @@ pub struct LocalInputs {
     pub frames: Vec<[Vec3; 3]>,
 }
 
+/// The options of the gather bake a local-lights bake starts with: cosine samples, one band,
+/// interreflected (its gather matrix is the sparse operator's).
+pub fn gather_options(options: &LocalOptions) -> BakeOptions {
+    BakeOptions {
+        bands: 1,
+        samples: options.samples,
+        sampling: Sampling::Cosine,
+        seed: options.seed,
+        mode: Mode::Interreflected,
+        ..BakeOptions::default()
+    }
+}
+
+/// The bytes a local-lights bake of `receivers` receivers holds at its peak beyond the gather
+/// bake's own (`bake::stream::MemoryNeed` of [`gather_options`]): per receiver, the operator's
+/// responses to each of its basis vectors, RGB, and while they are sparsified the kept ones'
+/// copy (counted as if all were kept), a batch of them in bounces (four buffers), the example
+/// and held-out lights' irradiance, the depth maps, their compressed rows and the tangent
+/// frames; and once, the compressed maps' bases. The responses dominate: 24 kB of the about
+/// 29 kB a receiver at the defaults.
+pub fn memory_need(receivers: u64, options: &LocalOptions) -> u64 {
+    let operator_clusters = (options.operator.clusters as u64).min(receivers).max(1);
+    let components = options.operator.components as u64;
+    let columns = 1 + operator_clusters * components;
+    let responses = 2 * 3 * 4 * columns;
+    let batch = 4 * 3 * 4 * build::COLUMNS_PER_BATCH as u64;
+    let lights = 4 * (options.example_lights + HELD_OUT_LIGHTS) as u64;
+    let cells = options.grid_side as u64 * options.grid_side as u64;
+    let depth_components = options.depth_components as u64;
+    let depth = 4 * cells + 4 * depth_components;
+    // The basis and its projection rows, the means, the frames.
+    let operator = 4 * 2 * components + 4 + 36;
+    let depth_clusters = (options.depth_clusters as u64).min(receivers).max(1);
+    let bases = 4 * depth_clusters * (depth_components + 1) * cells;
+    receivers * (responses + batch + lights + depth + operator) + bases
+}
+
 impl LocalInputs {
     pub fn new(scene: &Scene, options: &LocalOptions) -> Self {
-        let bake_options = BakeOptions {
-            bands: 1,
-            samples: options.samples,
-            sampling: Sampling::Cosine,
-            seed: options.seed,
-            mode: Mode::Interreflected,
-            ..BakeOptions::default()
-        };
-        let bake = BakeInputs::for_options(scene, &bake_options);
+        let bake = BakeInputs::for_options(scene, &gather_options(options));
         let frames = bake.normals.iter().map(|&n| tangent_frame(n)).collect();
         LocalInputs { bake, frames }
     }

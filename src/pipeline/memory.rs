@@ -6,6 +6,7 @@ use crate::bake;
 use crate::bake::stream::{format_bytes, MemoryNeed};
 use crate::compress;
 use crate::error::Error;
+use crate::local::{self, LocalOptions};
 use crate::probes;
 use crate::receivers::spread_point_count;
 use crate::scene::gltf::GltfScene;
@@ -41,8 +42,8 @@ pub fn plan_memory(
     limit: Option<u64>,
     available: Option<u64>,
 ) -> Result<MemoryPlan> {
-    if spec.local.is_some() {
-        return local_plan(limit);
+    if let Some(options) = &spec.local {
+        return local_plan(local_memory_need(options, scene), limit, available);
     }
     let Some(over) = over_budget(spec, (scene, gltf), limit, available) else {
         return Ok(MemoryPlan::default());
@@ -102,20 +103,37 @@ pub fn plan_memory(
 }
 
 /// A local-lights bake runs whole: it holds the example lights' bounced light, its gather
-/// matrix and depth maps for every receiver at once, so a limit is refused. (Measured under a
-/// counting allocator: 51 MB for the bunny's 1,839 receivers, 301 MB for the built-in
-/// interior's 13,118, 422 MB for dragon_vrip_res3's 22,982.) Nothing estimates its need, so
-/// without a limit it says nothing.
-fn local_plan(limit: Option<u64>) -> Result<MemoryPlan> {
+/// matrix and depth maps for every receiver at once. Over an explicit limit it is refused,
+/// saying what it needs; over the machine's available memory, a warning.
+fn local_plan(need: u64, limit: Option<u64>, available: Option<u64>) -> Result<MemoryPlan> {
+    let Some(budget) = limit.or(available).filter(|&budget| need > budget) else {
+        return Ok(MemoryPlan::default());
+    };
+    let why = "it holds the example lights' bounced light, its gather matrix and depth maps \
+               for every receiver at once, so it does not stream";
+    let (need, budget) = (format_bytes(need), format_bytes(budget));
     match limit {
-        Some(limit) => Err(Error::Options(format!(
-            "--memory-limit {}: a local-lights bake holds the example lights' bounced light, \
-             its gather matrix and depth maps for every receiver at once (about 20 kB a \
-             receiver at the defaults), so it does not stream; bake without a limit",
-            format_bytes(limit)
+        Some(_) => Err(Error::Options(format!(
+            "--memory-limit {budget}: a local-lights bake of this mesh needs about {need}, and \
+             {why}"
         ))),
-        None => Ok(MemoryPlan::default()),
+        None => Ok(MemoryPlan {
+            message: Some(format!(
+                "warning: this local-lights bake needs about {need}, more than the {budget} \
+                 this machine has available, and {why}"
+            )),
+            ..MemoryPlan::default()
+        }),
     }
+}
+
+/// The memory a local-lights bake of `scene` with `options` needs, estimated before it starts:
+/// the gather bake's inputs and matrix (`MemoryNeed` of `local::gather_options`), and what
+/// `local::memory_need` counts.
+pub fn local_memory_need(options: &LocalOptions, scene: &Scene) -> u64 {
+    let (vertices, triangles) = (scene.vertex_count(), scene.triangle_count());
+    let gather = MemoryNeed::estimate(vertices, triangles, &local::gather_options(options));
+    gather.whole() + local::memory_need(vertices as u64, options)
 }
 
 /// How a merge of a sharded bake (`prt-gpu merge`) fits `limit` or the machine's `available`

@@ -151,7 +151,7 @@ pub(crate) struct BakeArgs {
     /// least-squares fit's points in runs, or holds a lightmap's texels in a scratch file; one
     /// that cannot fit says so before it starts. Default: the memory this machine has
     /// available (when that is too little, a warning). A local-lights bake (`--mode local`)
-    /// refuses a limit: it holds every receiver at once.
+    /// holds every receiver at once: a limit below its need is refused.
     #[arg(long, value_name = "SIZE", value_parser = parse_size)]
     pub(crate) memory_limit: Option<u64>,
     /// Bake only shard I of N (counted from 0): a contiguous run of about 1/N of the receivers,

@@ -39,6 +39,35 @@ fn transfer_of(baked: &BakedMesh, v: usize) -> &[f32] {
     baked.transfer.vertex_channel(v, 0)
 }
 
+/// The norm of unoccluded transfer (the same for every normal): what errors are relative to.
+fn open_norm() -> f64 {
+    unshadowed_transfer(BANDS, glam::DVec3::Y)
+        .iter()
+        .map(|x| x * x)
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Which prepared vertices are open ground, which the slot's floor.
+fn open_and_slot(scene: &Scene) -> (Vec<usize>, Vec<usize>) {
+    let positions = &scene.positions;
+    let on_ground = |v: usize| positions[v].y.abs() < 1e-6;
+    let open = (0..positions.len())
+        .filter(|&v| on_ground(v) && positions[v].x < -0.5)
+        .collect();
+    let slot = (0..positions.len())
+        .filter(|&v| on_ground(v) && positions[v].x > 0.5 && positions[v].z.abs() < 0.2)
+        .collect();
+    (open, slot)
+}
+
+/// The median of the samples the receivers of `group` cast.
+fn median_samples(samples: &[u32], group: &[usize]) -> u32 {
+    let mut s: Vec<u32> = group.iter().map(|&v| samples[v]).collect();
+    s.sort_unstable();
+    s[s.len() / 2]
+}
+
 #[test]
 fn open_receivers_stop_early_and_every_receiver_meets_the_target() {
     let scene = open_and_slotted();
@@ -68,20 +97,8 @@ fn open_receivers_stop_early_and_every_receiver_meets_the_target() {
             ..BakeOptions::default()
         },
     );
-    // Which prepared vertices are open ground, which slot floor.
-    let open_norm: f64 = unshadowed_transfer(BANDS, glam::DVec3::Y)
-        .iter()
-        .map(|x| x * x)
-        .sum::<f64>()
-        .sqrt();
-    let positions = &adaptive.scene.positions;
-    let on_ground = |v: usize| positions[v].y.abs() < 1e-6;
-    let open: Vec<usize> = (0..positions.len())
-        .filter(|&v| on_ground(v) && positions[v].x < -0.5)
-        .collect();
-    let slot: Vec<usize> = (0..positions.len())
-        .filter(|&v| on_ground(v) && positions[v].x > 0.5 && positions[v].z.abs() < 0.2)
-        .collect();
+    let open_norm = open_norm();
+    let (open, slot) = open_and_slot(&adaptive.scene);
     assert!(
         open.len() > 20 && slot.len() > 3,
         "{} open, {} slot",
@@ -91,11 +108,7 @@ fn open_receivers_stop_early_and_every_receiver_meets_the_target() {
 
     // Far fewer rays under open sky than in the slot.
     let samples = &report.adaptive.as_ref().unwrap().per_receiver;
-    let median = |group: &[usize]| {
-        let mut s: Vec<u32> = group.iter().map(|&v| samples[v]).collect();
-        s.sort_unstable();
-        s[s.len() / 2]
-    };
+    let median = |group: &[usize]| median_samples(samples, group);
     eprintln!(
         "median samples: open {}, slot {}",
         median(&open),
@@ -258,25 +271,10 @@ fn an_interreflected_bake_to_an_error_target_meets_it() {
     )
     .unwrap()
     .0;
-    let open_norm: f64 = unshadowed_transfer(BANDS, glam::DVec3::Y)
-        .iter()
-        .map(|x| x * x)
-        .sum::<f64>()
-        .sqrt();
-    let positions = &adaptive.scene.positions;
-    let on_ground = |v: usize| positions[v].y.abs() < 1e-6;
-    let open: Vec<usize> = (0..positions.len())
-        .filter(|&v| on_ground(v) && positions[v].x < -0.5)
-        .collect();
-    let slot: Vec<usize> = (0..positions.len())
-        .filter(|&v| on_ground(v) && positions[v].x > 0.5 && positions[v].z.abs() < 0.2)
-        .collect();
+    let open_norm = open_norm();
+    let (open, slot) = open_and_slot(&adaptive.scene);
     let samples = &report.adaptive.as_ref().unwrap().per_receiver;
-    let median = |group: &[usize]| {
-        let mut s: Vec<u32> = group.iter().map(|&v| samples[v]).collect();
-        s.sort_unstable();
-        s[s.len() / 2]
-    };
+    let median = |group: &[usize]| median_samples(samples, group);
     eprintln!(
         "median samples: open {}, slot {}",
         median(&open),

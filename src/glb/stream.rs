@@ -276,23 +276,12 @@ pub fn bake_streamed(
 ) -> Result<StreamedWrite> {
     let started = Instant::now();
     let receivers = bake.receivers();
-    let (mut interreflected, mut metadata) = begin(bake, backend, chunk, progress)?;
-    // An interreflected bake's direct pass is done: its receivers' samples and errors with it.
-    let adaptive = interreflected
-        .as_mut()
-        .and_then(|baked| baked.adaptive.take());
+    let (interreflected, mut metadata) = begin(bake, backend, chunk, progress)?;
     let ranges: Vec<Range<usize>> = (0..receivers)
         .step_by(chunk)
         .map(|first| first..(first + chunk).min(receivers))
         .collect();
-    let mut source = ChunkSource {
-        bake,
-        backend,
-        progress,
-        interreflected,
-        rays_cast: 0,
-        adaptive: adaptive.unwrap_or_default(),
-    };
+    let mut source = ChunkSource::new(bake, (backend, progress), interreflected);
     let target = bake.target_error();
     // --bands auto: the bands are known once every chunk is baked, and the file's layout
     // depends on them; an error target: the file records the mean samples of all receivers;
@@ -459,7 +448,27 @@ struct ChunkSource<'b> {
     adaptive: ReceiverErrors,
 }
 
-impl ChunkSource<'_> {
+impl<'b> ChunkSource<'b> {
+    /// Chunks of `bake` baked on `backend`, or read from its `interreflected` scratch file,
+    /// whose direct pass is done: its receivers' samples and errors with it.
+    fn new(
+        bake: &'b StreamedBake,
+        (backend, progress): (&'b dyn Backend, &'b dyn Progress),
+        mut interreflected: Option<Interreflected>,
+    ) -> Self {
+        let adaptive = interreflected
+            .as_mut()
+            .and_then(|baked| baked.adaptive.take());
+        ChunkSource {
+            bake,
+            backend,
+            progress,
+            interreflected,
+            rays_cast: 0,
+            adaptive: adaptive.unwrap_or_default(),
+        }
+    }
+
     /// The transfer of the receivers `range`, `channels` of it.
     fn next(&mut self, range: Range<usize>, channels: u32) -> Result<Transfer> {
         match &mut self.interreflected {

@@ -1,7 +1,8 @@
 //! `prt-gpu bake`: one mesh or a batch, for distant light or lights inside the scene. Arguments
-//! become a spec ([`bake_spec`]), the pipeline bakes it ([`bake_one`]), the report is printed: the arguments in
-//! `args.rs`, the spec they ask for in `spec_args.rs`, the device in `backend.rs`, the files
-//! read and written in `files.rs`, the printed lines in `report.rs`, batches in `batch.rs`.
+//! become a spec ([`bake_spec`]), the pipeline bakes it ([`bake_one`]), the report is printed:
+//! the arguments in `args.rs`, the spec they ask for in `spec_args.rs`, the device in
+//! `backend.rs`, the files read and written in `files.rs`, the printed lines in `report.rs`,
+//! batches in `batch.rs`.
 
 use std::path::{Path, PathBuf};
 

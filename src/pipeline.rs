@@ -123,7 +123,7 @@ fn bake_local(
     source: DirectSource,
     progress: &dyn Progress,
 ) -> Result<Bake> {
-    if let DirectSource::Given { .. } = source {
+    if let DirectSource::Given(_) = source {
         return Err(Error::Options(
             "a local-lights bake computes its own light; a merged direct pass is SH transfer"
                 .into(),
@@ -303,17 +303,18 @@ impl Planned<'_> {
     /// Bakes it streamed to `path` in chunks of `chunk` receivers (a plan of [`plan_memory`]),
     /// `gltf` written in place where the container is the scene: the file equals the whole
     /// bake's, byte for byte, and so does what storing it as half floats costs. With
-    /// `preview`, the radiance the preview draws is summed chunk by chunk.
+    /// `preview`, the radiance the preview draws is summed chunk by chunk. The direct pass comes
+    /// from `source`: cast on `backend`, or given (a merge's parts), read a chunk at a time.
     pub fn run_streamed(
         self,
-        backend: &dyn Backend,
+        (backend, source): (&dyn Backend, DirectSource),
         chunk: usize,
         (path, gltf): (&Path, Option<&GltfScene>),
         preview: bool,
         progress: &dyn Progress,
     ) -> Result<Streamed> {
         check_container(self.spec, gltf)?;
-        let streamed = bake::stream::StreamedBake::plan(self.scene, &self.spec.options())?;
+        let streamed = streamed_bake(self.scene, self.spec, source)?;
         let precision = self.spec.storage.precision;
         // Compressed, what half floats cost is in the compression's errors.
         let tally_half_floats = precision == Precision::F16 && self.spec.compression().is_none();
@@ -402,6 +403,19 @@ impl Planned<'_> {
             compressed,
             notes,
         })
+    }
+}
+
+/// The streamed bake of `scene` as `spec` asks, its direct pass from `source`.
+fn streamed_bake(
+    scene: Scene,
+    spec: &BakeSpec,
+    source: DirectSource,
+) -> Result<bake::stream::StreamedBake> {
+    let streamed = bake::stream::StreamedBake::plan(scene, &spec.options())?;
+    match source {
+        DirectSource::Compute => Ok(streamed),
+        DirectSource::Given(given) => streamed.with_given(given),
     }
 }
 

@@ -3,8 +3,9 @@
 //! A shard (`prt-gpu bake … --shard I/N`) bakes the direct pass of a contiguous run of the
 //! receivers ([`crate::bake::Shard`]) and writes it as a part; `prt-gpu merge` checks that the
 //! parts belong together and that each shard is there exactly once, and joins them into the
-//! direct pass an unsharded bake would have computed, bit for bit. Bounces, fits and
-//! lightmaps need every receiver and run in the merge.
+//! direct pass an unsharded bake would have computed, bit for bit: whole, or a run of
+//! receivers at a time for a streamed merge ([`PartSet`], a part read at a time). Bounces, fits
+//! and lightmaps need every receiver and run in the merge.
 //!
 //! Layout (little-endian): the 8 bytes `prtpart1`; a u32 `L`; `L` bytes of JSON
 //! ([`PartHeader`], padded with spaces to a multiple of 4); then `f32 scalar[receivers ×
@@ -243,41 +244,69 @@ fn part_sizes(header: &PartHeader) -> Option<PartSizes> {
     })
 }
 
-/// Reads a part file written by [`write_part`], checking that its sizes add up.
-pub fn read_part(path: &Path) -> Result<Part> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+/// A part's header from the first bytes of its file (`start`: the signature, the header's
+/// length and at least that much JSON), checked against the file's `file_len` bytes: its
+/// sizes, and where its data begins.
+fn header_of(path: &Path, start: &[u8], file_len: u64) -> Result<(PartHeader, PartSizes, usize)> {
     let broken = |why: &str| Error::io(path, std::io::Error::other(format!("not a part: {why}")));
-    if bytes.len() < 12 || &bytes[..8] != MAGIC {
+    if start.len() < 12 || &start[..8] != MAGIC {
         return Err(broken(
             "no prtpart1 signature (not written by prt-gpu bake --shard)",
         ));
     }
-    let json_len = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes")) as usize;
-    let json = bytes
+    let json_len = u32::from_le_bytes(start[8..12].try_into().expect("4 bytes")) as usize;
+    let json = start
         .get(12..12 + json_len)
         .ok_or_else(|| broken("truncated header"))?;
     let header: PartHeader = serde_json::from_slice(json).map_err(|e| {
         // serde names an unknown field as the file spells it: escape what it echoes.
         broken(&crate::error::printable(&format!("header: {e}")))
     })?;
-    let body = &bytes[12 + json_len..];
+    let body_len = file_len - (12 + json_len) as u64;
     // Sizes from the header, checked against the data before anything is read or reserved.
-    let sizes = part_sizes(&header).filter(|s| s.bytes == body.len() as u64);
-    let Some(PartSizes {
+    match part_sizes(&header).filter(|s| s.bytes == body_len) {
+        Some(sizes) => Ok((header, sizes, 12 + json_len)),
+        None => Err(broken(&format!(
+            "{body_len} bytes of data where its header says {}",
+            part_sizes(&header)
+                .map_or("more than can be addressed".into(), |s| s.bytes.to_string())
+        ))),
+    }
+}
+
+/// A part file's header, read without its data: its signature, its JSON and the data's size
+/// checked, not its checksum ([`read_part`] checks that as it reads the data).
+pub fn read_part_header(path: &Path) -> Result<PartHeader> {
+    use std::io::Read;
+    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut start = vec![0u8; 12.min(file_len as usize)];
+    file.read_exact(&mut start)
+        .map_err(|e| Error::io(path, e))?;
+    if let Some(len) = start.get(8..12) {
+        let json_len = u32::from_le_bytes(len.try_into().expect("4 bytes")) as u64;
+        // No more than the file holds, however long the header says it is.
+        let more = json_len.min(file_len - 12) as usize;
+        start.resize(12 + more, 0);
+        file.read_exact(&mut start[12..])
+            .map_err(|e| Error::io(path, e))?;
+    }
+    header_of(path, &start, file_len).map(|(header, _, _)| header)
+}
+
+/// Reads a part file written by [`write_part`], checking that its sizes add up.
+pub fn read_part(path: &Path) -> Result<Part> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let (header, sizes, header_len) = header_of(path, &bytes, bytes.len() as u64)?;
+    let PartSizes {
         receivers,
         values,
         offsets,
         entries,
         ..
-    }) = sizes
-    else {
-        return Err(broken(&format!(
-            "{} bytes of data where its header says {}",
-            body.len(),
-            part_sizes(&header)
-                .map_or("more than can be addressed".into(), |s| s.bytes.to_string())
-        )));
-    };
+    } = sizes;
+    let broken = |why: &str| Error::io(path, std::io::Error::other(format!("not a part: {why}")));
+    let body = &bytes[header_len..];
     let words_before_adaptive = values + offsets + 2 * entries;
     if payload_hash(body) != header.payload_fnv1a {
         return Err(broken(
@@ -359,22 +388,22 @@ fn check_gather_rows(
 /// commands that differ in more than the shard and the part's own output, or in different
 /// directories: the merge finishes the bake as the first part's command says, and the others'
 /// differences (a `--memory-limit`, a mesh path spelled otherwise) are not applied.
-pub fn command_differences(parts: &[(PathBuf, Part)]) -> Option<String> {
+fn command_differences(parts: &[(PathBuf, PartHeader)]) -> Option<String> {
     let (first_path, first) = parts.first()?;
-    let first_command = bake_command(&first.header.command);
-    parts[1..].iter().find_map(|(path, part)| {
-        let command = bake_command(&part.header.command);
-        let differs = command != first_command || part.header.directory != first.header.directory;
+    let first_command = bake_command(&first.command);
+    parts[1..].iter().find_map(|(path, header)| {
+        let command = bake_command(&header.command);
+        let differs = command != first_command || header.directory != first.directory;
         differs.then(|| {
             format!(
                 "{} was baked by `{}` in {} and {} by `{}` in {}; the merge finishes the bake as \
                  the first says",
                 first_path.display(),
                 first_command.join(" "),
-                first.header.directory.display(),
+                first.directory.display(),
                 path.display(),
                 command.join(" "),
-                part.header.directory.display(),
+                header.directory.display(),
             )
         })
     })
@@ -403,18 +432,17 @@ fn first_non_finite<'a>(values: impl IntoIterator<Item = &'a f32>, what: &str) -
     Some(format!("{what} {i}"))
 }
 
-/// The direct pass of the whole bake from its parts, in any order, and the header of the
-/// first (whose command the merge bakes the rest with). Refuses, naming the files, parts of
-/// different bakes, a shard given twice, a shard missing, and parts whose runs of receivers
-/// do not tile the whole.
-pub fn assemble(mut parts: Vec<(PathBuf, Part)>) -> Result<(PartHeader, DirectPass)> {
+/// Checks that `parts` are one bake's, each shard once, their runs of receivers tiling the
+/// whole; returns the first's header and the parts sorted by shard.
+fn check_set(
+    mut parts: Vec<(PathBuf, PartHeader)>,
+) -> Result<(PartHeader, Vec<(PathBuf, PartHeader)>)> {
     let refuse = |message: String| Err(Error::Merge(message));
     let Some((first_path, first)) = parts.first() else {
         return refuse("merge needs at least one part".into());
     };
-    let (first_path, first) = (first_path.clone(), first.header.clone());
-    for (path, part) in &parts {
-        let h = &part.header;
+    let (first_path, first) = (first_path.clone(), first.clone());
+    for (path, h) in &parts {
         if h.fingerprint != first.fingerprint || h.shard_count != first.shard_count {
             return refuse(format!(
                 "{} and {} are parts of different bakes (mesh, options, seed or shard count differ)",
@@ -432,19 +460,19 @@ pub fn assemble(mut parts: Vec<(PathBuf, Part)>) -> Result<(PartHeader, DirectPa
             ));
         }
     }
-    parts.sort_by_key(|(_, part)| part.header.shard_index);
+    parts.sort_by_key(|(_, h)| h.shard_index);
     for pair in parts.windows(2) {
-        if pair[0].1.header.shard_index == pair[1].1.header.shard_index {
+        if pair[0].1.shard_index == pair[1].1.shard_index {
             return refuse(format!(
                 "shard {}/{} is given twice: {} and {}",
-                pair[0].1.header.shard_index,
+                pair[0].1.shard_index,
                 first.shard_count,
                 pair[0].0.display(),
                 pair[1].0.display()
             ));
         }
     }
-    let present: Vec<u32> = parts.iter().map(|(_, p)| p.header.shard_index).collect();
+    let present: Vec<u32> = parts.iter().map(|(_, h)| h.shard_index).collect();
     if let Some(missing) = (0..first.shard_count).find(|i| !present.contains(i)) {
         return refuse(format!(
             "shard {missing}/{} is missing ({} of {} parts given)",
@@ -453,56 +481,194 @@ pub fn assemble(mut parts: Vec<(PathBuf, Part)>) -> Result<(PartHeader, DirectPa
             first.shard_count
         ));
     }
-    join(parts, first)
-}
-
-/// Concatenates parts sorted by shard, checking their runs of receivers tile the whole.
-fn join(parts: Vec<(PathBuf, Part)>, first: PartHeader) -> Result<(PartHeader, DirectPass)> {
-    let interreflected = first.gather_entries.is_some();
-    let mut scalar = Vec::new();
-    let mut matrix = interreflected.then(|| GatherMatrix {
-        row_offsets: vec![0],
-        ..GatherMatrix::default()
-    });
-    let mut adaptive = first.adaptive.then(ReceiverErrors::default);
     let mut next_receiver = 0;
-    let mut rays_cast = 0;
-    for (path, part) in parts {
-        let h = &part.header;
+    for (path, h) in &parts {
         if h.first_receiver != next_receiver || h.receivers_total != first.receivers_total {
-            return Err(Error::Merge(format!(
+            return refuse(format!(
                 "{} holds receivers {}.. where {next_receiver}.. were expected",
                 path.display(),
                 h.first_receiver
-            )));
+            ));
         }
         next_receiver += h.receivers;
-        rays_cast += h.rays_cast;
-        scalar.extend(part.direct.scalar);
-        if let (Some(all), Some(rows)) = (&mut matrix, part.direct.matrix) {
+    }
+    if next_receiver != first.receivers_total {
+        return refuse(format!(
+            "the parts hold {next_receiver} of {} receivers",
+            first.receivers_total
+        ));
+    }
+    Ok((first, parts))
+}
+
+/// Direct passes of consecutive runs of receivers, joined in order.
+struct Joined(DirectPass);
+
+impl Joined {
+    /// Nothing yet, of a bake whose parts look like `header`'s, with room for `receivers`
+    /// receivers of `values` values and `entries` gather entries in all: joined without
+    /// growing (a grown vector briefly takes its old and its new room).
+    fn with_room(
+        header: &PartHeader,
+        (receivers, values, entries): (usize, usize, usize),
+    ) -> Joined {
+        let mut row_offsets = Vec::with_capacity(receivers + 1);
+        row_offsets.push(0);
+        Joined(DirectPass {
+            scalar: Vec::with_capacity(values),
+            matrix: header.gather_entries.map(|_| GatherMatrix {
+                row_offsets,
+                columns: Vec::with_capacity(entries),
+                weights: Vec::with_capacity(entries),
+            }),
+            rays_cast: 0,
+            adaptive: header.adaptive.then(|| ReceiverErrors {
+                samples: Vec::with_capacity(receivers),
+                errors: Vec::with_capacity(receivers),
+            }),
+        })
+    }
+
+    fn append(&mut self, next: DirectPass) {
+        let all = &mut self.0;
+        all.rays_cast += next.rays_cast;
+        all.scalar.extend(next.scalar);
+        if let (Some(all), Some(rows)) = (&mut all.matrix, next.matrix) {
             let base = all.columns.len() as u32;
             all.row_offsets
                 .extend(rows.row_offsets[1..].iter().map(|o| o + base));
             all.columns.extend(rows.columns);
             all.weights.extend(rows.weights);
         }
-        if let (Some(all), Some(receivers)) = (&mut adaptive, part.direct.adaptive) {
+        if let (Some(all), Some(receivers)) = (&mut all.adaptive, next.adaptive) {
             all.extend(receivers);
         }
     }
-    if next_receiver != first.receivers_total {
-        return Err(Error::Merge(format!(
-            "the parts hold {next_receiver} of {} receivers",
-            first.receivers_total
-        )));
+}
+
+/// The parts of a sharded bake, checked, held as their headers: each part's data is read
+/// whole (its checksum is of the whole) when its receivers are needed, so a merge holds one
+/// part at a time beside what it joins or streams.
+pub struct PartSet {
+    first: PartHeader,
+    /// The parts' files and headers, by shard.
+    parts: Vec<(PathBuf, PartHeader)>,
+    /// And in the order given.
+    given: Vec<(PathBuf, PartHeader)>,
+    /// The part read last and its direct pass, for the chunks that follow in it.
+    last: std::sync::Mutex<Option<(usize, DirectPass)>>,
+}
+
+impl PartSet {
+    /// Reads each part's header (its data's size checked, its checksum when the data is read)
+    /// and checks the set: refuses, naming the files, parts of different bakes, a shard given
+    /// twice, a shard missing, and parts whose runs of receivers do not tile the whole.
+    pub fn read(paths: &[PathBuf]) -> Result<PartSet> {
+        let headers = paths
+            .iter()
+            .map(|path| Ok((path.clone(), read_part_header(path)?)))
+            .collect::<Result<Vec<_>>>()?;
+        let (first, parts) = check_set(headers.clone())?;
+        Ok(PartSet {
+            first,
+            parts,
+            given: headers,
+            last: std::sync::Mutex::new(None),
+        })
     }
-    let direct = DirectPass {
-        scalar,
-        matrix,
-        rays_cast,
-        adaptive,
-    };
-    Ok((first, direct))
+
+    /// The header of the first part given: the merge bakes the rest as its command says.
+    pub fn header(&self) -> &PartHeader {
+        &self.first
+    }
+
+    /// The bytes the largest part takes while it is read: its file and its direct pass.
+    pub fn largest_part_bytes(&self) -> u64 {
+        let bytes = |h: &PartHeader| part_sizes(h).map_or(0, |sizes| sizes.bytes);
+        2 * self.parts.iter().map(|(_, h)| bytes(h)).max().unwrap_or(0)
+    }
+
+    /// What to tell the user when these parts were baked by commands that differ (see
+    /// [`command_differences`]), in the order given.
+    pub fn command_differences(&self) -> Option<String> {
+        command_differences(&self.given)
+    }
+
+    /// The direct pass of part `k`, sliced to its receivers `local` (counted in the part): all
+    /// of it, given up by the cache or read and not kept; or a slice, the part kept for the
+    /// chunks that follow in it.
+    fn piece(&self, k: usize, local: std::ops::Range<usize>) -> Result<DirectPass> {
+        let mut last = self.last.lock().expect("no reader panics holding the part");
+        let cached = last.as_ref().is_some_and(|(read, _)| *read == k);
+        let header = &self.parts[k].1;
+        if !cached {
+            // Let go of the part before, before the next is read.
+            *last = None;
+        }
+        if local == (0..header.receivers as usize) {
+            return match cached {
+                true => Ok(last.take().expect("cached").1),
+                false => self.read_checked(k),
+            };
+        }
+        if !cached {
+            *last = Some((k, self.read_checked(k)?));
+        }
+        let (_, direct) = last.as_ref().expect("read above");
+        // The part's rays go with its first receiver's chunk.
+        let rays = local.start == 0;
+        Ok(direct.slice(local, header.coeffs as usize, rays))
+    }
+
+    /// Part `k`'s direct pass, read again and checked to be the part checked before.
+    fn read_checked(&self, k: usize) -> Result<DirectPass> {
+        let (path, header) = &self.parts[k];
+        let part = read_part(path)?;
+        if part.header != *header {
+            return Err(Error::Merge(format!(
+                "{} changed since the merge checked it",
+                path.display()
+            )));
+        }
+        Ok(part.direct)
+    }
+}
+
+impl crate::bake::GivenDirect for PartSet {
+    fn receivers(&self) -> usize {
+        self.first.receivers_total as usize
+    }
+
+    fn direct(&self, range: std::ops::Range<usize>) -> Result<DirectPass> {
+        // Each overlapping part's run of `range`, counted in the part.
+        let runs: Vec<(usize, std::ops::Range<usize>)> = (self.parts.iter().enumerate())
+            .filter_map(|(k, (_, h))| {
+                let start = h.first_receiver as usize;
+                let end = start + h.receivers as usize;
+                let (from, to) = (range.start.max(start), range.end.min(end));
+                (from < to).then(|| (k, from - start..to - start))
+            })
+            .collect();
+        let values = runs
+            .iter()
+            .map(|(k, run)| run.len() * self.parts[*k].1.coeffs as usize)
+            .sum();
+        // A whole part's entries; a run's share of a part is not known before it is read.
+        let entries = runs
+            .iter()
+            .filter(|(k, run)| run.len() as u64 == self.parts[*k].1.receivers)
+            .map(|(k, _)| self.parts[*k].1.gather_entries.unwrap_or(0) as usize)
+            .sum();
+        let mut joined = Joined::with_room(&self.first, (range.len(), values, entries));
+        for (k, run) in runs {
+            joined.append(self.piece(k, run)?);
+        }
+        Ok(joined.0)
+    }
+
+    fn ran_on(&self) -> String {
+        self.first.backend.clone()
+    }
 }
 
 /// A fingerprint of `scene` as loaded and of `options` (any text that determines the output

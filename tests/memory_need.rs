@@ -37,11 +37,43 @@ enum Run {
     TexelsHeld(u64),
     /// A local-lights spec: depth maps and an operator, held whole.
     Local,
+    /// A merge of this many shards (their parts written before the measurement starts),
+    /// streamed in chunks of this many vertices.
+    MergeStreamed(u32, usize),
+}
+
+/// The parts of the bake of `mesh` as `spec` asks in `shards` shards, written to `dir`.
+fn write_parts(spec: &BakeSpec, mesh: &str, shards: u32, dir: &Path) -> Vec<std::path::PathBuf> {
+    let options = spec.options();
+    (0..shards)
+        .map(|index| {
+            let scene = scene::load(Path::new(mesh)).unwrap();
+            let fingerprint = prt_gpu::shard::fingerprint(&scene, &spec.fingerprint_text());
+            let shard = prt_gpu::bake::Shard::new(index, shards).unwrap();
+            let pass = prt_gpu::bake::bake_shard(scene, &options, &CpuBackend, shard, &NoProgress)
+                .unwrap();
+            let what = (spec.clone(), Some(Path::new(mesh).to_path_buf()));
+            let part = prt_gpu::shard::Part::new(
+                pass,
+                (index, shards),
+                what,
+                fingerprint,
+                (Vec::new(), dir.to_path_buf()),
+            );
+            let path = dir.join(format!("part{index}.part"));
+            prt_gpu::shard::write_part(&path, &part).unwrap();
+            path
+        })
+        .collect()
 }
 
 /// The bytes allocated at the peak of loading `mesh`, baking it as `spec` asks (as `run` says)
 /// and writing it, beyond what was live before; and the estimate the bake plans by.
 fn measured((spec, run): &(BakeSpec, Run), mesh: &str, dir: &Path) -> (u64, u64) {
+    let parts = match *run {
+        Run::MergeStreamed(shards, _) => write_parts(spec, mesh, shards, dir),
+        _ => Vec::new(),
+    };
     let before = counting::start();
     let scene = scene::load(Path::new(mesh)).unwrap();
     let planned = pipeline::plan(spec, scene, None).unwrap();
@@ -85,10 +117,26 @@ fn measured((spec, run): &(BakeSpec, Run), mesh: &str, dir: &Path) -> (u64, u64)
             pipeline::write(spec, &baked, None, &path).unwrap();
             need
         }
+        Run::MergeStreamed(_, chunk) => {
+            let parts = prt_gpu::shard::PartSet::read(&parts).unwrap();
+            let need = need.with_merge_part(parts.largest_part_bytes());
+            let sink = (path.as_path(), None);
+            let source = DirectSource::Given(Box::new(parts));
+            planned
+                .run_streamed((&CpuBackend, source), chunk, sink, false, &NoProgress)
+                .unwrap();
+            need.streamed(chunk)
+        }
         Run::Streamed(chunk) => {
             let sink = (path.as_path(), None);
             planned
-                .run_streamed(&CpuBackend, chunk, sink, false, &NoProgress)
+                .run_streamed(
+                    (&CpuBackend, DirectSource::Compute),
+                    chunk,
+                    sink,
+                    false,
+                    &NoProgress,
+                )
                 .unwrap();
             need.streamed(chunk)
         }
@@ -129,6 +177,10 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
         (
             "compressed, streamed in chunks of 2,000",
             (spec(&compressed), Run::Streamed(2000)),
+        ),
+        (
+            "interreflected, 3 parts merged in chunks of 2,000",
+            (spec(&interreflected), Run::MergeStreamed(3, 2000)),
         ),
         (
             "least squares, shadowed",

@@ -120,12 +120,19 @@ fn merge_runs_the_rest_of_the_bake_as_the_whole_bake_does() {
     }
 }
 
+/// The parts of a merge in `dir` (`shard0.part`, …), read as the merge reads them.
+fn part_set(dir: &Path, count: u32) -> prt_gpu::shard::PartSet {
+    let paths: Vec<PathBuf> = (0..count)
+        .map(|i| dir.join(format!("shard{i}.part")))
+        .collect();
+    prt_gpu::shard::PartSet::read(&paths).unwrap()
+}
+
 /// A merge under `--memory-limit` holds its lightmap's texels in a scratch file, as the whole
-/// bake does under the same limit: the same .glb and lightmap bytes as the merge without one.
-/// A merge without a lightmap, whose vertices are joined whole, refuses a limit below its need
-/// in one line and writes nothing.
+/// bake does under the same limit (its largest part read beside them): the same .glb and
+/// lightmap bytes as the merge without one.
 #[test]
-fn a_merge_under_a_memory_limit_holds_its_lightmap_and_refuses_what_cannot_shrink() {
+fn a_merge_under_a_memory_limit_holds_its_lightmap() {
     use prt_gpu::bake::stream::MemoryNeed;
     use prt_gpu::bake::BakeOptions;
     let dir = tempfile::tempdir().unwrap();
@@ -139,7 +146,8 @@ fn a_merge_under_a_memory_limit_holds_its_lightmap_and_refuses_what_cannot_shrin
     };
     let scene = prt_gpu::scene::load(Path::new(BUNNY)).unwrap();
     let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
-        .with_lightmap(96, &options);
+        .with_lightmap(96, &options)
+        .with_merge_part(part_set(d, 3).largest_part_bytes());
     let limit = need.lightmap_held(4).to_string();
     std::fs::create_dir_all(d.join("held")).unwrap();
     let args = [
@@ -161,11 +169,78 @@ fn a_merge_under_a_memory_limit_holds_its_lightmap_and_refuses_what_cannot_shrin
     );
     assert!(std::fs::read(d.join("held/merged.glb")).unwrap() == merged);
     assert!(std::fs::read(d.join("held/merged.lightmap.exr")).unwrap() == exr);
+}
 
-    // Without a lightmap, nothing of a merge shrinks.
-    let plain = tempfile::tempdir().unwrap();
-    let p = plain.path();
-    let (_, _) = whole_and_merged(Some(BUNNY), &extra[..4], 2, p);
+/// A merge at the vertices under a limit below its whole need streams: its parts are read one
+/// at a time and the file is written in chunks, byte for byte the whole bake's (shadowed,
+/// interreflected to an error target, lean with the bands chosen, compressed). A least-squares
+/// fit's merge, whose solve needs every point's direct pass at once, refuses such a limit in
+/// one line and writes nothing.
+#[test]
+fn a_merge_under_a_memory_limit_streams_its_parts() {
+    let cases: [&[&str]; 4] = [
+        &[],
+        &[
+            "--mode",
+            "interreflected",
+            "--target-error",
+            "0.05",
+            "--max-samples",
+            "1024",
+        ],
+        &["--bands", "auto", "--storage", "lean"],
+        &["--compress", "8x4"],
+    ];
+    let scene = prt_gpu::scene::load(Path::new(BUNNY)).unwrap();
+    for extra in cases {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let mut args = vec!["--device", "cpu", "--samples", "64"];
+        args.extend(extra);
+        let (whole, _) = whole_and_merged(Some(BUNNY), &args, 3, d);
+        let parts = part_set(d, 3);
+        let need = prt_gpu::pipeline::memory_need(&parts.header().spec, (&scene, None))
+            .with_merge_part(parts.largest_part_bytes());
+        let limit = need.streamed(600);
+        assert!(
+            limit < need.whole(),
+            "{extra:?}: the limit must be below the whole need"
+        );
+        let limit = limit.to_string();
+        let merge = [
+            "merge",
+            "shard1.part",
+            "shard0.part",
+            "shard2.part",
+            "-o",
+            "streamed.glb",
+            "--memory-limit",
+            &limit,
+        ];
+        let out = prt_gpu(&merge, d);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{extra:?}: {stderr}");
+        assert!(
+            stderr.contains("streaming the merge in chunks of"),
+            "{extra:?}: {stderr}"
+        );
+        assert!(
+            std::fs::read(d.join("streamed.glb")).unwrap() == whole,
+            "{extra:?}: the streamed merge differs from the whole bake"
+        );
+    }
+
+    let fitted = tempfile::tempdir().unwrap();
+    let p = fitted.path();
+    let extra = [
+        "--device",
+        "cpu",
+        "--samples",
+        "16",
+        "--fit",
+        "least-squares",
+    ];
+    whole_and_merged(Some(BUNNY), &extra, 2, p);
     let out = prt_gpu(
         &[
             "merge",
@@ -182,7 +257,7 @@ fn a_merge_under_a_memory_limit_holds_its_lightmap_and_refuses_what_cannot_shrin
     assert!(!out.status.success(), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
     assert!(
-        stderr.contains("joins every vertex's direct pass"),
+        stderr.contains("a least-squares fit's solve needs every point's direct pass"),
         "{stderr}"
     );
     assert!(!p.join("small.glb").exists());

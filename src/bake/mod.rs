@@ -111,9 +111,9 @@ fn lightmap_atlas(
 pub enum DirectSource {
     /// Computed here, on the bake's backend.
     Compute,
-    /// Already computed (by the shards of a sharded bake, merged), on the backend `ran_on`
-    /// describes: the rest of the bake (fit, bounces, lightmap) runs here.
-    Given { direct: DirectPass, ran_on: String },
+    /// Already computed (by the shards of a sharded bake, merged), on the backend its
+    /// `ran_on` describes: the rest of the bake (fit, bounces, lightmap) runs here.
+    Given(Box<dyn GivenDirect>),
 }
 
 /// What every bake does before its direct pass: the prepared scene, its receivers, and what
@@ -294,24 +294,29 @@ fn direct_pass(
             let direct = direct_or_adaptive(&planned.inputs, all, options, backend, progress)?;
             Ok((direct, backend.describe()))
         }
-        DirectSource::Given { direct, ran_on } => {
-            check_given(&direct, &planned.receivers, options)?;
-            Ok((direct, ran_on))
+        DirectSource::Given(given) => {
+            let direct = given.direct(0..given.receivers())?;
+            check_given(&direct, planned.receivers.len(), options)?;
+            Ok((direct, given.ran_on()))
         }
     }
 }
 
-/// Refuses a given direct pass that is not one of these receivers' (wrong count, or no
+/// Refuses a given direct pass that is not one of `receivers` receivers' (wrong count, or no
 /// gather matrix for interreflection).
-fn check_given(direct: &DirectPass, receivers: &Receivers, options: &BakeOptions) -> Result<()> {
-    let expected = receivers.len() * coeff_count(options.bands);
+pub(super) fn check_given(
+    direct: &DirectPass,
+    receivers: usize,
+    options: &BakeOptions,
+) -> Result<()> {
+    let expected = receivers * coeff_count(options.bands);
     let rows_fit = match (&direct.matrix, options.mode) {
-        (Some(matrix), Mode::Interreflected) => matrix.rows() == receivers.len(),
+        (Some(matrix), Mode::Interreflected) => matrix.rows() == receivers,
         (None, Mode::Interreflected) => false,
         (_, _) => true,
     };
     let adaptive_fits = match (&direct.adaptive, options.target_error) {
-        (Some(receivers_of), Some(_)) => receivers_of.len() == receivers.len(),
+        (Some(receivers_of), Some(_)) => receivers_of.len() == receivers,
         (None, None) => true,
         _ => false,
     };
@@ -329,14 +334,14 @@ fn check_given(direct: &DirectPass, receivers: &Receivers, options: &BakeOptions
             } else {
                 "would not give"
             },
-            receivers.len()
+            receivers
         )));
     }
     if direct.scalar.len() != expected || !rows_fit {
         return Err(Error::Options(format!(
             "the given direct pass holds {} values for {} receivers of {} coefficients",
             direct.scalar.len(),
-            receivers.len(),
+            receivers,
             coeff_count(options.bands)
         )));
     }

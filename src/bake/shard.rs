@@ -40,7 +40,7 @@ pub struct ShardPass {
 
 /// The direct pass of `shard`'s receivers of the bake of `scene` with `options`: everything a
 /// shard computes. Bounces, fits and lightmaps need every receiver and run where the shards
-/// are merged ([`bake_from`] with [`DirectSource::Given`]).
+/// are merged ([`bake_from`] with [`DirectSource::Given`], a [`GivenDirect`]).
 pub fn bake_shard(
     scene: Scene,
     options: &BakeOptions,
@@ -58,4 +58,47 @@ pub fn bake_shard(
         direct,
         ran_on: backend.describe(),
     })
+}
+
+/// A direct pass computed elsewhere (by the shards of a sharded bake) and given to the rest of
+/// the bake, a run of receivers at a time: a whole bake asks for every receiver at once, a
+/// streamed one a chunk at a time, so only a chunk's share need be held.
+pub trait GivenDirect: Sync {
+    /// The receivers the pass covers.
+    fn receivers(&self) -> usize;
+    /// The direct pass of the receivers `range`, its gather rows' columns indexing every
+    /// receiver, and the rays of the shards whose first receiver lies in `range` (so that the
+    /// chunks' rays add up to the whole pass's).
+    fn direct(&self, range: std::ops::Range<usize>) -> Result<DirectPass>;
+    /// What the pass ran on: the file records it.
+    fn ran_on(&self) -> String;
+}
+
+impl DirectPass {
+    /// The pass of the receivers `range` of this one (`coeffs` values each), its rays counted
+    /// where `rays` says (see [`GivenDirect::direct`]).
+    pub fn slice(&self, range: std::ops::Range<usize>, coeffs: usize, rays: bool) -> DirectPass {
+        let matrix = self.matrix.as_ref().map(|m| {
+            let (start, end) = (m.row_offsets[range.start], m.row_offsets[range.end]);
+            let entries = start as usize..end as usize;
+            bounce::GatherMatrix {
+                row_offsets: m.row_offsets[range.start..=range.end]
+                    .iter()
+                    .map(|o| o - start)
+                    .collect(),
+                columns: m.columns[entries.clone()].to_vec(),
+                weights: m.weights[entries].to_vec(),
+            }
+        });
+        let adaptive = self.adaptive.as_ref().map(|a| adaptive::ReceiverErrors {
+            samples: a.samples[range.clone()].to_vec(),
+            errors: a.errors[range.clone()].to_vec(),
+        });
+        DirectPass {
+            scalar: self.scalar[range.start * coeffs..range.end * coeffs].to_vec(),
+            matrix,
+            rays_cast: if rays { self.rays_cast } else { 0 },
+            adaptive,
+        }
+    }
 }

@@ -20,8 +20,9 @@ use super::adaptive::ReceiverErrors;
 use super::bounce::{self, GatherMatrix};
 use super::spill::Spill;
 use super::{
-    direct_or_adaptive, metadata_for, plan, tint_by_albedo, Advancing, Backend, BakeMetadata,
-    BakeOptions, BounceStat, Fit, Mode, Progress, Storage, Transfer,
+    check_given, direct_or_adaptive, metadata_for, plan, tint_by_albedo, Advancing, Backend,
+    BakeMetadata, BakeOptions, BounceStat, DirectPass, Fit, GivenDirect, Mode, Progress, Storage,
+    Transfer,
 };
 use crate::error::{Error, Result};
 use crate::scene::Scene;
@@ -63,6 +64,9 @@ pub struct MemoryNeed {
     pub bvh: u64,
     /// A lightmap's texels held in a scratch file ([`MemoryNeed::with_lightmap`]).
     pub lightmap: Option<super::texels::LightmapNeed>,
+    /// A merge's largest part ([`MemoryNeed::with_merge_part`]), read whole (its checksum is
+    /// of the whole) while the receivers it holds are joined or streamed.
+    pub merge_part: u64,
 }
 
 /// What a least-squares fit adds to a bake's need: its points, held whatever the chunking,
@@ -166,6 +170,7 @@ impl MemoryNeed {
             compression_per_row: 0,
             bvh,
             lightmap: None,
+            merge_part: 0,
         }
     }
 
@@ -259,7 +264,15 @@ impl MemoryNeed {
     /// and in the file's BIN chunk (written in place, not wrapped again), the previous bounce,
     /// the probes.
     fn held(&self) -> u64 {
-        self.fixed + 2 * self.document + self.held_streamed + self.probes
+        self.fixed + 2 * self.document + self.held_streamed + self.probes + self.merge_part
+    }
+
+    /// The need of a merge whose largest part takes `bytes`.
+    pub fn with_merge_part(self, bytes: u64) -> MemoryNeed {
+        MemoryNeed {
+            merge_part: bytes,
+            ..self
+        }
     }
 
     /// The whole bake's need, every receiver at once.
@@ -268,6 +281,7 @@ impl MemoryNeed {
         self.fixed
             + 3 * self.document
             + self.probes
+            + self.merge_part
             + self.receivers * self.per_receiver_whole
             + self.beside_vertices
             + self.compression
@@ -400,6 +414,10 @@ impl MemoryNeed {
                 0 => String::new(),
                 bytes => format!(", the probes {}", format_bytes(bytes)),
             };
+            let part = match self.merge_part {
+                0 => String::new(),
+                bytes => format!(", the largest part {}", format_bytes(bytes)),
+            };
             let one_chunk = format_bytes(MIN_CHUNK as u64 * self.per_receiver_streamed);
             let chunk_or_clusters = match self.compression {
                 0 => format!("one chunk of {MIN_CHUNK} receivers {one_chunk}"),
@@ -414,7 +432,7 @@ impl MemoryNeed {
             };
             return Err(Error::Options(format!(
                 "--memory-limit {}: this bake needs at least {} (the mesh and its BVH \
-                 {}{document}{bounce}{probes}, {chunk_or_clusters})",
+                 {}{document}{bounce}{probes}{part}, {chunk_or_clusters})",
                 format_bytes(limit),
                 format_bytes(self.streamed(MIN_CHUNK)),
                 format_bytes(self.fixed),
@@ -461,6 +479,9 @@ pub fn format_bytes(bytes: u64) -> String {
 pub struct StreamedBake {
     planned: super::Planned,
     options: BakeOptions,
+    /// The direct pass, where it was computed elsewhere (a merge's parts): read a chunk at a
+    /// time instead of cast.
+    given: Option<Box<dyn GivenDirect>>,
 }
 
 impl StreamedBake {
@@ -477,7 +498,41 @@ impl StreamedBake {
         Ok(StreamedBake {
             planned: plan(scene, options)?,
             options: options.clone(),
+            given: None,
         })
+    }
+
+    /// The bake with its direct pass `given`, read a chunk at a time (a streamed merge).
+    pub fn with_given(self, given: Box<dyn GivenDirect>) -> Result<StreamedBake> {
+        if given.receivers() != self.receivers() {
+            return Err(Error::Merge(format!(
+                "the given direct pass holds {} receivers, and the mesh has {}",
+                given.receivers(),
+                self.receivers()
+            )));
+        }
+        Ok(StreamedBake {
+            given: Some(given),
+            ..self
+        })
+    }
+
+    /// The direct pass of the receivers `range`: given, or cast on `backend`. Progress
+    /// advances per receiver.
+    fn direct(
+        &self,
+        range: Range<usize>,
+        backend: &dyn Backend,
+        progress: &dyn Progress,
+    ) -> Result<DirectPass> {
+        let Some(given) = &self.given else {
+            let inputs = &self.planned.inputs;
+            return direct_or_adaptive(inputs, range, &self.options, backend, &Advancing(progress));
+        };
+        let direct = given.direct(range.clone())?;
+        check_given(&direct, range.len(), &self.options)?;
+        progress.advance(range.len() as u64);
+        Ok(direct)
     }
 
     pub fn scene(&self) -> &Scene {
@@ -526,7 +581,10 @@ impl StreamedBake {
         BakeMetadata {
             channels: self.channels(),
             albedo_free: self.options.albedo_free(),
-            backend: backend.describe(),
+            backend: match &self.given {
+                Some(given) => given.ran_on(),
+                None => backend.describe(),
+            },
             ..metadata_for(&self.options, samples, bounces, None)
         }
     }
@@ -540,13 +598,7 @@ impl StreamedBake {
         backend: &dyn Backend,
         progress: &dyn Progress,
     ) -> Result<(Transfer, u64, Option<ReceiverErrors>)> {
-        let direct = direct_or_adaptive(
-            &self.planned.inputs,
-            range.clone(),
-            &self.options,
-            backend,
-            &Advancing(progress),
-        )?;
+        let direct = self.direct(range.clone(), backend, progress)?;
         let bands = self.options.bands;
         let transfer = match self.options.storage {
             Storage::Lean => Transfer::new(bands, 1, range.len(), direct.scalar)
@@ -588,10 +640,7 @@ impl StreamedBake {
         let mut adaptive: Option<ReceiverErrors> = None;
         progress.stage("transfer", receivers as u64);
         for range in &ranges {
-            let inputs = &self.planned.inputs;
-            let advancing = &Advancing(progress);
-            let direct =
-                direct_or_adaptive(inputs, range.clone(), &self.options, backend, advancing)?;
+            let direct = self.direct(range.clone(), backend, progress)?;
             if let Some(errors) = direct.adaptive {
                 adaptive
                     .get_or_insert_with(ReceiverErrors::default)

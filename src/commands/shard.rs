@@ -26,8 +26,9 @@ pub(crate) struct MergeArgs {
     /// Also render a preview of the result under a default sky and sun (.png or .exr).
     #[arg(long)]
     preview: Option<PathBuf>,
-    /// Most memory the merge may use, e.g. 512M or 8G (binary units): a lightmap that would
-    /// need more holds its texels in a scratch file; the parts' direct passes are joined whole.
+    /// Most memory the merge may use, e.g. 512M or 8G (binary units): a merge at the vertices
+    /// that would need more streams, its parts read a chunk at a time, and a lightmap holds its
+    /// texels in a scratch file; a least-squares fit's merge is refused below its need.
     #[arg(long, value_name = "SIZE", value_parser = super::args::parse_size)]
     memory_limit: Option<u64>,
 }
@@ -114,19 +115,15 @@ fn check_part_output(mesh: &Option<PathBuf>, output: &Path) -> Result<()> {
     )
 }
 
-/// `merge`: the parts checked and joined, then the rest of the bake their command asks for.
+/// `merge`: the parts checked, then the rest of the bake their command asks for, their direct
+/// pass read from them whole or, streamed, a chunk at a time.
 pub(crate) fn run_merge(args: MergeArgs) -> Result<()> {
     check_merge_outputs(&args)?;
-    let parts = args
-        .parts
-        .iter()
-        .map(|path| Ok((path.clone(), shard::read_part(path)?)))
-        .collect::<Result<Vec<_>>>()?;
-    let differences = shard::command_differences(&parts);
-    let (header, direct) = shard::assemble(parts)?;
-    if let Some(differences) = differences {
+    let parts = shard::PartSet::read(&args.parts)?;
+    if let Some(differences) = parts.command_differences() {
         eprintln!("warning: {differences}");
     }
+    let header = parts.header();
     let spec: BakeSpec = header.spec.clone();
     let mesh = header.mesh.as_ref().map(|mesh| header.directory.join(mesh));
     let execution = Execution {
@@ -138,7 +135,7 @@ pub(crate) fn run_merge(args: MergeArgs) -> Result<()> {
     let options = spec.options();
     let device = Device::new(|| merge_backend(&options, &backend));
     let progress = BarProgress::default();
-    let merged = Some((header, direct));
+    let merged = Some(parts);
     bake_one(
         &spec,
         &execution,

@@ -137,25 +137,47 @@ pub fn local_memory_need(options: &LocalOptions, scene: &Scene) -> u64 {
 }
 
 /// How a merge of a sharded bake (`prt-gpu merge`) fits `limit` or the machine's `available`
-/// memory: it joins every vertex's direct pass from the parts, so only its lightmap can be held
-/// apart; a limit below the rest is refused.
+/// memory, its parts read one at a time (the largest taking `largest_part` bytes): a bake at
+/// the vertices streams in chunks, and a lightmap's texels are held in a scratch file; a
+/// least-squares fit's points and subsurface scattering are joined whole, so a limit below
+/// them is refused.
 pub fn plan_merge_memory(
     spec: &BakeSpec,
     (scene, gltf): (&Scene, Option<&GltfScene>),
+    largest_part: u64,
     limit: Option<u64>,
     available: Option<u64>,
 ) -> Result<MemoryPlan> {
-    let Some(over) = over_budget(spec, (scene, gltf), limit, available) else {
+    let need = memory_need(spec, (scene, gltf)).with_merge_part(largest_part);
+    let Some(over) = over_budget_of(need, spec, (scene, gltf), limit, available) else {
         return Ok(MemoryPlan::default());
     };
     if spec.receivers.lightmap.is_some() && !over.scatters {
         return over.lightmap_held();
     }
-    over.refuse_or_warn(
-        "merge",
-        "a merge joins every vertex's direct pass from its parts, so it does not stream in \
-         chunks (more shards do not shrink it; a lightmap's texels can be held)",
-    )
+    if bake::stream::streams(&spec.options()) && !over.scatters {
+        let (need, budget) = (&over.need, over.budget);
+        let chunk = need.chunk_within(budget)?;
+        return Ok(MemoryPlan {
+            chunk: Some(chunk),
+            message: Some(format!(
+                "note: streaming the merge in chunks of {chunk} receivers, its parts read one \
+                 at a time, to stay within {} (about {} whole, {} streamed)",
+                format_bytes(budget),
+                format_bytes(need.whole()),
+                format_bytes(need.streamed(chunk))
+            )),
+            ..MemoryPlan::default()
+        });
+    }
+    let why = match over.scatters {
+        true => why_whole(true),
+        false => {
+            "a least-squares fit's solve needs every point's direct pass, so a merge joins them \
+             whole from its parts"
+        }
+    };
+    over.refuse_or_warn("merge", why)
 }
 
 /// A bake whose need is over its budget: the user's limit or, without one, the machine's
@@ -179,6 +201,17 @@ fn over_budget(
     available: Option<u64>,
 ) -> Option<OverBudget> {
     let need = memory_need(spec, (scene, gltf));
+    over_budget_of(need, spec, (scene, gltf), limit, available)
+}
+
+/// [`over_budget`] of a bake that needs `need`.
+fn over_budget_of(
+    need: MemoryNeed,
+    spec: &BakeSpec,
+    (scene, gltf): (&Scene, Option<&GltfScene>),
+    limit: Option<u64>,
+    available: Option<u64>,
+) -> Option<OverBudget> {
     let budget = limit.or(available)?;
     if need.whole() <= budget {
         return None;

@@ -32,7 +32,7 @@ pub enum Reader {
     Jpeg,
     /// light.json, as `prt-gpu light` writes it.
     LightJson,
-    /// A shard's part file, merged as the only part of its bake.
+    /// A shard's part file, merged as the only part of its bake (whole, and in two runs).
     Part,
     /// A baked `.glb` (plain or compressed), as `info`, `render` and `view` read it.
     Baked,
@@ -185,8 +185,13 @@ fn read(reader: Reader, path: &Path) -> Result<Option<String>> {
             ))
         }
         Reader::Part => {
-            let part = shard::read_part(path)?;
-            let (_, direct) = shard::assemble(vec![(path.to_path_buf(), part)])?;
+            use crate::bake::GivenDirect;
+            let parts = shard::PartSet::read(&[path.to_path_buf()])?;
+            // Read as a streamed merge reads it too: in two runs of receivers.
+            let half = parts.receivers() / 2;
+            parts.direct(0..half)?;
+            parts.direct(half..parts.receivers())?;
+            let direct = parts.direct(0..parts.receivers())?;
             let weights = direct.matrix.iter().flat_map(|m| &m.weights);
             let error = direct
                 .adaptive

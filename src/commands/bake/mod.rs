@@ -22,7 +22,7 @@ use prt_gpu::precision::Precision;
 use prt_gpu::probes::ProbeForm;
 use prt_gpu::receivers::PointDensity;
 use prt_gpu::render::{self, ToneMap};
-use prt_gpu::shard::{self, PartHeader};
+use prt_gpu::shard;
 use prt_gpu::spec::{
     self, BakeSpec, Compression, Container, Layout, ReceiverSpec, StorageSpec, TransferSpec,
 };
@@ -63,40 +63,42 @@ pub(crate) fn run_one(args: &BakeArgs, mesh: Option<PathBuf>) -> Result<()> {
 }
 
 /// Where the direct pass comes from: computed here, or the merged parts' (whose fingerprint
-/// must be this mesh's and spec's).
+/// must be this mesh's and spec's), read as the bake needs them.
 fn direct_source(
     spec: &BakeSpec,
     scene: &scene::Scene,
     mesh: &Option<PathBuf>,
-    merged: Option<(PartHeader, bake::DirectPass)>,
+    merged: Option<shard::PartSet>,
 ) -> Result<bake::DirectSource> {
-    let Some((header, direct)) = merged else {
+    let Some(parts) = merged else {
         return Ok(bake::DirectSource::Compute);
     };
-    if shard::fingerprint(scene, &spec.fingerprint_text()) != header.fingerprint {
+    if shard::fingerprint(scene, &spec.fingerprint_text()) != parts.header().fingerprint {
         return Err(Error::Merge(format!(
             "{} is not the mesh the parts were baked from (it changed since)",
             mesh_shown(mesh)
         )));
     }
-    let ran_on = header.backend;
-    Ok(bake::DirectSource::Given { direct, ran_on })
+    Ok(bake::DirectSource::Given(Box::new(parts)))
 }
 
-/// How the bake fits its memory (`pipeline::plan_memory`; a merge's, whose direct pass is
-/// given whole, `pipeline::plan_merge_memory`), its note or warning printed.
+/// How the bake fits its memory (`pipeline::plan_memory`; a merge's, whose direct pass its
+/// parts give, `pipeline::plan_merge_memory`), its note or warning printed.
 fn memory_plan(
     spec: &BakeSpec,
     (planned, gltf): (&pipeline::Planned, Option<&prt_gpu::scene::gltf::GltfScene>),
     execution: &Execution,
-    merging: bool,
+    merging: Option<&shard::PartSet>,
 ) -> Result<pipeline::MemoryPlan> {
     let available = device::available_memory();
     let limit = execution.memory_limit;
     let scene_and_document = (planned.scene(), gltf);
     let plan = match merging {
-        true => pipeline::plan_merge_memory(spec, scene_and_document, limit, available)?,
-        false => pipeline::plan_memory(spec, scene_and_document, limit, available)?,
+        Some(parts) => {
+            let part = parts.largest_part_bytes();
+            pipeline::plan_merge_memory(spec, scene_and_document, part, limit, available)?
+        }
+        None => pipeline::plan_memory(spec, scene_and_document, limit, available)?,
     };
     if let Some(message) = &plan.message {
         eprintln!("{message}");
@@ -113,7 +115,7 @@ pub(crate) fn bake_one(
     mesh: &Option<PathBuf>,
     output: Option<PathBuf>,
     device: &Device,
-    merged: Option<(PartHeader, bake::DirectPass)>,
+    merged: Option<shard::PartSet>,
     progress: &BarProgress,
 ) -> Result<()> {
     spec.validate()?;
@@ -128,7 +130,7 @@ pub(crate) fn bake_one(
     if spec.local.is_none() {
         note_samples_rounded(&spec.options());
     }
-    let plan = memory_plan(spec, (&planned, gltf.as_ref()), execution, merged.is_some())?;
+    let plan = memory_plan(spec, (&planned, gltf.as_ref()), execution, merged.as_ref())?;
     let baker = device.get()?;
     let backend = backend_for(baker.as_ref(), execution.chunking);
     if let Some(chunk) = plan.point_chunk {
@@ -137,11 +139,15 @@ pub(crate) fn bake_one(
     if let Some(groups) = plan.texel_groups {
         planned = planned.with_texel_groups(groups);
     }
+    let merged_from = merged
+        .as_ref()
+        .map(|parts| (parts.header().shard_count, parts.header().backend.clone()));
+    let source = direct_source(spec, planned.scene(), mesh, merged)?;
     if let Some(chunk) = plan.chunk {
         let preview = execution.preview.is_some();
         let streamed = planned
             .run_streamed(
-                backend.as_ref(),
+                (backend.as_ref(), source),
                 chunk,
                 (&output_path, gltf.as_ref()),
                 preview,
@@ -152,17 +158,13 @@ pub(crate) fn bake_one(
         let said = (name.as_str(), seconds_load);
         report_streamed(
             spec,
-            execution,
+            (execution, merged_from),
             &streamed,
             (&output_path, baker.as_ref()),
             said,
         )?;
         return Ok(());
     }
-    let merged_from = merged
-        .as_ref()
-        .map(|(header, _)| (header.shard_count, header.backend.clone()));
-    let source = direct_source(spec, planned.scene(), mesh, merged)?;
     let bake = planned
         .run(backend.as_ref(), source, progress)
         .map_err(naming)?;
@@ -204,11 +206,12 @@ pub(crate) fn bake_one(
     Ok(())
 }
 
-/// What a streamed bake says when it is done, and its preview drawn (the file removed where the
-/// preview cannot be made, as a whole bake leaves none).
+/// What a streamed bake (of merged parts, where `merged_from` says) says when it is done, and
+/// its preview drawn (the file removed where the preview cannot be made, as a whole bake leaves
+/// none).
 fn report_streamed(
     spec: &BakeSpec,
-    execution: &Execution,
+    (execution, merged_from): (&Execution, Option<(u32, String)>),
     streamed: &pipeline::Streamed,
     (output_path, baker): (&Path, Option<&GpuBaker>),
     (name, seconds_load): (&str, f64),
@@ -248,6 +251,6 @@ fn report_streamed(
     let bands = streamed
         .bands_chosen
         .map_or(spec.options().bands, |chosen| chosen.bands);
-    print_bake_report(name, spec, bands, report, output_path, None);
+    print_bake_report(name, spec, bands, report, output_path, merged_from);
     Ok(())
 }

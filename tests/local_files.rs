@@ -603,6 +603,26 @@ fn a_local_bake_refuses_what_it_cannot_run_as() {
             args: &["bake", "--mode", "local", "--shard", "0/2", "-o", "o.part"],
             expect: "--shard is for SH transfer",
         },
+        common::BadInput {
+            case: "a lightmap",
+            file: None,
+            args: &["bake", "--mode", "local", "--lightmap", "64", "-o", "o.glb"],
+            expect: "--lightmap is for SH transfer",
+        },
+        common::BadInput {
+            case: "a least-squares fit",
+            file: None,
+            args: &[
+                "bake",
+                "--mode",
+                "local",
+                "--fit",
+                "least-squares",
+                "-o",
+                "o.glb",
+            ],
+            expect: "--fit is for SH transfer",
+        },
     ] {
         common::assert_clean_failure(&input);
     }

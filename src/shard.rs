@@ -588,8 +588,9 @@ impl PartSet {
         2 * self.parts.iter().map(|(_, h)| bytes(h)).max().unwrap_or(0)
     }
 
-    /// What to tell the user when these parts were baked by commands that differ (see
-    /// [`command_differences`]), in the order given.
+    /// What to tell the user when these parts were baked by commands that differ in more than
+    /// the shard and the part's own output, or in different directories (the first given
+    /// leads: the merge finishes the bake as its command says).
     pub fn command_differences(&self) -> Option<String> {
         command_differences(&self.given)
     }

@@ -8,6 +8,7 @@ pub mod bounce;
 pub mod cpu;
 pub mod gpu;
 mod inputs;
+mod need;
 mod options;
 mod points;
 mod shard;

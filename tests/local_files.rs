@@ -581,7 +581,7 @@ fn a_local_bake_refuses_what_it_cannot_run_as() {
                 "-o",
                 "o.glb",
             ],
-            expect: "--memory-limit 200.0 MiB: a local-lights bake of this mesh needs about",
+            expect: "--memory-limit 200.0 MiB: this local-lights bake needs about",
         },
         common::BadInput {
             case: "a preview",

@@ -29,7 +29,7 @@ use rayon::prelude::*;
 
 use glam::Vec3;
 
-use super::bounce::{gather_row, GatherMatrix};
+use super::bounce::{gather_row, summed_by_column, GatherMatrix};
 use super::cpu::{finish_transfer, transfer_scale};
 use super::{Backend, BakeInputs, DirectInputs, DirectPass, Mode, NoProgress, Progress};
 use crate::error::{Error, Result};
@@ -249,17 +249,11 @@ fn mean_rows(rows: Vec<Vec<(u32, f32)>>, receivers: &[ReceiverBatches]) -> Gathe
     let means = rows
         .into_par_iter()
         .zip(receivers)
-        .map(|(mut entries, receiver)| {
-            entries.sort_by_key(|&(column, _)| column);
-            let mut row: Vec<(u32, f64)> = Vec::with_capacity(entries.len());
-            for (column, weight) in entries {
-                match row.last_mut() {
-                    Some((last, sum)) if *last == column => *sum += weight as f64,
-                    _ => row.push((column, weight as f64)),
-                }
-            }
+        .map(|(entries, receiver)| {
+            let entries = entries.into_iter().map(|(c, w)| (c, w as f64)).collect();
             let count = receiver.count.max(1) as f64;
-            row.into_iter()
+            summed_by_column(entries)
+                .into_iter()
                 .map(|(column, sum)| (column, (sum / count) as f32))
                 .collect()
         })

@@ -113,18 +113,22 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
             entries.push((j, scale * density_weight * b.max(0.0) as f64));
         }
     }
-    entries.sort_by_key(|&(j, _)| j);
-    let mut row: Vec<(u32, f32)> = Vec::with_capacity(entries.len());
-    let mut i = 0;
-    while i < entries.len() {
-        let column = entries[i].0;
-        let mut weight = 0.0;
-        while i < entries.len() && entries[i].0 == column {
-            weight += entries[i].1;
-            i += 1;
-        }
-        if weight > 0.0 {
-            row.push((column, weight as f32));
+    summed_by_column(entries)
+        .into_iter()
+        .filter(|&(_, weight)| weight > 0.0)
+        .map(|(column, weight)| (column, weight as f32))
+        .collect()
+}
+
+/// A row's entries with one per column, columns ascending: the weights of a column summed in
+/// the order given.
+pub(crate) fn summed_by_column(mut entries: Vec<(u32, f64)>) -> Vec<(u32, f64)> {
+    entries.sort_by_key(|&(column, _)| column);
+    let mut row: Vec<(u32, f64)> = Vec::with_capacity(entries.len());
+    for (column, weight) in entries {
+        match row.last_mut() {
+            Some((last, sum)) if *last == column => *sum += weight,
+            _ => row.push((column, weight)),
         }
     }
     row

@@ -123,8 +123,8 @@ pub fn gather_options(options: &LocalOptions) -> BakeOptions {
 /// bake's own (`bake::stream::MemoryNeed` of [`gather_options`]): per receiver, the operator's
 /// responses to each of its basis vectors, RGB, and while they are sparsified the kept ones'
 /// copy (counted as if all were kept), a batch of them in bounces (four buffers), the example
-/// and held-out lights' irradiance, the depth maps, their compressed rows and the tangent
-/// frames; and once, the compressed maps' bases. The responses dominate: 24 kB of the about
+/// and held-out lights' irradiance, the depth maps and the tangent frames; and the compressed
+/// maps as `compress::stored_bytes` counts them. The responses dominate: 24 kB of the about
 /// 29 kB a receiver at the defaults.
 pub fn memory_need(receivers: u64, options: &LocalOptions) -> u64 {
     let operator_clusters = (options.operator.clusters as u64).min(receivers).max(1);
@@ -134,13 +134,12 @@ pub fn memory_need(receivers: u64, options: &LocalOptions) -> u64 {
     let batch = 4 * 3 * 4 * build::COLUMNS_PER_BATCH as u64;
     let lights = 4 * (options.example_lights + HELD_OUT_LIGHTS) as u64;
     let cells = options.grid_side as u64 * options.grid_side as u64;
-    let depth_components = options.depth_components as u64;
-    let depth = 4 * cells + 4 * depth_components;
     // The basis and its projection rows, the means, the frames.
     let operator = 4 * 2 * components + 4 + 36;
     let depth_clusters = (options.depth_clusters as u64).min(receivers).max(1);
-    let bases = 4 * depth_clusters * (depth_components + 1) * cells;
-    receivers * (responses + batch + lights + depth + operator) + bases
+    let shape = (depth_clusters as usize, options.depth_components as usize);
+    let compressed = stored_bytes(shape, cells as usize, receivers as usize, Precision::F32);
+    receivers * (responses + batch + lights + 4 * cells + operator) + compressed as u64
 }
 
 impl LocalInputs {

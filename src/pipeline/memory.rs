@@ -45,7 +45,8 @@ pub fn plan_memory(
     if let Some(options) = &spec.local {
         return local_plan(local_memory_need(options, scene), limit, available);
     }
-    let Some(over) = over_budget(spec, (scene, gltf), limit, available) else {
+    let need = memory_need(spec, (scene, gltf));
+    let Some(over) = over_budget(need, spec, (scene, gltf), limit, available) else {
         return Ok(MemoryPlan::default());
     };
     let (need, budget) = (&over.need, over.budget);
@@ -88,18 +89,7 @@ pub fn plan_memory(
     if !streamable {
         return over.refuse_or_warn("bake", why_whole(over.scatters));
     }
-    let chunk = need.chunk_within(budget)?;
-    Ok(MemoryPlan {
-        chunk: Some(chunk),
-        message: Some(format!(
-            "note: streaming the transfer in chunks of {chunk} receivers to stay within {} \
-             (about {} whole, {} streamed)",
-            format_bytes(budget),
-            format_bytes(need.whole()),
-            format_bytes(need.streamed(chunk))
-        )),
-        ..MemoryPlan::default()
-    })
+    over.streamed("the transfer")
 }
 
 /// A local-lights bake runs whole: it holds the example lights' bounced light, its gather
@@ -111,20 +101,31 @@ fn local_plan(need: u64, limit: Option<u64>, available: Option<u64>) -> Result<M
     };
     let why = "it holds the example lights' bounced light, its gather matrix and depth maps \
                for every receiver at once, so it does not stream";
+    refuse_or_warn("local-lights bake", need, (budget, limit.is_some()), why)
+}
+
+/// The end of a `what` (a bake, a merge) that needs `need` bytes and cannot be split, for the
+/// reason `why`: over an `explicit` limit `budget`, refused in one line; over the machine's
+/// memory, run whole with a warning.
+fn refuse_or_warn(
+    what: &str,
+    need: u64,
+    (budget, explicit): (u64, bool),
+    why: &str,
+) -> Result<MemoryPlan> {
     let (need, budget) = (format_bytes(need), format_bytes(budget));
-    match limit {
-        Some(_) => Err(Error::Options(format!(
-            "--memory-limit {budget}: a local-lights bake of this mesh needs about {need}, and \
-             {why}"
-        ))),
-        None => Ok(MemoryPlan {
-            message: Some(format!(
-                "warning: this local-lights bake needs about {need}, more than the {budget} \
-                 this machine has available, and {why}"
-            )),
-            ..MemoryPlan::default()
-        }),
+    if explicit {
+        return Err(Error::Options(format!(
+            "--memory-limit {budget}: this {what} needs about {need}, and {why}"
+        )));
     }
+    Ok(MemoryPlan {
+        message: Some(format!(
+            "warning: this {what} needs about {need}, more than the {budget} this machine has \
+             available, and {why}"
+        )),
+        ..MemoryPlan::default()
+    })
 }
 
 /// The memory a local-lights bake of `scene` with `options` needs, estimated before it starts:
@@ -149,26 +150,14 @@ pub fn plan_merge_memory(
     available: Option<u64>,
 ) -> Result<MemoryPlan> {
     let need = memory_need(spec, (scene, gltf)).with_merge_part(largest_part);
-    let Some(over) = over_budget_of(need, spec, (scene, gltf), limit, available) else {
+    let Some(over) = over_budget(need, spec, (scene, gltf), limit, available) else {
         return Ok(MemoryPlan::default());
     };
     if spec.receivers.lightmap.is_some() && !over.scatters {
         return over.lightmap_held();
     }
     if bake::stream::streams(&spec.options()) && !over.scatters {
-        let (need, budget) = (&over.need, over.budget);
-        let chunk = need.chunk_within(budget)?;
-        return Ok(MemoryPlan {
-            chunk: Some(chunk),
-            message: Some(format!(
-                "note: streaming the merge in chunks of {chunk} receivers, its parts read one \
-                 at a time, to stay within {} (about {} whole, {} streamed)",
-                format_bytes(budget),
-                format_bytes(need.whole()),
-                format_bytes(need.streamed(chunk))
-            )),
-            ..MemoryPlan::default()
-        });
+        return over.streamed("the merge");
     }
     let why = match over.scatters {
         true => why_whole(true),
@@ -192,20 +181,10 @@ struct OverBudget {
     scatters: bool,
 }
 
-/// What the bake of `scene` as `spec` asks needs, where that is over `limit` or the machine's
-/// `available` memory; `None` where it fits whole (or nothing is known of the machine).
+/// The bake of `scene` as `spec` asks, which needs `need`, where that is over `limit` or the
+/// machine's `available` memory; `None` where it fits whole (or nothing is known of the
+/// machine).
 fn over_budget(
-    spec: &BakeSpec,
-    (scene, gltf): (&Scene, Option<&GltfScene>),
-    limit: Option<u64>,
-    available: Option<u64>,
-) -> Option<OverBudget> {
-    let need = memory_need(spec, (scene, gltf));
-    over_budget_of(need, spec, (scene, gltf), limit, available)
-}
-
-/// [`over_budget`] of a bake that needs `need`.
-fn over_budget_of(
     need: MemoryNeed,
     spec: &BakeSpec,
     (scene, gltf): (&Scene, Option<&GltfScene>),
@@ -227,23 +206,29 @@ fn over_budget_of(
 }
 
 impl OverBudget {
+    /// The plan of a bake that streams `what` in the largest chunks that fit its budget.
+    fn streamed(&self, what: &str) -> Result<MemoryPlan> {
+        let (need, budget) = (&self.need, self.budget);
+        let chunk = need.chunk_within(budget)?;
+        Ok(MemoryPlan {
+            chunk: Some(chunk),
+            message: Some(format!(
+                "note: streaming {what} in chunks of {chunk} receivers to stay within {} (about \
+                 {} whole, {} streamed)",
+                format_bytes(budget),
+                format_bytes(need.whole()),
+                format_bytes(need.streamed(chunk))
+            )),
+            ..MemoryPlan::default()
+        })
+    }
+
     /// The end of a `what` (a bake, a merge) that cannot be split, for the reason `why`: over
     /// an explicit limit, refused in one line; over the machine's memory, run whole with a
     /// warning.
     fn refuse_or_warn(&self, what: &str, why: &str) -> Result<MemoryPlan> {
-        let (need, budget) = (format_bytes(self.need.whole()), format_bytes(self.budget));
-        if self.explicit {
-            return Err(Error::Options(format!(
-                "--memory-limit {budget}: this {what} needs about {need}, and {why}"
-            )));
-        }
-        Ok(MemoryPlan {
-            message: Some(format!(
-                "warning: this {what} needs about {need}, more than the {budget} this machine \
-                 has available, and {why}"
-            )),
-            ..MemoryPlan::default()
-        })
+        let budget = (self.budget, self.explicit);
+        refuse_or_warn(what, self.need.whole(), budget, why)
     }
 
     /// The plan of a lightmap bake over its budget: its texels held in a scratch file, cleaned

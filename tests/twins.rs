@@ -507,7 +507,7 @@ fn every_form_of_reference_resolves() {
 // Rust twin: ray::intersect_triangle.
 // Rust twin bvh::gpu::GpuNode:
 // CPU twin `bake::cpu::trace_visibility`
-// Rust twins: bake::cpu::trace_visibility, bake::bounce::blocked_hits.
+// Rust twins: bake::cpu::trace_visibility, bake::bounce::hits_and_visibility.
 // Rust twins: crate::bake::cpu::project_visibility and src/bake/bounce.rs::apply_cpu; done.
 // Rust twin: Bvh::traverse, which visits the same nodes.
 // Rust twin: bvh::Bvh::traverse.
@@ -526,7 +526,7 @@ fn every_form_of_reference_resolves() {
             "bvh::gpu::GpuNode",
             "bake::cpu::trace_visibility",
             "bake::cpu::trace_visibility",
-            "bake::bounce::blocked_hits",
+            "bake::bounce::hits_and_visibility",
             "crate::bake::cpu::project_visibility",
             "src/bake/bounce.rs::apply_cpu",
             "Bvh::traverse",

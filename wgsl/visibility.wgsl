@@ -1,6 +1,6 @@
 // Visibility pass: one invocation per (vertex, sample) of a chunk; sets the bit of every ray
 // that is above the vertex's horizon and unblocked, and, for interreflection, records where a
-// blocked ray hits. Rust twins: bake::cpu::trace_visibility, bake::bounce::blocked_hits.
+// blocked ray hits. Rust twins: bake::cpu::trace_visibility, bake::bounce::hits_and_visibility.
 // Dispatch: x over the slots of the vertices' sample lists (WORKGROUP_SIZE per group), y over
 // vertices: a workgroup casts consecutive above-horizon sample directions from one vertex. Measured on lavapipe against
 // workgroups of 64 Morton-adjacent vertices sharing one direction: 0.72x the CPU time

@@ -19,8 +19,8 @@
 //! Cauchy–Schwarz it bounds the relit radiance's error under any light, relative to what the
 //! same light could at most give an open receiver: no light is assumed.
 //!
-//! **Interreflection.** The blocked rays of every batch also find their closest hits, and a
-//! receiver's gather row is the mean of its batches' rows, as its direct transfer is the mean
+//! **Interreflection.** Every batch's rays are cast once for their closest hits, which give
+//! both its visibility and its gather rows, and a receiver's gather row is the mean of its batches' rows, as its direct transfer is the mean
 //! of their estimates: the bounces gather through the rays the target chose. The target
 //! measures the direct (shadowed) transfer; the bounces, which add a fraction of it per bounce
 //! (the albedo's), are as many rays' worth.
@@ -29,7 +29,7 @@ use rayon::prelude::*;
 
 use glam::Vec3;
 
-use super::bounce::{gather_row, summed_by_column, GatherMatrix};
+use super::bounce::{summed_by_column, GatherMatrix};
 use super::cpu::{finish_transfer, transfer_scale};
 use super::{Backend, BakeInputs, DirectInputs, DirectPass, Mode, NoProgress, Progress};
 use crate::error::{Error, Result};
@@ -188,13 +188,18 @@ pub fn adaptive_direct_pass(
             turns: None,
             ..view
         };
-        let (sums, batch_rays) = backend.projected_sums(&batch, direct_mode, &NoProgress)?;
+        let (sums, batch_rays) = match &mut rows {
+            Some(rows) => {
+                let (sums, batch_rows, batch_rays) =
+                    backend.projected_sums_and_gather_rows(&batch, &NoProgress)?;
+                for (&i, row) in active.iter().zip(batch_rows) {
+                    rows[i].extend(row);
+                }
+                (sums, batch_rays)
+            }
+            None => backend.projected_sums(&batch, direct_mode, &NoProgress)?,
+        };
         rays += batch_rays;
-        if let Some(rows) = &mut rows {
-            // The same rays again, for their closest hits.
-            rays += batch_rays;
-            add_gather_rows(backend, &batch, &active, rows)?;
-        }
         let scale = transfer_scale(&batch);
         let last = b + 1 == target.max_batches();
         for (estimate, &i) in sums.chunks_exact(n).zip(&active) {
@@ -220,26 +225,6 @@ pub fn adaptive_direct_pass(
         rays_cast: rays,
         adaptive: Some(receivers),
     })
-}
-
-/// Adds to `rows[i]` the gather row of the batch's rays from each `active` receiver i (the
-/// batch's receivers, in that order): their closest hits, weighted as one batch's estimate.
-fn add_gather_rows(
-    backend: &dyn Backend,
-    batch: &DirectInputs,
-    active: &[usize],
-    rows: &mut [Vec<(u32, f32)>],
-) -> Result<()> {
-    let hits = backend.closest_hits(batch, &NoProgress)?;
-    let batch_rows: Vec<Vec<(u32, f32)>> = hits
-        .par_iter()
-        .enumerate()
-        .map(|(receiver, hits)| gather_row(batch, receiver, hits))
-        .collect();
-    for (&i, row) in active.iter().zip(batch_rows) {
-        rows[i].extend(row);
-    }
-    Ok(())
 }
 
 /// The gather matrix whose row i is the mean of receiver i's batch rows (`rows[i]`, their

@@ -6,7 +6,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::bounce::{self, GatherMatrix, Hit};
+use super::bounce::{self, GatherMatrix, GatherRows, Hit};
 use super::{cpu, gpu, DirectInputs, DirectPass, Mode, Progress};
 use crate::device::GpuContext;
 use crate::error::Result;
@@ -49,6 +49,17 @@ pub trait Backend: Sync {
         inputs: &DirectInputs,
         progress: &dyn Progress,
     ) -> Result<(Vec<f32>, GatherMatrix, u64)>;
+
+    /// The projected sums of the receivers of `inputs` in shadowed mode, as
+    /// [`Backend::projected_sums`] gives them, the gather rows of the same rays' closest hits
+    /// ([`bounce::gather_row`]), and the rays cast: what an interreflected bake to an error
+    /// target adds up batch by batch. Each ray is traced once for both: its closest hit, and
+    /// it is open where it hits nothing.
+    fn projected_sums_and_gather_rows(
+        &self,
+        inputs: &DirectInputs,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f64>, GatherRows, u64)>;
 
     /// `matrix` (rows: receivers of `albedo`) made ready to gather `bands`-band RGB transfer:
     /// uploaded once to a GPU, however many bounces then read it.
@@ -160,6 +171,14 @@ impl Backend for CpuBackend {
         Ok(bounce::direct_transfer_and_gather_matrix_cpu(
             inputs, progress,
         ))
+    }
+
+    fn projected_sums_and_gather_rows(
+        &self,
+        inputs: &DirectInputs,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f64>, GatherRows, u64)> {
+        Ok(bounce::projected_sums_and_gather_rows_cpu(inputs, progress))
     }
 
     fn gatherer<'m>(
@@ -290,6 +309,20 @@ impl Backend for GpuBackend<'_> {
         let (scalar, matrix, run) =
             gpu::direct_transfer_and_gather_matrix(self.baker, inputs, self.chunking, progress)?;
         Ok((scalar, matrix, run.rays_cast))
+    }
+
+    fn projected_sums_and_gather_rows(
+        &self,
+        inputs: &DirectInputs,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<f64>, GatherRows, u64)> {
+        let (sums, rows, run) =
+            gpu::projected_sums_and_gather_rows(self.baker, inputs, self.chunking, progress)?;
+        Ok((
+            sums.iter().map(|&s| s as f64).collect(),
+            rows,
+            run.rays_cast,
+        ))
     }
 
     fn gatherer<'m>(

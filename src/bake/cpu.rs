@@ -502,8 +502,8 @@ pub fn samples_above_horizon(inputs: &DirectInputs, vertex: usize) -> Vec<u32> {
 
 /// The closest hit of every ray of the direct pass (`(sample, triangle)` per receiver, for the
 /// rays that hit something) and the rays cast: what `prt-gpu bench --ray-sets` times as its
-/// diffuse ray set. A bake casts closest-hit rays only where the shadow rays found a ray
-/// blocked (`bounce::blocked_hits`).
+/// diffuse ray set (an interreflected bake casts the same rays, its visibility taken from their
+/// hits: `bounce::hits_and_visibility`).
 pub fn closest_hit_triangles(inputs: &DirectInputs) -> (Vec<Vec<(u32, u32)>>, u64) {
     let per_receiver: Vec<(Vec<(u32, u32)>, u64)> = (0..inputs.origins.len())
         .into_par_iter()

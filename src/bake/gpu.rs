@@ -692,6 +692,20 @@ pub fn direct_transfer_and_gather_matrix(
     Ok((scaled(out.sums, inputs), matrix, out.stats))
 }
 
+/// The projected sums of every vertex's shadowed visibility, `[vertex][k]`, before
+/// `cpu::finish_transfer`, and its gather row, from one closest-hit pass: what an
+/// interreflected bake to an error target adds up batch by batch.
+pub fn projected_sums_and_gather_rows(
+    baker: &GpuBaker,
+    inputs: &DirectInputs,
+    chunking: Chunking,
+    progress: &dyn Progress,
+) -> Result<(Vec<f32>, super::bounce::GatherRows, GpuRun)> {
+    let out = closest_hit_run(baker, inputs, chunking, progress)?;
+    let rows = super::bounce::gather_rows(inputs, &out.hits);
+    Ok((out.sums, rows, out.stats))
+}
+
 /// The closest hit of every ray that hits something, `(sample, hit)` per receiver, from the
 /// closest-hit pass (what interreflection gathers from; local lights' depth maps measure it).
 pub fn closest_hits(

@@ -95,7 +95,7 @@ pub fn one_line(message: &str) -> String {
 const MESSAGE_CHARS: usize = 240;
 
 /// `message` as a terminal shows it: control characters (a NUL, an escape, a line break a
-/// file put in a quoted token) escaped, and at most [`MESSAGE_CHARS`] characters, the middle
+/// file put in a quoted token) escaped, and at most `MESSAGE_CHARS` characters, the middle
 /// of a longer one left out.
 pub fn printable(message: &str) -> String {
     let escaped: String = message

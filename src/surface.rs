@@ -50,7 +50,7 @@ pub struct SurfaceReference {
 
 /// Bakes the visible ones of `count` uniformly drawn points of the prepared `scene` with `options` (a high sample
 /// count) and relights them. Interreflected mode gathers from `vertex_transfer` (see
-/// [`bake_at`]).
+/// [`crate::bake::bake_at`]).
 pub fn surface_reference(
     scene: &Scene,
     count: usize,

@@ -231,7 +231,7 @@ fn unit_f64(rng: &mut Pcg32) -> f64 {
 /// at a time, each group a pass over the rows.
 const COVARIANCE_BYTES: usize = 32 << 20;
 
-/// The clusters one pass of [`fit`] accumulates the covariances of, for rows of `dimension`.
+/// The clusters one pass of `fit` accumulates the covariances of, for rows of `dimension`.
 pub fn covariance_group(dimension: usize) -> usize {
     let one = (dimension * dimension * 8).max(1);
     (COVARIANCE_BYTES / one).max(rayon::current_num_threads())

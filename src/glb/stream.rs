@@ -30,8 +30,8 @@ use crate::scene::gltf::GltfScene;
 use crate::sh::coeff_count;
 use crate::zonal::{ZonalFit, ZonalSpec, ZonalTally, ZonalTransfer};
 
-/// A .glb being written: everything but the transfer is in place; [`GlbStream::put`] fills in
-/// the transfer of a run of vertices, [`GlbStream::commit`] puts the file in place.
+/// A .glb being written: everything but the transfer is in place; `GlbStream::put` fills in
+/// the transfer of a run of vertices, `GlbStream::commit` puts the file in place.
 pub struct GlbStream {
     file: AtomicFile,
     /// File offset of the transfer view.

@@ -1,7 +1,7 @@
 //! Building the compressed direct-to-indirect operator (the meshless PCA paper, sections
 //! 4.3.1 and 4.3.2): cluster the receivers, find per cluster a basis of the irradiance that
 //! example lights placed across the scene give it (chosen for its first bounce, see
-//! [`cluster_fit`]), and send every basis vector (and the examples' mean) through the sparse
+//! `cluster_fit`), and send every basis vector (and the examples' mean) through the sparse
 //! bounces once.
 
 use glam::Vec3;

@@ -477,7 +477,7 @@ mod dispatch {
         fn run(self) -> Self::Output;
     }
 
-    /// Runs `kernel` compiled for the widest vector unit of this machine (as [`traverse`]
+    /// Runs `kernel` compiled for the widest vector unit of this machine (as `traverse`
     /// chooses). Same bits on every unit: no copy contracts a product and a sum into one.
     #[cfg(target_arch = "x86_64")]
     pub fn on_widest_unit<K: Kernel>(kernel: K) -> K::Output {

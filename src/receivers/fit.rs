@@ -11,7 +11,7 @@
 //! `(B^T W B + lambda L) x = B^T W v` share one sparse symmetric positive-definite matrix with
 //! the mesh's vertex adjacency as its pattern across all right-hand sides (bands² × channels),
 //! solved together by conjugate gradients in f64, preconditioned by an incomplete Cholesky
-//! factor ([`IncompleteCholesky`]).
+//! factor (`IncompleteCholesky`).
 
 use rayon::prelude::*;
 

@@ -345,7 +345,7 @@ impl<'a> SeamSystem<'a> {
     }
 }
 
-/// Coefficients solved side by side by one [`conjugate_gradients`].
+/// Coefficients solved side by side by one `conjugate_gradients`.
 pub const COLUMNS: usize = 4;
 
 /// Solves `A x = b` for the symmetric positive definite `A` given as `apply`, preconditioned

@@ -36,7 +36,7 @@ pub fn denoise(
     denoise_in_bands(baker, guide, (image, stride), rows)
 }
 
-/// [`denoise`] in bands of `rows` rows (tests choose them).
+/// [`denoise()`] in bands of `rows` rows (tests choose them).
 pub fn denoise_in_bands(
     baker: &GpuBaker,
     guide: &DenoiseGuide,

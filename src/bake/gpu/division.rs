@@ -14,7 +14,7 @@ pub enum Division {
 }
 
 impl Division {
-    /// Runs the arithmetic kernel with the adapter's own `/` on [`probe_operands`] and
+    /// Runs the arithmetic kernel with the adapter's own `/` on `probe_operands` and
     /// compares every quotient with the CPU's.
     pub fn probe(ctx: &GpuContext) -> Result<Division> {
         let operands = probe_operands();

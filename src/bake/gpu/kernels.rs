@@ -22,7 +22,7 @@ pub struct VisibilityParams {
     pub shadowed: u32,
     /// 1: closest-hit traversal, hits written for interreflection.
     pub record_hits: u32,
-    /// The grid of the node boxes ([`GpuBvh`]): world = grid_origin + q * grid_step.
+    /// The grid of the node boxes ([`crate::bvh::gpu::GpuBvh`]): world = grid_origin + q * grid_step.
     pub grid_origin: [f32; 3],
     pub grid_step: f32,
     /// `shaders::FRAMES_*`: world directions, each vertex's tangent frame, or that frame

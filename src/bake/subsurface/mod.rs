@@ -339,7 +339,7 @@ impl Surface {
 /// The subsurface matrices of `scene`, its vertices in `media` (`of_vertex` indexes them, or
 /// is [`OPAQUE`]), one per channel: row `p`, column `j`, the weight of what vertex `j` would
 /// send back as a white diffuse surface in what vertex `p` sends back through its medium
-/// ([`Scatter::apply`]); an opaque vertex's row is its own albedo. Also the farthest reach
+/// ([`Scattering::apply`]); an opaque vertex's row is its own albedo. Also the farthest reach
 /// it cut at.
 pub fn subsurface_matrices(
     scene: &Scene,
@@ -601,7 +601,7 @@ pub struct ScatterPoint {
 
 /// Subsurface transfer at points of a scene's surface besides its vertices: its media, and
 /// the light that arrives at its vertices as a white diffuse surface would send it back (RGB,
-/// `[vertex][3][coeffs]`: what [`Scatter::apply`] scattered, summed over the direct light and
+/// `[vertex][3][coeffs]`: what [`Scattering::apply`] scattered, summed over the direct light and
 /// the bounces).
 pub struct PointScatter<'a> {
     pub media: &'a [SubsurfaceMaterial],

@@ -133,7 +133,7 @@ pub fn plan_atlas(scene: &Scene, size: u32) -> Result<Atlas> {
 
 /// Bakes a lightmap of about `size` texels on its longer side for the prepared `scene`, whose
 /// vertex transfer (bounces included) `vertex_transfer` is: interreflected texels gather from
-/// it ([`bake_at`]).
+/// it ([`crate::bake::bake_at`]).
 pub fn bake_texels(
     scene: &Scene,
     vertex_transfer: &Transfer,

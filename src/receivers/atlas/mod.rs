@@ -1,14 +1,14 @@
 //! A lightmap atlas generated for a prepared scene: meshes need not carry UVs, so the baker
 //! cuts the surface into charts, lays each flat and packs them.
 //!
-//! - Charts ([`segment`]): connected patches whose normals stay within [`CHART_CONE`] of their
+//! - Charts (`segment`): connected patches whose normals stay within [`CHART_CONE`] of their
 //!   mean, grown across manifold edges; a flat region is one chart, a box six.
-//! - Laying flat ([`flatten`]): least-squares conformal maps, so texels keep their shape; a
+//! - Laying flat (`flatten`): least-squares conformal maps, so texels keep their shape; a
 //!   chart that would fold or overlap itself is cut in two, again and again, down to single
 //!   triangles where need be, which always lie flat. Each chart keeps its true area at the texel density and
 //!   is turned to its smallest bounding box; a tiny chart is enlarged until its box's longer
 //!   side spans [`MIN_CHART_EDGE`] texels, so that every chart gets texels of its own.
-//! - Packing ([`pack`]): by the texels each chart meets, on a skyline, charts largest first,
+//! - Packing (`pack`): by the texels each chart meets, on a skyline, charts largest first,
 //!   each turned a quarter where that keeps it lower; small charts first into the room the
 //!   large ones leave (under their overhangs, above their slopes). Every chart is kept [`GUTTER`] empty
 //!   texels away from the others and from the border, so neither bilinear filtering nor

@@ -20,10 +20,10 @@
 //! same light could at most give an open receiver: no light is assumed.
 //!
 //! **Interreflection.** Every batch's rays are cast once for their closest hits, which give
-//! both its visibility and its gather rows, and a receiver's gather row is the mean of its batches' rows, as its direct transfer is the mean
-//! of their estimates: the bounces gather through the rays the target chose. The target
-//! measures the direct (shadowed) transfer; the bounces, which add a fraction of it per bounce
-//! (the albedo's), are as many rays' worth.
+//! both its visibility and its gather rows, and a receiver's gather row is the mean of its
+//! batches' rows, as its direct transfer is the mean of their estimates: the bounces gather
+//! through the rays the target chose. The target measures the direct (shadowed) transfer; the
+//! bounces, which add a fraction of it per bounce (the albedo's), are as many rays' worth.
 
 use rayon::prelude::*;
 

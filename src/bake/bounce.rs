@@ -142,7 +142,7 @@ pub(crate) fn summed_by_column(mut entries: Vec<(u32, f64)>) -> Vec<(u32, f64)> 
 /// hit something, on the CPU, with its visibility bits in `visible` (set for the rays above
 /// the horizon that hit nothing, as [`cpu::trace_visibility`] sets them), and the rays cast.
 /// One closest-hit traversal per ray, in fans of consecutive samples, gives both: on
-/// dragon_vrip_res3 and the built-in scene it took 0.72x and 0.66x the time of any-hit
+/// dragon_vrip_res3 and the built-in scene it took 0.77x and 0.72x the time of any-hit
 /// packets for the visibility followed by closest hits of the blocked rays only, whose fans
 /// (directions the open rays leave gaps between) hold together less (docs/performance.md).
 pub fn hits_and_visibility(

@@ -71,6 +71,15 @@ pub struct GpuContext {
     handle: wgpu::Adapter,
 }
 
+impl GpuContext {
+    /// Whether the device writes timestamps at the start and end of compute passes.
+    pub fn has_timestamps(&self) -> bool {
+        self.device
+            .features()
+            .contains(wgpu::Features::TIMESTAMP_QUERY)
+    }
+}
+
 /// A `WGPU_BACKEND` that names no backend leaves wgpu with none, which would read as "no GPU
 /// here": say what is wrong with the variable instead.
 pub fn check_backend_variable() -> Result<()> {
@@ -179,7 +188,9 @@ fn open_adapter(adapter: &wgpu::Adapter) -> Result<GpuContext> {
     let limits = adapter.limits();
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("prt-gpu device"),
-        required_features: wgpu::Features::empty(),
+        // Timestamps where the adapter has them: the bake then times its kernels on the
+        // device (`bake::gpu::GpuRun::kernel_seconds`), apart from the host's share.
+        required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
         required_limits: limits.clone(),
         experimental_features: wgpu::ExperimentalFeatures::disabled(),
         memory_hints: wgpu::MemoryHints::Performance,

@@ -67,6 +67,9 @@ pub struct GpuRun {
     pub kernel_wait_seconds: f64,
     /// Seconds of the whole run, uploads, read-backs and the rest of the host's work included.
     pub run_seconds: f64,
+    /// Seconds the horizon, visibility and projection passes took on the device, summed over
+    /// the chunks, where the device writes timestamps.
+    pub kernel_seconds: Option<[f64; PassTimer::PASSES as usize]>,
 }
 
 /// An open device with the bake's kernels compiled (once; compiling is slow on lavapipe).
@@ -345,6 +348,7 @@ struct RunBuffers {
     grid_step: f32,
     /// Bit words per vertex row of a chunk.
     chunk_words: u32,
+    timer: Option<PassTimer>,
 }
 
 /// The horizon pass's own buffers: the sample lists of `pairs` vertex–sample pairs, its count
@@ -467,6 +471,7 @@ impl RunBuffers {
             grid_origin: gpu_bvh.grid_origin,
             grid_step: gpu_bvh.grid_step,
             chunk_words,
+            timer: PassTimer::new(ctx),
         })
     }
 
@@ -538,36 +543,44 @@ impl RunBuffers {
                     label: Some("bake chunk"),
                 });
             encoder.clear_buffer(&self.bits, 0, None);
-            encode_pass(
+            let writes = |pass| self.timer.as_ref().map(|timer| timer.writes(pass));
+            encode_timed_pass(
                 &mut encoder,
-                "horizon",
-                &baker.horizon,
-                &self.horizon_group,
-                [1, chunk.vertices, 1],
+                ("horizon", &baker.horizon, &self.horizon_group),
+                Dispatch::Direct([1, chunk.vertices, 1]),
+                writes(0),
             );
-            encode_indirect_pass(
+            encode_timed_pass(
                 &mut encoder,
-                "visibility",
-                &baker.visibility,
-                &self.visibility_group,
-                &self.visibility_groups,
+                ("visibility", &baker.visibility, &self.visibility_group),
+                Dispatch::Indirect(&self.visibility_groups),
+                writes(1),
             );
-            encode_pass(
+            encode_timed_pass(
                 &mut encoder,
-                "project",
-                &baker.project,
-                &self.project_group,
-                [
+                ("project", &baker.project, &self.project_group),
+                Dispatch::Direct([
                     (chunk.vertices * spec.coeffs).div_ceil(WORKGROUP_SIZE),
                     1,
                     1,
-                ],
+                ]),
+                writes(2),
             );
+            if let Some(timer) = &self.timer {
+                timer.resolve(&mut encoder);
+            }
             ctx.queue.submit([encoder.finish()]);
         })?;
         let waiting = Instant::now();
         ctx.wait()?;
         stats.kernel_wait_seconds += waiting.elapsed().as_secs_f64();
+        if let Some(timer) = &self.timer {
+            let seconds = timer.seconds(ctx)?;
+            let summed = stats.kernel_seconds.get_or_insert([0.0; 3]);
+            for (sum, pass) in summed.iter_mut().zip(seconds) {
+                *sum += pass;
+            }
+        }
         stats.submissions += 1;
         Ok(())
     }

@@ -261,13 +261,21 @@ fn sweep_options(args: &ChartArgs) -> Result<SweepOptions> {
 }
 
 /// Where a GPU run's time went, as one line: the wait for the kernels, and the rest (the
-/// host's setup, uploads and read-backs), each a share of the run.
+/// host's setup, uploads and read-backs), each a share of the run; and where the device
+/// writes timestamps, each pass's own time on it.
 fn gpu_host_share(run: &GpuRun) -> String {
     let share = |seconds: f64| 100.0 * seconds / run.run_seconds.max(f64::MIN_POSITIVE);
     let rest = run.run_seconds - run.kernel_wait_seconds;
+    let on_device = match run.kernel_seconds {
+        Some([horizon, visibility, projection]) => format!(
+            "; timed on the device: horizon {horizon:.3} s, visibility {visibility:.3} s, \
+             projection {projection:.3} s"
+        ),
+        None => "; the device writes no timestamps".to_string(),
+    };
     format!(
         "gpu run of median time: {:.3} s in {} submissions: waiting for kernels {:.3} s \
-         ({:.0}%), the rest {:.3} s ({:.0}%)",
+         ({:.0}%), the rest {:.3} s ({:.0}%){on_device}",
         run.run_seconds,
         run.submissions,
         run.kernel_wait_seconds,

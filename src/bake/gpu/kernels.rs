@@ -4,6 +4,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::device::GpuContext;
+use crate::error::Result;
 use crate::sampling::{DirectionFrame, Estimator};
 use crate::shaders::{ESTIMATOR_BLOCKED, ESTIMATOR_TANGENT};
 
@@ -119,28 +120,129 @@ pub(crate) fn encode_pass(
     group: &wgpu::BindGroup,
     workgroups: [u32; 3],
 ) {
-    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: Some(label),
-        timestamp_writes: None,
-    });
-    pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, group, &[]);
-    pass.dispatch_workgroups(workgroups[0], workgroups[1], workgroups[2]);
+    encode_timed_pass(
+        encoder,
+        (label, pipeline, group),
+        Dispatch::Direct(workgroups),
+        None,
+    );
 }
 
-/// Records one compute pass whose workgroup counts a kernel wrote to `counts` (x, y, z).
-pub(super) fn encode_indirect_pass(
+/// How a pass's workgroups are counted: given, or read from a buffer a kernel wrote (x, y, z).
+pub(super) enum Dispatch<'b> {
+    Direct([u32; 3]),
+    Indirect(&'b wgpu::Buffer),
+}
+
+/// Records one compute pass of `pipeline` with `group` at binding set 0, writing a timestamp
+/// where it starts and ends when `timestamps` is given.
+pub(super) fn encode_timed_pass(
     encoder: &mut wgpu::CommandEncoder,
-    label: &str,
-    pipeline: &wgpu::ComputePipeline,
-    group: &wgpu::BindGroup,
-    counts: &wgpu::Buffer,
+    (label, pipeline, group): (&str, &wgpu::ComputePipeline, &wgpu::BindGroup),
+    dispatch: Dispatch,
+    timestamps: Option<wgpu::ComputePassTimestampWrites>,
 ) {
     let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
         label: Some(label),
-        timestamp_writes: None,
+        timestamp_writes: timestamps,
     });
     pass.set_pipeline(pipeline);
     pass.set_bind_group(0, group, &[]);
-    pass.dispatch_workgroups_indirect(counts, 0);
+    match dispatch {
+        Dispatch::Direct([x, y, z]) => pass.dispatch_workgroups(x, y, z),
+        Dispatch::Indirect(counts) => pass.dispatch_workgroups_indirect(counts, 0),
+    }
+}
+
+/// The start and end timestamps of a chunk's passes (horizon, visibility, projection),
+/// resolved into a buffer the host reads after the chunk.
+pub(super) struct PassTimer {
+    queries: wgpu::QuerySet,
+    resolved: wgpu::Buffer,
+}
+
+impl PassTimer {
+    /// Passes timed per chunk.
+    pub const PASSES: u32 = 3;
+
+    /// A timer on `ctx`'s device, where it writes timestamps.
+    pub fn new(ctx: &GpuContext) -> Option<PassTimer> {
+        if !ctx.has_timestamps() {
+            return None;
+        }
+        let queries = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("pass timestamps"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2 * Self::PASSES,
+        });
+        let resolved = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("resolved pass timestamps"),
+            size: 2 * Self::PASSES as u64 * 8,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        Some(PassTimer { queries, resolved })
+    }
+
+    /// Where pass `pass` writes its start and end.
+    pub fn writes(&self, pass: u32) -> wgpu::ComputePassTimestampWrites<'_> {
+        wgpu::ComputePassTimestampWrites {
+            query_set: &self.queries,
+            beginning_of_pass_write_index: Some(2 * pass),
+            end_of_pass_write_index: Some(2 * pass + 1),
+        }
+    }
+
+    /// Records the resolve of every pass's timestamps, after the passes.
+    pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.resolve_query_set(&self.queries, 0..2 * Self::PASSES, &self.resolved, 0);
+    }
+
+    /// Each pass's seconds on the device, read once the chunk has finished.
+    pub fn seconds(&self, ctx: &GpuContext) -> Result<[f64; Self::PASSES as usize]> {
+        let ticks: Vec<u64> = ctx.read_back(&self.resolved, 2 * Self::PASSES as u64 * 8)?;
+        let nanoseconds_per_tick = ctx.queue.get_timestamp_period() as f64;
+        Ok(std::array::from_fn(|pass| {
+            let (start, end) = (ticks[2 * pass], ticks[2 * pass + 1]);
+            end.saturating_sub(start) as f64 * nanoseconds_per_tick * 1e-9
+        }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::*;
+    use crate::bake::{BakeInputs, NoProgress};
+    use crate::sampling::Sampling;
+    use crate::scene::{builtin, prepare::prepare};
+
+    /// On a device that writes timestamps (lavapipe does), every pass of a bake is timed and
+    /// took a positive, finite time; on one that does not, no figure is made up.
+    #[test]
+    fn passes_are_timed_where_the_device_writes_timestamps() {
+        let Some(context) = crate::device::any_adapter_or_skip() else {
+            return;
+        };
+        let baker = GpuBaker::new(context).unwrap();
+        let (scene, _) = prepare(builtin::default_scene()).unwrap();
+        let owned = BakeInputs::with_sampling(&scene, 3, 64, 5, Sampling::Cosine);
+        let (_, run) = direct_transfer(
+            &baker,
+            &owned.view(),
+            Mode::Shadowed,
+            Chunking::default(),
+            &NoProgress,
+        )
+        .unwrap();
+        match run.kernel_seconds {
+            Some(passes) => {
+                assert!(baker.context.has_timestamps());
+                assert!(
+                    passes.iter().all(|s| s.is_finite() && *s > 0.0),
+                    "{passes:?}"
+                );
+            }
+            None => assert!(!baker.context.has_timestamps()),
+        }
+    }
 }

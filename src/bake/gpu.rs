@@ -542,33 +542,7 @@ impl RunBuffers {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("bake chunk"),
                 });
-            encoder.clear_buffer(&self.bits, 0, None);
-            let writes = |pass| self.timer.as_ref().map(|timer| timer.writes(pass));
-            encode_timed_pass(
-                &mut encoder,
-                ("horizon", &baker.horizon, &self.horizon_group),
-                Dispatch::Direct([1, chunk.vertices, 1]),
-                writes(0),
-            );
-            encode_timed_pass(
-                &mut encoder,
-                ("visibility", &baker.visibility, &self.visibility_group),
-                Dispatch::Indirect(&self.visibility_groups),
-                writes(1),
-            );
-            encode_timed_pass(
-                &mut encoder,
-                ("project", &baker.project, &self.project_group),
-                Dispatch::Direct([
-                    (chunk.vertices * spec.coeffs).div_ceil(WORKGROUP_SIZE),
-                    1,
-                    1,
-                ]),
-                writes(2),
-            );
-            if let Some(timer) = &self.timer {
-                timer.resolve(&mut encoder);
-            }
+            self.encode_passes(&mut encoder, baker, spec.coeffs, chunk.vertices);
             ctx.queue.submit([encoder.finish()]);
         })?;
         let waiting = Instant::now();
@@ -583,6 +557,41 @@ impl RunBuffers {
         }
         stats.submissions += 1;
         Ok(())
+    }
+
+    /// Records a chunk's passes over `vertices` vertices (its parameters written): the bits
+    /// cleared, then the horizon, visibility and projection passes, timed where the device
+    /// writes timestamps.
+    fn encode_passes(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        baker: &GpuBaker,
+        coeffs: u32,
+        vertices: u32,
+    ) {
+        encoder.clear_buffer(&self.bits, 0, None);
+        let writes = |pass| self.timer.as_ref().map(|timer| timer.writes(pass));
+        encode_timed_pass(
+            encoder,
+            ("horizon", &baker.horizon, &self.horizon_group),
+            Dispatch::Direct([1, vertices, 1]),
+            writes(0),
+        );
+        encode_timed_pass(
+            encoder,
+            ("visibility", &baker.visibility, &self.visibility_group),
+            Dispatch::Indirect(&self.visibility_groups),
+            writes(1),
+        );
+        encode_timed_pass(
+            encoder,
+            ("project", &baker.project, &self.project_group),
+            Dispatch::Direct([(vertices * coeffs).div_ceil(WORKGROUP_SIZE), 1, 1]),
+            writes(2),
+        );
+        if let Some(timer) = &self.timer {
+            timer.resolve(encoder);
+        }
     }
 
     /// The samples the horizon pass listed over the run: the rays a shadowed run cast.

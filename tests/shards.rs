@@ -131,6 +131,14 @@ fn part_set(dir: &Path, count: u32) -> prt_gpu::shard::PartSet {
 /// A merge under `--memory-limit` holds its lightmap's texels in a scratch file, as the whole
 /// bake does under the same limit (its largest part read beside them): the same .glb and
 /// lightmap bytes as the merge without one.
+/// `prt-gpu merge PARTS -o OUTPUT --memory-limit LIMIT` run in `dir`.
+fn merge_within(parts: &[&str], output: &str, limit: &str, dir: &Path) -> std::process::Output {
+    let mut args = vec!["merge"];
+    args.extend(parts);
+    args.extend(["-o", output, "--memory-limit", limit]);
+    prt_gpu(&args, dir)
+}
+
 #[test]
 fn a_merge_under_a_memory_limit_holds_its_lightmap() {
     use prt_gpu::bake::stream::MemoryNeed;
@@ -150,17 +158,8 @@ fn a_merge_under_a_memory_limit_holds_its_lightmap() {
         .with_merge_part(part_set(d, 3).largest_part_bytes());
     let limit = need.lightmap_held(4).to_string();
     std::fs::create_dir_all(d.join("held")).unwrap();
-    let args = [
-        "merge",
-        "shard0.part",
-        "shard1.part",
-        "shard2.part",
-        "-o",
-        "held/merged.glb",
-        "--memory-limit",
-        &limit,
-    ];
-    let out = prt_gpu(&args, d);
+    let parts = ["shard0.part", "shard1.part", "shard2.part"];
+    let out = merge_within(&parts, "held/merged.glb", &limit, d);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(
@@ -206,18 +205,8 @@ fn a_merge_under_a_memory_limit_streams_its_parts() {
             limit < need.whole(),
             "{extra:?}: the limit must be below the whole need"
         );
-        let limit = limit.to_string();
-        let merge = [
-            "merge",
-            "shard1.part",
-            "shard0.part",
-            "shard2.part",
-            "-o",
-            "streamed.glb",
-            "--memory-limit",
-            &limit,
-        ];
-        let out = prt_gpu(&merge, d);
+        let parts = ["shard1.part", "shard0.part", "shard2.part"];
+        let out = merge_within(&parts, "streamed.glb", &limit.to_string(), d);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{extra:?}: {stderr}");
         assert!(
@@ -241,18 +230,7 @@ fn a_merge_under_a_memory_limit_streams_its_parts() {
         "least-squares",
     ];
     whole_and_merged(Some(BUNNY), &extra, 2, p);
-    let out = prt_gpu(
-        &[
-            "merge",
-            "shard0.part",
-            "shard1.part",
-            "-o",
-            "small.glb",
-            "--memory-limit",
-            "1M",
-        ],
-        p,
-    );
+    let out = merge_within(&["shard0.part", "shard1.part"], "small.glb", "1M", p);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");

@@ -144,11 +144,9 @@ pub fn adaptive_direct_pass(
     progress: &dyn Progress,
 ) -> Result<DirectPass> {
     target.validate()?;
-    // Interreflection's direct light is shadowed transfer; its bounces come from the rows.
-    let (direct_mode, mut rows) = match mode {
-        Mode::Interreflected => (Mode::Shadowed, Some(vec![Vec::new(); range.len()])),
-        mode => (mode, None),
-    };
+    // Interreflection's direct light is shadowed transfer, summed with the gather rows of the
+    // same rays' hits; its bounces come from the rows.
+    let mut rows = (mode == Mode::Interreflected).then(|| vec![Vec::new(); range.len()]);
     let bands = base.table.bands;
     let n = coeff_count(bands);
     let view = base.view();
@@ -197,7 +195,7 @@ pub fn adaptive_direct_pass(
                 }
                 (sums, batch_rays)
             }
-            None => backend.projected_sums(&batch, direct_mode, &NoProgress)?,
+            None => backend.projected_sums(&batch, mode, &NoProgress)?,
         };
         rays += batch_rays;
         let scale = transfer_scale(&batch);

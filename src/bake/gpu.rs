@@ -550,7 +550,7 @@ impl RunBuffers {
         stats.kernel_wait_seconds += waiting.elapsed().as_secs_f64();
         if let Some(timer) = &self.timer {
             let seconds = timer.seconds(ctx)?;
-            let summed = stats.kernel_seconds.get_or_insert([0.0; 3]);
+            let summed = stats.kernel_seconds.get_or_insert(Default::default());
             for (sum, pass) in summed.iter_mut().zip(seconds) {
                 *sum += pass;
             }

@@ -1,8 +1,7 @@
 //! WGSL sources, assembled from `wgsl/` with the constants they share with Rust generated from
 //! the Rust definitions (no "keep in sync" comments).
 
-use crate::bvh::gpu::{LAST_IN_LEAF, LEAF_FLAG};
-use crate::bvh::STACK_SIZE;
+use crate::bvh::gpu::{EMPTY_CHILD, LAST_IN_LEAF, LEAF_FLAG, WIDE_STACK_SIZE};
 use crate::ray::{MIN_DIRECTION_COMPONENT, NO_HIT, RAY_T_MAX, SLAB_WIDENING, TIE_REACH};
 
 /// Invocations per workgroup of every kernel.
@@ -50,7 +49,7 @@ pub const COEFFS_PER_INVOCATION: u32 = 64;
 fn prelude() -> String {
     format!(
         "// Generated from Rust by src/shaders.rs.\n\
-         const STACK_SIZE: u32 = {STACK_SIZE}u;\n\
+         const WIDE_STACK_SIZE: u32 = {WIDE_STACK_SIZE}u;\n\
          const WORKGROUP_SIZE: u32 = {WORKGROUP_SIZE}u;\n\
          const SLAB_WIDENING: f32 = {SLAB_WIDENING:?};\n\
          const TIE_REACH: f32 = {TIE_REACH:?};\n\
@@ -58,6 +57,7 @@ fn prelude() -> String {
          const RAY_T_MAX: f32 = {RAY_T_MAX:?};\n\
          const NO_HIT: u32 = {NO_HIT}u;\n\
          const LEAF_FLAG: u32 = {LEAF_FLAG}u;\n\
+         const EMPTY_CHILD: u32 = {EMPTY_CHILD}u;\n\
          const LAST_IN_LEAF: u32 = {LAST_IN_LEAF}u;\n\
          const NO_SAMPLE: u32 = {NO_SAMPLE}u;\n\
          const ESTIMATOR_BLOCKED: u32 = {ESTIMATOR_BLOCKED}u;\n\
@@ -161,7 +161,7 @@ mod tests {
     use crate::bake::bounce::Hit;
     use crate::bake::gpu::denoise::DenoiseParams;
     use crate::bake::gpu::{GatherParams, HorizonParams, ProjectParams, VisibilityParams};
-    use crate::bvh::gpu::GpuNode;
+    use crate::bvh::gpu::{GpuChild, GpuNode, WIDTH};
     use crate::bvh::BvhTriangle;
     use crate::compress::gpu::AssignParams;
     use crate::local::gpu::CompressedParams;
@@ -293,16 +293,12 @@ mod tests {
         // The visibility kernel reads nodes and triangles as vec4<u32> words at these offsets
         // (wgsl/bvh.wgsl).
         assert_eq!(
-            rust_layout!(GpuNode, left_box, left, right_box, right),
-            (
-                32,
-                vec![
-                    ("left_box".into(), 0),
-                    ("left".into(), 12),
-                    ("right_box".into(), 16),
-                    ("right".into(), 28)
-                ]
-            )
+            rust_layout!(GpuChild, bounds, reference),
+            (16, vec![("bounds".into(), 0), ("reference".into(), 12)])
+        );
+        assert_eq!(
+            rust_layout!(GpuNode, children),
+            (16 * WIDTH as u32, vec![("children".into(), 0)])
         );
         assert_eq!(
             rust_layout!(BvhTriangle, v0, source_index, v1, last_in_leaf, v2, pad2),
@@ -441,10 +437,11 @@ mod tests {
                 naga::Expression::Literal(naga::Literal::U32(v)) => (
                     *v,
                     match name {
-                        "STACK_SIZE" => STACK_SIZE as u32,
+                        "WIDE_STACK_SIZE" => WIDE_STACK_SIZE as u32,
                         "WORKGROUP_SIZE" => WORKGROUP_SIZE,
                         "NO_HIT" => NO_HIT,
                         "LEAF_FLAG" => LEAF_FLAG,
+                        "EMPTY_CHILD" => EMPTY_CHILD,
                         "LAST_IN_LEAF" => LAST_IN_LEAF,
                         "NO_SAMPLE" => NO_SAMPLE,
                         "ESTIMATOR_BLOCKED" => ESTIMATOR_BLOCKED,
@@ -459,6 +456,6 @@ mod tests {
             assert_eq!(value, expected, "{name}");
             checked += 1;
         }
-        assert_eq!(checked, 14, "expected fourteen generated constants");
+        assert_eq!(checked, 15, "expected fifteen generated constants");
     }
 }

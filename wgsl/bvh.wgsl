@@ -204,13 +204,12 @@ struct Trace {
 
 // The BVH as the visibility kernel reads it (built from bvh::Bvh by bvh::gpu::GpuBvh), both
 // arrays as vec4<u32> so that every read is a 16-byte load.
-// `nodes`: 32 bytes (two vec4) per interior node of the CPU tree, Rust twin bvh::gpu::GpuNode:
-//   [0].xyz  the left child's box, [0].w  the left child's reference,
-//   [1].xyz  the right child's box, [1].w  the right child's reference.
+// `nodes`: 64 bytes (four vec4) per node of the four-wide tree, Rust twin bvh::gpu::GpuNode:
+//   [i].xyz  child i's box, [i].w  child i's reference.
 // A box is (min.x, min.y), (min.z, max.x), (max.y, max.z) as pairs of u16 (low half first) on a
 // grid of 2^16 steps per axis, rounded outwards, so it holds at least what the exact box holds.
-// A reference is an interior child's index in `nodes`, or LEAF_FLAG | the index of a leaf's
-// first triangle.
+// A reference is an interior child's index in `nodes`, LEAF_FLAG | the index of a leaf's first
+// triangle, or EMPTY_CHILD for an unused slot.
 // `triangles`: 48 bytes (three vec4) per triangle in leaf order, Rust twin bvh::BvhTriangle:
 //   [0] = (v0, source_index), [1] = (v1, flags), [2] = (v2, 0), vertices as f32 bits;
 //   flags is LAST_IN_LEAF on the last triangle of a leaf.
@@ -238,11 +237,11 @@ fn box_max(q: vec3<u32>, grid: BoxGrid) -> vec3<f32> {
 
 // Closest-hit (any_hit false) or any-hit (any_hit true, on (0, t_max_in) with t_max_in
 // RAY_T_MAX: see intersect_triangle's `exact_t`) traversal of `nodes`/`triangles`, whose boxes
-// lie on `grid`
-// (declared by the kernel that includes this file); Rust twin: Bvh::traverse, which visits the
-// same nodes in the same order (with exact instead of grid-rounded boxes). Of triangles at one
+// lie on `grid` (declared by the kernel that includes this file). Rust twin: Bvh::traverse,
+// whose answers it gives on the binary tree this one was collapsed from (with exact instead of
+// grid-rounded boxes): every triangle the CPU tests is tested here, and of triangles at one
 // distance the closest-hit query keeps the first in leaf order (`replaces`), as every CPU
-// traversal does, whatever order the grid-rounded boxes make it meet them in.
+// traversal does, whatever order the four-wide steps make it meet them in.
 // Every loop iteration counts against `max_steps`: llvmpipe silently ends any invocation's loops
 // after 65,535 iterations in total, so a traversal that could come near that reports itself
 // as exhausted instead of returning a wrong answer.
@@ -250,8 +249,8 @@ fn box_max(q: vec3<u32>, grid: BoxGrid) -> vec3<f32> {
 // Written for llvmpipe, where an invocation is one lane of an 8-wide SIMD group: both sides
 // of every branch run (masked) in every loop iteration, and a storage-buffer load is a loop
 // over the lanes with a bounds check per lane and per component. So an interior step reads
-// one 32-byte node (two vec4 loads) that holds both children's boxes and references, and a
-// leaf's triangles are read as three vec4 each.
+// one 64-byte node (four vec4 loads) that holds four children's boxes and references, orders
+// them without branches, and a leaf's triangles are read as three vec4 each.
 fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) -> Trace {
     var result = Trace(false, false, NO_HIT, 0.0, 0.0);
     // The closest hit so far, its barycentrics divided out when the traversal ends, and its
@@ -262,7 +261,7 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) 
     // and for the box tests, a little farther (`reach`).
     var t_max = t_max_in;
     var box_t_max = t_max_in;
-    var stack: array<u32, STACK_SIZE>;
+    var stack: array<u32, WIDE_STACK_SIZE>;
     var stack_len = 0u;
     // The root's children are tested by the first step.
     var node = 0u;
@@ -304,30 +303,37 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) 
                 i += 1u;
             }
         } else {
-            let l = nodes[2u * node];
-            let r = nodes[2u * node + 1u];
-            let t0l = (box_min(l.xyz, grid) - ray.origin) * ray.inv_direction;
-            let t1l = (box_max(l.xyz, grid) - ray.origin) * ray.inv_direction;
-            let t0r = (box_min(r.xyz, grid) - ray.origin) * ray.inv_direction;
-            let t1r = (box_max(r.xyz, grid) - ray.origin) * ray.inv_direction;
-            let near_l = box_near(t0l, t1l);
-            let near_r = box_near(t0r, t1r);
-            let hit_l = near_l <= box_far(t0l, t1l, box_t_max);
-            let hit_r = near_r <= box_far(t0r, t1r, box_t_max);
-            if (hit_l && hit_r) {
-                // Visit the nearer child first, keep the other.
-                let near_first = near_l <= near_r;
-                stack[stack_len] = select(l.w, r.w, near_first);
-                stack_len += 1u;
-                node = select(r.w, l.w, near_first);
-                descend = true;
-            } else if (hit_l) {
-                node = l.w;
-                descend = true;
-            } else if (hit_r) {
-                node = r.w;
-                descend = true;
-            }
+            // The children met, nearest first; a missed or empty child sorts last.
+            let c0 = nodes[4u * node];
+            let c1 = nodes[4u * node + 1u];
+            let c2 = nodes[4u * node + 2u];
+            let c3 = nodes[4u * node + 3u];
+            var near = vec4<u32>(child_key(c0, ray, grid, box_t_max), child_key(c1, ray, grid, box_t_max), child_key(c2, ray, grid, box_t_max), child_key(c3, ray, grid, box_t_max));
+            var child = vec4<u32>(c0.w, c1.w, c2.w, c3.w);
+            // A sorting network of five compare-exchanges: (0 1) (2 3) (0 2) (1 3) (1 2).
+            let swap_01 = near.y < near.x;
+            let swap_23 = near.w < near.z;
+            near = vec4<u32>(select(near.xy, near.yx, swap_01), select(near.zw, near.wz, swap_23));
+            child = vec4<u32>(select(child.xy, child.yx, swap_01), select(child.zw, child.wz, swap_23));
+            let swap_02 = near.z < near.x;
+            let swap_13 = near.w < near.y;
+            near = select(near, near.zwxy, vec4<bool>(swap_02, swap_13, swap_02, swap_13));
+            child = select(child, child.zwxy, vec4<bool>(swap_02, swap_13, swap_02, swap_13));
+            let swap_12 = near.z < near.y;
+            near = vec4<u32>(near.x, select(near.yz, near.zy, swap_12), near.w);
+            child = vec4<u32>(child.x, select(child.yz, child.zy, swap_12), child.w);
+            // The nearest is next; the others wait, the farthest deepest. Each is written
+            // before it is known to be kept (a later write overwrites one that is not), so
+            // the stack has a slot beyond the deepest it holds.
+            let met = near != vec4<u32>(MISSED);
+            stack[stack_len] = child.w;
+            stack_len += select(0u, 1u, met.w);
+            stack[stack_len] = child.z;
+            stack_len += select(0u, 1u, met.z);
+            stack[stack_len] = child.y;
+            stack_len += select(0u, 1u, met.y);
+            node = child.x;
+            descend = met.x;
         }
         if (!descend) {
             if (stack_len == 0u) {
@@ -359,6 +365,19 @@ fn reach(t: f32) -> f32 {
 fn replaces(t: f32, index: u32, best_t: f32, best_index: u32) -> bool {
     return t < best_t || (t == best_t && index < best_index);
 }
+
+// Where the ray enters a child's box (`c`: the box, the reference), as the bits of the
+// distance, or MISSED where it does not reach the box before `t_max` or the slot is empty.
+// The distance is not negative, so its bits order as it does and MISSED sorts after every box
+// met. Rust twin: ray::intersect_box.
+fn child_key(c: vec4<u32>, ray: Ray, grid: BoxGrid, t_max: f32) -> u32 {
+    let t0 = (box_min(c.xyz, grid) - ray.origin) * ray.inv_direction;
+    let t1 = (box_max(c.xyz, grid) - ray.origin) * ray.inv_direction;
+    let near = box_near(t0, t1);
+    return select(MISSED, bitcast<u32>(near), near <= box_far(t0, t1, t_max) && c.w != EMPTY_CHILD);
+}
+
+const MISSED: u32 = 0xffffffffu;
 
 fn box_near(t0: vec3<f32>, t1: vec3<f32>) -> f32 {
     let n = min(t0, t1);

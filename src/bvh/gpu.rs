@@ -1,41 +1,58 @@
-//! The BVH in the layout the GPU kernels read (wgsl/bvh.wgsl): interior nodes with both
-//! children's boxes quantized to a 16-bit grid, and the triangles with leaf ends marked.
-//! Built from the CPU tree ([`super::Bvh`]), so both backends test the same triangles.
+//! The BVH in the layout the GPU kernels read (wgsl/bvh.wgsl): the CPU's binary tree collapsed
+//! four-wide, each node holding its children's boxes quantized to a 16-bit grid, and the
+//! triangles with leaf ends marked. Built from the CPU tree ([`super::Bvh`]), so both backends
+//! test the same triangles.
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{Bvh, BvhTriangle};
+use super::{Bvh, BvhTriangle, STACK_SIZE};
 use crate::ray::NO_HIT;
 
 /// Marks a child reference in a [`GpuNode`] as a leaf (the rest is its first triangle).
 pub const LEAF_FLAG: u32 = 1 << 31;
+/// The reference of a [`GpuNode`]'s unused child slots (never tested: the kernel skips it).
+pub const EMPTY_CHILD: u32 = u32::MAX;
 /// `BvhTriangle::last_in_leaf` of the last triangle of a leaf in [`GpuBvh::triangles`].
 pub const LAST_IN_LEAF: u32 = 1;
+/// Children of a [`GpuNode`].
+pub const WIDTH: usize = 4;
+/// The kernel's traversal stack: a step pushes at most three children and descends two levels
+/// of the binary tree, whose depth stays below [`STACK_SIZE`]; plus one slot, since the kernel
+/// writes each child it might push before it knows whether it will keep it.
+pub const WIDE_STACK_SIZE: usize = (WIDTH - 1) * STACK_SIZE.div_ceil(2) + 1;
 
-/// One interior node of the CPU tree as the visibility kernel reads it, 32 bytes (WGSL layout
-/// in wgsl/bvh.wgsl): both children's boxes on the grid of [`GpuBvh`], and their references
-/// (an interior child's index in [`GpuBvh::nodes`], or `LEAF_FLAG | first triangle`).
+/// One child of a [`GpuNode`], 16 bytes (one `vec4<u32>` in wgsl/bvh.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuChild {
+    /// (min.x, min.y), (min.z, max.x), (max.y, max.z) as pairs of u16, low half first.
+    pub bounds: [u32; 3],
+    /// An interior child's index in [`GpuBvh::nodes`], `LEAF_FLAG | first triangle`, or
+    /// [`EMPTY_CHILD`].
+    pub reference: u32,
+}
+
+/// A node of the four-wide tree, 64 bytes (WGSL layout in wgsl/bvh.wgsl): the children and
+/// grandchildren of a binary node, in the binary tree's order (a child that is a leaf stands
+/// for itself), then empty slots.
 ///
 /// A traversal step on llvmpipe pays per storage-buffer load (a loop over the SIMD lanes with
-/// a bounds check per lane and component): this layout gives a step two 16-byte loads where
-/// `BvhNode`s take six loads (the node, then both children's corners).
+/// a bounds check per lane and component) and per loop iteration (every lane runs the leaf and
+/// the interior code, masked, until the slowest lane ends): a node of four quantized boxes is
+/// four 16-byte loads, and a ray takes half the binary tree's interior steps.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuNode {
-    /// (min.x, min.y), (min.z, max.x), (max.y, max.z) as pairs of u16, low half first.
-    pub left_box: [u32; 3],
-    pub left: u32,
-    pub right_box: [u32; 3],
-    pub right: u32,
+    pub children: [GpuChild; WIDTH],
 }
-const _: () = assert!(std::mem::size_of::<GpuNode>() == 32);
+const _: () = assert!(std::mem::size_of::<GpuNode>() == 64);
 
 /// The BVH in the visibility kernel's layout. Boxes are quantized to 16 bits per coordinate
 /// on a grid whose step is a power of two and whose points `grid_origin + q * grid_step` are
 /// all exact f32 values, rounded outwards: every box holds its exact box, so the kernel tests
-/// the triangles the CPU tests (and perhaps a few more, which cannot change an answer).
-/// Nodes come in the CPU tree's order and the near child is chosen the same way, so a
-/// closest-hit query finds the same triangle.
+/// every triangle the CPU tests (and perhaps a few more, which cannot change an answer). Of
+/// triangles at one distance both keep the first in leaf order (`ray::replaces`), so the
+/// order a traversal meets them in cannot change a closest hit either.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GpuBvh {
     pub nodes: Vec<GpuNode>,
@@ -47,17 +64,35 @@ pub struct GpuBvh {
 
 const GRID_MAX: f64 = 65535.0;
 
+const EMPTY: GpuChild = GpuChild {
+    bounds: [0; 3],
+    reference: EMPTY_CHILD,
+};
+
+/// The grid of [`GpuBvh`] for a scene whose box is `lo`..`hi`: its origin and step.
+fn box_grid(lo: [f64; 3], hi: [f64; 3]) -> ([f64; 3], f64) {
+    let magnitude = (0..3).fold(0.0f64, |m, a| m.max(lo[a].abs()).max(hi[a].abs()));
+    let extent = (0..3).fold(0.0f64, |m, a| m.max(hi[a] - lo[a]));
+    // The smallest power of two that spans the scene in GRID_MAX steps (plus one for the
+    // origin's rounding down) and keeps origin + q * step exact in f32 (24-bit mantissa).
+    let mut step = f64::from(f32::MIN_POSITIVE);
+    while extent > (GRID_MAX - 1.0) * step || magnitude + extent >= step * (1u64 << 23) as f64 {
+        step *= 2.0;
+    }
+    (lo.map(|v| (v / step).floor() * step), step)
+}
+
 impl GpuBvh {
     pub fn new(bvh: &Bvh) -> Self {
         let Some(root) = bvh.nodes.first() else {
-            // No triangles: one node whose children are a leaf holding a degenerate triangle
+            // No triangles: one node whose child is a leaf holding a degenerate triangle
             // (zero determinant: never hit).
+            let mut node = GpuNode {
+                children: [EMPTY; WIDTH],
+            };
+            node.children[0].reference = LEAF_FLAG;
             return GpuBvh {
-                nodes: vec![GpuNode {
-                    left: LEAF_FLAG,
-                    right: LEAF_FLAG,
-                    ..GpuNode::default()
-                }],
+                nodes: vec![node],
                 triangles: vec![BvhTriangle {
                     source_index: NO_HIT,
                     last_in_leaf: LAST_IN_LEAF,
@@ -67,70 +102,27 @@ impl GpuBvh {
                 grid_step: 1.0,
             };
         };
-        let (lo, hi) = (root.min.map(f64::from), root.max.map(f64::from));
-        let magnitude = (0..3).fold(0.0f64, |m, a| m.max(lo[a].abs()).max(hi[a].abs()));
-        let extent = (0..3).fold(0.0f64, |m, a| m.max(hi[a] - lo[a]));
-        // The smallest power of two that spans the scene in GRID_MAX steps (plus one for the
-        // origin's rounding down) and keeps origin + q * step exact in f32 (24-bit mantissa).
-        let mut step = f64::from(f32::MIN_POSITIVE);
-        while extent > (GRID_MAX - 1.0) * step || magnitude + extent >= step * (1u64 << 23) as f64 {
-            step *= 2.0;
-        }
-        let origin = lo.map(|v| (v / step).floor() * step);
-        let grid = |v: f32, axis: usize, up: bool| -> u32 {
-            let q = (f64::from(v) - origin[axis]) / step;
-            (if up { q.ceil() } else { q.floor() }).clamp(0.0, GRID_MAX) as u32
+        let (origin, step) = box_grid(root.min.map(f64::from), root.max.map(f64::from));
+        let mut wide = WideBuilder {
+            bvh,
+            origin,
+            step,
+            nodes: Vec::new(),
+            triangles: bvh.triangles.clone(),
         };
-        let quantize = |index: u32| -> [u32; 3] {
-            let n = &bvh.nodes[index as usize];
-            let q = [
-                grid(n.min[0], 0, false),
-                grid(n.min[1], 1, false),
-                grid(n.min[2], 2, false),
-                grid(n.max[0], 0, true),
-                grid(n.max[1], 1, true),
-                grid(n.max[2], 2, true),
-            ];
-            [q[0] | q[1] << 16, q[2] | q[3] << 16, q[4] | q[5] << 16]
-        };
-
-        let mut triangles = bvh.triangles.clone();
-        let mut gpu_index = vec![u32::MAX; bvh.nodes.len()];
-        let mut interior = Vec::new();
         if root.is_leaf() {
-            // A one-leaf tree: a node whose two children are that leaf.
-            interior.push((0, 0));
+            // A one-leaf tree: a node whose one child is that leaf.
+            let mut node = GpuNode {
+                children: [EMPTY; WIDTH],
+            };
+            node.children[0] = wide.child(0);
+            wide.nodes.push(node);
         } else {
-            // Interior nodes in the CPU tree's order.
-            for (i, n) in bvh.nodes.iter().enumerate() {
-                if !n.is_leaf() {
-                    gpu_index[i] = interior.len() as u32;
-                    interior.push((n.left_or_first, n.left_or_first + 1));
-                }
-            }
+            wide.collapse(0);
         }
-        let reference = |child: u32, triangles: &mut Vec<BvhTriangle>| -> u32 {
-            let n = &bvh.nodes[child as usize];
-            if n.is_leaf() {
-                triangles[(n.left_or_first + n.triangle_count - 1) as usize].last_in_leaf =
-                    LAST_IN_LEAF;
-                LEAF_FLAG | n.left_or_first
-            } else {
-                gpu_index[child as usize]
-            }
-        };
-        let nodes = interior
-            .iter()
-            .map(|&(left, right)| GpuNode {
-                left_box: quantize(left),
-                left: reference(left, &mut triangles),
-                right_box: quantize(right),
-                right: reference(right, &mut triangles),
-            })
-            .collect();
         GpuBvh {
-            nodes,
-            triangles,
+            nodes: wide.nodes,
+            triangles: wide.triangles,
             grid_origin: origin.map(|v| v as f32),
             grid_step: step as f32,
         }
@@ -143,6 +135,94 @@ impl GpuBvh {
             [g(q[0] & 0xffff, 0), g(q[0] >> 16, 1), g(q[1] & 0xffff, 2)],
             [g(q[1] >> 16, 0), g(q[2] & 0xffff, 1), g(q[2] >> 16, 2)],
         )
+    }
+}
+
+fn half_area(node: &super::BvhNode) -> f32 {
+    let d = node.max() - node.min();
+    d.x * d.y + d.y * d.z + d.z * d.x
+}
+
+/// Collapses the binary tree into [`GpuNode`]s, depth first (a node before its children).
+struct WideBuilder<'a> {
+    bvh: &'a Bvh,
+    origin: [f64; 3],
+    step: f64,
+    nodes: Vec<GpuNode>,
+    triangles: Vec<BvhTriangle>,
+}
+
+impl WideBuilder<'_> {
+    /// The wide node of the binary interior node `index`; returns its index in `nodes`.
+    fn collapse(&mut self, index: u32) -> u32 {
+        let nodes = &self.bvh.nodes;
+        let children = |i: u32| {
+            let first = nodes[i as usize].left_or_first;
+            [first, first + 1]
+        };
+        let interior = |i: &u32| !nodes[*i as usize].is_leaf();
+        // The node's children, each interior one replaced by its own two: a step descends two
+        // levels of the binary tree wherever it can, which bounds the stack (WIDE_STACK_SIZE).
+        let mut members: Vec<u32> = children(index)
+            .into_iter()
+            .flat_map(|c| {
+                if interior(&c) {
+                    children(c).to_vec()
+                } else {
+                    vec![c]
+                }
+            })
+            .collect();
+        // Slots left over (a child was a leaf) take the children of the largest interior
+        // member, as wide-tree builders collapse by area.
+        while members.len() < WIDTH {
+            let largest = (0..members.len())
+                .filter(|&m| interior(&members[m]))
+                .max_by(|&a, &b| {
+                    let area = |m: usize| half_area(&nodes[members[m] as usize]);
+                    area(a).total_cmp(&area(b))
+                });
+            let Some(m) = largest else { break };
+            members.splice(m..=m, children(members[m]));
+        }
+        let at = self.nodes.len();
+        self.nodes.push(GpuNode {
+            children: [EMPTY; WIDTH],
+        });
+        for (slot, member) in members.into_iter().enumerate() {
+            let child = self.child(member);
+            self.nodes[at].children[slot] = child;
+        }
+        at as u32
+    }
+
+    /// The binary node `index` as a child: its box on the grid and its reference (an interior
+    /// node collapsed in turn).
+    fn child(&mut self, index: u32) -> GpuChild {
+        let node = self.bvh.nodes[index as usize];
+        let reference = if node.is_leaf() {
+            self.triangles[(node.left_or_first + node.triangle_count - 1) as usize].last_in_leaf =
+                LAST_IN_LEAF;
+            LEAF_FLAG | node.left_or_first
+        } else {
+            self.collapse(index)
+        };
+        let grid = |v: f32, axis: usize, up: bool| -> u32 {
+            let q = (f64::from(v) - self.origin[axis]) / self.step;
+            (if up { q.ceil() } else { q.floor() }).clamp(0.0, GRID_MAX) as u32
+        };
+        let q = [
+            grid(node.min[0], 0, false),
+            grid(node.min[1], 1, false),
+            grid(node.min[2], 2, false),
+            grid(node.max[0], 0, true),
+            grid(node.max[1], 1, true),
+            grid(node.max[2], 2, true),
+        ];
+        GpuChild {
+            bounds: [q[0] | q[1] << 16, q[2] | q[3] << 16, q[4] | q[5] << 16],
+            reference,
+        }
     }
 }
 
@@ -192,25 +272,23 @@ mod tests {
                     i += 1;
                 }
             } else {
-                let n = &g.nodes[node as usize];
-                let test = |q| {
-                    let (lo, hi) = g.decode(q);
-                    intersect_box(ray, Vec3::from(lo), Vec3::from(hi), 0.0, box_t_max)
-                };
-                match (test(n.left_box), test(n.right_box)) {
-                    (Some(a), Some(b)) => {
-                        let (near, far) = if a <= b {
-                            (n.left, n.right)
-                        } else {
-                            (n.right, n.left)
-                        };
-                        stack.push(far);
-                        node = near;
-                        descend = true;
-                    }
-                    (Some(_), None) => (node, descend) = (n.left, true),
-                    (None, Some(_)) => (node, descend) = (n.right, true),
-                    (None, None) => {}
+                // Children met, nearest first, as the kernel orders them.
+                let mut met: Vec<(f32, u32)> = g.nodes[node as usize]
+                    .children
+                    .iter()
+                    .filter(|c| c.reference != EMPTY_CHILD)
+                    .filter_map(|c| {
+                        let (lo, hi) = g.decode(c.bounds);
+                        intersect_box(ray, Vec3::from(lo), Vec3::from(hi), 0.0, box_t_max)
+                            .map(|near| (near, c.reference))
+                    })
+                    .collect();
+                met.sort_by(|a, b| a.0.total_cmp(&b.0));
+                if let Some((&(_, nearest), rest)) = met.split_first() {
+                    stack.extend(rest.iter().rev().map(|&(_, r)| r));
+                    assert!(stack.len() < WIDE_STACK_SIZE);
+                    node = nearest;
+                    descend = true;
                 }
             }
             if !descend {
@@ -222,27 +300,101 @@ mod tests {
         }
     }
 
+    /// The bounds of the triangles below `reference`, and how many leaves hold them.
+    fn triangles_below(g: &GpuBvh, reference: u32) -> (Vec3, Vec3, usize) {
+        if reference & LEAF_FLAG != 0 {
+            let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+            for t in &g.triangles[(reference & !LEAF_FLAG) as usize..] {
+                for v in t.vertices() {
+                    (lo, hi) = (lo.min(v), hi.max(v));
+                }
+                if t.last_in_leaf != 0 {
+                    break;
+                }
+            }
+            return (lo, hi, 1);
+        }
+        let (mut lo, mut hi, mut leaves) = (Vec3::INFINITY, Vec3::NEG_INFINITY, 0);
+        for child in &g.nodes[reference as usize].children {
+            if child.reference != EMPTY_CHILD {
+                let (l, h, n) = triangles_below(g, child.reference);
+                (lo, hi, leaves) = (lo.min(l), hi.max(h), leaves + n);
+            }
+        }
+        (lo, hi, leaves)
+    }
+
     #[test]
-    fn grid_boxes_hold_the_exact_boxes() {
+    fn grid_boxes_hold_the_triangles_below_them() {
         let bvh = default_bvh();
         let g = GpuBvh::new(&bvh);
-        let interior: Vec<_> = bvh.nodes.iter().filter(|n| !n.is_leaf()).collect();
-        assert_eq!(interior.len(), g.nodes.len());
-        for (n, gn) in interior.iter().zip(&g.nodes) {
-            for (child, q) in [
-                (n.left_or_first, gn.left_box),
-                (n.left_or_first + 1, gn.right_box),
-            ] {
-                let exact = &bvh.nodes[child as usize];
-                let (lo, hi) = g.decode(q);
+        for node in &g.nodes {
+            let used = node.children.iter().filter(|c| c.reference != EMPTY_CHILD);
+            // Used slots first, at least two of them.
+            let count = used.clone().count();
+            assert!(count >= 2);
+            assert!(node.children[count..]
+                .iter()
+                .all(|c| c.reference == EMPTY_CHILD));
+            for child in used {
+                let (exact_lo, exact_hi, _) = triangles_below(&g, child.reference);
+                let (lo, hi) = g.decode(child.bounds);
                 for a in 0..3 {
-                    assert!(lo[a] <= exact.min[a] && hi[a] >= exact.max[a]);
+                    assert!(lo[a] <= exact_lo[a] && hi[a] >= exact_hi[a]);
                     // Rounded outwards by less than two grid steps.
-                    assert!(exact.min[a] - lo[a] <= 2.0 * g.grid_step);
-                    assert!(hi[a] - exact.max[a] <= 2.0 * g.grid_step);
+                    assert!(exact_lo[a] - lo[a] <= 2.0 * g.grid_step);
+                    assert!(hi[a] - exact_hi[a] <= 2.0 * g.grid_step);
                 }
             }
         }
+        // Every leaf of the binary tree is a child of exactly one wide node.
+        let binary_leaves = bvh.nodes.iter().filter(|n| n.is_leaf()).count();
+        assert_eq!(triangles_below(&g, 0).2, binary_leaves);
+        // Most nodes of the binary tree are inside a wide node: a ray takes about half the
+        // interior steps. (Subtrees of two or three leaves make nodes of two or three.)
+        let binary_interior = bvh.nodes.len() - binary_leaves;
+        assert!(g.nodes.len() * 5 < binary_interior * 3);
+    }
+
+    /// The most entries the kernel's stack holds on any path of `g`: each node pushes all its
+    /// children but one.
+    fn deepest_stack(g: &GpuBvh, node: u32) -> usize {
+        let children = g.nodes[node as usize]
+            .children
+            .iter()
+            .filter(|c| c.reference != EMPTY_CHILD);
+        let pushed = children.clone().count() - 1;
+        let below = children
+            .filter(|c| c.reference & LEAF_FLAG == 0)
+            .map(|c| deepest_stack(g, c.reference))
+            .max()
+            .unwrap_or(0);
+        pushed + below
+    }
+
+    #[test]
+    fn the_deepest_tree_fits_the_kernels_stack() {
+        // A chain: every split peels one triangle off, so the build stops at its depth limit.
+        let count = 78;
+        let positions: Vec<Vec3> = (0..count)
+            .flat_map(|i| {
+                let x = 3f32.powi(i);
+                [
+                    Vec3::new(x, 0.0, 0.0),
+                    Vec3::new(x, 1.0, 0.0),
+                    Vec3::new(x, 0.0, 1.0),
+                ]
+            })
+            .collect();
+        let triangles: Vec<[u32; 3]> = (0..count as u32)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect();
+        let chain = Bvh::build(&positions, &triangles);
+        let g = GpuBvh::new(&chain);
+        let depth = deepest_stack(&g, 0);
+        assert!(depth > 30, "{depth}");
+        assert!(depth < WIDE_STACK_SIZE);
+        assert!(deepest_stack(&GpuBvh::new(&default_bvh()), 0) < WIDE_STACK_SIZE);
     }
 
     #[test]
@@ -272,6 +424,7 @@ mod tests {
     fn an_empty_or_one_leaf_tree_has_a_gpu_layout() {
         let empty = GpuBvh::new(&Bvh::default());
         assert_eq!(empty.nodes.len(), 1);
+        assert_eq!(empty.nodes[0].children[0].reference, LEAF_FLAG);
         let ray = Ray::new(Vec3::ZERO, Vec3::Y);
         assert_eq!(gpu_closest_hit(&empty, &ray, true), None);
         let one = Bvh::build(

@@ -1,5 +1,6 @@
 //! Bounding volume hierarchy: a binned-SAH build into flat arrays, and the CPU traversal over
-//! them. [`gpu`] turns the same tree into the GPU kernels' layout (quantized child boxes).
+//! them. [`gpu`] turns the same tree into the GPU kernels' layout (collapsed four-wide, quantized
+//! child boxes).
 //!
 //! Layout:
 //! - `nodes[0]` is the root. An interior node's children are `nodes[left_or_first]` and

@@ -125,11 +125,18 @@ pub fn gather_row(inputs: &DirectInputs, vertex: usize, hits: &[(u32, Hit)]) -> 
 }
 
 /// A row's entries with one per column, columns ascending: the weights of a column summed in
-/// the order given.
-pub(crate) fn summed_by_column(mut entries: Vec<(u32, f64)>) -> Vec<(u32, f64)> {
-    entries.sort_by_key(|&(column, _)| column);
+/// the order given. Sorted as keys of column and position, which no two entries share, so an
+/// unstable sort keeps each column's order (and no merge sort's buffer is allocated).
+pub(crate) fn summed_by_column(entries: Vec<(u32, f64)>) -> Vec<(u32, f64)> {
+    let mut keys: Vec<u64> = entries
+        .iter()
+        .enumerate()
+        .map(|(position, &(column, _))| (u64::from(column) << 32) | position as u64)
+        .collect();
+    keys.sort_unstable();
     let mut row: Vec<(u32, f64)> = Vec::with_capacity(entries.len());
-    for (column, weight) in entries {
+    for key in keys {
+        let (column, weight) = entries[key as u32 as usize];
         match row.last_mut() {
             Some((last, sum)) if *last == column => *sum += weight,
             _ => row.push((column, weight)),
@@ -318,6 +325,34 @@ mod tests {
     use super::*;
     use crate::bake::Mode;
     use crate::ray::{Ray, RAY_T_MAX};
+
+    #[test]
+    fn a_rows_weights_are_summed_per_column_in_the_order_given() {
+        // Sums that rounding makes depend on their order: 1 + 1e16 + 1 - 1e16 is 0 in f64 left
+        // to right, 1 right to left.
+        let entries = vec![
+            (7, 1.0),
+            (3, 0.5),
+            (7, 1e16),
+            (2, 4.0),
+            (7, 1.0),
+            (3, 0.25),
+            (7, -1e16),
+        ];
+        let in_order = |column: u32| {
+            let weights = entries.iter().filter(|e| e.0 == column);
+            weights.fold(None, |sum: Option<f64>, e| {
+                Some(sum.map_or(e.1, |s| s + e.1))
+            })
+        };
+        let row = summed_by_column(entries.clone());
+        assert_eq!(row.iter().map(|e| e.0).collect::<Vec<_>>(), [2, 3, 7]);
+        for (column, sum) in row {
+            assert_eq!(Some(sum), in_order(column));
+        }
+        assert_eq!(in_order(7), Some(0.0));
+        assert_eq!(-1e16 + 1.0 + 1e16 + 1.0, 1.0);
+    }
 
     #[test]
     fn closest_hit_visibility_gives_the_shadowed_transfer_and_single_ray_hits() {

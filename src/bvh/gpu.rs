@@ -5,7 +5,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{Bvh, BvhTriangle, STACK_SIZE};
+use super::{Bvh, BvhNode, BvhTriangle, STACK_SIZE};
 use crate::ray::NO_HIT;
 
 /// Marks a child reference in a [`GpuNode`] as a leaf (the rest is its first triangle).
@@ -32,14 +32,13 @@ pub struct GpuChild {
     pub reference: u32,
 }
 
-/// A node of the four-wide tree, 64 bytes (WGSL layout in wgsl/bvh.wgsl): the children and
-/// grandchildren of a binary node, in the binary tree's order (a child that is a leaf stands
-/// for itself), then empty slots.
+/// A node of the four-wide tree, 64 bytes (WGSL layout in wgsl/bvh.wgsl): a binary node's
+/// grandchildren (a child that is a leaf stands for itself; slots left over hold the children
+/// of the largest member), in the binary tree's order, then empty slots.
 ///
 /// A traversal step on llvmpipe pays per storage-buffer load (a loop over the SIMD lanes with
-/// a bounds check per lane and component) and per loop iteration (every lane runs the leaf and
-/// the interior code, masked, until the slowest lane ends): a node of four quantized boxes is
-/// four 16-byte loads, and a ray takes half the binary tree's interior steps.
+/// a bounds check per lane and component): a node of four quantized boxes is four 16-byte
+/// loads, and a ray takes about half the binary tree's interior steps.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuNode {
@@ -138,7 +137,7 @@ impl GpuBvh {
     }
 }
 
-fn half_area(node: &super::BvhNode) -> f32 {
+fn half_area(node: &BvhNode) -> f32 {
     let d = node.max() - node.min();
     d.x * d.y + d.y * d.z + d.z * d.x
 }
@@ -372,28 +371,62 @@ mod tests {
         pushed + below
     }
 
+    /// A tree nearly as deep as the build makes (leaves at depth [`STACK_SIZE`] - 2, one above
+    /// the build's deepest), in the shape that fills a wide stack most: a spine whose every
+    /// node has four grandchildren, the next spine node and three leaves. Every box is the unit
+    /// cube and every triangle lies in it, off the z axis.
+    fn deepest_spine() -> Bvh {
+        let unit = |left_or_first, triangle_count| BvhNode {
+            min: [0.0; 3],
+            max: [1.0; 3],
+            left_or_first,
+            triangle_count,
+        };
+        let mut nodes = vec![unit(0, 0)];
+        let mut triangles = Vec::new();
+        let mut leaf = |nodes: &mut Vec<BvhNode>| {
+            nodes.push(unit(triangles.len() as u32, 1));
+            triangles.push(BvhTriangle {
+                v0: [0.5, 0.5, 0.5],
+                v1: [0.9, 0.5, 0.5],
+                v2: [0.9, 0.9, 0.5],
+                source_index: triangles.len() as u32,
+                ..BvhTriangle::default()
+            });
+        };
+        let mut spine = 0;
+        // Spine nodes at depths 0, 2, ..., 60; the last one's grandchildren are leaves.
+        for depth in (0..STACK_SIZE - 2).step_by(2) {
+            let first = nodes.len() as u32;
+            nodes[spine].left_or_first = first;
+            nodes.extend([unit(first + 2, 0), unit(first + 4, 0)]);
+            let next = nodes.len();
+            if depth + 2 < STACK_SIZE - 2 {
+                nodes.push(unit(0, 0));
+            } else {
+                leaf(&mut nodes);
+            }
+            for _ in 0..3 {
+                leaf(&mut nodes);
+            }
+            spine = next;
+        }
+        Bvh { nodes, triangles }
+    }
+
     #[test]
     fn the_deepest_tree_fits_the_kernels_stack() {
-        // A chain: every split peels one triangle off, so the build stops at its depth limit.
-        let count = 78;
-        let positions: Vec<Vec3> = (0..count)
-            .flat_map(|i| {
-                let x = 3f32.powi(i);
-                [
-                    Vec3::new(x, 0.0, 0.0),
-                    Vec3::new(x, 1.0, 0.0),
-                    Vec3::new(x, 0.0, 1.0),
-                ]
-            })
-            .collect();
-        let triangles: Vec<[u32; 3]> = (0..count as u32)
-            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-            .collect();
-        let chain = Bvh::build(&positions, &triangles);
-        let g = GpuBvh::new(&chain);
+        let spine = deepest_spine();
+        let g = GpuBvh::new(&spine);
         let depth = deepest_stack(&g, 0);
-        assert!(depth > 30, "{depth}");
-        assert!(depth < WIDE_STACK_SIZE);
+        assert!(
+            depth + 8 > WIDE_STACK_SIZE && depth < WIDE_STACK_SIZE,
+            "{depth}"
+        );
+        // A ray along the z axis enters every box and meets no triangle: the kernel's walk
+        // (its CPU copy checks the stack on every push) visits every node.
+        let ray = Ray::new(Vec3::new(0.01, 0.01, -1.0), Vec3::Z);
+        assert_eq!(gpu_closest_hit(&g, &ray, false), None);
         assert!(deepest_stack(&GpuBvh::new(&default_bvh()), 0) < WIDE_STACK_SIZE);
     }
 

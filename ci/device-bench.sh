@@ -12,6 +12,9 @@
 # OUT_DIR defaults to target/device-bench (the log goes there too); MESHes are benched after the
 # repository's two. A machine with no Rust toolchain or no network (the usual GPU box) takes a
 # binary built elsewhere for the same architecture: PRT_GPU_BIN=path/to/prt-gpu skips the build.
+# PRT_GPU_BASELINE_BIN=path/to/an-older-prt-gpu first benches the dragon on the GPU with both
+# binaries in turn, twice, so that a change is measured side by side on the same card (e.g.
+# e382ecc, the last binary whose GPU walked the binary tree, against the four-wide one).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-target/device-bench}
@@ -70,6 +73,15 @@ if ! $bin devices 2>/dev/null | grep -qiE 'discrete|integrated'; then
 fi
 
 dragon=tests/data/dragon_vrip_res3.ply.gz
+if [ -n "${PRT_GPU_BASELINE_BIN:-}" ]; then
+    for round in 1 2; do
+        for side in "$PRT_GPU_BASELINE_BIN" "$bin"; do
+            say "side by side, round $round: $side bench $dragon (shadowed, then interreflected)"
+            "$side" bench "$dragon" --device gpu --repeats 3 | grep -E '^gpu'
+            "$side" bench "$dragon" --device gpu --repeats 3 --mode interreflected | grep -E '^gpu'
+        done
+    done
+fi
 largest=$(ls -S tests/data/*.obj tests/data/*.ply.gz tests/data/gltf/*.glb 2>/dev/null | head -1)
 for mesh in "$dragon" "$largest" "$@"; do
     say "bench $mesh (CPU and GPU side by side, 1024 samples, shadowed; shadow and diffuse ray sets)"

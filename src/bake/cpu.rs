@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use super::bounce::Hit;
 use super::{DirectInputs, Mode, Progress};
 use crate::packet::{self, lane_mask, FanPacket, LaneMask, PacketOrigins, RayPacket, LANES};
-use crate::ray::{intersect_triangle, Ray, TriangleHit, RAY_T_MAX};
+use crate::ray::{Ray, TriangleHit, RAY_T_MAX};
 use crate::sampling::{DirectionFrame, Estimator};
 use crate::sh::{coeff_count, unshadowed_transfer};
 
@@ -467,15 +467,10 @@ pub fn visit_closest_hits(
         let packet = FanPacket::new(origin, world, crate::packet::ALL_LANES);
         let closest = packet::closest_fan(inputs.bvh, &packet, RAY_T_MAX);
         for (lane, &s) in group.iter().enumerate() {
-            let Some(tri) = inputs.bvh.triangles.get(closest.triangle[lane] as usize) else {
-                continue;
-            };
-            // The packet found the triangle and its distance; the single-ray test on that
-            // triangle gives the same distance and the barycentrics.
-            let [v0, v1, v2] = tri.vertices();
-            let ray = Ray::new(origin, world[lane]);
-            if let Some(hit) = intersect_triangle(&ray, v0, v1, v2, 0.0, RAY_T_MAX) {
-                visit(s, tri.source_index, hit);
+            if let Some((u, v)) = closest.barycentrics(lane) {
+                let tri = &inputs.bvh.triangles[closest.triangle[lane] as usize];
+                let t = closest.t[lane];
+                visit(s, tri.source_index, TriangleHit { t, u, v });
             }
         }
     }

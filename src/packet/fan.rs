@@ -16,7 +16,8 @@
 use glam::Vec3;
 
 use super::{
-    max, min, sheared_triangle_lanes, Isa, LaneLimit, LaneMask, Lanes, Packet, ALL_LANES, LANES,
+    max, min, sheared_triangle_lanes, Isa, LaneHits, LaneLimit, LaneMask, Lanes, Packet, ALL_LANES,
+    LANES,
 };
 use crate::bvh::{BvhNode, BvhTriangle};
 use crate::ray::{MIN_DIRECTION_COMPONENT, SLAB_WIDENING};
@@ -169,7 +170,7 @@ impl Packet for FanPacket {
         tri: &BvhTriangle,
         lanes: LaneMask,
         t_max: impl LaneLimit,
-        hit_t: &mut Lanes,
+        hits: &mut LaneHits,
     ) -> LaneMask {
         let a = self.translated(tri.v0);
         let b = self.translated(tri.v1);
@@ -184,7 +185,7 @@ impl Packet for FanPacket {
                 z,
             )
         };
-        sheared_triangle_lanes::<I>([&a, &b, &c], shear, |lane| sz[lane], lanes, t_max, hit_t)
+        sheared_triangle_lanes::<I>([&a, &b, &c], shear, |lane| sz[lane], lanes, t_max, hits)
     }
 }
 

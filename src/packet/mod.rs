@@ -95,7 +95,7 @@ impl LaneLimit for &Lanes {
 /// `(x, y, z)` with `z` not yet scaled; `z_scale(lane)` is the lane's `1 / d_z`. Edge
 /// functions are computed for all lanes at once; the few lanes inside (most triangles are
 /// missed by every lane) finish one by one. Returns the lanes of `lanes` that hit on
-/// `(0, t_max)`, their distances written to `hit_t`.
+/// `(0, t_max)`, their hits written to `hits_out`.
 #[inline(always)]
 fn sheared_triangle_lanes<I: Isa>(
     [a, b, c]: [&[f32; 3]; 3],
@@ -103,7 +103,7 @@ fn sheared_triangle_lanes<I: Isa>(
     z_scale: impl Fn(usize) -> f32,
     lanes: LaneMask,
     t_max: impl LaneLimit,
-    hit_t: &mut Lanes,
+    hits_out: &mut LaneHits,
 ) -> LaneMask {
     let edge_functions = |lane: usize| {
         let (ax, ay, _) = shear(a, lane);
@@ -136,7 +136,8 @@ fn sheared_triangle_lanes<I: Isa>(
         let t = (u * (s * az) + v * (s * bz) + w * (s * cz)) / det;
         if t > 0.0 && t < t_max.at(lane) {
             hits |= 1 << lane;
-            hit_t[lane] = t;
+            hits_out.t[lane] = t;
+            hits_out.edges[lane] = [v, w, det];
         }
     }
     hits
@@ -156,7 +157,7 @@ trait Packet {
         tri: &BvhTriangle,
         lanes: LaneMask,
         t_max: impl LaneLimit,
-        hit_t: &mut Lanes,
+        hits: &mut LaneHits,
     ) -> LaneMask;
     /// Whether to enter `right` before `left` when lanes meet both.
     fn right_first(&self, _left: &BvhNode, _right: &BvhNode) -> bool {
@@ -175,7 +176,7 @@ trait Query {
     fn box_limit(&self) -> Self::Limit<'_>;
     /// Keeps the hits of `lanes` on triangle `index` (of `Bvh::triangles`) at distances
     /// `hit_t`; returns the lanes that are done.
-    fn record(&mut self, lanes: LaneMask, index: u32, hit_t: &Lanes) -> LaneMask;
+    fn record(&mut self, lanes: LaneMask, index: u32, hits: &LaneHits) -> LaneMask;
 }
 
 /// Any hit on `(0, t_max)` blocks a lane, which is then done.
@@ -195,7 +196,7 @@ impl Query for Blocked {
         self.t_max
     }
     #[inline(always)]
-    fn record(&mut self, lanes: LaneMask, _index: u32, _hit_t: &Lanes) -> LaneMask {
+    fn record(&mut self, lanes: LaneMask, _index: u32, _hits: &LaneHits) -> LaneMask {
         self.blocked |= lanes;
         lanes
     }
@@ -208,17 +209,36 @@ pub struct ClosestHits {
     pub t: Lanes,
     /// Index in `Bvh::triangles` (leaf order) of the triangle hit, or `NO_HIT`.
     pub triangle: [u32; LANES],
+    /// The nearest hit's edge functions of corners 1 and 2 and their sum (`LaneHits::edges`).
+    edges: [[f32; 3]; LANES],
     /// Where each lane's ray ends: `ray::past` its nearest hit, `t_max` before one.
     limit: Lanes,
     /// Where each lane's box tests end: `ray::reach` its nearest hit, `t_max` before one.
     box_limit: Lanes,
 }
 
+/// Each lane's hit on the triangle last tested: its distance and, as
+/// `ray::intersect_triangle` computes them, the edge functions of corners 1 and 2 and their
+/// sum, whose quotients are the hit's barycentrics.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LaneHits {
+    t: Lanes,
+    edges: [[f32; 3]; LANES],
+}
+
 impl ClosestHits {
+    /// The barycentrics of corners 1 and 2 at `lane`'s nearest hit, as
+    /// `ray::intersect_triangle` divides them; `None` where the lane hit nothing.
+    pub fn barycentrics(&self, lane: usize) -> Option<(f32, f32)> {
+        let [v, w, det] = self.edges[lane];
+        (self.triangle[lane] != NO_HIT).then(|| (v / det, w / det))
+    }
+
     fn new(t_max: f32) -> Self {
         ClosestHits {
             t: [t_max; LANES],
             triangle: [NO_HIT; LANES],
+            edges: [[0.0; 3]; LANES],
             limit: [t_max; LANES],
             box_limit: [t_max; LANES],
         }
@@ -236,15 +256,17 @@ impl Query for ClosestHits {
         &self.box_limit
     }
     #[inline(always)]
-    fn record(&mut self, mut lanes: LaneMask, index: u32, hit_t: &Lanes) -> LaneMask {
+    fn record(&mut self, mut lanes: LaneMask, index: u32, hits: &LaneHits) -> LaneMask {
         while lanes != 0 {
             let lane = lanes.trailing_zeros() as usize;
             lanes &= lanes - 1;
-            if replaces(hit_t[lane], index, self.t[lane], self.triangle[lane]) {
-                self.t[lane] = hit_t[lane];
+            let t = hits.t[lane];
+            if replaces(t, index, self.t[lane], self.triangle[lane]) {
+                self.t[lane] = t;
                 self.triangle[lane] = index;
-                self.limit[lane] = past(hit_t[lane]);
-                self.box_limit[lane] = reach(hit_t[lane]);
+                self.edges[lane] = hits.edges[lane];
+                self.limit[lane] = past(t);
+                self.box_limit[lane] = reach(t);
             }
         }
         0
@@ -297,7 +319,7 @@ fn traverse<P: Packet, I: Isa, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
     if open == 0 {
         return;
     }
-    let mut hit_t = [0.0f32; LANES];
+    let mut hits_at = LaneHits::default();
     let mut stack = [(0u32, 0 as LaneMask); STACK_SIZE];
     let mut stack_len = 0;
     let mut node = root;
@@ -308,9 +330,9 @@ fn traverse<P: Packet, I: Isa, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
             let first = node.left_or_first;
             let leaf = &bvh.triangles[first as usize..][..node.triangle_count as usize];
             for (index, tri) in (first..).zip(leaf) {
-                let hits = packet.triangle_lanes::<I>(tri, lanes, query.limit(), &mut hit_t);
+                let hits = packet.triangle_lanes::<I>(tri, lanes, query.limit(), &mut hits_at);
                 if hits != 0 {
-                    let done = query.record(hits, index, &hit_t);
+                    let done = query.record(hits, index, &hits_at);
                     open &= !done;
                     lanes &= !done;
                     if open == 0 {

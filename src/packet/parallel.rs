@@ -18,7 +18,8 @@
 use glam::Vec3;
 
 use super::{
-    max, min, sheared_triangle_lanes, Isa, LaneLimit, LaneMask, Lanes, Packet, ALL_LANES, LANES,
+    max, min, sheared_triangle_lanes, Isa, LaneHits, LaneLimit, LaneMask, Lanes, Packet, ALL_LANES,
+    LANES,
 };
 use crate::bvh::{BvhNode, BvhTriangle};
 use crate::ray::{Ray, SLAB_WIDENING};
@@ -143,7 +144,7 @@ fn triangle_lanes<I: Isa>(
     tri: &BvhTriangle,
     lanes: LaneMask,
     t_max: impl LaneLimit,
-    hit_t: &mut Lanes,
+    hits: &mut LaneHits,
 ) -> LaneMask {
     // (Three calls rather than `array::map`, whose closure LLVM leaves out of line.)
     let a = permute_vertex(packet, tri.v0);
@@ -156,7 +157,7 @@ fn triangle_lanes<I: Isa>(
         let (x, y, z) = (v[0] - o[0][lane], v[1] - o[1][lane], v[2] - o[2][lane]);
         (x - sx * z, y - sy * z, z)
     };
-    sheared_triangle_lanes::<I>([&a, &b, &c], shear, |_| sz, lanes, t_max, hit_t)
+    sheared_triangle_lanes::<I>([&a, &b, &c], shear, |_| sz, lanes, t_max, hits)
 }
 
 impl Packet for RayPacket<'_> {
@@ -174,8 +175,8 @@ impl Packet for RayPacket<'_> {
         tri: &BvhTriangle,
         lanes: LaneMask,
         t_max: impl LaneLimit,
-        hit_t: &mut Lanes,
+        hits: &mut LaneHits,
     ) -> LaneMask {
-        triangle_lanes::<I>(self, tri, lanes, t_max, hit_t)
+        triangle_lanes::<I>(self, tri, lanes, t_max, hits)
     }
 }

@@ -196,8 +196,8 @@ fn fans_agree_with_single_rays_on_the_dragon_and_bunny() {
 
 /// Every copy of the closest-hit fan traversal against single rays: fans of up to 16
 /// consecutive samples of a cosine set from random vertices, some lanes inactive. The hits are
-/// the single rays', triangle and distance bit for bit; 2CylinderEngine has coincident faces,
-/// where the tie rule (`ray::replaces`) decides.
+/// the single rays', triangle, distance and barycentrics bit for bit; 2CylinderEngine has
+/// coincident faces, where the tie rule (`ray::replaces`) decides.
 #[test]
 fn fans_find_the_single_rays_closest_hits() {
     let set = crate::sampling::cosine_hemisphere(1024, 5);
@@ -221,9 +221,10 @@ fn fans_find_the_single_rays_closest_hits() {
                 let mut query = ClosestHits::new(RAY_T_MAX);
                 copy(bvh, &packet, &mut query);
                 for (lane, &direction) in directions.iter().enumerate() {
-                    let found = (query.triangle[lane] != NO_HIT).then(|| {
+                    let found = query.barycentrics(lane).map(|(u, v)| {
                         let tri = &bvh.triangles[query.triangle[lane] as usize];
-                        (tri.source_index, query.t[lane].to_bits())
+                        let bits = [query.t[lane], u, v].map(f32::to_bits);
+                        (tri.source_index, bits)
                     });
                     if active & (1 << lane) == 0 {
                         assert_eq!(found, None, "{copy_name}: an inactive lane hit");
@@ -231,7 +232,7 @@ fn fans_find_the_single_rays_closest_hits() {
                     }
                     let single = bvh
                         .closest_hit(&Ray::new(origin, direction), RAY_T_MAX)
-                        .map(|(triangle, hit)| (triangle, hit.t.to_bits()));
+                        .map(|(triangle, hit)| (triangle, [hit.t, hit.u, hit.v].map(f32::to_bits)));
                     assert_eq!(found, single, "{copy_name} {name}");
                     lanes += 1;
                     hits += single.is_some() as usize;

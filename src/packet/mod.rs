@@ -151,7 +151,7 @@ trait Packet {
     fn box_lanes<I: Isa>(&self, node: &BvhNode, t_max: impl LaneLimit) -> LaneMask;
     /// Lanes among `lanes` that hit the triangle on `(0, t_max)`, as
     /// `ray::intersect_triangle` decides (both faces count, zero edge functions are inside),
-    /// with their distances in `hit_t`.
+    /// with their hits in `hits`.
     fn triangle_lanes<I: Isa>(
         &self,
         tri: &BvhTriangle,
@@ -174,8 +174,8 @@ trait Query {
     fn limit(&self) -> Self::Limit<'_>;
     /// The far end of each lane's box tests.
     fn box_limit(&self) -> Self::Limit<'_>;
-    /// Keeps the hits of `lanes` on triangle `index` (of `Bvh::triangles`) at distances
-    /// `hit_t`; returns the lanes that are done.
+    /// Keeps the hits of `lanes` on triangle `index` (of `Bvh::triangles`), as `hits` holds
+    /// them; returns the lanes that are done.
     fn record(&mut self, lanes: LaneMask, index: u32, hits: &LaneHits) -> LaneMask;
 }
 

@@ -68,6 +68,11 @@ const EMPTY: GpuChild = GpuChild {
     reference: EMPTY_CHILD,
 };
 
+/// A node with every slot empty, to be filled from the first.
+const EMPTY_NODE: GpuNode = GpuNode {
+    children: [EMPTY; WIDTH],
+};
+
 /// The grid of [`GpuBvh`] for a scene whose box is `lo`..`hi`: its origin and step.
 fn box_grid(lo: [f64; 3], hi: [f64; 3]) -> ([f64; 3], f64) {
     let magnitude = (0..3).fold(0.0f64, |m, a| m.max(lo[a].abs()).max(hi[a].abs()));
@@ -86,9 +91,7 @@ impl GpuBvh {
         let Some(root) = bvh.nodes.first() else {
             // No triangles: one node whose child is a leaf holding a degenerate triangle
             // (zero determinant: never hit).
-            let mut node = GpuNode {
-                children: [EMPTY; WIDTH],
-            };
+            let mut node = EMPTY_NODE;
             node.children[0].reference = LEAF_FLAG;
             return GpuBvh {
                 nodes: vec![node],
@@ -111,9 +114,7 @@ impl GpuBvh {
         };
         if root.is_leaf() {
             // A one-leaf tree: a node whose one child is that leaf.
-            let mut node = GpuNode {
-                children: [EMPTY; WIDTH],
-            };
+            let mut node = EMPTY_NODE;
             node.children[0] = wide.child(0);
             wide.nodes.push(node);
         } else {
@@ -162,16 +163,14 @@ impl WideBuilder<'_> {
         let interior = |i: &u32| !nodes[*i as usize].is_leaf();
         // The node's children, each interior one replaced by its own two: a step descends two
         // levels of the binary tree wherever it can, which bounds the stack (WIDE_STACK_SIZE).
-        let mut members: Vec<u32> = children(index)
-            .into_iter()
-            .flat_map(|c| {
-                if interior(&c) {
-                    children(c).to_vec()
-                } else {
-                    vec![c]
-                }
-            })
-            .collect();
+        let mut members = Vec::with_capacity(WIDTH);
+        for child in children(index) {
+            if interior(&child) {
+                members.extend(children(child));
+            } else {
+                members.push(child);
+            }
+        }
         // Slots left over (a child was a leaf) take the children of the largest interior
         // member, as wide-tree builders collapse by area.
         while members.len() < WIDTH {
@@ -185,9 +184,7 @@ impl WideBuilder<'_> {
             members.splice(m..=m, children(members[m]));
         }
         let at = self.nodes.len();
-        self.nodes.push(GpuNode {
-            children: [EMPTY; WIDTH],
-        });
+        self.nodes.push(EMPTY_NODE);
         for (slot, member) in members.into_iter().enumerate() {
             let child = self.child(member);
             self.nodes[at].children[slot] = child;
@@ -238,7 +235,8 @@ mod tests {
         Bvh::build(&scene.positions, &scene.triangles)
     }
 
-    /// The kernel's traversal (wgsl/bvh.wgsl `trace`), step for step, on the CPU.
+    /// The kernel's traversal (wgsl/bvh.wgsl `trace`), step for step, on the CPU (children
+    /// met at one entry distance may be taken in another order, which changes no answer).
     fn gpu_closest_hit(g: &GpuBvh, ray: &Ray, any_hit: bool) -> Option<(u32, f32)> {
         let mut t_max = RAY_T_MAX;
         let mut box_t_max = RAY_T_MAX;

@@ -321,13 +321,6 @@ fn measure(
         surface_seen_rms: surface.seen_rms,
     };
     let mut points = Vec::new();
-    // Texels are baked from their own points; the vertex fit only feeds interreflected
-    // texels' final gather, so one fit (the point bake) stands for all.
-    let lightmap_sizes = if options.fit == Fit::Point {
-        lightmap_sizes
-    } else {
-        &[]
-    };
     let denoising: &[bool] = if also_denoised && options.sampling == Sampling::Cosine {
         &[false, true]
     } else {
@@ -372,11 +365,18 @@ fn measure(
 pub const CSV_HEADER: &str = "sampling,fit,backend,samples,seconds,rays,transfer_rms,\
 radiance_rms,surface_rms,surface_seen_rms,target_error";
 
-/// How a point represents the transfer between vertices: the fit's name, or `texels-SIZE`.
+/// How a point represents the transfer between vertices: the fit's name, or `texels-SIZE`
+/// (`-least-squares` where its texels are fitted, `-denoised` where filtered).
 pub fn representation(point: &SweepPoint) -> String {
     match point.lightmap {
-        Some(size) if point.denoised => format!("texels-{size}-denoised"),
-        Some(size) => format!("texels-{size}"),
+        Some(size) => {
+            let fitted = match point.fit {
+                Fit::Point => "",
+                Fit::LeastSquares => "-least-squares",
+            };
+            let denoised = if point.denoised { "-denoised" } else { "" };
+            format!("texels-{size}{fitted}{denoised}")
+        }
         None => point.fit.name().to_string(),
     }
 }

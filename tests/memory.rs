@@ -410,7 +410,7 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
     let below_any_chunk = (need.fixed / 2).to_string();
     let below_whole = (need.whole() / 2).to_string();
     // Each bake that is not split says what it does with every receiver at once.
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 7] = [
         (&["--memory-limit", &below_any_chunk], "needs at least"),
         (
             &["--memory-limit", &below_any_chunk, "--fit", "least-squares"],
@@ -423,6 +423,17 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
         (
             &["--memory-limit", &below_whole, "--lightmap", "256"],
             "with its lightmap held in a scratch file",
+        ),
+        (
+            &[
+                "--memory-limit",
+                &below_whole,
+                "--lightmap",
+                "256",
+                "--fit",
+                "least-squares",
+            ],
+            "its least-squares fit solves for every texel at once",
         ),
         (
             &["--memory-limit", &below_whole, "--subsurface", "marble"],

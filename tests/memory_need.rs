@@ -212,6 +212,13 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
             })),
         ),
         (
+            "lightmap 512, least squares",
+            whole(spec(&|s| {
+                s.receivers.lightmap = Some(512);
+                s.receivers.fit = Fit::LeastSquares;
+            })),
+        ),
+        (
             "lightmap 512, held, 4 coefficients at a time",
             (
                 spec(&|s| s.receivers.lightmap = Some(512)),

@@ -568,7 +568,9 @@ fn least_squares_vertices_match_the_path_tracer_between_the_vertices() {
 /// wrong texels, or charts that leaked, would not). Beside it the floor of point-sampled
 /// vertices is printed: the atlas of one chart per triangle reaches it only at 768 texels a
 /// side (1.85% against 1.84% when written), its texels near every triangle's edge read from
-/// the gutter.
+/// the gutter. Least-squares texels (`--fit least-squares`: fitted to four points a texel,
+/// each at a quarter of the samples) must match the path tracer too, with a floor below the
+/// point-sampled texels' at the same size.
 #[test]
 fn lightmap_texels_match_the_path_tracer_at_surface_points() {
     let Some(surface) = surface() else {
@@ -635,6 +637,45 @@ fn lightmap_texels_match_the_path_tracer_at_surface_points() {
         );
         floors.push(floor);
     }
+    // Least-squares texels (`--fit least-squares`) at the coarse size, four points a texel at
+    // a quarter of the samples each: the same rays a texel area, a lower floor.
+    let size = LIGHTMAP_SIZES[0];
+    let atlas = plan_atlas(scene, size).unwrap();
+    let fitted = |seed: u64| -> Vec<Vec3> {
+        let options = BakeOptions {
+            seed,
+            fit: Fit::LeastSquares,
+            samples: options.samples / 4,
+            ..options.clone()
+        };
+        let vertices = &vertices[seed as usize - 1];
+        let (lightmap, _) =
+            bake_atlas(scene, vertices, &options, &atlas, &CpuBackend, &NoProgress).unwrap();
+        let transfer = texel_transfer_at(&lightmap, held);
+        (0..held.len())
+            .map(|r| relight(&transfer, r, &sky))
+            .collect()
+    };
+    let (texels, texels_again) = (fitted(1), fitted(2));
+    let figures = Figures::of(&texels, &texels_again, traced);
+    let noise = figures.bake_noise.hypot(surface.direct_figures.bake_noise);
+    let fitted_floor = beyond_noise(&texels, &surface.direct, &traced.radiance, noise);
+    let tolerance = (SIGMAS * figures.sigma()).hypot(fitted_floor);
+    figures.print_with_floor(
+        &format!("built-in scene: least-squares lightmap {size} texels, bilinear at the points"),
+        tolerance,
+        Some(fitted_floor),
+    );
+    assert!(
+        figures.error <= tolerance,
+        "the least-squares lightmap is off the path tracer by {:.4} > {tolerance:.4}",
+        figures.error
+    );
+    assert!(
+        fitted_floor < floors[0],
+        "least-squares floor {fitted_floor:.4}, point-sampled texels' {:.4}",
+        floors[0]
+    );
     let relit: Vec<Vec3> = (0..scene.vertex_count())
         .map(|v| relight(&vertices[0], v, &sky))
         .collect();

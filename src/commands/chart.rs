@@ -61,8 +61,9 @@ pub(crate) struct ChartArgs {
     /// Held-out surface points of the surface error (default: four per vertex, at most 20,000).
     #[arg(long, default_value_t = 0)]
     surface_points: usize,
-    /// Lightmap sizes, comma-separated: each strategy and count is also baked per texel at
-    /// each, for the surface panel (the vertex errors of these points are their vertices').
+    /// Lightmap sizes, comma-separated: each strategy, count and fit is also baked per texel
+    /// at each (`least-squares`: fitted texels, about five times the rays), for the surface
+    /// panel (the vertex errors of these points are their vertices').
     #[arg(long, value_delimiter = ',', value_name = "SIZES")]
     lightmap: Vec<u32>,
     /// With --lightmap: each cosine-sampled lightmap is also baked denoised (`bake --denoise`),

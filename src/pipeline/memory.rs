@@ -55,6 +55,11 @@ pub fn plan_memory(
     let streamable = bake::stream::streams(&options) && chunkable;
     let points_chunk =
         options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
+    if spec.receivers.lightmap.is_some() && options.fit == bake::Fit::LeastSquares {
+        let why = "its least-squares fit solves for every texel at once, so its texels are not \
+                   held in a scratch file (--fit point's are)";
+        return over.refuse_or_warn("bake", why);
+    }
     if spec.receivers.lightmap.is_some() && chunkable {
         return over.lightmap_held();
     }

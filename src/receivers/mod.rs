@@ -13,6 +13,7 @@ pub mod denoise;
 pub mod dilation;
 pub mod fit;
 pub mod seams;
+pub mod texel_fit;
 pub mod texels;
 pub mod uv_set;
 

@@ -130,6 +130,13 @@ pub struct Row {
     weight: f64,
 }
 
+impl Row {
+    /// The row's texels (row-major image indices) and their weights.
+    pub fn taps(&self) -> &[(usize, f64); 8] {
+        &self.taps
+    }
+}
+
 /// Rows asking that lookups on the two sides of every seam agree, weighted [`SEAM_WEIGHT`].
 pub fn seam_rows(width: u32, height: u32, seams: &[Seam]) -> Vec<Row> {
     let mut rows = Vec::new();
@@ -232,7 +239,7 @@ pub fn solve_steps(stride: usize, rows: &[Row]) -> u64 {
 
 /// Groups of [`COLUMNS`] coefficients solved at once, at most (each holds five vectors of
 /// the seam texels' values).
-const GROUPS_IN_FLIGHT: usize = 4;
+pub const GROUPS_IN_FLIGHT: usize = 4;
 
 /// The stitching's normal equations over the texels the rows read: each texel held to its
 /// value with its anchor's weight, and each row's lookup difference pulled towards zero.
@@ -298,7 +305,7 @@ impl<'a> SeamSystem<'a> {
             |x, out| self.apply(x, out, width),
             |r, z| self.precondition(r, z, width),
             (rhs, start),
-            width,
+            (width, TOLERANCE, MAX_STEPS),
         )
     }
 
@@ -351,12 +358,13 @@ pub const COLUMNS: usize = 4;
 /// Solves `A x = b` for the symmetric positive definite `A` given as `apply`, preconditioned
 /// by `precondition` (an approximate inverse), from `start`: `columns` systems at once, the
 /// vectors texel-major. Each column is the solve it would be alone, with its own step
-/// lengths, and stops when its own residual falls below its floor; the others go on.
-fn conjugate_gradients(
+/// lengths, and stops when its own residual falls below `tolerance` times its right-hand
+/// side, or after `max_steps`; the others go on.
+pub(super) fn conjugate_gradients(
     apply: impl Fn(&[f64], &mut [f64]),
     precondition: impl Fn(&[f64], &mut [f64]),
     (b, start): (Vec<f64>, Vec<f64>),
-    columns: usize,
+    (columns, tolerance, max_steps): (usize, f64, usize),
 ) -> Vec<f64> {
     let n = b.len();
     // Per column, summed over the texels in order.
@@ -369,8 +377,7 @@ fn conjugate_gradients(
         }
         sums
     };
-    // A thousandth of the right-hand side.
-    let floor = dots(&b, &b).map(|bb| TOLERANCE * TOLERANCE * bb.max(f64::MIN_POSITIVE));
+    let floor = dots(&b, &b).map(|bb| tolerance * tolerance * bb.max(f64::MIN_POSITIVE));
     let mut x = start;
     let mut product = vec![0.0; n];
     apply(&x, &mut product);
@@ -385,7 +392,7 @@ fn conjugate_gradients(
     let mut rz = dots(&residual, &z);
     let mut open = [false; COLUMNS];
     open[..columns].fill(true);
-    for _ in 0..MAX_STEPS {
+    for _ in 0..max_steps {
         let rr = dots(&residual, &residual);
         for c in 0..columns {
             open[c] &= rr[c] > floor[c];

@@ -29,15 +29,17 @@ use super::{
 };
 use crate::bake::spill::Spill;
 use crate::bake::stream::{format_bytes, gather_row_bytes, MemoryNeed, MIN_CHUNK};
-use crate::bake::{bake_at_in_chunks, Backend, BakeOptions, Mode, Progress, TexelBake, Transfer};
+use crate::bake::{
+    bake_at_in_chunks, Backend, BakeOptions, Fit, Mode, Progress, TexelBake, Transfer,
+};
 use crate::bvh::Bvh;
 use crate::error::{Error, Result};
 use crate::lightmap::{LightmapShape, TexelRows};
 use crate::receivers::atlas::Atlas;
 use crate::receivers::dilation::plan_dilation;
-use crate::receivers::seams;
 use crate::receivers::texels::TexelPoints;
 use crate::receivers::Receivers;
+use crate::receivers::{seams, texel_fit};
 use crate::scene::Scene;
 use crate::sh;
 
@@ -156,6 +158,9 @@ pub fn bake_atlas_held(
     progress: &dyn Progress,
     divided: TexelGroups,
 ) -> Result<(TexelBake, TexelReport)> {
+    if options.fit == Fit::LeastSquares {
+        return Err(Error::Options(LEAST_SQUARES_NOT_HELD.into()));
+    }
     let started = Instant::now();
     let (texels, receivers, bvh, leaking) = texel_receivers(scene, atlas);
     let turned = options.clone().with_turns(options.denoise);
@@ -406,6 +411,38 @@ impl LightmapNeed {
     }
 }
 
+/// Why a least-squares lightmap is not held: the fit solves for every texel at once.
+pub const LEAST_SQUARES_NOT_HELD: &str = "a least-squares lightmap (--fit least-squares with \
+    --lightmap) fits every texel at once and cannot be held in a scratch file; raise \
+    --memory-limit or use --fit point";
+
+/// What fitting the texels of a map of `texels` takes beside its image
+/// ([`crate::receivers::texel_fit`], `coeffs` a channel, `gather` a receiver's interreflected
+/// gather), at the largest of its peaks, beside the texels' sums of the points' values. While
+/// the points bake: each point's place, surface point, receiver, flags and taps, and a
+/// chunk's transfer. While the solve's matrix is built from the taps: the taps and each
+/// texel's stencil (nine weights and neighbours), anchor and diagonal. While it solves: the
+/// stencils and the five vectors of `seams::COLUMNS` coefficients a texel of each group in
+/// flight. The texels the fit reads are counted as [`FIT_SHARE`] of the map, four points each.
+fn fit_need(texels: u64, coeffs: u64, gather: u64) -> u64 {
+    let fitted = (FIT_SHARE * texels as f64) as u64;
+    let points = (texel_fit::POINTS_PER_SIDE * texel_fit::POINTS_PER_SIDE) as u64 * fitted;
+    let sums = fitted * 12 * coeffs;
+    let chunk =
+        points.min(crate::bake::GATHER_CHUNK as u64) * (4 * coeffs + 2 * 12 * coeffs + gather);
+    let baking = points * (24 + 16 + (24 + 48 + 24) + 5 + 32) + chunk;
+    let stencils = fitted * (9 * 8 + 9 * 4 + 16);
+    let building = points * 32 + stencils;
+    let groups = rayon::current_num_threads().clamp(1, seams::GROUPS_IN_FLIGHT);
+    let solving = stencils + fitted * (groups * 5 * seams::COLUMNS * 8) as u64;
+    sums + baking.max(building).max(solving)
+}
+
+/// The share of a map's texels a least-squares fit reads, at most: the charts cover 55–87%
+/// of the generated atlases measured (docs/performance.md), and the fit reads a ring past
+/// their edges.
+const FIT_SHARE: f64 = 0.8;
+
 impl MemoryNeed {
     /// The need with a lightmap of at most `size` x `size` texels (`options` the bake's).
     /// Whole, at the larger of its two peaks: while its texels bake (each texel a receiver, as
@@ -434,8 +471,13 @@ impl MemoryNeed {
             per_texel_column: 4 + if options.denoise { 4 } else { 0 } + (6 * 8) / 4,
             per_chunk_texel: 4 * coeffs + 2 * 12 * coeffs + gather,
         };
+        let fitting = match options.fit {
+            Fit::LeastSquares => texels * (writing + 16) + fit_need(texels, coeffs, gather),
+            Fit::Point => 0,
+        };
+        let texel_peak = (texels * (baking.max(writing) + 16) + gathering).max(fitting);
         MemoryNeed {
-            beside_vertices: self.beside_vertices + texels * (baking.max(writing) + 16) + gathering,
+            beside_vertices: self.beside_vertices + texel_peak,
             lightmap: Some(lightmap),
             ..self
         }

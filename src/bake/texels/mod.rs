@@ -13,7 +13,7 @@ use std::time::Instant;
 use glam::{DVec2, Vec3};
 use rayon::prelude::*;
 
-use super::{bake_at_in, subsurface, Backend, BakeOptions, Progress, TexelBake, Transfer};
+use super::{bake_at_in, subsurface, Backend, BakeOptions, Fit, Progress, TexelBake, Transfer};
 use crate::bvh::Bvh;
 use crate::error::Result;
 use crate::packet::{self, FanPacket, ALL_LANES, LANES};
@@ -24,7 +24,7 @@ use crate::receivers::face_normal;
 use crate::receivers::texels::{
     bilinear_taps, dilate_by_owner, nearest_owner, rasterize, TexelPoints,
 };
-use crate::receivers::{seams, Receivers, SurfacePoint};
+use crate::receivers::{seams, texel_fit, Receivers, SurfacePoint};
 use crate::sampling::{cosine_hemisphere, SampleSet, VertexDirections};
 use crate::scene::Scene;
 
@@ -73,6 +73,8 @@ pub struct TexelReport {
     pub leaking: usize,
     /// Whether the texels were denoised (`receivers::denoise`).
     pub denoised: bool,
+    /// Least-squares texels: the points they were fitted to ([`texel_fit`]).
+    pub fit_points: Option<usize>,
     pub rays_cast: u64,
     /// Seconds the texels' transfer took (their rays, and the gather where light bounces),
     /// of the stage's `seconds`.
@@ -98,6 +100,7 @@ impl TexelReport {
             stretch: atlas.stretch(scene),
             leaking: leaking.iter().filter(|&&l| l).count(),
             denoised,
+            fit_points: None,
             rays_cast,
             transfer_seconds: 0.0,
             seconds: 0.0,
@@ -207,6 +210,11 @@ fn bake_atlas_scattering(
 ) -> Result<(TexelBake, TexelReport)> {
     let started = Instant::now();
     let (texels, receivers, bvh, leaking) = texel_receivers(scene, atlas);
+    let cover = COVER_TEXELS * texel_length(scene, atlas);
+    let bvh_copy = match options.fit {
+        Fit::LeastSquares => bvh.clone(),
+        Fit::Point => Bvh::default(),
+    };
     let at = (&receivers, bvh);
     // Texels to be denoised each turn their samples by their own angle, so that their errors
     // are independent and the filter averages them out. In a medium they receive as white
@@ -255,12 +263,27 @@ fn bake_atlas_scattering(
     )?;
     keep_wide_leaks(leaks, (&mut image, stride), &mut valid);
     let seams = seams::seams(scene, atlas);
-    if stitching == Seams::Stitched {
-        stitch(&seams, atlas, (&mut image, stride), &anchor, progress);
-    }
+    let seam_rows = match stitching {
+        Seams::Stitched => seams::seam_rows(width, height, &seams),
+        Seams::AsBaked => Vec::new(),
+    };
+    let at = ((scene, vertex_transfer, atlas), scatter);
+    let image_of = (&mut image[..], stride, &anchor[..], &seam_rows[..]);
+    let fitted = stitch_or_fit(
+        at,
+        (bvh_copy, cover),
+        &turned,
+        (backend, progress),
+        image_of,
+    )?;
+    let rays_cast = rays_cast + fitted.as_ref().map_or(0, |f| f.rays_cast);
+    let transfer_seconds = transfer_seconds + fitted.as_ref().map_or(0.0, |f| f.transfer_seconds);
     let texels_of = (scene, atlas, &texels);
-    let report = TexelReport::of(texels_of, (&seams, &leaking), options.denoise, rays_cast)
-        .timed(transfer_seconds, started);
+    let report = TexelReport {
+        fit_points: fitted.map(|f| f.points),
+        ..TexelReport::of(texels_of, (&seams, &leaking), options.denoise, rays_cast)
+    }
+    .timed(transfer_seconds, started);
     let bake = TexelBake {
         width,
         height,
@@ -284,20 +307,108 @@ pub fn atlas_texcoords(atlas: &Atlas) -> Vec<[f32; 2]> {
         .collect()
 }
 
-/// Stitches `seams` of `atlas` in `image` (`stride` values a texel), each texel held to its
-/// value as firmly as `anchor` says: a stage of `progress`, a step a coefficient.
+/// Stitches the seams whose `rows` ([`seams::seam_rows`]) are given in `image` (`stride`
+/// values a texel), each texel held to its value as firmly as `anchor` says: a stage of
+/// `progress`, a step a coefficient.
 fn stitch(
-    seams: &[seams::Seam],
-    atlas: &Atlas,
-    (image, stride): (&mut [f32], usize),
-    anchor: &[f32],
+    rows: &[seams::Row],
+    stride: usize,
+    size: (u32, u32),
+    (image, anchor): (&mut [f32], &[f32]),
     progress: &dyn Progress,
 ) {
-    let size = (atlas.width, atlas.height);
-    let rows = seams::seam_rows(size.0, size.1, seams);
-    progress.stage("seams", seams::solve_steps(stride, &rows));
+    progress.stage("seams", seams::solve_steps(stride, rows));
     let solved = &mut |coefficients| progress.advance(coefficients);
-    seams::solve(size, (image, stride), &rows, anchor, solved);
+    seams::solve(size, (image, stride), rows, anchor, solved);
+}
+
+/// Stitches the seams whose `seam_rows` are given in `image` (`stride` values a texel, each
+/// held as firmly as `anchor` says), or with `--fit least-squares` fits its texels, the seams
+/// pulled together in the same solve ([`fit_texels`]): what the fit did, where it ran.
+fn stitch_or_fit(
+    (at, scatter): TexelsOf,
+    (bvh, cover): (Bvh, f32),
+    options: &BakeOptions,
+    (backend, progress): (&dyn Backend, &dyn Progress),
+    (image, stride, anchor, seam_rows): (&mut [f32], usize, &[f32], &[seams::Row]),
+) -> Result<Option<TexelFit>> {
+    let atlas = at.2;
+    if options.fit == Fit::Point {
+        let size = (atlas.width, atlas.height);
+        stitch(seam_rows, stride, size, (image, anchor), progress);
+        return Ok(None);
+    }
+    // Each point turns its samples by its own angle, as a denoised texel does: the fit
+    // averages a texel's points, and errors the points shared would not average out.
+    let turned = options.clone().with_turns(true);
+    let fitting = (image, stride, anchor, seam_rows);
+    let fitted = fit_texels(
+        (at, scatter),
+        (bvh, cover),
+        &turned,
+        (backend, progress),
+        fitting,
+    )?;
+    Ok(Some(fitted))
+}
+
+/// Fits the texels of `image` (`stride` values a texel; baked at their centres, filled, each
+/// held as firmly as `anchor` says) to transfer baked at points spread over the charts
+/// ([`texel_fit`]), their seams pulled together by `seam_rows`; the points are baked with
+/// `options` in chunks on `bvh`, those nearer a sheet than `cover` left out, as texels are.
+fn fit_texels(
+    (at, scatter): TexelsOf,
+    (bvh, cover): (Bvh, f32),
+    options: &BakeOptions,
+    (backend, progress): (&dyn Backend, &dyn Progress),
+    (image, stride, anchor, seam_rows): (&mut [f32], usize, &[f32], &[seams::Row]),
+) -> Result<TexelFit> {
+    let (scene, vertex_transfer, atlas) = at;
+    let points = texel_fit::fit_points(atlas);
+    let surface: Vec<SurfacePoint> = points.iter().map(|p| p.surface).collect();
+    let receivers = Receivers::at_points(scene, &surface);
+    let skip = leaking_or_covered_in(scene, &bvh, &receivers, cover);
+    let casting = Instant::now();
+    let mut sums = texel_fit::PointSums::new((atlas.width, atlas.height), stride, &points, &skip);
+    let rays_cast = match scatter {
+        // Scattering spreads light between points, so the points bake all at once.
+        Some(scatter) => {
+            let at = (&receivers, bvh);
+            let (received, rays) =
+                bake_at_in(scene, at, options, backend, Some(vertex_transfer), progress)?;
+            let points = ((scene, atlas), &surface[..], &receivers);
+            let scattered = scattered_texels(points, received, scatter, options, backend)?;
+            sums.add(0, scattered.coeffs());
+            rays
+        }
+        None => {
+            let chunk = crate::bake::GATHER_CHUNK;
+            let each = &mut |first, transfer: Transfer| {
+                sums.add(first, transfer.coeffs());
+                Ok(())
+            };
+            let with = (options, backend, Some(vertex_transfer));
+            crate::bake::bake_at_in_chunks(scene, (&receivers, bvh), with, (progress, chunk), each)?
+        }
+    };
+    let transfer_seconds = casting.elapsed().as_secs_f64();
+    let count = points.len();
+    drop((receivers, surface, points, skip));
+    progress.stage("fit", stride as u64);
+    let solved = &mut |coefficients| progress.advance(coefficients);
+    sums.fit(image, anchor, seam_rows, solved);
+    Ok(TexelFit {
+        points: count,
+        rays_cast,
+        transfer_seconds,
+    })
+}
+
+/// What fitting the texels did: the points it baked, their rays and the seconds they took.
+struct TexelFit {
+    points: usize,
+    rays_cast: u64,
+    transfer_seconds: f64,
 }
 
 /// A texel bake's scene, vertex transfer and atlas, and the medium its texels are in.

@@ -28,7 +28,9 @@ pub(crate) struct BakeArgs {
     /// How vertex values are made: `point` bakes at the vertices (exact there); `least-squares`
     /// bakes at points spread over every triangle and fits the vertex values whose
     /// interpolation matches them best over the surface (Kavan et al. 2011), at the cost of
-    /// `--fit-points` times the vertices' rays per sample.
+    /// `--fit-points` times the vertices' rays per sample. With `--lightmap`, the texels too:
+    /// fitted so that bilinear lookups match four points a texel (about five times the texels'
+    /// rays).
     #[arg(long, value_enum, default_value_t = Fit::Point)]
     pub(crate) fit: Fit,
     /// Least-squares fit: surface points baked per vertex of the mesh, on average (every

@@ -121,8 +121,8 @@ pub(super) fn print_stage_lines(report: &BakeReport, output: &Path) {
     if let Some(texels) = &report.texels {
         eprintln!(
             "lightmap: {}x{} texels, {} charts ({} seam edges), {} covered ({:.1}% of the \
-             atlas; stretch {:.3}; {} inside geometry, refilled){}, {} rays in {:.2} s ({:.2} M \
-             rays/s), {:.2} s in all -> {}",
+             atlas; stretch {:.3}; {} inside geometry, refilled){}{}, {} rays in {:.2} s ({:.2} \
+             M rays/s), {:.2} s in all -> {}",
             texels.width,
             texels.height,
             texels.charts,
@@ -132,6 +132,9 @@ pub(super) fn print_stage_lines(report: &BakeReport, output: &Path) {
             texels.stretch,
             texels.leaking,
             if texels.denoised { ", denoised" } else { "" },
+            texels.fit_points.map_or(String::new(), |points| format!(
+                ", fitted to {points} points (least squares)"
+            )),
             texels.rays_cast,
             texels.transfer_seconds,
             texels.rays_cast as f64 / texels.transfer_seconds.max(1e-9) / 1e6,

@@ -1,7 +1,8 @@
 //! Per-texel transfer (lightmaps, as D3DX's per-texel PRT and the SH lightmaps of Godot and
 //! Bakery): the texels of a generated atlas (`receivers::atlas`) baked as surface points, their
 //! leaks marked, the map dilated (each texel from the chart it is nearest) so that bilinear
-//! filtering never reads an unbaked texel, and its seams stitched (`receivers::seams`).
+//! filtering never reads an unbaked texel, and its seams stitched (`receivers::seams`) or, with
+//! `--fit least-squares`, the map fitted to points spread over its charts (`fit`).
 //!
 //! A texel whose rays mostly reach the back of a surface sits inside other geometry (a floor
 //! under a wall, an intersecting box): its value would be dark and, filtered, bleed into the
@@ -24,12 +25,14 @@ use crate::receivers::face_normal;
 use crate::receivers::texels::{
     bilinear_taps, dilate_by_owner, nearest_owner, rasterize, TexelPoints,
 };
-use crate::receivers::{seams, texel_fit, Receivers, SurfacePoint};
+use crate::receivers::{seams, Receivers, SurfacePoint};
 use crate::sampling::{cosine_hemisphere, SampleSet, VertexDirections};
 use crate::scene::Scene;
 
+mod fit;
 mod held;
 
+use fit::stitch_or_fit;
 pub use held::{bake_atlas_held, HeldLightmap, LightmapNeed, TexelGroups};
 
 /// Rays per texel of the leak test.
@@ -73,7 +76,8 @@ pub struct TexelReport {
     pub leaking: usize,
     /// Whether the texels were denoised (`receivers::denoise`).
     pub denoised: bool,
-    /// Least-squares texels: the points they were fitted to ([`texel_fit`]).
+    /// Least-squares texels: the points they were fitted to
+    /// ([`crate::receivers::texel_fit`]).
     pub fit_points: Option<usize>,
     pub rays_cast: u64,
     /// Seconds the texels' transfer took (their rays, and the gather where light bounces),
@@ -320,95 +324,6 @@ fn stitch(
     progress.stage("seams", seams::solve_steps(stride, rows));
     let solved = &mut |coefficients| progress.advance(coefficients);
     seams::solve(size, (image, stride), rows, anchor, solved);
-}
-
-/// Stitches the seams whose `seam_rows` are given in `image` (`stride` values a texel, each
-/// held as firmly as `anchor` says), or with `--fit least-squares` fits its texels, the seams
-/// pulled together in the same solve ([`fit_texels`]): what the fit did, where it ran.
-fn stitch_or_fit(
-    (at, scatter): TexelsOf,
-    (bvh, cover): (Bvh, f32),
-    options: &BakeOptions,
-    (backend, progress): (&dyn Backend, &dyn Progress),
-    (image, stride, anchor, seam_rows): (&mut [f32], usize, &[f32], &[seams::Row]),
-) -> Result<Option<TexelFit>> {
-    let atlas = at.2;
-    if options.fit == Fit::Point {
-        let size = (atlas.width, atlas.height);
-        stitch(seam_rows, stride, size, (image, anchor), progress);
-        return Ok(None);
-    }
-    // Each point turns its samples by its own angle, as a denoised texel does: the fit
-    // averages a texel's points, and errors the points shared would not average out.
-    let turned = options.clone().with_turns(true);
-    let fitting = (image, stride, anchor, seam_rows);
-    let fitted = fit_texels(
-        (at, scatter),
-        (bvh, cover),
-        &turned,
-        (backend, progress),
-        fitting,
-    )?;
-    Ok(Some(fitted))
-}
-
-/// Fits the texels of `image` (`stride` values a texel; baked at their centres, filled, each
-/// held as firmly as `anchor` says) to transfer baked at points spread over the charts
-/// ([`texel_fit`]), their seams pulled together by `seam_rows`; the points are baked with
-/// `options` in chunks on `bvh`, those nearer a sheet than `cover` left out, as texels are.
-fn fit_texels(
-    (at, scatter): TexelsOf,
-    (bvh, cover): (Bvh, f32),
-    options: &BakeOptions,
-    (backend, progress): (&dyn Backend, &dyn Progress),
-    (image, stride, anchor, seam_rows): (&mut [f32], usize, &[f32], &[seams::Row]),
-) -> Result<TexelFit> {
-    let (scene, vertex_transfer, atlas) = at;
-    let points = texel_fit::fit_points(atlas);
-    let surface: Vec<SurfacePoint> = points.iter().map(|p| p.surface).collect();
-    let receivers = Receivers::at_points(scene, &surface);
-    let skip = leaking_or_covered_in(scene, &bvh, &receivers, cover);
-    let casting = Instant::now();
-    let mut sums = texel_fit::PointSums::new((atlas.width, atlas.height), stride, &points, &skip);
-    let rays_cast = match scatter {
-        // Scattering spreads light between points, so the points bake all at once.
-        Some(scatter) => {
-            let at = (&receivers, bvh);
-            let (received, rays) =
-                bake_at_in(scene, at, options, backend, Some(vertex_transfer), progress)?;
-            let points = ((scene, atlas), &surface[..], &receivers);
-            let scattered = scattered_texels(points, received, scatter, options, backend)?;
-            sums.add(0, scattered.coeffs());
-            rays
-        }
-        None => {
-            let chunk = crate::bake::GATHER_CHUNK;
-            let each = &mut |first, transfer: Transfer| {
-                sums.add(first, transfer.coeffs());
-                Ok(())
-            };
-            let with = (options, backend, Some(vertex_transfer));
-            crate::bake::bake_at_in_chunks(scene, (&receivers, bvh), with, (progress, chunk), each)?
-        }
-    };
-    let transfer_seconds = casting.elapsed().as_secs_f64();
-    let count = points.len();
-    drop((receivers, surface, points, skip));
-    progress.stage("fit", stride as u64);
-    let solved = &mut |coefficients| progress.advance(coefficients);
-    sums.fit(image, anchor, seam_rows, solved);
-    Ok(TexelFit {
-        points: count,
-        rays_cast,
-        transfer_seconds,
-    })
-}
-
-/// What fitting the texels did: the points it baked, their rays and the seconds they took.
-struct TexelFit {
-    points: usize,
-    rays_cast: u64,
-    transfer_seconds: f64,
 }
 
 /// A texel bake's scene, vertex transfer and atlas, and the medium its texels are in.

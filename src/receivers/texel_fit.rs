@@ -177,8 +177,9 @@ impl PointSums {
 
     /// Fits `image` (the map as baked at the centres and filled, row-major, `stride` values a
     /// texel) to the points added, each texel held to its value as firmly as `anchor` says
-    /// (times [`ANCHOR`]) and the lookups across `seams` pulled together. Texels no point
-    /// reads keep their values. `solved` is told of every coefficient solved.
+    /// (times [`ANCHOR`]) and the lookups across `seams` pulled together. Texels that neither
+    /// a point nor a seam reads keep their values. `solved` is told of every coefficient
+    /// solved.
     pub fn fit(
         self,
         image: &mut [f32],

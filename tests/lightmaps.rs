@@ -867,3 +867,34 @@ fn a_least_squares_lightmap_agrees_on_cpu_and_gpu_and_is_written() {
     assert_eq!((read.width, read.height), (texels.width, texels.height));
     assert!(texels.transfer.coeffs().iter().all(|x| x.is_finite()));
 }
+
+/// A least-squares lightmap with a sample set that cannot turn (`--sampling stratified`): its
+/// points share the set, as its texels do, and the bake succeeds (it failed after baking the
+/// texels, asking for cosine sampling as `--denoise` does).
+#[test]
+fn a_least_squares_lightmap_bakes_with_a_shared_stratified_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let teapot = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
+    let args = [
+        "bake",
+        teapot,
+        "--samples",
+        "16",
+        "--sampling",
+        "stratified",
+        "--lightmap",
+        "48",
+        "--fit",
+        "least-squares",
+        "--device",
+        "cpu",
+        "-o",
+        "teapot.glb",
+    ];
+    let out = prt_gpu(&args, dir.path());
+    succeeded(&out);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("(least squares)"), "{stderr}");
+    let read = read_lightmap(&dir.path().join("teapot.lightmap.exr")).unwrap();
+    assert!(read.width >= 48 || read.height >= 48);
+}

@@ -593,84 +593,25 @@ fn lightmap_texels_match_the_path_tracer_at_surface_points() {
         )
     };
     let vertices = [vertex(1), vertex(2)];
-    let mut floors = Vec::new();
-    for size in LIGHTMAP_SIZES {
-        let atlas = plan_atlas(scene, size).unwrap();
-        let looked_up = |seed: u64| -> Vec<Vec3> {
-            let options = BakeOptions {
-                seed,
-                ..options.clone()
-            };
-            let (lightmap, _) = bake_atlas(
-                scene,
-                &vertices[seed as usize - 1],
-                &options,
-                &atlas,
-                &CpuBackend,
-                &NoProgress,
-            )
-            .unwrap();
-            let transfer = texel_transfer_at(&lightmap, held);
-            (0..held.len())
-                .map(|r| relight(&transfer, r, &sky))
-                .collect()
-        };
-        let (texels, texels_again) = (looked_up(1), looked_up(2));
-        let figures = Figures::of(&texels, &texels_again, traced);
-        let floor = beyond_noise(
-            &texels,
-            &surface.direct,
-            &traced.radiance,
-            figures.bake_noise.hypot(surface.direct_figures.bake_noise),
-        );
-        let tolerance = (SIGMAS * figures.sigma()).hypot(floor);
-        figures.print_with_floor(
-            &format!("built-in scene: lightmap {size} texels, bilinear at the points"),
-            tolerance,
-            Some(floor),
-        );
-        println!("lightmap {size}: representation floor {floor:.4}");
-        assert!(
-            figures.error <= tolerance,
-            "lightmap {size} is off the path tracer by {:.4} > {tolerance:.4}",
-            figures.error
-        );
-        floors.push(floor);
-    }
+    let floors: Vec<f64> = LIGHTMAP_SIZES
+        .into_iter()
+        .map(|size| {
+            let what = format!("lightmap {size} texels");
+            let floor = lightmap_matches_the_path_tracer(surface, &vertices, &options, size, &what);
+            println!("lightmap {size}: representation floor {floor:.4}");
+            floor
+        })
+        .collect();
     // Least-squares texels (`--fit least-squares`) at the coarse size, four points a texel at
     // a quarter of the samples each: the same rays a texel area, a lower floor.
     let size = LIGHTMAP_SIZES[0];
-    let atlas = plan_atlas(scene, size).unwrap();
-    let fitted = |seed: u64| -> Vec<Vec3> {
-        let options = BakeOptions {
-            seed,
-            fit: Fit::LeastSquares,
-            samples: options.samples / 4,
-            ..options.clone()
-        };
-        let vertices = &vertices[seed as usize - 1];
-        let (lightmap, _) =
-            bake_atlas(scene, vertices, &options, &atlas, &CpuBackend, &NoProgress).unwrap();
-        let transfer = texel_transfer_at(&lightmap, held);
-        (0..held.len())
-            .map(|r| relight(&transfer, r, &sky))
-            .collect()
+    let fitted = BakeOptions {
+        fit: Fit::LeastSquares,
+        samples: options.samples / 4,
+        ..options.clone()
     };
-    let (texels, texels_again) = (fitted(1), fitted(2));
-    let figures = Figures::of(&texels, &texels_again, traced);
-    let noise = figures.bake_noise.hypot(surface.direct_figures.bake_noise);
-    let fitted_floor = beyond_noise(&texels, &surface.direct, &traced.radiance, noise);
-    let tolerance = (SIGMAS * figures.sigma()).hypot(fitted_floor);
-    figures.print_with_floor(
-        &format!("built-in scene: least-squares lightmap {size} texels, bilinear at the points"),
-        tolerance,
-        Some(fitted_floor),
-    );
-    assert!(
-        figures.error <= tolerance,
-        "the least-squares lightmap is off the path tracer by {:.4} > {tolerance:.4}",
-        figures.error
-    );
+    let what = format!("least-squares lightmap {size} texels");
+    let fitted_floor = lightmap_matches_the_path_tracer(surface, &vertices, &fitted, size, &what);
     assert!(
         fitted_floor < floors[0],
         "least-squares floor {fitted_floor:.4}, point-sampled texels' {:.4}",
@@ -693,6 +634,51 @@ fn lightmap_texels_match_the_path_tracer_at_surface_points() {
         LIGHTMAP_SIZES[1]
     );
     assert!(floors[1] < 0.75 * floors[0], "{floors:?}");
+}
+
+/// Bakes a lightmap of `size` texels with `options` twice (seeds 1 and 2, on the vertices
+/// baked with the same seeds), looks it up bilinearly at the held-out points, and asserts it
+/// matches the path tracer there within [`SIGMAS`] sigma widened by its representation floor;
+/// returns that floor. `what` names the map in the figures printed.
+fn lightmap_matches_the_path_tracer(
+    surface: &Surface,
+    vertices: &[Transfer; 2],
+    options: &BakeOptions,
+    size: u32,
+    what: &str,
+) -> f64 {
+    let (scene, held, traced) = (&surface.scene, &surface.held, &surface.traced);
+    let (sky, _) = sky();
+    let atlas = plan_atlas(scene, size).unwrap();
+    let looked_up = |seed: u64| -> Vec<Vec3> {
+        let options = BakeOptions {
+            seed,
+            ..options.clone()
+        };
+        let vertices = &vertices[seed as usize - 1];
+        let (lightmap, _) =
+            bake_atlas(scene, vertices, &options, &atlas, &CpuBackend, &NoProgress).unwrap();
+        let transfer = texel_transfer_at(&lightmap, held);
+        (0..held.len())
+            .map(|r| relight(&transfer, r, &sky))
+            .collect()
+    };
+    let (texels, texels_again) = (looked_up(1), looked_up(2));
+    let figures = Figures::of(&texels, &texels_again, traced);
+    let noise = figures.bake_noise.hypot(surface.direct_figures.bake_noise);
+    let floor = beyond_noise(&texels, &surface.direct, &traced.radiance, noise);
+    let tolerance = (SIGMAS * figures.sigma()).hypot(floor);
+    figures.print_with_floor(
+        &format!("built-in scene: {what}, bilinear at the points"),
+        tolerance,
+        Some(floor),
+    );
+    assert!(
+        figures.error <= tolerance,
+        "the {what} is off the path tracer by {:.4} > {tolerance:.4}",
+        figures.error
+    );
+    floor
 }
 
 /// Lightmap sizes for the texel test: a coarse and a fine one.

@@ -56,7 +56,7 @@ pub fn plan_memory(
     let points_chunk =
         options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
     if least_squares_lightmap(spec) {
-        return over.refuse_or_warn("bake", LEAST_SQUARES_TEXELS_WHOLE);
+        return over.refuse_or_warn("bake", bake::texels::LEAST_SQUARES_TEXELS_WHOLE);
     }
     if spec.receivers.lightmap.is_some() && chunkable {
         return over.lightmap_held();
@@ -157,7 +157,7 @@ pub fn plan_merge_memory(
         return Ok(MemoryPlan::default());
     };
     if least_squares_lightmap(spec) {
-        return over.refuse_or_warn("merge", LEAST_SQUARES_TEXELS_WHOLE);
+        return over.refuse_or_warn("merge", bake::texels::LEAST_SQUARES_TEXELS_WHOLE);
     }
     if spec.receivers.lightmap.is_some() && !over.scatters {
         return over.lightmap_held();
@@ -179,10 +179,6 @@ pub fn plan_merge_memory(
 fn least_squares_lightmap(spec: &BakeSpec) -> bool {
     spec.receivers.lightmap.is_some() && spec.receivers.fit == bake::Fit::LeastSquares
 }
-
-/// Why a least-squares lightmap is baked whole.
-const LEAST_SQUARES_TEXELS_WHOLE: &str = "its least-squares fit solves for every texel at \
-    once, so its texels are not held in a scratch file (--fit point's are)";
 
 /// A bake whose need is over its budget: the user's limit or, without one, the machine's
 /// available memory.

@@ -8,13 +8,14 @@ use crate::bake::{bake_at_in, Backend, BakeOptions, Fit, Progress, Transfer};
 use crate::bvh::Bvh;
 use crate::error::Result;
 use crate::receivers::{seams, texel_fit, Receivers, SurfacePoint};
+use crate::sampling::Sampling;
 
 /// Stitches the seams whose `seam_rows` are given in `image` (`stride` values a texel, each
 /// held as firmly as `anchor` says), or with `--fit least-squares` fits its texels, the seams
 /// pulled together in the same solve ([`fit_texels`]): what the fit did, where it ran.
 pub(super) fn stitch_or_fit(
     (at, scatter): TexelsOf,
-    (bvh, cover): (Bvh, f32),
+    cover: f32,
     options: &BakeOptions,
     (backend, progress): (&dyn Backend, &dyn Progress),
     (image, stride, anchor, seam_rows): (&mut [f32], usize, &[f32], &[seams::Row]),
@@ -26,26 +27,23 @@ pub(super) fn stitch_or_fit(
         return Ok(None);
     }
     // Each point turns its samples by its own angle, as a denoised texel does: the fit
-    // averages a texel's points, and errors the points shared would not average out.
-    let turned = options.clone().with_turns(true);
+    // averages a texel's points, and errors the points shared would not average out. Only
+    // cosine sampling can turn (about each point's normal); a stratified or uniform set is
+    // shared, as it is by the texels.
+    let turns = options.sampling == Sampling::Cosine;
+    let turned = options.clone().with_turns(turns);
     let fitting = (image, stride, anchor, seam_rows);
-    let fitted = fit_texels(
-        (at, scatter),
-        (bvh, cover),
-        &turned,
-        (backend, progress),
-        fitting,
-    )?;
+    let fitted = fit_texels((at, scatter), cover, &turned, (backend, progress), fitting)?;
     Ok(Some(fitted))
 }
 
 /// Fits the texels of `image` (`stride` values a texel; baked at their centres, filled, each
 /// held as firmly as `anchor` says) to transfer baked at points spread over the charts
 /// ([`texel_fit`]), their seams pulled together by `seam_rows`; the points are baked with
-/// `options` in chunks on `bvh`, those nearer a sheet than `cover` left out, as texels are.
+/// `options` in chunks, those nearer a sheet than `cover` left out, as texels are.
 fn fit_texels(
     (at, scatter): TexelsOf,
-    (bvh, cover): (Bvh, f32),
+    cover: f32,
     options: &BakeOptions,
     (backend, progress): (&dyn Backend, &dyn Progress),
     (image, stride, anchor, seam_rows): (&mut [f32], usize, &[f32], &[seams::Row]),
@@ -54,6 +52,9 @@ fn fit_texels(
     let points = texel_fit::fit_points(atlas);
     let surface: Vec<SurfacePoint> = points.iter().map(|p| p.surface).collect();
     let receivers = Receivers::at_points(scene, &surface);
+    // Built again rather than kept from the texels' bake, which owns its tree: one tree is held
+    // at a time, and building it is a small share of a bake that casts rays from every point.
+    let bvh = Bvh::build(&scene.positions, &scene.triangles);
     let skip = leaking_or_covered_in(scene, &bvh, &receivers, cover);
     let casting = Instant::now();
     let mut sums = texel_fit::PointSums::new((atlas.width, atlas.height), stride, &points, &skip);

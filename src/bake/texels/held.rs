@@ -25,7 +25,8 @@ use std::time::Instant;
 use glam::Vec3;
 
 use super::{
-    chart_owners, denoise_guide, seam_anchors, texel_receivers, TexelReport, DILATION_PASSES,
+    chart_owners, denoise_guide, seam_anchors, texel_receivers, TexelReport, TexelSites,
+    DILATION_PASSES,
 };
 use crate::bake::spill::Spill;
 use crate::bake::stream::{format_bytes, gather_row_bytes, MemoryNeed, MIN_CHUNK};
@@ -159,10 +160,18 @@ pub fn bake_atlas_held(
     divided: TexelGroups,
 ) -> Result<(TexelBake, TexelReport)> {
     if options.fit == Fit::LeastSquares {
-        return Err(Error::Options(LEAST_SQUARES_NOT_HELD.into()));
+        return Err(Error::Options(format!(
+            "a least-squares lightmap is baked whole: {LEAST_SQUARES_TEXELS_WHOLE}"
+        )));
     }
     let started = Instant::now();
-    let (texels, receivers, bvh, leaking) = texel_receivers(scene, atlas);
+    let TexelSites {
+        texels,
+        receivers,
+        bvh,
+        leaking,
+        ..
+    } = texel_receivers(scene, atlas);
     let turned = options.clone().with_turns(options.denoise);
     let casting = Instant::now();
     let stride = 3 * sh::coeff_count(options.bands);
@@ -411,10 +420,10 @@ impl LightmapNeed {
     }
 }
 
-/// Why a least-squares lightmap is not held: the fit solves for every texel at once.
-pub const LEAST_SQUARES_NOT_HELD: &str = "a least-squares lightmap (--fit least-squares with \
-    --lightmap) fits every texel at once and cannot be held in a scratch file; raise \
-    --memory-limit or use --fit point";
+/// Why a least-squares lightmap is not held, in the words the user reads after "this bake
+/// needs about …, and" (`pipeline::memory`).
+pub const LEAST_SQUARES_TEXELS_WHOLE: &str = "its least-squares fit solves for every texel at \
+    once, so its texels are not held in a scratch file (--fit point's are)";
 
 /// What fitting the texels of a map of `texels` takes beside its image
 /// ([`crate::receivers::texel_fit`], `coeffs` a channel, `gather` a receiver's interreflected

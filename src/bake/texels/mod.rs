@@ -14,7 +14,7 @@ use std::time::Instant;
 use glam::{DVec2, Vec3};
 use rayon::prelude::*;
 
-use super::{bake_at_in, subsurface, Backend, BakeOptions, Fit, Progress, TexelBake, Transfer};
+use super::{bake_at_in, subsurface, Backend, BakeOptions, Progress, TexelBake, Transfer};
 use crate::bvh::Bvh;
 use crate::error::Result;
 use crate::packet::{self, FanPacket, ALL_LANES, LANES};
@@ -33,7 +33,9 @@ mod fit;
 mod held;
 
 use fit::stitch_or_fit;
-pub use held::{bake_atlas_held, HeldLightmap, LightmapNeed, TexelGroups};
+pub use held::{
+    bake_atlas_held, HeldLightmap, LightmapNeed, TexelGroups, LEAST_SQUARES_TEXELS_WHOLE,
+};
 
 /// Rays per texel of the leak test.
 pub const LEAK_RAYS: u32 = 16;
@@ -121,17 +123,32 @@ impl TexelReport {
     }
 }
 
-/// The covered texels of `atlas` and their receivers, the scene's tree, and which texels leak
-/// (inside geometry or covered by a sheet, charts with no other texel kept): where every texel
-/// bake starts.
-fn texel_receivers(scene: &Scene, atlas: &Atlas) -> (TexelPoints, Receivers, Bvh, Vec<bool>) {
+/// Where every texel bake starts: the covered texels of an atlas and their receivers, the
+/// scene's tree, which texels leak (inside geometry or covered by a sheet, charts with no other
+/// texel kept), and the distance under which a sheet covers a point.
+struct TexelSites {
+    texels: TexelPoints,
+    receivers: Receivers,
+    bvh: Bvh,
+    leaking: Vec<bool>,
+    cover: f32,
+}
+
+/// The [`TexelSites`] of `atlas` on `scene`.
+fn texel_receivers(scene: &Scene, atlas: &Atlas) -> TexelSites {
     let texels = rasterize(atlas);
     let receivers = Receivers::at_points(scene, &texels.points);
     let bvh = Bvh::build(&scene.positions, &scene.triangles);
     let cover = COVER_TEXELS * texel_length(scene, atlas);
     let mut leaking = leaking_or_covered_in(scene, &bvh, &receivers, cover);
     keep_charts_with_no_valid_texel(atlas, &texels.points, &mut leaking);
-    (texels, receivers, bvh, leaking)
+    TexelSites {
+        texels,
+        receivers,
+        bvh,
+        leaking,
+        cover,
+    }
 }
 
 /// The atlas of a lightmap about `size` texels on its longer side for the prepared `scene`;
@@ -213,12 +230,13 @@ fn bake_atlas_scattering(
     stitching: Seams,
 ) -> Result<(TexelBake, TexelReport)> {
     let started = Instant::now();
-    let (texels, receivers, bvh, leaking) = texel_receivers(scene, atlas);
-    let cover = COVER_TEXELS * texel_length(scene, atlas);
-    let bvh_copy = match options.fit {
-        Fit::LeastSquares => bvh.clone(),
-        Fit::Point => Bvh::default(),
-    };
+    let TexelSites {
+        texels,
+        receivers,
+        bvh,
+        leaking,
+        cover,
+    } = texel_receivers(scene, atlas);
     let at = (&receivers, bvh);
     // Texels to be denoised each turn their samples by their own angle, so that their errors
     // are independent and the filter averages them out. In a medium they receive as white
@@ -273,13 +291,7 @@ fn bake_atlas_scattering(
     };
     let at = ((scene, vertex_transfer, atlas), scatter);
     let image_of = (&mut image[..], stride, &anchor[..], &seam_rows[..]);
-    let fitted = stitch_or_fit(
-        at,
-        (bvh_copy, cover),
-        &turned,
-        (backend, progress),
-        image_of,
-    )?;
+    let fitted = stitch_or_fit(at, cover, &turned, (backend, progress), image_of)?;
     let rays_cast = rays_cast + fitted.as_ref().map_or(0, |f| f.rays_cast);
     let transfer_seconds = transfer_seconds + fitted.as_ref().map_or(0.0, |f| f.transfer_seconds);
     let texels_of = (scene, atlas, &texels);

@@ -134,7 +134,7 @@ fn plan(scene: Scene, options: &BakeOptions) -> Result<Planned> {
     let (scene, prepare, vertex_map) = prepare_with_albedo(scene, options)?;
     let bvh = Bvh::build(&scene.positions, &scene.triangles);
     let (receivers, points) = choose_receivers(&scene, &bvh, options);
-    let inputs = BakeInputs::with_tree(&scene, &receivers, bvh, options);
+    let inputs = BakeInputs::with_tree(&scene, &receivers, bvh, &receivers_turning(options));
     Ok(Planned {
         scene,
         prepare,
@@ -457,6 +457,14 @@ pub(super) fn direct_or_adaptive(
 
 /// The receivers of a bake: the vertices, or (least-squares fit) the points spread over the
 /// triangles, which it also returns.
+/// `options` with the receivers' turns a bake's receivers cast with: a least-squares fit's
+/// points each turn their samples by their own angle where the sampling can turn (cosine), so
+/// that the errors of a vertex's points are independent and its fit averages them out.
+fn receivers_turning(options: &BakeOptions) -> BakeOptions {
+    let fitted = options.fit == Fit::LeastSquares && options.sampling == Sampling::Cosine;
+    options.clone().with_turns(options.turns || fitted)
+}
+
 fn choose_receivers(
     scene: &Scene,
     bvh: &Bvh,

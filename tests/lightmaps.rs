@@ -838,25 +838,7 @@ fn a_least_squares_lightmap_agrees_on_cpu_and_gpu_and_is_written() {
         assert!(difference < 1e-4, "{difference}");
     }
     let dir = tempfile::tempdir().unwrap();
-    let teapot = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
-    let args = [
-        "bake",
-        teapot,
-        "--samples",
-        "32",
-        "--lightmap",
-        "96",
-        "--fit",
-        "least-squares",
-        "--device",
-        "cpu",
-        "-o",
-        "teapot.glb",
-    ];
-    let out = prt_gpu(&args, dir.path());
-    succeeded(&out);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("(least squares)"), "{stderr}");
+    bake_teapot_with_a_least_squares_lightmap(dir.path(), &["--samples", "32", "--lightmap", "96"]);
     let glb = dir.path().join("teapot.glb");
     if let Some(report) = common::validate_gltf(&glb) {
         assert_eq!(report.num_errors, 0, "{}", report.listing());
@@ -874,27 +856,29 @@ fn a_least_squares_lightmap_agrees_on_cpu_and_gpu_and_is_written() {
 #[test]
 fn a_least_squares_lightmap_bakes_with_a_shared_stratified_set() {
     let dir = tempfile::tempdir().unwrap();
-    let teapot = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
-    let args = [
-        "bake",
-        teapot,
+    let options = [
         "--samples",
         "16",
         "--sampling",
         "stratified",
         "--lightmap",
         "48",
-        "--fit",
-        "least-squares",
-        "--device",
-        "cpu",
-        "-o",
-        "teapot.glb",
     ];
-    let out = prt_gpu(&args, dir.path());
+    bake_teapot_with_a_least_squares_lightmap(dir.path(), &options);
+    let read = read_lightmap(&dir.path().join("teapot.lightmap.exr")).unwrap();
+    assert!(read.width >= 48 || read.height >= 48);
+}
+
+/// Bakes the teapot with a least-squares lightmap through the CLI in `dir` (`teapot.glb` and
+/// `teapot.lightmap.exr`), with `options` besides, and checks that the bake says it fitted
+/// the texels.
+fn bake_teapot_with_a_least_squares_lightmap(dir: &Path, options: &[&str]) {
+    let teapot = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
+    let mut args = vec!["bake", teapot, "--fit", "least-squares", "--device", "cpu"];
+    args.extend(["-o", "teapot.glb"]);
+    args.extend(options);
+    let out = prt_gpu(&args, dir);
     succeeded(&out);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("(least squares)"), "{stderr}");
-    let read = read_lightmap(&dir.path().join("teapot.lightmap.exr")).unwrap();
-    assert!(read.width >= 48 || read.height >= 48);
 }

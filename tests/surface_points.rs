@@ -9,7 +9,7 @@ use prt_gpu::light::ShLight;
 use prt_gpu::receivers::{spread_points, PointDensity, Receivers, SurfacePoint};
 use prt_gpu::sampling::Sampling;
 use prt_gpu::scene::{builtin, prepare::prepare, Scene};
-use prt_gpu::surface::{surface_error, surface_reference, texel_surface_error};
+use prt_gpu::surface::{surface_error, surface_reference, texel_surface_error, SurfaceReference};
 
 /// The rule at a point whose shading normal leans past its flat face: a direction below the
 /// face's plane is blocked by the face, as a path tracer sees it. On a convex shape nothing
@@ -98,39 +98,16 @@ fn the_least_squares_fit_beats_point_vertices_over_the_surface_at_equal_rays() {
         mode: Mode::Shadowed,
         ..BakeOptions::default()
     };
-    let reference_options = BakeOptions {
-        samples: 16_384,
-        seed: 999,
-        ..base.clone()
-    };
-    let reference = surface_reference(
-        &prepared,
-        2000,
-        77,
-        &reference_options,
-        &CpuBackend,
-        &light,
-        None,
-    )
-    .unwrap();
+    let reference = reference_for(&prepared, &base, &light);
     let density = PointDensity::default();
     let errors = |fit: Fit, samples: u32| -> Vec<f64> {
-        (1..=4)
-            .map(|seed| {
-                let options = BakeOptions {
-                    samples,
-                    fit,
-                    seed,
-                    point_density: density,
-                    ..base.clone()
-                };
-                let (baked, _) = bake(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap();
-                surface_error(&reference, &baked.scene, &baked.transfer, &light)
-                    .unwrap()
-                    .rms
-                    / reference.rms
-            })
-            .collect()
+        let options = BakeOptions {
+            samples,
+            fit,
+            point_density: density,
+            ..base.clone()
+        };
+        errors_over_seeds(&scene, &options, (&reference, &light))
     };
     // Equal rays: the fit bakes `per_vertex` times as many receivers with that many times
     // fewer samples.
@@ -168,6 +145,38 @@ fn the_least_squares_fit_beats_point_vertices_over_the_surface_at_equal_rays() {
         texel_mean + 3.0 * (texel_spread + fit_spread) < fit_mean,
         "texels {texel_mean:.4} (spread {texel_spread:.4}) not below least squares {fit_mean:.4}"
     );
+}
+
+/// A 16,384-sample bake of `prepared` with `base` at 2,000 held-out points, relit by `light`.
+fn reference_for(prepared: &Scene, base: &BakeOptions, light: &ShLight) -> SurfaceReference {
+    let options = BakeOptions {
+        samples: 16_384,
+        seed: 999,
+        ..base.clone()
+    };
+    surface_reference(prepared, 2000, 77, &options, &CpuBackend, light, None).unwrap()
+}
+
+/// The surface error of `scene`'s vertices baked with `options` at seeds 1 to 4, relative to
+/// the `reference`'s RMS radiance under `light`.
+fn errors_over_seeds(
+    scene: &Scene,
+    options: &BakeOptions,
+    (reference, light): (&SurfaceReference, &ShLight),
+) -> Vec<f64> {
+    (1..=4)
+        .map(|seed| {
+            let options = BakeOptions {
+                seed,
+                ..options.clone()
+            };
+            let (baked, _) = bake(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap();
+            surface_error(reference, &baked.scene, &baked.transfer, light)
+                .unwrap()
+                .rms
+                / reference.rms
+        })
+        .collect()
 }
 
 /// Mean and sample standard deviation.
@@ -246,36 +255,13 @@ fn turned_points_average_out_the_noise_the_fit_would_otherwise_keep() {
         sampling: Sampling::Cosine,
         ..BakeOptions::default()
     };
-    let reference_options = BakeOptions {
-        samples: 16_384,
-        seed: 999,
-        ..base.clone()
-    };
-    let reference = surface_reference(
-        &prepared,
-        2000,
-        77,
-        &reference_options,
-        &CpuBackend,
-        &light,
-        None,
-    )
-    .unwrap();
+    let reference = reference_for(&prepared, &base, &light);
     let errors = |fit: Fit| -> Vec<f64> {
-        (1..=4)
-            .map(|seed| {
-                let options = BakeOptions {
-                    fit,
-                    seed,
-                    ..base.clone()
-                };
-                let (baked, _) = bake(scene.clone(), &options, &CpuBackend, &NoProgress).unwrap();
-                surface_error(&reference, &baked.scene, &baked.transfer, &light)
-                    .unwrap()
-                    .rms
-                    / reference.rms
-            })
-            .collect()
+        let options = BakeOptions {
+            fit,
+            ..base.clone()
+        };
+        errors_over_seeds(&scene, &options, (&reference, &light))
     };
     let (point, fitted) = (errors(Fit::Point), errors(Fit::LeastSquares));
     eprintln!(

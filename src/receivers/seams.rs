@@ -201,22 +201,27 @@ impl SeamSystem<'_> {
         if self.rows.is_empty() || stride == 0 || image.len() != count * stride {
             return;
         }
-        // The same matrix for every coefficient: each solved on its own, [`COLUMNS`] side by
-        // side (one pass over the rows serves them all). Groups are solved in parallel, a wave
-        // of at most [`GROUPS_IN_FLIGHT`] at a time, each wave written back before the next:
-        // what the solve holds is a few groups' vectors, not every coefficient's solution.
-        let groups: Vec<usize> = (0..stride).step_by(COLUMNS).collect();
-        let wave = rayon::current_num_threads().clamp(1, GROUPS_IN_FLIGHT);
+        // The same matrix for every coefficient: each solved on its own, up to [`COLUMNS`]
+        // side by side (one pass over the rows serves them all). Groups are solved in
+        // parallel, a wave of at most [`GROUPS_IN_FLIGHT`] at a time, each wave written back
+        // before the next: what the solve holds is a few groups' vectors, not every
+        // coefficient's solution. A column's arithmetic is the same whatever columns stand
+        // beside it, so an image of few coefficients (a held lightmap's group) is split into
+        // narrower groups, one a thread, and gives the same bits.
+        let threads = rayon::current_num_threads().max(1);
+        let width = stride.div_ceil(threads).clamp(1, COLUMNS);
+        let groups: Vec<usize> = (0..stride).step_by(width).collect();
+        let wave = threads.min(GROUPS_IN_FLIGHT);
         for firsts in groups.chunks(wave) {
             let done: Vec<(usize, Vec<f64>)> = firsts
                 .par_iter()
                 .map(|&first| {
-                    let columns = first..stride.min(first + COLUMNS);
+                    let columns = first..stride.min(first + width);
                     (first, self.solve_columns(image, stride, columns))
                 })
                 .collect();
             for (first, x) in done {
-                let columns = first..stride.min(first + COLUMNS);
+                let columns = first..stride.min(first + width);
                 solved(columns.len() as u64);
                 for (&t, values) in self.texels.iter().zip(x.chunks_exact(columns.len())) {
                     for (at, &v) in image[t * stride..][columns.clone()].iter_mut().zip(values) {

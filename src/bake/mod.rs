@@ -455,8 +455,6 @@ pub(super) fn direct_or_adaptive(
     )
 }
 
-/// The receivers of a bake: the vertices, or (least-squares fit) the points spread over the
-/// triangles, which it also returns.
 /// `options` with the receivers' turns a bake's receivers cast with: a least-squares fit's
 /// points each turn their samples by their own angle where the sampling can turn (cosine), so
 /// that the errors of a vertex's points are independent and its fit averages them out.
@@ -465,6 +463,8 @@ fn receivers_turning(options: &BakeOptions) -> BakeOptions {
     options.clone().with_turns(options.turns || fitted)
 }
 
+/// The receivers of a bake: the vertices, or (least-squares fit) the points spread over the
+/// triangles, which it also returns.
 fn choose_receivers(
     scene: &Scene,
     bvh: &Bvh,

@@ -456,11 +456,14 @@ pub(super) fn direct_or_adaptive(
 }
 
 /// `options` with the receivers' turns a bake's receivers cast with: a least-squares fit's
-/// points each turn their samples by their own angle where the sampling can turn (cosine), so
-/// that the errors of a vertex's points are independent and its fit averages them out.
+/// points each turn their samples by their own angle where the sampling can
+/// ([`BakeOptions::with_turns_where_possible`]), so that the errors of a vertex's points are
+/// independent and its fit averages them out.
 fn receivers_turning(options: &BakeOptions) -> BakeOptions {
-    let fitted = options.fit == Fit::LeastSquares && options.sampling == Sampling::Cosine;
-    options.clone().with_turns(options.turns || fitted)
+    match options.fit {
+        Fit::LeastSquares => options.clone().with_turns_where_possible(),
+        Fit::Point => options.clone(),
+    }
 }
 
 /// The receivers of a bake: the vertices, or (least-squares fit) the points spread over the

@@ -161,6 +161,14 @@ impl BakeOptions {
         BakeOptions { turns, ..self }
     }
 
+    /// These options with each receiver turning its samples where the sampling can turn them
+    /// (cosine, about each receiver's normal): what a least-squares fit's points cast, so that
+    /// the fit averages their errors out; a stratified or uniform set stays shared.
+    pub fn with_turns_where_possible(self) -> Self {
+        let turns = self.turns || self.sampling == Sampling::Cosine;
+        self.with_turns(turns)
+    }
+
     pub fn validate(&self) -> Result<()> {
         if self.mode == Mode::Local {
             return Err(Error::Options(

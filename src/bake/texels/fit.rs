@@ -8,7 +8,6 @@ use crate::bake::{bake_at_in, Backend, BakeOptions, Fit, Progress, Transfer};
 use crate::bvh::Bvh;
 use crate::error::Result;
 use crate::receivers::{seams, texel_fit, Receivers, SurfacePoint};
-use crate::sampling::Sampling;
 
 /// Stitches the seams whose `seam_rows` are given in `image` (`stride` values a texel, each
 /// held as firmly as `anchor` says), or with `--fit least-squares` fits its texels, the seams
@@ -26,12 +25,10 @@ pub(super) fn stitch_or_fit(
         stitch(seam_rows, stride, size, (image, anchor), progress);
         return Ok(None);
     }
-    // Each point turns its samples by its own angle, as a denoised texel does: the fit
-    // averages a texel's points, and errors the points shared would not average out. Only
-    // cosine sampling can turn (about each point's normal); a stratified or uniform set is
-    // shared, as it is by the texels.
-    let turns = options.sampling == Sampling::Cosine;
-    let turned = options.clone().with_turns(turns);
+    // Each point turns its samples by its own angle where the sampling can, as a vertex fit's
+    // points do: the fit averages a texel's points, and errors the points shared would not
+    // average out.
+    let turned = options.clone().with_turns_where_possible();
     let fitting = (image, stride, anchor, seam_rows);
     let fitted = fit_texels((at, scatter), cover, &turned, (backend, progress), fitting)?;
     Ok(Some(fitted))

@@ -18,6 +18,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{cpu, DirectInputs, Progress};
+use crate::packet::{on_widest_unit, Kernel};
 use crate::ray::{barycentrics, blend_at, NO_HIT};
 use crate::sampling::DirectionFrame;
 use crate::sh::coeff_count;
@@ -278,22 +279,57 @@ pub fn apply_cpu(
         .for_each_init(
             || vec![0.0f64; stride],
             |acc, (p, out)| {
-                acc.fill(0.0);
                 let (columns, weights) = matrix.row(p);
-                for (&j, &w) in columns.iter().zip(weights) {
-                    let source = &previous[j as usize * stride..(j as usize + 1) * stride];
-                    for (a, &t) in acc.iter_mut().zip(source) {
-                        *a += w as f64 * t as f64;
-                    }
-                }
-                for c in 0..3 {
-                    for k in 0..coeffs {
-                        out[c * coeffs + k] = (albedo[p][c] as f64 * acc[c * coeffs + k]) as f32;
-                    }
-                }
+                on_widest_unit(GatherRow {
+                    row: (columns, weights),
+                    previous,
+                    albedo: albedo[p],
+                    acc,
+                    out,
+                });
             },
         );
     next
+}
+
+/// One row of [`apply_cpu`], compiled for the widest vector unit (the same bits on each: no
+/// copy fuses a product and a sum): its columns' transfer summed by weight into `acc`, then
+/// scaled by the row's albedo into `out`.
+struct GatherRow<'a> {
+    row: (&'a [u32], &'a [f32]),
+    previous: &'a [f32],
+    albedo: Vec3,
+    acc: &'a mut [f64],
+    out: &'a mut [f32],
+}
+
+impl Kernel for GatherRow<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let GatherRow {
+            row: (columns, weights),
+            previous,
+            albedo,
+            acc,
+            out,
+        } = self;
+        let stride = acc.len();
+        let coeffs = stride / 3;
+        acc.fill(0.0);
+        for (&j, &w) in columns.iter().zip(weights) {
+            let source = &previous[j as usize * stride..(j as usize + 1) * stride];
+            for (a, &t) in acc.iter_mut().zip(source) {
+                *a += w as f64 * t as f64;
+            }
+        }
+        for c in 0..3 {
+            for k in 0..coeffs {
+                out[c * coeffs + k] = (albedo[c] as f64 * acc[c * coeffs + k]) as f32;
+            }
+        }
+    }
 }
 
 /// Energy a bounce adds relative to all transfer so far: the ratio of the summed DC terms

@@ -19,6 +19,7 @@ use rayon::prelude::*;
 use super::eigen::{dot, top_eigenvectors};
 use super::rows::{for_each_block, read_row, Points, Rows};
 use crate::error::Result;
+use crate::packet::{on_widest_unit, Kernel};
 use crate::sampling::Pcg32;
 
 /// Vertices per parallel work item: large enough that rayon's bookkeeping stays small, fixed
@@ -118,6 +119,7 @@ impl Model {
     /// point `lane`: each point's residuals are the same sums in the same order as its own
     /// (so the same bits), interleaved so that the points' chains of additions overlap and
     /// share vector registers where one chain would wait on each addition.
+    #[inline]
     fn best_clusters_of_lanes(&self, xs: &[[f64; LANES]]) -> [(u32, f64); LANES] {
         let mut best = [(0, f64::INFINITY); LANES];
         for cluster in 0..self.clusters() {
@@ -132,6 +134,7 @@ impl Model {
     }
 
     /// [`Model::residual`] of [`LANES`] points (see [`Model::best_clusters_of_lanes`]).
+    #[inline]
     fn residuals_of_lanes(&self, cluster: usize, xs: &[[f64; LANES]]) -> [f64; LANES] {
         let mut distance = [0.0f64; LANES];
         for (x, m) in xs.iter().zip(self.mean(cluster)) {
@@ -201,27 +204,56 @@ pub fn assign(points: Points, model: &Model) -> (Vec<u32>, Vec<f64>) {
         .enumerate()
         .for_each(|(chunk, out)| {
             let first = chunk * CHUNK;
-            let done = out.len() - out.len() % LANES;
-            let lanes = out.chunks_exact_mut(LANES);
-            let mut xs = vec![[0.0f64; LANES]; points.dimension];
-            for (group, slots) in lanes.enumerate() {
-                for lane in 0..LANES {
-                    let row = points.row(first + group * LANES + lane);
-                    xs.iter_mut()
-                        .zip(row)
-                        .for_each(|(x, value)| x[lane] = value);
-                }
-                slots.copy_from_slice(&model.best_clusters_of_lanes(&xs));
-            }
-            for (i, slot) in out.iter_mut().enumerate().skip(done) {
-                *slot = model.best_cluster(&points.row_f64(first + i));
-            }
+            on_widest_unit(AssignChunk {
+                points,
+                model,
+                first,
+                out,
+            });
         });
     best.into_iter().unzip()
 }
 
+/// The points `first..` of one chunk assigned into `out`, compiled for the widest vector unit
+/// (the same bits on each: no copy fuses a product and a sum).
+struct AssignChunk<'a> {
+    points: Points<'a>,
+    model: &'a Model,
+    first: usize,
+    out: &'a mut [(u32, f64)],
+}
+
+impl Kernel for AssignChunk<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let AssignChunk {
+            points,
+            model,
+            first,
+            out,
+        } = self;
+        let done = out.len() - out.len() % LANES;
+        let mut xs = vec![[0.0f64; LANES]; points.dimension];
+        for (group, slots) in out.chunks_exact_mut(LANES).enumerate() {
+            for lane in 0..LANES {
+                let row = points.row(first + group * LANES + lane);
+                xs.iter_mut()
+                    .zip(row)
+                    .for_each(|(x, value)| x[lane] = value);
+            }
+            slots.copy_from_slice(&model.best_clusters_of_lanes(&xs));
+        }
+        for (i, slot) in out.iter_mut().enumerate().skip(done) {
+            *slot = model.best_cluster(&points.row_f64(first + i));
+        }
+    }
+}
+
 /// [`dot`] of `b` with each of [`LANES`] points (`xs[i][lane]`), each the same four running
 /// sums and tail, in the same order, as [`dot`] gives it.
+#[inline]
 fn dot_lanes(b: &[f64], xs: &[[f64; LANES]]) -> [f64; LANES] {
     let mut sums = [[0.0f64; LANES]; 4];
     let (b4, x4) = (b.chunks_exact(4), xs.chunks_exact(4));

@@ -390,6 +390,48 @@ mod tests {
         assert_eq!(-1e16 + 1.0 + 1e16 + 1.0, 1.0);
     }
 
+    /// The bounce compiled for this machine's widest vector unit gives the bits of the plain
+    /// sum written out here (compiled for the baseline unit): weights times transfer summed
+    /// in f64 in column order, then times the albedo.
+    #[test]
+    fn a_bounce_on_the_widest_unit_gives_the_plain_sums_bits() {
+        let mut rng = crate::sampling::Pcg32::new(23);
+        let (rows, coeffs) = (300, 5);
+        let stride = 3 * coeffs;
+        let previous: Vec<f32> = (0..rows * stride).map(|_| rng.next_f32() - 0.3).collect();
+        let albedo: Vec<Vec3> = (0..rows)
+            .map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()))
+            .collect();
+        let matrix = GatherMatrix::from_rows(
+            (0..rows)
+                .map(|_| {
+                    let mut columns: Vec<u32> = (0..1 + (rng.next_u32() % 40))
+                        .map(|_| rng.next_u32() % rows as u32)
+                        .collect();
+                    columns.sort_unstable();
+                    columns.dedup();
+                    columns.into_iter().map(|c| (c, rng.next_f32())).collect()
+                })
+                .collect(),
+        );
+        let bounced = apply_cpu(&matrix, &previous, &albedo, coeffs);
+        for p in 0..rows {
+            let (columns, weights) = matrix.row(p);
+            for i in 0..stride {
+                let mut sum = 0.0f64;
+                for (&j, &w) in columns.iter().zip(weights) {
+                    sum += w as f64 * previous[j as usize * stride + i] as f64;
+                }
+                let expected = (albedo[p][i / coeffs] as f64 * sum) as f32;
+                assert_eq!(
+                    bounced[p * stride + i].to_bits(),
+                    expected.to_bits(),
+                    "row {p}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn closest_hit_visibility_gives_the_shadowed_transfer_and_single_ray_hits() {
         use crate::bake::{BakeInputs, NoProgress};

@@ -579,9 +579,10 @@ pub fn iterate(
 mod tests {
     use super::*;
 
-    /// Points scored four at a time get the bits each gets alone: on rows of a length with a
-    /// tail after the dot products' fours (7), a count that leaves points over after the
-    /// fours and spans chunks, and a model with and without directions.
+    /// Points scored four at a time, compiled for this machine's widest vector unit, get the
+    /// bits each gets alone on the baseline unit: on rows of a length with a tail after the
+    /// dot products' fours (7), a count that leaves points over after the fours and spans
+    /// chunks, and a model with and without directions.
     #[test]
     fn points_scored_in_lanes_get_the_bits_each_gets_alone() {
         let mut rng = Pcg32::new(17);

@@ -12,6 +12,7 @@ use prt_gpu::bake::stream::MemoryNeed;
 use prt_gpu::bake::BakeOptions;
 
 const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj");
+const TEAPOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
 
 /// The first line of `stderr` that starts with `prefix`.
 fn line_starting(stderr: &str, prefix: &str) -> Option<String> {
@@ -645,8 +646,7 @@ fn a_fit_whose_points_bake_in_runs_gives_the_whole_fits_bits() {
     use prt_gpu::pipeline;
     use prt_gpu::spec::BakeSpec;
 
-    let teapot = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
-    let scene = prt_gpu::scene::load(Path::new(teapot)).unwrap();
+    let scene = prt_gpu::scene::load(Path::new(TEAPOT)).unwrap();
     let spec = |change: &dyn Fn(&mut BakeSpec)| {
         let mut spec = BakeSpec::default();
         spec.receivers.fit = Fit::LeastSquares;

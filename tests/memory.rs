@@ -9,7 +9,7 @@ use std::path::Path;
 use common::prt_gpu;
 use prt_gpu::bake::adaptive::TargetError;
 use prt_gpu::bake::stream::MemoryNeed;
-use prt_gpu::bake::BakeOptions;
+use prt_gpu::bake::{BakeOptions, Fit};
 
 const BUNNY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/bunny.obj");
 const TEAPOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/teapot.obj");
@@ -411,7 +411,7 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
     let below_any_chunk = (need.fixed / 2).to_string();
     let below_whole = (need.whole() / 2).to_string();
     // Each bake that is not split says what it does with every receiver at once.
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 6] = [
         (&["--memory-limit", &below_any_chunk], "needs at least"),
         (
             &["--memory-limit", &below_any_chunk, "--fit", "least-squares"],
@@ -424,17 +424,6 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
         (
             &["--memory-limit", &below_whole, "--lightmap", "256"],
             "with its lightmap held in a scratch file",
-        ),
-        (
-            &[
-                "--memory-limit",
-                &below_whole,
-                "--lightmap",
-                "256",
-                "--fit",
-                "least-squares",
-            ],
-            "its least-squares fit solves for every texel at once",
         ),
         (
             &["--memory-limit", &below_whole, "--subsurface", "marble"],
@@ -461,7 +450,6 @@ fn limits_that_cannot_be_met_are_refused_before_the_bake() {
 /// fewest shards that each fit, and that many shards then bake within the same limit.
 #[test]
 fn a_shard_over_the_limit_is_refused_naming_a_count_that_fits() {
-    use prt_gpu::bake::Fit;
     let dir = tempfile::tempdir().unwrap();
     // A least-squares fit's shards split its points, each holding all of them.
     let cases = [
@@ -575,16 +563,23 @@ fn a_streamed_bake_draws_the_whole_bakes_preview() {
 /// A lightmap held in a scratch file (its texels baked a chunk at a time, cleaned up a group of
 /// coefficients at a time, encoded a block of rows at a time) writes the whole bake's .glb and
 /// OpenEXR bytes, and draws the whole bake's preview; on the CPU and the GPU, shadowed,
-/// interreflected and denoised, and cut to the bands `--bands auto` chooses.
+/// interreflected and denoised, cut to the bands `--bands auto` chooses, and fitted by least
+/// squares (its points in a scratch file too).
 #[test]
 fn a_lightmap_held_in_a_scratch_file_writes_the_whole_bakes_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let cases: [&[&str]; 4] = [
+    let least_squares = ["--fit", "least-squares"];
+    let cases: [&[&str]; 5] = [
         &["--device", "cpu"],
         &["--device", "cpu", "--mode", "interreflected", "--denoise"],
         &["--device", "gpu", "--denoise", "--bands", "5"],
         &["--device", "cpu", "--bands", "auto"],
+        &[
+            &["--device", "gpu", "--mode", "interreflected"],
+            &least_squares[..],
+        ]
+        .concat(),
     ];
     for extra in cases {
         let options = BakeOptions {
@@ -599,9 +594,19 @@ fn a_lightmap_held_in_a_scratch_file_writes_the_whole_bakes_bytes() {
                 false => prt_gpu::bake::Mode::Shadowed,
             },
             denoise: extra.contains(&"--denoise"),
+            fit: match extra.contains(&"least-squares") {
+                true => Fit::LeastSquares,
+                false => Fit::Point,
+            },
             ..BakeOptions::default()
         };
-        let need = bunny_need(&options).with_lightmap(96, &options);
+        let mut need = bunny_need(&options);
+        if options.fit == Fit::LeastSquares {
+            let scene = prt_gpu::scene::load(Path::new(BUNNY)).unwrap();
+            let points = prt_gpu::receivers::spread_point_count(&scene, options.point_density);
+            need = need.with_fit_points(points as u64, &options);
+        }
+        let need = need.with_lightmap(96, &options);
         // Room for the seam solve's four coefficients at a time, not for the whole map.
         let limit = need.lightmap_held(4);
         assert!(limit < need.whole(), "{extra:?}");

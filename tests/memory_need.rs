@@ -226,6 +226,16 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
             ),
         ),
         (
+            "lightmap 512, least squares, held, 4 at a time",
+            (
+                spec(&|s| {
+                    s.receivers.lightmap = Some(512);
+                    s.receivers.fit = Fit::LeastSquares;
+                }),
+                Run::TexelsHeld(4),
+            ),
+        ),
+        (
             "lightmap 512, interreflected, denoised, held, 12 at a time",
             (
                 spec(&|s| {

@@ -198,6 +198,20 @@ pub fn bake_from(
     drop((fitting, at_receivers, albedo));
     let (transfer, albedo_free) = stored(transfer, albedo_free, scene, options);
     let scene = std::mem::take(&mut planned.scene);
+    // The receivers (a least-squares fit's points) and their tree are let go before a lightmap
+    // bakes its own; what the report needs of them is their counts.
+    let Planned {
+        prepare,
+        vertex_map,
+        receivers,
+        points,
+        inputs,
+        seconds: seconds_prepare,
+        ..
+    } = planned;
+    let (receiver_count, point_count) = (receivers.len(), points.len());
+    let (samples_used, bvh_nodes) = (inputs.samples.len(), inputs.bvh.nodes.len());
+    drop((receivers, points, inputs));
     let (scene, transfer, lightmap, texel_report) = match &atlas {
         None => (scene, transfer, None, None),
         Some(atlas) => {
@@ -205,8 +219,7 @@ pub fn bake_from(
             add_lightmap(scene, transfer, at, options, backend, progress)?
         }
     };
-    let fit_points = (options.fit == Fit::LeastSquares).then_some(planned.points.len() as u32);
-    let samples_used = planned.inputs.samples.len();
+    let fit_points = (options.fit == Fit::LeastSquares).then_some(point_count as u32);
     // An error-targeted bake records the mean over receivers.
     let samples = adaptive_report
         .as_ref()
@@ -219,13 +232,13 @@ pub fn bake_from(
         ..metadata_for(options, samples, bounces.len(), fit_points)
     };
     let report = BakeReport {
-        prepare: planned.prepare,
-        vertex_map: planned.vertex_map,
-        receivers: planned.receivers.len(),
+        prepare,
+        vertex_map,
+        receivers: receiver_count,
         samples_used: samples_used as u32,
         rays_cast,
-        bvh_nodes: planned.inputs.bvh.nodes.len(),
-        seconds_prepare: planned.seconds,
+        bvh_nodes,
+        seconds_prepare,
         seconds_transfer,
         seconds_fit,
         fit: fit_report,
@@ -583,12 +596,29 @@ fn receiver_albedo(receivers: &Receivers, options: &BakeOptions) -> Vec<Vec3> {
 pub fn bake_at_in_chunks(
     scene: &Scene,
     (receivers, bvh): (&Receivers, Bvh),
+    with: (&BakeOptions, &dyn Backend, Option<&Transfer>),
+    chunked: (&dyn Progress, usize),
+    each: &mut dyn FnMut(usize, Transfer) -> Result<()>,
+) -> Result<u64> {
+    let (rays_cast, _) = bake_run_in_chunks(scene, (receivers, bvh, 0), with, chunked, each)?;
+    Ok(rays_cast)
+}
+
+/// [`bake_at_in_chunks`] of a run of a bake's receivers, `first` the number of its first in
+/// the whole: each keeps its turn in the whole, and `each` is told the whole's numbers. The
+/// tree comes back for the next run.
+pub fn bake_run_in_chunks(
+    scene: &Scene,
+    (receivers, bvh, first_in_whole): (&Receivers, Bvh, usize),
     (options, backend, vertex_transfer): (&BakeOptions, &dyn Backend, Option<&Transfer>),
     (progress, chunk): (&dyn Progress, usize),
     each: &mut dyn FnMut(usize, Transfer) -> Result<()>,
-) -> Result<u64> {
+) -> Result<(u64, Bvh)> {
     options.validate()?;
-    let owned = BakeInputs::with_tree(scene, receivers, bvh, options);
+    let mut owned = BakeInputs::with_tree(scene, receivers, bvh, options);
+    owned.turns = owned
+        .turns
+        .map(|turns| turns.skipping(first_in_whole as u32));
     let albedo = receiver_albedo(receivers, options);
     let vertices = match options.mode {
         Mode::Interreflected => Some(
@@ -628,9 +658,9 @@ pub fn bake_at_in_chunks(
                 .zip(gathered)
                 .for_each(|(t, g)| *t += g);
         }
-        each(first, transfer)?;
+        each(first_in_whole + first, transfer)?;
     }
-    Ok(rays_cast)
+    Ok((rays_cast, owned.bvh))
 }
 
 /// Receivers whose gather rows [`bake_at_in`] holds at once.

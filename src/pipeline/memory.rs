@@ -55,9 +55,6 @@ pub fn plan_memory(
     let streamable = bake::stream::streams(&options) && chunkable;
     let points_chunk =
         options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
-    if least_squares_lightmap(spec) {
-        return over.refuse_or_warn("bake", bake::texels::LEAST_SQUARES_TEXELS_WHOLE);
-    }
     if spec.receivers.lightmap.is_some() && chunkable {
         return over.lightmap_held();
     }
@@ -156,9 +153,6 @@ pub fn plan_merge_memory(
     let Some(over) = over_budget(need, spec, (scene, gltf), limit, available) else {
         return Ok(MemoryPlan::default());
     };
-    if least_squares_lightmap(spec) {
-        return over.refuse_or_warn("merge", bake::texels::LEAST_SQUARES_TEXELS_WHOLE);
-    }
     if spec.receivers.lightmap.is_some() && !over.scatters {
         return over.lightmap_held();
     }
@@ -173,11 +167,6 @@ pub fn plan_merge_memory(
         }
     };
     over.refuse_or_warn("merge", why)
-}
-
-/// Whether `spec` fits a lightmap's texels by least squares, which is never held.
-fn least_squares_lightmap(spec: &BakeSpec) -> bool {
-    spec.receivers.lightmap.is_some() && spec.receivers.fit == bake::Fit::LeastSquares
 }
 
 /// A bake whose need is over its budget: the user's limit or, without one, the machine's
@@ -349,31 +338,32 @@ mod tests {
     use super::*;
     use crate::scene::{builtin, prepare::prepare};
 
-    /// A least-squares lightmap is never held: a bake or a merge over an explicit limit is
-    /// refused in one line, and over the machine's memory it runs whole with a warning.
+    /// A least-squares lightmap over its limit is held as one fitted by points is, and its
+    /// need held counts the fit: more than the same map's by points, less than it whole.
     #[test]
-    fn a_least_squares_lightmap_over_its_limit_is_refused_not_held() {
+    fn a_least_squares_lightmap_over_its_limit_is_held() {
         let scene = prepare(builtin::default_scene()).unwrap().0;
         let mut spec = BakeSpec::default();
         spec.receivers.lightmap = Some(256);
-        spec.receivers.fit = bake::Fit::LeastSquares;
         let at = (&scene, None);
-        let refused = plan_memory(&spec, at, Some(1 << 20), None).unwrap_err();
-        assert!(refused
-            .to_string()
-            .contains("solves for every texel at once"));
-        let merged = plan_merge_memory(&spec, at, 1 << 10, Some(1 << 20), None).unwrap_err();
-        assert!(
-            merged.to_string().contains("this merge needs about"),
-            "{merged}"
-        );
-        let warned = plan_memory(&spec, at, None, Some(1 << 20)).unwrap();
-        assert!(warned.texel_groups.is_none());
-        assert!(warned.message.unwrap().starts_with("warning: "));
-        // With --fit point the same lightmap, just over its limit, is held.
-        spec.receivers.fit = bake::Fit::Point;
-        let limit = memory_need(&spec, at).whole() - 1;
+        let by_points = memory_need(&spec, at);
+        spec.receivers.fit = bake::Fit::LeastSquares;
+        let fitted = memory_need(&spec, at);
+        assert!(fitted.lightmap_held(4) > by_points.lightmap_held(4));
+        assert!(fitted.lightmap_held(4) < fitted.whole());
+        let limit = fitted.lightmap_held(4);
         let held = plan_memory(&spec, at, Some(limit), None).unwrap();
-        assert!(held.texel_groups.is_some(), "{:?}", held.message);
+        let groups = held.texel_groups.expect("held");
+        assert!(groups.columns >= 4, "{groups:?}");
+        let merged = plan_merge_memory(&spec, at, 1 << 10, Some(limit), None).unwrap();
+        assert!(merged.texel_groups.is_some(), "{:?}", merged.message);
+        // Below one coefficient at a time, the refusal names the fit.
+        let refused = plan_memory(&spec, at, Some(fitted.lightmap_held(1) - 1), None).unwrap_err();
+        assert!(
+            refused
+                .to_string()
+                .contains("the least-squares fit's points"),
+            "{refused}"
+        );
     }
 }

@@ -109,70 +109,125 @@ fn lattice_range(lo: f64, hi: f64, size: usize) -> Range<usize> {
     first..end.max(first)
 }
 
-/// The fit's right-hand side gathered from the points' values as they are baked, and what
-/// the solve needs of the points (their taps).
-pub struct PointSums {
+/// What the fit needs of its points whatever the coefficient: which points it keeps, their
+/// bilinear taps, and the texels those read.
+pub struct PointTaps {
     size: (u32, u32),
-    stride: usize,
     /// Per point, where its taps are in `taps` (`u32::MAX`: left out of the fit).
     kept: Vec<u32>,
     /// Each kept point's taps: texels numbered as in `texels`, bilinear weights.
     taps: Vec<[(u32, f32); 4]>,
     /// The texels the kept points read (row-major image indices), in first-use order.
     texels: Vec<usize>,
-    /// Per texel of `texels`, `sum_p w tap_p(t) T_p` for every coefficient.
-    sums: Vec<f32>,
+    /// Per texel of the map, its number in `texels` (`u32::MAX`: none).
+    index: Vec<u32>,
 }
 
-impl PointSums {
-    /// Sums for a `width` x `height` map of `stride` values a texel, over `points` less those
-    /// flagged in `skip` (inside geometry or under a sheet, as texels are).
-    pub fn new(
-        (width, height): (u32, u32),
-        stride: usize,
-        points: &[FitPoint],
-        skip: &[bool],
-    ) -> PointSums {
-        let mut index = vec![u32::MAX; width as usize * height as usize];
-        let mut texels = Vec::new();
-        let mut kept = vec![u32::MAX; points.len()];
-        let mut taps = Vec::new();
-        for (p, point) in points.iter().enumerate() {
-            if skip.get(p).copied().unwrap_or(false) {
-                continue;
-            }
-            kept[p] = taps.len() as u32;
-            taps.push(
-                bilinear_taps(width, height, point.atlas)
-                    .map(|(t, w)| (local_index(&mut index, &mut texels, t), w)),
-            );
-        }
-        let sums = vec![0.0; texels.len() * stride];
-        PointSums {
+impl PointTaps {
+    /// The taps on a `width` x `height` map of `points` less those flagged in `skip` (inside
+    /// geometry or under a sheet, as texels are).
+    pub fn new(size: (u32, u32), points: &[FitPoint], skip: &[bool]) -> PointTaps {
+        let mut taps = PointTaps::none(size);
+        taps.extend(points, skip);
+        taps
+    }
+
+    /// No points yet, on a `width` x `height` map.
+    pub fn none((width, height): (u32, u32)) -> PointTaps {
+        PointTaps {
             size: (width, height),
-            stride,
-            kept,
-            taps,
-            texels,
-            sums,
+            kept: Vec::new(),
+            taps: Vec::new(),
+            texels: Vec::new(),
+            index: vec![u32::MAX; width as usize * height as usize],
         }
     }
 
-    /// Adds the values (`stride` a point) of the points from `first` on.
-    pub fn add(&mut self, first: usize, values: &[f32]) {
-        let stride = self.stride;
+    /// Adds the taps of the next `points`, less those flagged in `skip`: points added in runs
+    /// get the taps and texel numbers they get added at once.
+    pub fn extend(&mut self, points: &[FitPoint], skip: &[bool]) {
+        let (width, height) = self.size;
+        for (p, point) in points.iter().enumerate() {
+            if skip.get(p).copied().unwrap_or(false) {
+                self.kept.push(u32::MAX);
+                continue;
+            }
+            self.kept.push(self.taps.len() as u32);
+            let taps = bilinear_taps(width, height, point.atlas)
+                .map(|(t, w)| (local_index(&mut self.index, &mut self.texels, t), w));
+            self.taps.push(taps);
+        }
+    }
+
+    /// Sums of the points' values (`stride` a texel read), none added yet.
+    pub fn empty_sums(&self, stride: usize) -> Vec<f32> {
+        vec![0.0; self.texels.len() * stride]
+    }
+
+    /// Adds `values` (`stride` a point) of the points from `first` on into `sums` (`stride` a
+    /// texel read): `sum_p w tap_p(t) T_p`, each coefficient on its own, in the points' order.
+    pub fn add(&self, sums: &mut [f32], stride: usize, first: usize, values: &[f32]) {
         for (values, &kept) in values.chunks_exact(stride).zip(&self.kept[first..]) {
             if kept == u32::MAX {
                 continue;
             }
             for &(t, w) in &self.taps[kept as usize] {
                 let w = (POINT_WEIGHT * w as f64) as f32;
-                let sums = &mut self.sums[t as usize * stride..][..stride];
+                let sums = &mut sums[t as usize * stride..][..stride];
                 for (s, v) in sums.iter_mut().zip(values) {
                     *s += w * v;
                 }
             }
         }
+    }
+
+    /// The fit's normal equations: the points' taps, each texel held as firmly as `anchor`
+    /// says (times [`ANCHOR`]), the lookups across `seams` pulled together.
+    pub fn system(&self, anchor: &[f32], seams: &[Row]) -> TexelSystem {
+        let size = self.size;
+        let (mut texels, mut index) = (self.texels.clone(), self.index.clone());
+        let seams: Vec<[(u32, f64); 8]> = seams
+            .iter()
+            .map(|row| {
+                row.taps()
+                    .map(|(t, w)| (local_index(&mut index, &mut texels, t), w))
+            })
+            .collect();
+        let anchors = texels
+            .iter()
+            .map(|&t| ANCHOR * anchor.get(t).map_or(1.0, |&a| a as f64))
+            .collect();
+        let system = FitSystem::new(
+            (&texels, &index, size.0 as usize),
+            &self.taps,
+            seams,
+            anchors,
+        );
+        TexelSystem { texels, system }
+    }
+}
+
+/// The fit's right-hand side gathered from the points' values as they are baked, and what
+/// the solve needs of the points (their taps).
+pub struct PointSums {
+    taps: PointTaps,
+    stride: usize,
+    /// Per texel the points read, `sum_p w tap_p(t) T_p` for every coefficient.
+    sums: Vec<f32>,
+}
+
+impl PointSums {
+    /// Sums for a `width` x `height` map of `stride` values a texel, over `points` less those
+    /// flagged in `skip` (inside geometry or under a sheet, as texels are).
+    pub fn new(size: (u32, u32), stride: usize, points: &[FitPoint], skip: &[bool]) -> PointSums {
+        let taps = PointTaps::new(size, points, skip);
+        let sums = taps.empty_sums(stride);
+        PointSums { taps, stride, sums }
+    }
+
+    /// Adds the values (`stride` a point) of the points from `first` on.
+    pub fn add(&mut self, first: usize, values: &[f32]) {
+        self.taps.add(&mut self.sums, self.stride, first, values);
     }
 
     /// Fits `image` (the map as baked at the centres and filled, row-major, `stride` values a
@@ -187,31 +242,32 @@ impl PointSums {
         seams: &[Row],
         solved: &mut dyn FnMut(u64),
     ) {
-        let PointSums {
-            size,
-            stride,
-            taps,
-            mut texels,
-            sums,
-            ..
-        } = self;
-        let mut index = vec![u32::MAX; size.0 as usize * size.1 as usize];
-        for (i, &t) in texels.iter().enumerate() {
-            index[t] = i as u32;
-        }
-        let seams: Vec<[(u32, f64); 8]> = seams
-            .iter()
-            .map(|row| {
-                row.taps()
-                    .map(|(t, w)| (local_index(&mut index, &mut texels, t), w))
-            })
-            .collect();
-        let anchors = texels
-            .iter()
-            .map(|&t| ANCHOR * anchor.get(t).map_or(1.0, |&a| a as f64))
-            .collect();
-        let system = FitSystem::new((&texels, &index, size.0 as usize), &taps, seams, anchors);
-        drop((taps, index));
+        let system = self.taps.system(anchor, seams);
+        drop(self.taps);
+        system.solve((image, self.stride), &self.sums, solved);
+    }
+}
+
+/// The fit's system over the texels the points and seams read, for any coefficients.
+pub struct TexelSystem {
+    /// The texels (row-major image indices): those the points read, then those only seams do.
+    texels: Vec<usize>,
+    system: FitSystem,
+}
+
+impl TexelSystem {
+    /// Fits every coefficient of `image` (`stride` values a texel) to the points' `sums`
+    /// ([`PointTaps::add`], `stride` a texel read), [`seams::COLUMNS`] at a time; `solved` is
+    /// told of every coefficient solved. A coefficient's solve is the same arithmetic whatever
+    /// coefficients stand beside it, so a map fitted a group of coefficients at a time gets
+    /// the bits of one fitted whole.
+    pub fn solve(
+        &self,
+        (image, stride): (&mut [f32], usize),
+        sums: &[f32],
+        solved: &mut dyn FnMut(u64),
+    ) {
+        let texels = &self.texels;
         let groups: Vec<usize> = (0..stride).step_by(seams::COLUMNS).collect();
         let wave = rayon::current_num_threads().clamp(1, seams::GROUPS_IN_FLIGHT);
         for firsts in groups.chunks(wave) {
@@ -219,7 +275,7 @@ impl PointSums {
                 .par_iter()
                 .map(|&first| {
                     let columns = first..stride.min(first + seams::COLUMNS);
-                    let x = system.solve((image, stride), (&texels, &sums), columns);
+                    let x = self.system.solve((image, stride), (texels, sums), columns);
                     (first, x)
                 })
                 .collect();

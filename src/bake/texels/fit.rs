@@ -1,13 +1,20 @@
 //! Least-squares texels in the texel bake (`--fit least-squares` with a lightmap): the points
 //! of [`texel_fit`] baked like the texels, summed chunk by chunk, and the map fitted to them.
 
+use std::ops::Range;
 use std::time::Instant;
 
 use super::{leaking_or_covered_in, scattered_texels, stitch, TexelsOf};
-use crate::bake::{bake_at_in, Backend, BakeOptions, Fit, Progress, Transfer};
+use crate::bake::spill::Spill;
+use crate::bake::{
+    bake_at_in, bake_run_in_chunks, Advancing, Backend, BakeOptions, Fit, Progress, Transfer,
+};
 use crate::bvh::Bvh;
 use crate::error::Result;
+use crate::receivers::atlas::Atlas;
+use crate::receivers::texel_fit::TexelSystem;
 use crate::receivers::{seams, texel_fit, Receivers, SurfacePoint};
+use crate::scene::Scene;
 
 /// Stitches the seams whose `seam_rows` are given in `image` (`stride` values a texel, each
 /// held as firmly as `anchor` says), or with `--fit least-squares` fits its texels, the seams
@@ -94,4 +101,132 @@ pub(super) struct TexelFit {
     pub(super) points: usize,
     pub(super) rays_cast: u64,
     pub(super) transfer_seconds: f64,
+}
+
+/// A least-squares lightmap's fit points baked in bounded memory ([`super::bake_atlas_held`]):
+/// their values in a scratch file a group of coefficients after another (group `columns` from
+/// `points * columns.start` values in, `[point][column of the group]`), and their taps, so
+/// that each group of the clean-up sums its own values alone.
+pub(super) struct HeldPoints {
+    file: Spill,
+    count: usize,
+    taps: texel_fit::PointTaps,
+    pub(super) rays_cast: u64,
+    pub(super) transfer_seconds: f64,
+}
+
+impl HeldPoints {
+    /// The fit points of `at`'s atlas baked with `options` (turned where the sampling can, as
+    /// [`stitch_or_fit`] turns them), those nearer a sheet than `cover` left out, each chunk's
+    /// values (`chunk` points) written by `groups` of coefficients and let go. The points'
+    /// receivers are made a run at a time: what every point keeps is its place and its taps.
+    pub(super) fn bake(
+        (scene, vertex_transfer, atlas): (&Scene, &Transfer, &Atlas),
+        cover: f32,
+        options: &BakeOptions,
+        (backend, progress): (&dyn Backend, &dyn Progress),
+        (chunk, groups): (usize, &[Range<usize>]),
+    ) -> Result<HeldPoints> {
+        let turned = options.clone().with_turns_where_possible();
+        let points = texel_fit::fit_points(atlas);
+        let count = points.len();
+        let mut taps = texel_fit::PointTaps::none((atlas.width, atlas.height));
+        let mut bvh = Bvh::build(&scene.positions, &scene.triangles);
+        let stride = groups.last().map_or(0, |g| g.end);
+        let mut file = Spill::new()?;
+        let mut block = Vec::new();
+        let casting = Instant::now();
+        let mut rays_cast = 0;
+        progress.stage("transfer", count as u64);
+        let run = run_points(chunk);
+        for (first, run) in (0..).step_by(run).zip(points.chunks(run)) {
+            let surface: Vec<SurfacePoint> = run.iter().map(|p| p.surface).collect();
+            let receivers = Receivers::at_points(scene, &surface);
+            taps.extend(run, &leaking_or_covered_in(scene, &bvh, &receivers, cover));
+            let (cast, tree) = bake_run_in_chunks(
+                scene,
+                (&receivers, bvh, first),
+                (&turned, backend, Some(vertex_transfer)),
+                (&Advancing(progress), chunk),
+                &mut |first, transfer| {
+                    let values = (transfer.coeffs(), stride);
+                    write_by_group(&mut file, (count, first), values, groups, &mut block)
+                },
+            )?;
+            rays_cast += cast;
+            bvh = tree;
+        }
+        Ok(HeldPoints {
+            file,
+            count,
+            taps,
+            rays_cast,
+            transfer_seconds: casting.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// The points baked.
+    pub(super) fn count(&self) -> usize {
+        self.count
+    }
+
+    /// The fit's system ([`texel_fit::PointTaps::system`]).
+    pub(super) fn system(&self, anchor: &[f32], seam_rows: &[seams::Row]) -> TexelSystem {
+        self.taps.system(anchor, seam_rows)
+    }
+
+    /// The points' sums of coefficients `columns` (one of the groups they were written by),
+    /// read back a block of points at a time.
+    pub(super) fn sums(&mut self, columns: Range<usize>) -> Result<Vec<f32>> {
+        let group = columns.len();
+        let mut sums = self.taps.empty_sums(group);
+        let mut block = vec![0.0f32; READ_POINTS * group];
+        let start = self.count * columns.start;
+        for first in (0..self.count).step_by(READ_POINTS) {
+            let values = &mut block[..READ_POINTS.min(self.count - first) * group];
+            self.file
+                .read_at(((start + first * group) * 4) as u64, values)?;
+            self.taps.add(&mut sums, group, first, values);
+        }
+        Ok(sums)
+    }
+}
+
+/// The fit points whose receivers a held bake makes at once, baked `chunk` at a time: at
+/// least [`RUN_POINTS`], so that each run's setup (the samples and their SH) is a small share.
+pub(super) fn run_points(chunk: usize) -> usize {
+    chunk.max(RUN_POINTS)
+}
+
+/// The fewest fit points a held bake's run makes receivers for.
+const RUN_POINTS: usize = 4096;
+
+/// Points read back from the scratch file at a time.
+const READ_POINTS: usize = 4096;
+
+/// Writes the values of a chunk of `count` receivers from `first` on (`stride` a receiver) to
+/// `file` by `groups` of coefficients: group `columns` from `count * columns.start` values in,
+/// `[receiver][column of the group]`. `block` is scratch room.
+pub(super) fn write_by_group(
+    file: &mut Spill,
+    (count, first): (usize, usize),
+    (values, stride): (&[f32], usize),
+    groups: &[Range<usize>],
+    block: &mut Vec<f32>,
+) -> Result<()> {
+    for columns in groups {
+        let at = (count * columns.start + first * columns.len()) as u64 * 4;
+        if columns.len() == stride {
+            file.write_at(at, values)?;
+            continue;
+        }
+        block.clear();
+        block.extend(
+            values
+                .chunks_exact(stride)
+                .flat_map(|values| &values[columns.clone()]),
+        );
+        file.write_at(at, block)?;
+    }
+    Ok(())
 }

@@ -24,6 +24,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 
+use super::fit::{run_points, write_by_group, HeldPoints};
 use super::{
     chart_owners, denoise_guide, seam_anchors, texel_receivers, TexelReport, TexelSites,
     DILATION_PASSES,
@@ -38,6 +39,7 @@ use crate::error::{Error, Result};
 use crate::lightmap::{LightmapShape, TexelRows};
 use crate::receivers::atlas::Atlas;
 use crate::receivers::dilation::plan_dilation;
+use crate::receivers::texel_fit::TexelSystem;
 use crate::receivers::texels::TexelPoints;
 use crate::receivers::Receivers;
 use crate::receivers::{seams, texel_fit};
@@ -159,18 +161,13 @@ pub fn bake_atlas_held(
     progress: &dyn Progress,
     divided: TexelGroups,
 ) -> Result<(TexelBake, TexelReport)> {
-    if options.fit == Fit::LeastSquares {
-        return Err(Error::Options(format!(
-            "a least-squares lightmap is baked whole: {LEAST_SQUARES_TEXELS_WHOLE}"
-        )));
-    }
     let started = Instant::now();
     let TexelSites {
         texels,
         receivers,
         bvh,
         leaking,
-        ..
+        cover,
     } = texel_receivers(scene, atlas);
     let turned = options.clone().with_turns(options.denoise);
     let casting = Instant::now();
@@ -185,7 +182,7 @@ pub fn bake_atlas_held(
         (&turned, backend, progress),
         (&leaking, divided.chunk, &groups),
     )?;
-    let transfer_seconds = casting.elapsed().as_secs_f64();
+    let mut transfer_seconds = casting.elapsed().as_secs_f64();
     let valid = texels.valid_mask(&leaking)?;
     let guide = options.denoise.then(|| {
         let dc = |i: usize, _| Vec3::from_array(baked.dc[i]);
@@ -206,10 +203,36 @@ pub fn bake_atlas_held(
         guide: guide.as_ref(),
         bands: options.bands,
     };
-    let (held, rays_cast) = cleanup.run(baked, &groups, (backend, progress))?;
+    // A least-squares map's points bake once the texels have (their receivers let go), and
+    // each group's clean-up fits that group to them.
+    let points = match options.fit {
+        Fit::LeastSquares => {
+            let at = (scene, vertex_transfer, atlas);
+            let with = (backend, progress);
+            Some(HeldPoints::bake(
+                at,
+                cover,
+                &turned,
+                with,
+                (divided.chunk, &groups),
+            )?)
+        }
+        Fit::Point => None,
+    };
+    let fitted = points
+        .as_ref()
+        .map(|p| (p.count(), p.rays_cast, p.transfer_seconds));
+    let (held, mut rays_cast) = cleanup.run((baked, points), &groups, (backend, progress))?;
+    if let Some((_, rays, seconds)) = fitted {
+        rays_cast += rays;
+        transfer_seconds += seconds;
+    }
     let texels_of = (scene, atlas, &texels);
-    let report = TexelReport::of(texels_of, (&seams, &leaking), options.denoise, rays_cast)
-        .timed(transfer_seconds, started);
+    let report = TexelReport {
+        fit_points: fitted.map(|(count, _, _)| count),
+        ..TexelReport::of(texels_of, (&seams, &leaking), options.denoise, rays_cast)
+    }
+    .timed(transfer_seconds, started);
     let texels = TexelBake {
         width: atlas.width,
         height: atlas.height,
@@ -265,22 +288,14 @@ fn bake_in_chunks(
                     baked.leaks.push((i, values.to_vec()));
                 }
             }
-            for columns in groups {
-                let at = (covered * columns.start + first * columns.len()) as u64 * 4;
-                if columns.len() == stride {
-                    baked.file.write_at(at, transfer.coeffs())?;
-                    continue;
-                }
-                block.clear();
-                block.extend(
-                    transfer
-                        .coeffs()
-                        .chunks_exact(stride)
-                        .flat_map(|values| &values[columns.clone()]),
-                );
-                baked.file.write_at(at, &block)?;
-            }
-            Ok(())
+            let values = (transfer.coeffs(), stride);
+            write_by_group(
+                &mut baked.file,
+                (covered, first),
+                values,
+                groups,
+                &mut block,
+            )
         },
     )?;
     Ok(baked)
@@ -302,10 +317,11 @@ struct Cleanup<'a> {
 impl Cleanup<'_> {
     /// Every group of `groups` cleaned up in turn (a stage of `progress`, a step a
     /// coefficient), its image written after the texels as baked; the held lightmap and the
-    /// rays the bake cast.
+    /// rays the texels cast. With a least-squares fit's `points`, each group is fitted to
+    /// them, its seams pulled together in the same solve, where it would be stitched.
     fn run(
         &self,
-        mut baked: BakedTexels,
+        (mut baked, points): (BakedTexels, Option<HeldPoints>),
         groups: &[Range<usize>],
         (backend, progress): (&dyn Backend, &dyn Progress),
     ) -> Result<(HeldLightmap, u64)> {
@@ -313,7 +329,10 @@ impl Cleanup<'_> {
         let (width, height) = (self.atlas.width, self.atlas.height);
         let texel_count = width as usize * height as usize;
         let rows = seams::seam_rows(width, height, self.seams);
-        let stitching = seams::Stitching::new(&rows, self.anchor);
+        let mut seams_solve = match points {
+            Some(points) => SeamSolve::Fitted(points.system(self.anchor, &rows), points),
+            None => SeamSolve::Stitched(seams::Stitching::new(&rows, self.anchor)),
+        };
         // Which texels dilation fills, and from which, depends on the mask alone.
         let mut dilated = self.valid.to_vec();
         let dilation = plan_dilation((width, height), &mut dilated, self.owner, DILATION_PASSES);
@@ -334,7 +353,15 @@ impl Cleanup<'_> {
                     image[at * group..(at + 1) * group].copy_from_slice(&values[columns.clone()]);
                 }
             }
-            stitching.solve((width, height), (&mut image, group), &mut |_| {});
+            match &mut seams_solve {
+                SeamSolve::Stitched(stitching) => {
+                    stitching.solve((width, height), (&mut image, group), &mut |_| {});
+                }
+                SeamSolve::Fitted(system, points) => {
+                    let sums = points.sums(columns.clone())?;
+                    system.solve((&mut image, group), &sums, &mut |_| {});
+                }
+            }
             baked.file.write_at(end, &image)?;
             offsets.push(end);
             end += (texel_count * group * 4) as u64;
@@ -379,6 +406,13 @@ impl Cleanup<'_> {
     }
 }
 
+/// How a group's clean-up ends: its seams stitched, or (least squares) its texels fitted to
+/// the points, the seams pulled together in the same solve.
+enum SeamSolve<'a> {
+    Stitched(seams::Stitching<'a>),
+    Fitted(TexelSystem, HeldPoints),
+}
+
 /// Covered texels read back from the scratch file at a time.
 const READ_TEXELS: usize = 4096;
 
@@ -401,13 +435,41 @@ pub struct LightmapNeed {
     /// What each texel costs while its chunk bakes: its albedo-free and RGB transfer (and,
     /// interreflected, its gather row and what it gathers).
     pub per_chunk_texel: u64,
+    /// With `--fit least-squares`, what its points and solve add.
+    pub fit: Option<HeldFitNeed>,
+}
+
+/// What a least-squares fit adds to a held lightmap ([`HeldPoints`]): while its points bake
+/// (a run's receivers at a time, in the texels' chunks) what each keeps and what each of a run
+/// costs; through the clean-up, their taps and the fit's system, and for each coefficient of a
+/// group its sums and, for those solved at once, its solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeldFitNeed {
+    pub points: u64,
+    pub per_point_baking: u64,
+    pub per_run_point: u64,
+    pub kept: u64,
+    pub per_column: u64,
+    pub per_solved_column: u64,
 }
 
 impl LightmapNeed {
     /// Held, cleaned up `columns` coefficients at a time (and baked in chunks no larger).
     pub fn held(&self, columns: u64) -> u64 {
-        let baking = self.chunk(columns) as u64 * self.per_chunk_texel;
-        let cleaning = self.texels * columns.min(self.stride) * self.per_texel_column;
+        let columns = columns.min(self.stride);
+        let chunk = self.chunk(columns) as u64 * self.per_chunk_texel;
+        let cleaning = self.texels * columns * self.per_texel_column;
+        let (baking, cleaning) = match self.fit {
+            None => (chunk, cleaning),
+            Some(fit) => {
+                let in_flight = rayon::current_num_threads().clamp(1, seams::GROUPS_IN_FLIGHT);
+                let solved = columns.min((in_flight * seams::COLUMNS) as u64);
+                let fitting = fit.kept + fit.per_column * columns + fit.per_solved_column * solved;
+                let run = (run_points(self.chunk(columns)) as u64).min(fit.points);
+                let points = fit.points * fit.per_point_baking + run * fit.per_run_point;
+                (chunk + points, cleaning + fitting)
+            }
+        };
         self.texels * self.per_texel_held + baking.max(cleaning)
     }
 
@@ -420,11 +482,6 @@ impl LightmapNeed {
     }
 }
 
-/// Why a least-squares lightmap is not held, in the words the user reads after "this bake
-/// needs about …, and" (`pipeline::memory`).
-pub const LEAST_SQUARES_TEXELS_WHOLE: &str = "its least-squares fit solves for every texel at \
-    once, so its texels are not held in a scratch file (--fit point's are)";
-
 /// What fitting the texels of a map of `texels` takes beside its image
 /// ([`crate::receivers::texel_fit`], `coeffs` a channel, `gather` a receiver's interreflected
 /// gather), at the largest of its peaks, beside the texels' sums of the points' values. While
@@ -434,18 +491,48 @@ pub const LEAST_SQUARES_TEXELS_WHOLE: &str = "its least-squares fit solves for e
 /// stencils and the five vectors of `seams::COLUMNS` coefficients a texel of each group in
 /// flight. The texels the fit reads are counted as [`FIT_SHARE`] of the map, four points each.
 fn fit_need(texels: u64, coeffs: u64, gather: u64) -> u64 {
-    let fitted = (FIT_SHARE * texels as f64) as u64;
-    let points = (texel_fit::POINTS_PER_SIDE * texel_fit::POINTS_PER_SIDE) as u64 * fitted;
+    let (fitted, points) = fit_counts(texels);
     let sums = fitted * 12 * coeffs;
     let chunk =
         points.min(crate::bake::GATHER_CHUNK as u64) * (4 * coeffs + 2 * 12 * coeffs + gather);
-    let baking = points * (24 + 16 + (24 + 48 + 24) + 5 + 32) + chunk;
-    let stencils = fitted * (9 * 8 + 9 * 4 + 16);
+    let baking = points * POINT_BAKING + chunk;
+    let stencils = fitted * STENCIL;
     let building = points * 32 + stencils;
     let groups = rayon::current_num_threads().clamp(1, seams::GROUPS_IN_FLIGHT);
     let solving = stencils + fitted * (groups * 5 * seams::COLUMNS * 8) as u64;
     sums + baking.max(building).max(solving)
 }
+
+/// What a held least-squares fit of a map of `texels` adds ([`HeldFitNeed`]): while its points
+/// bake, each point's place and taps, and a run's surface points, receivers (and their copy
+/// in the bake's inputs) and flags; through the clean-up, the taps, the system's stencils and
+/// the map's two texel numberings; a coefficient's sums a texel it reads, and its solve's five
+/// vectors.
+fn held_fit_need(texels: u64) -> HeldFitNeed {
+    let (fitted, points) = fit_counts(texels);
+    HeldFitNeed {
+        points,
+        per_point_baking: 24 + 32 + 4,
+        per_run_point: 16 + (24 + 48 + 24) + 24 + 1,
+        kept: points * (32 + 4) + fitted * STENCIL + texels * 2 * 4,
+        per_column: fitted * 4,
+        per_solved_column: fitted * 5 * 8,
+    }
+}
+
+/// The texels a least-squares fit of a map of `texels` reads, at most, and its points.
+fn fit_counts(texels: u64) -> (u64, u64) {
+    let fitted = (FIT_SHARE * texels as f64) as u64;
+    let points = (texel_fit::POINTS_PER_SIDE * texel_fit::POINTS_PER_SIDE) as u64 * fitted;
+    (fitted, points)
+}
+
+/// What a fit point costs while the points bake: its place and surface point, its receiver
+/// (position, ray start, normal), its flags and taps.
+const POINT_BAKING: u64 = 24 + 16 + (24 + 48 + 24) + 5 + 32;
+
+/// What a texel of the fit's system costs: nine weights and neighbours, its anchor and diagonal.
+const STENCIL: u64 = 9 * 8 + 9 * 4 + 16;
 
 /// The share of a map's texels a least-squares fit reads, at most: the charts cover 55–87%
 /// of the generated atlases measured (docs/performance.md), and the fit reads a ring past
@@ -479,6 +566,7 @@ impl MemoryNeed {
             // for the texels on seams (a sixth of a dragon's 1024² map; a quarter counted).
             per_texel_column: 4 + if options.denoise { 4 } else { 0 } + (6 * 8) / 4,
             per_chunk_texel: 4 * coeffs + 2 * 12 * coeffs + gather,
+            fit: (options.fit == Fit::LeastSquares).then(|| held_fit_need(texels)),
         };
         let fitting = match options.fit {
             Fit::LeastSquares => texels * (writing + 16) + fit_need(texels, coeffs, gather),
@@ -493,11 +581,23 @@ impl MemoryNeed {
     }
 
     /// The need of a bake whose lightmap is held, cleaned up `columns` coefficients at a time.
+    /// A least-squares fit at the vertices (its points, their values, its solve) is let go
+    /// before the texels bake, so the larger of the two counts.
     pub fn lightmap_held(&self, columns: u64) -> u64 {
         let Some(lightmap) = self.lightmap else {
             return self.whole();
         };
-        self.whole() - self.beside_vertices + lightmap.held(columns)
+        self.beside_lightmap() + self.vertex_fit().max(lightmap.held(columns))
+    }
+
+    /// What a bake holds through its lightmap's: all but the lightmap and the vertices' fit.
+    fn beside_lightmap(&self) -> u64 {
+        self.whole() - self.beside_vertices - self.vertex_fit()
+    }
+
+    /// A least-squares fit's at the vertices, whole (0 without one).
+    fn vertex_fit(&self) -> u64 {
+        self.fit.map_or(0, |fit| fit.whole())
     }
 
     /// The most coefficients a held lightmap may clean up at once within `limit` bytes, and
@@ -509,14 +609,25 @@ impl MemoryNeed {
         if self.lightmap_held(1) > limit {
             return Err(Error::Options(format!(
                 "--memory-limit {}: this bake needs at least {} with its lightmap held in a \
-                 scratch file (the mesh, its BVH and its vertices' transfer {}, what each of the \
-                 map's {} texels keeps {}, and the larger of a chunk's bake and one \
-                 coefficient's image {})",
+                 scratch file (the mesh, its BVH and its vertices' transfer {}{}, what each of \
+                 the map's {} texels keeps {}, and the larger of a chunk's bake and one \
+                 coefficient's image{} {})",
                 format_bytes(limit),
                 format_bytes(self.lightmap_held(1)),
-                format_bytes(self.whole() - self.beside_vertices),
+                format_bytes(self.beside_lightmap()),
+                match self.vertex_fit() {
+                    0 => String::new(),
+                    fit => format!(
+                        "; before the lightmap, the vertices' least-squares fit {}",
+                        format_bytes(fit)
+                    ),
+                },
                 lightmap.texels,
                 format_bytes(lightmap.texels * lightmap.per_texel_held),
+                match lightmap.fit {
+                    Some(_) => ", with the least-squares fit's points or its solve",
+                    None => "",
+                },
                 format_bytes(lightmap.held(1) - lightmap.texels * lightmap.per_texel_held)
             )));
         }
@@ -549,7 +660,7 @@ mod tests {
     /// several sizes, against the whole bake: the same bits in every texel, the same report.
     fn held_is_whole(
         options: BakeOptions,
-        (size, denoise): (u32, bool),
+        (size, denoise, fit): (u32, bool, Fit),
         divisions: &[TexelGroups],
     ) {
         let (baked, _) =
@@ -558,6 +669,7 @@ mod tests {
         let options = BakeOptions {
             lightmap: Some(size),
             denoise,
+            fit,
             ..options
         };
         let (whole, report) = bake_atlas(
@@ -570,6 +682,13 @@ mod tests {
         )
         .unwrap();
         let at = (&baked.scene, &baked.transfer, &atlas);
+        if let Some(points) = report.fit_points {
+            // Several runs of points in the smallest chunks.
+            assert!(
+                points > 2 * run_points(divisions[0].chunk),
+                "{points} points"
+            );
+        }
         for &divided in divisions {
             let (held, held_report) =
                 bake_atlas_held(at, &options, &CpuBackend, &NoProgress, divided).unwrap();
@@ -617,7 +736,18 @@ mod tests {
             samples: 64,
             ..BakeOptions::default()
         };
-        held_is_whole(options, (64, false), &DIVISIONS);
+        held_is_whole(options, (64, false, Fit::Point), &DIVISIONS);
+    }
+
+    /// Fitted by least squares, each group of coefficients fitted on its own to the points'
+    /// values read back from their scratch file, with groups that split the solve's fours.
+    #[test]
+    fn a_least_squares_lightmap_held_is_the_whole_bake() {
+        let options = BakeOptions {
+            samples: 32,
+            ..BakeOptions::default()
+        };
+        held_is_whole(options, (96, false, Fit::LeastSquares), &DIVISIONS);
     }
 
     #[test]
@@ -628,6 +758,6 @@ mod tests {
             bands: 3,
             ..BakeOptions::default()
         };
-        held_is_whole(options, (48, true), &DIVISIONS[..2]);
+        held_is_whole(options, (48, true, Fit::Point), &DIVISIONS[..2]);
     }
 }

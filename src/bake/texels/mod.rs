@@ -33,9 +33,7 @@ mod fit;
 mod held;
 
 use fit::stitch_or_fit;
-pub use held::{
-    bake_atlas_held, HeldLightmap, LightmapNeed, TexelGroups, LEAST_SQUARES_TEXELS_WHOLE,
-};
+pub use held::{bake_atlas_held, HeldFitNeed, HeldLightmap, LightmapNeed, TexelGroups};
 
 /// Rays per texel of the leak test.
 pub const LEAK_RAYS: u32 = 16;

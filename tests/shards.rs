@@ -130,7 +130,7 @@ fn part_set(dir: &Path, count: u32) -> prt_gpu::shard::PartSet {
 
 /// A merge under `--memory-limit` holds its lightmap's texels in a scratch file, as the whole
 /// bake does under the same limit (its largest part read beside them): the same .glb and
-/// lightmap bytes as the merge without one.
+/// lightmap bytes as the merge without one, fitted by points or by least squares.
 /// `prt-gpu merge PARTS -o OUTPUT --memory-limit LIMIT` run in `dir`.
 fn merge_within(parts: &[&str], output: &str, limit: &str, dir: &Path) -> std::process::Output {
     let mut args = vec!["merge"];
@@ -142,32 +142,51 @@ fn merge_within(parts: &[&str], output: &str, limit: &str, dir: &Path) -> std::p
 #[test]
 fn a_merge_under_a_memory_limit_holds_its_lightmap() {
     use prt_gpu::bake::stream::MemoryNeed;
-    use prt_gpu::bake::BakeOptions;
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let extra = ["--device", "cpu", "--samples", "64", "--lightmap", "96"];
-    let (_, merged) = whole_and_merged(Some(BUNNY), &extra, 3, d);
-    let exr = std::fs::read(d.join("merged.lightmap.exr")).unwrap();
-    let options = BakeOptions {
-        samples: 64,
-        ..BakeOptions::default()
-    };
-    let scene = prt_gpu::scene::load(Path::new(BUNNY)).unwrap();
-    let need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options)
-        .with_lightmap(96, &options)
-        .with_merge_part(part_set(d, 3).largest_part_bytes());
-    let limit = need.lightmap_held(4).to_string();
-    std::fs::create_dir_all(d.join("held")).unwrap();
-    let parts = ["shard0.part", "shard1.part", "shard2.part"];
-    let out = merge_within(&parts, "held/merged.glb", &limit, d);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
-    assert!(
-        stderr.contains("holding the lightmap's texels in a scratch file, cleaned up 4"),
-        "{stderr}"
-    );
-    assert!(std::fs::read(d.join("held/merged.glb")).unwrap() == merged);
-    assert!(std::fs::read(d.join("held/merged.lightmap.exr")).unwrap() == exr);
+    use prt_gpu::bake::{BakeOptions, Fit};
+    for (fit, name) in [(Fit::Point, "point"), (Fit::LeastSquares, "least-squares")] {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let extra = ["--device", "cpu", "--samples", "64", "--lightmap", "96"];
+        let extra = [&extra[..], &["--fit", name]].concat();
+        let (_, merged) = whole_and_merged(Some(BUNNY), &extra, 3, d);
+        let exr = std::fs::read(d.join("merged.lightmap.exr")).unwrap();
+        let options = BakeOptions {
+            samples: 64,
+            fit,
+            ..BakeOptions::default()
+        };
+        let scene = prt_gpu::scene::load(Path::new(BUNNY)).unwrap();
+        let mut need = MemoryNeed::estimate(scene.vertex_count(), scene.triangle_count(), &options);
+        if fit == Fit::LeastSquares {
+            let points = prt_gpu::receivers::spread_point_count(&scene, options.point_density);
+            need = need.with_fit_points(points as u64, &options);
+        }
+        let need = need
+            .with_lightmap(96, &options)
+            .with_merge_part(part_set(d, 3).largest_part_bytes());
+        let limit = need.lightmap_held(4).to_string();
+        std::fs::create_dir_all(d.join("held")).unwrap();
+        let parts = ["shard0.part", "shard1.part", "shard2.part"];
+        let out = merge_within(&parts, "held/merged.glb", &limit, d);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{name}: {stderr}");
+        // A group of 4 fits the limit; more may where the vertices' least-squares fit, let go
+        // before the lightmap, needs more than the texels do.
+        let held = "holding the lightmap's texels in a scratch file, cleaned up ";
+        let columns: usize = stderr
+            .split_once(held)
+            .and_then(|(_, rest)| rest.split(' ').next()?.parse().ok())
+            .unwrap_or_else(|| panic!("{name}: not held: {stderr}"));
+        assert!((4..48).contains(&columns), "{name}: {stderr}");
+        assert!(
+            std::fs::read(d.join("held/merged.glb")).unwrap() == merged,
+            "{name}"
+        );
+        assert!(
+            std::fs::read(d.join("held/merged.lightmap.exr")).unwrap() == exr,
+            "{name}"
+        );
+    }
 }
 
 /// A merge at the vertices under a limit below its whole need streams: its parts are read one

@@ -1,6 +1,7 @@
 //! The bake: options in, one [`Transfer`] out, whichever backend computes it.
 
 pub mod adaptive;
+mod at_receivers;
 mod backend;
 mod baked;
 mod bands;
@@ -20,6 +21,7 @@ pub mod texels;
 mod vertices;
 
 // The bake's parts, each in its own file; their items are the module's.
+pub use at_receivers::*;
 pub use backend::*;
 pub use baked::*;
 pub use bands::*;
@@ -129,6 +131,35 @@ struct Planned {
     seconds: f64,
 }
 
+/// What a bake's report keeps of its [`Planned`] once the vertices are baked: the counts of
+/// its receivers (a least-squares fit's points), samples and tree, and what preparing did.
+struct PlanReport {
+    prepare: PrepareReport,
+    vertex_map: VertexMap,
+    receivers: usize,
+    points: usize,
+    samples_used: usize,
+    bvh_nodes: usize,
+    seconds: f64,
+}
+
+impl Planned {
+    /// The scene and what the report needs, the receivers and their tree let go (before a
+    /// lightmap bakes its own).
+    fn let_go(self) -> (Scene, PlanReport) {
+        let report = PlanReport {
+            prepare: self.prepare,
+            vertex_map: self.vertex_map,
+            receivers: self.receivers.len(),
+            points: self.points.len(),
+            samples_used: self.inputs.samples.len(),
+            bvh_nodes: self.inputs.bvh.nodes.len(),
+            seconds: self.seconds,
+        };
+        (self.scene, report)
+    }
+}
+
 fn plan(scene: Scene, options: &BakeOptions) -> Result<Planned> {
     let started = Instant::now();
     let (scene, prepare, vertex_map) = prepare_with_albedo(scene, options)?;
@@ -158,7 +189,7 @@ pub fn bake_from(
 ) -> Result<(BakedMesh, BakeReport)> {
     options.validate()?;
     let uv_set = uv_set.map(|set| set.kept(&kept_triangles(&scene)));
-    let mut planned = plan(scene, options)?;
+    let planned = plan(scene, options)?;
     // A lightmap that cannot fit fails now, not after the vertices are baked.
     let atlas = lightmap_atlas(&planned.scene, options, uv_set.as_ref())?;
     // A generated atlas gives a vertex on a chart seam coordinates on each chart, and the mesh
@@ -197,21 +228,7 @@ pub fn bake_from(
     let (rays_cast, gather_entries) = at_receivers.counts();
     drop((fitting, at_receivers, albedo));
     let (transfer, albedo_free) = stored(transfer, albedo_free, scene, options);
-    let scene = std::mem::take(&mut planned.scene);
-    // The receivers (a least-squares fit's points) and their tree are let go before a lightmap
-    // bakes its own; what the report needs of them is their counts.
-    let Planned {
-        prepare,
-        vertex_map,
-        receivers,
-        points,
-        inputs,
-        seconds: seconds_prepare,
-        ..
-    } = planned;
-    let (receiver_count, point_count) = (receivers.len(), points.len());
-    let (samples_used, bvh_nodes) = (inputs.samples.len(), inputs.bvh.nodes.len());
-    drop((receivers, points, inputs));
+    let (scene, planned) = planned.let_go();
     let (scene, transfer, lightmap, texel_report) = match &atlas {
         None => (scene, transfer, None, None),
         Some(atlas) => {
@@ -219,7 +236,8 @@ pub fn bake_from(
             add_lightmap(scene, transfer, at, options, backend, progress)?
         }
     };
-    let fit_points = (options.fit == Fit::LeastSquares).then_some(point_count as u32);
+    let fit_points = (options.fit == Fit::LeastSquares).then_some(planned.points as u32);
+    let samples_used = planned.samples_used;
     // An error-targeted bake records the mean over receivers.
     let samples = adaptive_report
         .as_ref()
@@ -232,13 +250,13 @@ pub fn bake_from(
         ..metadata_for(options, samples, bounces.len(), fit_points)
     };
     let report = BakeReport {
-        prepare,
-        vertex_map,
-        receivers: receiver_count,
+        prepare: planned.prepare,
+        vertex_map: planned.vertex_map,
+        receivers: planned.receivers,
         samples_used: samples_used as u32,
         rays_cast,
-        bvh_nodes,
-        seconds_prepare,
+        bvh_nodes: planned.bvh_nodes,
+        seconds_prepare: planned.seconds,
         seconds_transfer,
         seconds_fit,
         fit: fit_report,
@@ -503,168 +521,6 @@ fn choose_receivers(
         }
     }
 }
-
-/// Transfer at `receivers` on a prepared `scene` (RGB, `[receiver][channel][k]`; the
-/// receivers' albedo unless `options.albedo` replaces it), and the rays cast. Interreflected
-/// mode adds one final gather of `vertex_transfer` (the scene's baked vertex transfer, bounces
-/// included) where each receiver's blocked rays land, as lightmappers gather from a coarser
-/// solution: the receivers then carry one bounce more than the vertices.
-pub fn bake_at(
-    scene: &Scene,
-    receivers: &Receivers,
-    options: &BakeOptions,
-    backend: &dyn Backend,
-    vertex_transfer: Option<&Transfer>,
-    progress: &dyn Progress,
-) -> Result<(Transfer, u64)> {
-    let bvh = Bvh::build(&scene.positions, &scene.triangles);
-    let at = (receivers, bvh);
-    bake_at_in(scene, at, options, backend, vertex_transfer, progress)
-}
-
-/// [`bake_at`] with the scene's tree already built.
-pub fn bake_at_in(
-    scene: &Scene,
-    at: (&Receivers, Bvh),
-    options: &BakeOptions,
-    backend: &dyn Backend,
-    vertex_transfer: Option<&Transfer>,
-    progress: &dyn Progress,
-) -> Result<(Transfer, u64)> {
-    let vertices = vertex_transfer;
-    bake_at_gathering(
-        scene,
-        at,
-        options,
-        backend,
-        vertices,
-        progress,
-        GATHER_CHUNK,
-    )
-}
-
-/// [`bake_at_in`], gathering `chunk` receivers at a time.
-fn bake_at_gathering(
-    scene: &Scene,
-    (receivers, bvh): (&Receivers, Bvh),
-    options: &BakeOptions,
-    backend: &dyn Backend,
-    vertex_transfer: Option<&Transfer>,
-    progress: &dyn Progress,
-    chunk: usize,
-) -> Result<(Transfer, u64)> {
-    if options.mode != Mode::Interreflected {
-        options.validate()?;
-        let owned = BakeInputs::with_tree(scene, receivers, bvh, options);
-        let direct = backend.direct_pass(&owned.view(), options.mode, progress)?;
-        let transfer = tint_by_albedo(
-            &direct.scalar,
-            &receiver_albedo(receivers, options),
-            options.bands,
-        );
-        return Ok((transfer, direct.rays_cast));
-    }
-    let mut coeffs = Vec::with_capacity(receivers.len() * 3 * coeff_count(options.bands));
-    let at = (receivers, bvh);
-    let rays_cast = bake_at_in_chunks(
-        scene,
-        at,
-        (options, backend, vertex_transfer),
-        (progress, chunk),
-        &mut |_, transfer| {
-            coeffs.extend(transfer.into_coeffs());
-            Ok(())
-        },
-    )?;
-    let transfer = Transfer::new(options.bands, 3, receivers.len(), coeffs)
-        .expect("three channels of every receiver's coefficients");
-    Ok((transfer, rays_cast))
-}
-
-/// Each receiver's albedo: `options.albedo` where it replaces the receivers'.
-fn receiver_albedo(receivers: &Receivers, options: &BakeOptions) -> Vec<Vec3> {
-    match options.albedo {
-        Some(albedo) => vec![albedo; receivers.len()],
-        None => receivers.albedo.clone(),
-    }
-}
-
-/// [`bake_at_in`] `chunk` receivers at a time, each chunk's transfer handed to `each` with
-/// its first receiver and let go: no more than a chunk's transfer (and, interreflected, its
-/// gather rows) is held. A receiver's values are its own, whatever the chunk. Returns the
-/// rays cast.
-pub fn bake_at_in_chunks(
-    scene: &Scene,
-    (receivers, bvh): (&Receivers, Bvh),
-    with: (&BakeOptions, &dyn Backend, Option<&Transfer>),
-    chunked: (&dyn Progress, usize),
-    each: &mut dyn FnMut(usize, Transfer) -> Result<()>,
-) -> Result<u64> {
-    let (rays_cast, _) = bake_run_in_chunks(scene, (receivers, bvh, 0), with, chunked, each)?;
-    Ok(rays_cast)
-}
-
-/// [`bake_at_in_chunks`] of a run of a bake's receivers, `first` the number of its first in
-/// the whole: each keeps its turn in the whole, and `each` is told the whole's numbers. The
-/// tree comes back for the next run.
-pub fn bake_run_in_chunks(
-    scene: &Scene,
-    (receivers, bvh, first_in_whole): (&Receivers, Bvh, usize),
-    (options, backend, vertex_transfer): (&BakeOptions, &dyn Backend, Option<&Transfer>),
-    (progress, chunk): (&dyn Progress, usize),
-    each: &mut dyn FnMut(usize, Transfer) -> Result<()>,
-) -> Result<(u64, Bvh)> {
-    options.validate()?;
-    let mut owned = BakeInputs::with_tree(scene, receivers, bvh, options);
-    owned.turns = owned
-        .turns
-        .map(|turns| turns.skipping(first_in_whole as u32));
-    let albedo = receiver_albedo(receivers, options);
-    let vertices = match options.mode {
-        Mode::Interreflected => Some(
-            vertex_transfer
-                .filter(|t| t.vertex_count() == scene.vertex_count() && t.bands() == options.bands)
-                .ok_or_else(|| {
-                    Error::Options(
-                        "interreflected transfer at surface points gathers from the vertices' \
-                         transfer, and none of this scene and band count was given"
-                            .into(),
-                    )
-                })?,
-        ),
-        _ => None,
-    };
-    // Each receiver's gather row holds an entry per blocked ray, so the rows of a large
-    // lightmap's texels would take gigabytes at once; a chunk's rows are gathered and dropped
-    // before the next chunk's rays.
-    progress.stage("transfer", receivers.len() as u64);
-    let mut rays_cast = 0;
-    for first in (0..receivers.len()).step_by(chunk.max(1)) {
-        let chunk = first..receivers.len().min(first.saturating_add(chunk.max(1)));
-        let part = owned.view().part(chunk.clone());
-        let direct = backend.direct_pass(&part, options.mode, &Advancing(progress))?;
-        rays_cast += direct.rays_cast;
-        let mut transfer = tint_by_albedo(&direct.scalar, &albedo[chunk.clone()], options.bands);
-        if let Some(vertices) = vertices {
-            let matrix = direct
-                .matrix
-                .expect("an interreflected pass gives its gather matrix");
-            let gathered = backend
-                .gatherer(&matrix, &receivers.albedo[chunk], options.bands)?
-                .gather(vertices.coeffs())?;
-            transfer
-                .coeffs_mut()
-                .iter_mut()
-                .zip(gathered)
-                .for_each(|(t, g)| *t += g);
-        }
-        each(first_in_whole + first, transfer)?;
-    }
-    Ok((rays_cast, owned.bvh))
-}
-
-/// Receivers whose gather rows [`bake_at_in`] holds at once.
-pub const GATHER_CHUNK: usize = 1 << 16;
 
 /// Progress that passes on advances but not stages: chunks advance one stage of the whole.
 pub(crate) struct Advancing<'a>(pub(crate) &'a dyn Progress);

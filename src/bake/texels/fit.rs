@@ -1,5 +1,7 @@
 //! Least-squares texels in the texel bake (`--fit least-squares` with a lightmap): the points
-//! of [`texel_fit`] baked like the texels, summed chunk by chunk, and the map fitted to them.
+//! of [`texel_fit`] baked like the texels, summed chunk by chunk, and the map fitted to them;
+//! or, in bounded memory ([`HeldPoints`]), their values held in a scratch file a group of
+//! coefficients after another, for each group's fit.
 
 use std::ops::Range;
 use std::time::Instant;

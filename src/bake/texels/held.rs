@@ -3,12 +3,14 @@
 //! of it. Here no stage holds more than a part of it:
 //!
 //! - the covered texels bake a chunk at a time, each chunk's transfer appended to a scratch
-//!   file ([`crate::bake::spill`]) and let go;
-//! - the clean-up — denoising, dilation, the wide leaks put back, seam stitching — runs a group
-//!   of coefficients at a time on an image of that group alone, read from the scratch file.
-//!   Every one of these stages treats each coefficient on its own with weights that do not
-//!   depend on the values (the denoiser's are the guide's, the dilation's the mask's, the
-//!   stitching's matrix the seams'), so a group gives the bits the whole image gives;
+//!   file ([`crate::bake::spill`]) and let go; with `--fit least-squares`, so do the fit's
+//!   points ([`HeldPoints`]);
+//! - the clean-up — denoising, dilation, the wide leaks put back, seam stitching or the
+//!   least-squares fit — runs a group of coefficients at a time on an image of that group
+//!   alone, read from the scratch file. Every one of these stages treats each coefficient on
+//!   its own with weights that do not depend on the values (the denoiser's are the guide's,
+//!   the dilation's the mask's, the stitching's and the fit's matrices the seams' and the
+//!   points' taps), so a group gives the bits the whole image gives;
 //! - each group's finished image goes back to the scratch file, and the OpenEXR encoder reads
 //!   the map from there a block of scan lines at a time ([`HeldLightmap`] is its
 //!   [`TexelRows`]).
@@ -466,7 +468,9 @@ impl LightmapNeed {
                 let solved = columns.min((in_flight * seams::COLUMNS) as u64);
                 let fitting = fit.kept + fit.per_column * columns + fit.per_solved_column * solved;
                 let run = (run_points(self.chunk(columns)) as u64).min(fit.points);
-                let points = fit.points * fit.per_point_baking + run * fit.per_run_point;
+                // Each point's place and taps, the map's texel numbering, a run's receivers.
+                let points =
+                    fit.points * fit.per_point_baking + self.texels * 4 + run * fit.per_run_point;
                 (chunk + points, cleaning + fitting)
             }
         };
@@ -607,21 +611,9 @@ impl MemoryNeed {
             return Err(Error::Options("only a lightmap holds texels".into()));
         };
         if self.lightmap_held(1) > limit {
-            return Err(Error::Options(format!(
-                "--memory-limit {}: this bake needs at least {} with its lightmap held in a \
-                 scratch file (the mesh, its BVH and its vertices' transfer {}{}, what each of \
-                 the map's {} texels keeps {}, and the larger of a chunk's bake and one \
-                 coefficient's image{} {})",
-                format_bytes(limit),
-                format_bytes(self.lightmap_held(1)),
-                format_bytes(self.beside_lightmap()),
-                match self.vertex_fit() {
-                    0 => String::new(),
-                    fit => format!(
-                        "; before the lightmap, the vertices' least-squares fit {}",
-                        format_bytes(fit)
-                    ),
-                },
+            let held = format!(
+                "what each of the map's {} texels keeps {}, and the larger of a chunk's bake and \
+                 one coefficient's image{} {}",
                 lightmap.texels,
                 format_bytes(lightmap.texels * lightmap.per_texel_held),
                 match lightmap.fit {
@@ -629,6 +621,21 @@ impl MemoryNeed {
                     None => "",
                 },
                 format_bytes(lightmap.held(1) - lightmap.texels * lightmap.per_texel_held)
+            );
+            let beside = match self.vertex_fit() {
+                0 => held,
+                fit => format!(
+                    "and the larger of the vertices' least-squares fit {}, let go before the \
+                     lightmap, and the lightmap's: {held}",
+                    format_bytes(fit)
+                ),
+            };
+            return Err(Error::Options(format!(
+                "--memory-limit {}: this bake needs at least {} with its lightmap held in a \
+                 scratch file (the mesh, its BVH and its vertices' transfer {}, {beside})",
+                format_bytes(limit),
+                format_bytes(self.lightmap_held(1)),
+                format_bytes(self.beside_lightmap()),
             )));
         }
         // Whole groups of the seam solve's columns where they fit: one walk over the seams

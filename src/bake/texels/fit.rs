@@ -140,8 +140,9 @@ impl HeldPoints {
         let casting = Instant::now();
         let mut rays_cast = 0;
         progress.stage("transfer", count as u64);
-        let run = run_points(chunk);
-        for (first, run) in (0..).step_by(run).zip(points.chunks(run)) {
+        let run_length = run_points(chunk);
+        for (index, run) in points.chunks(run_length).enumerate() {
+            let first = index * run_length;
             let surface: Vec<SurfacePoint> = run.iter().map(|p| p.surface).collect();
             let receivers = Receivers::at_points(scene, &surface);
             taps.extend(run, &leaking_or_covered_in(scene, &bvh, &receivers, cover));

@@ -441,7 +441,7 @@ pub struct LightmapNeed {
     pub fit: Option<HeldFitNeed>,
 }
 
-/// What a least-squares fit adds to a held lightmap ([`HeldPoints`]): while its points bake
+/// What a least-squares fit adds to a held lightmap (`fit::HeldPoints`): while its points bake
 /// (a run's receivers at a time, in the texels' chunks) what each keeps and what each of a run
 /// costs; through the clean-up, their taps and the fit's system, and for each coefficient of a
 /// group its sums and, for those solved at once, its solve.

@@ -99,6 +99,7 @@ fn fit_texels(
 }
 
 /// What fitting the texels did: the points it baked, their rays and the seconds they took.
+#[derive(Clone, Copy)]
 pub(super) struct TexelFit {
     pub(super) points: usize,
     pub(super) rays_cast: u64,
@@ -111,10 +112,9 @@ pub(super) struct TexelFit {
 /// that each group of the clean-up sums its own values alone.
 pub(super) struct HeldPoints {
     file: Spill,
-    count: usize,
     taps: texel_fit::PointTaps,
-    pub(super) rays_cast: u64,
-    pub(super) transfer_seconds: f64,
+    /// The points baked, their rays and the seconds they took.
+    pub(super) baked: TexelFit,
 }
 
 impl HeldPoints {
@@ -159,18 +159,12 @@ impl HeldPoints {
             rays_cast += cast;
             bvh = tree;
         }
-        Ok(HeldPoints {
-            file,
-            count,
-            taps,
+        let baked = TexelFit {
+            points: count,
             rays_cast,
             transfer_seconds: casting.elapsed().as_secs_f64(),
-        })
-    }
-
-    /// The points baked.
-    pub(super) fn count(&self) -> usize {
-        self.count
+        };
+        Ok(HeldPoints { file, taps, baked })
     }
 
     /// The fit's system ([`texel_fit::PointTaps::system`]).
@@ -184,9 +178,10 @@ impl HeldPoints {
         let group = columns.len();
         let mut sums = self.taps.empty_sums(group);
         let mut block = vec![0.0f32; READ_POINTS * group];
-        let start = self.count * columns.start;
-        for first in (0..self.count).step_by(READ_POINTS) {
-            let values = &mut block[..READ_POINTS.min(self.count - first) * group];
+        let count = self.baked.points;
+        let start = count * columns.start;
+        for first in (0..count).step_by(READ_POINTS) {
+            let values = &mut block[..READ_POINTS.min(count - first) * group];
             self.file
                 .read_at(((start + first * group) * 4) as u64, values)?;
             self.taps.add(&mut sums, group, first, values);

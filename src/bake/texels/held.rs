@@ -184,7 +184,7 @@ pub fn bake_atlas_held(
         (&turned, backend, progress),
         (&leaking, divided.chunk, &groups),
     )?;
-    let mut transfer_seconds = casting.elapsed().as_secs_f64();
+    let transfer_seconds = casting.elapsed().as_secs_f64();
     let valid = texels.valid_mask(&leaking)?;
     let guide = options.denoise.then(|| {
         let dc = |i: usize, _| Vec3::from_array(baked.dc[i]);
@@ -221,17 +221,13 @@ pub fn bake_atlas_held(
         }
         Fit::Point => None,
     };
-    let fitted = points
-        .as_ref()
-        .map(|p| (p.count(), p.rays_cast, p.transfer_seconds));
-    let (held, mut rays_cast) = cleanup.run((baked, points), &groups, (backend, progress))?;
-    if let Some((_, rays, seconds)) = fitted {
-        rays_cast += rays;
-        transfer_seconds += seconds;
-    }
+    let fitted = points.as_ref().map(|p| p.baked);
+    let (held, rays_cast) = cleanup.run((baked, points), &groups, (backend, progress))?;
+    let rays_cast = rays_cast + fitted.map_or(0, |f| f.rays_cast);
+    let transfer_seconds = transfer_seconds + fitted.map_or(0.0, |f| f.transfer_seconds);
     let texels_of = (scene, atlas, &texels);
     let report = TexelReport {
-        fit_points: fitted.map(|(count, _, _)| count),
+        fit_points: fitted.map(|f| f.points),
         ..TexelReport::of(texels_of, (&seams, &leaking), options.denoise, rays_cast)
     }
     .timed(transfer_seconds, started);
@@ -459,7 +455,8 @@ impl LightmapNeed {
     /// Held, cleaned up `columns` coefficients at a time (and baked in chunks no larger).
     pub fn held(&self, columns: u64) -> u64 {
         let columns = columns.min(self.stride);
-        let chunk = self.chunk(columns) as u64 * self.per_chunk_texel;
+        let chunk_texels = self.chunk(columns);
+        let chunk = chunk_texels as u64 * self.per_chunk_texel;
         let cleaning = self.texels * columns * self.per_texel_column;
         let (baking, cleaning) = match self.fit {
             None => (chunk, cleaning),
@@ -467,7 +464,7 @@ impl LightmapNeed {
                 let in_flight = rayon::current_num_threads().clamp(1, seams::GROUPS_IN_FLIGHT);
                 let solved = columns.min((in_flight * seams::COLUMNS) as u64);
                 let fitting = fit.kept + fit.per_column * columns + fit.per_solved_column * solved;
-                let run = (run_points(self.chunk(columns)) as u64).min(fit.points);
+                let run = (run_points(chunk_texels) as u64).min(fit.points);
                 // Each point's place and taps, the map's texel numbering, a run's receivers.
                 let points =
                     fit.points * fit.per_point_baking + self.texels * 4 + run * fit.per_run_point;

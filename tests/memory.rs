@@ -641,6 +641,59 @@ fn a_lightmap_held_in_a_scratch_file_writes_the_whole_bakes_bytes() {
     }
 }
 
+/// Beside a held lightmap, a least-squares fit at the vertices whose points, all at once, would
+/// not fit the limit bakes them in runs, as it does without a lightmap: the whole bake's .glb
+/// and OpenEXR bytes (the bunny, interreflected, whose points' gather rows are most of the fit).
+#[test]
+fn a_held_lightmap_beside_a_fit_in_runs_writes_the_whole_bakes_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let options = BakeOptions {
+        samples: 64,
+        mode: prt_gpu::bake::Mode::Interreflected,
+        fit: Fit::LeastSquares,
+        ..BakeOptions::default()
+    };
+    let scene = prt_gpu::scene::load(Path::new(BUNNY)).unwrap();
+    let points = prt_gpu::receivers::spread_point_count(&scene, options.point_density);
+    let need = bunny_need(&options)
+        .with_fit_points(points as u64, &options)
+        .with_lightmap(96, &options);
+    let limit = need.with_fit_run(1024).lightmap_held(4);
+    assert!(limit < need.lightmap_held(1), "the fit fits whole");
+    let mut outputs = Vec::new();
+    for (name, memory) in [("whole", "1T".to_string()), ("held", limit.to_string())] {
+        let sub = d.join(name);
+        std::fs::create_dir_all(&sub).unwrap();
+        let args = [
+            "--device",
+            "cpu",
+            "--mode",
+            "interreflected",
+            "--fit",
+            "least-squares",
+            "--lightmap",
+            "96",
+            "--memory-limit",
+            &memory,
+            "-o",
+            "out.glb",
+        ];
+        let out = bake(&sub, &args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{name}: {stderr}");
+        assert_eq!(
+            stderr.contains("and baking the vertices' least-squares points in runs of"),
+            name == "held",
+            "{name}: {stderr}"
+        );
+        let read = |file: &str| std::fs::read(sub.join(file)).unwrap();
+        outputs.push([read("out.glb"), read("out.lightmap.exr")]);
+    }
+    assert!(outputs[0][0] == outputs[1][0], "the .glb differs");
+    assert!(outputs[0][1] == outputs[1][1], "the lightmap differs");
+}
+
 /// A least-squares fit's points baked a few hundred at a time (each run's values summed into
 /// the fit and let go, its gather rows in a scratch file) give the whole bake's transfer bit
 /// for bit, and the same report: rays, gather entries, bounces, the fit's solve.

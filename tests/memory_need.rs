@@ -35,6 +35,9 @@ enum Run {
     PointsInRuns(usize),
     Streamed(usize),
     TexelsHeld(u64),
+    /// Its lightmap held, cleaned up this many coefficients at a time, and its least-squares
+    /// fit's points at the vertices baked in runs of this many.
+    TexelsHeldPointsInRuns(u64, usize),
     /// A local-lights spec: depth maps and an operator, held whole.
     Local,
     /// A merge of this many shards (their parts written before the measurement starts),
@@ -107,6 +110,20 @@ fn measured((spec, run): &(BakeSpec, Run), mesh: &str, dir: &Path) -> (u64, u64)
                 .unwrap();
             pipeline::write(spec, &baked, None, &path).unwrap();
             need.lightmap_held(columns)
+        }
+        Run::TexelsHeldPointsInRuns(columns, run) => {
+            let lightmap = need.lightmap.expect("a lightmap's need");
+            let groups = prt_gpu::bake::texels::TexelGroups {
+                chunk: lightmap.chunk(columns),
+                columns: columns as usize,
+            };
+            let baked = planned
+                .with_point_chunk(run)
+                .with_texel_groups(groups)
+                .run(&CpuBackend, DirectSource::Compute, &NoProgress)
+                .unwrap();
+            pipeline::write(spec, &baked, None, &path).unwrap();
+            need.with_fit_run(run as u64).lightmap_held(columns)
         }
         Run::Local => {
             let options = spec.local.as_ref().expect("a local-lights spec");
@@ -233,6 +250,16 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
                     s.receivers.fit = Fit::LeastSquares;
                 }),
                 Run::TexelsHeld(4),
+            ),
+        ),
+        (
+            "held lightmap 512, least squares in runs, interreflected",
+            (
+                spec(&|s| {
+                    s.receivers.lightmap = Some(512);
+                    least_squares_interreflected(s);
+                }),
+                Run::TexelsHeldPointsInRuns(4, 20_000),
             ),
         ),
         (

@@ -28,6 +28,9 @@ pub struct MemoryNeed {
     pub beside_vertices: u64,
     /// A least-squares fit's points and its solve ([`MemoryNeed::with_fit_points`]).
     pub fit: Option<FitNeed>,
+    /// Beside a held lightmap, the fit's points baked this many at a time
+    /// ([`MemoryNeed::with_fit_run`]); `None`: all at once.
+    pub fit_run: Option<u64>,
     /// Clustered PCA's model and each vertex's clusters and weights
     /// ([`MemoryNeed::with_compression`]), held whole and streamed alike.
     pub compression: u64,
@@ -139,6 +142,7 @@ impl MemoryNeed {
             receivers: v,
             beside_vertices: 0,
             fit: None,
+            fit_run: None,
             compression: 0,
             compression_per_row: 0,
             bvh,
@@ -264,6 +268,31 @@ impl MemoryNeed {
     /// The need of a least-squares bake whose points bake `chunk` at a time (the rest whole).
     pub fn points_chunked(&self, chunk: usize) -> u64 {
         self.beside_fit() + self.fit.map_or(0, |fit| fit.chunked(chunk as u64))
+    }
+
+    /// The need with the fit's points baked `run` at a time beside a held lightmap
+    /// ([`MemoryNeed::lightmap_held`] counts the fit so).
+    pub fn with_fit_run(self, run: u64) -> MemoryNeed {
+        MemoryNeed {
+            fit_run: Some(run),
+            ..self
+        }
+    }
+
+    /// The largest run of the fit's points that keeps what the fit holds, beside `beside`
+    /// bytes, within `limit` (the smallest run where none does); `None` without a fit.
+    pub fn fit_run_within(&self, beside: u64, limit: u64) -> Option<u64> {
+        let fit = self.fit?;
+        let smallest = (MIN_CHUNK as u64).min(fit.points).max(1);
+        let (mut low, mut high) = (smallest, fit.points.max(smallest));
+        while low < high {
+            let middle = low + (high - low).div_ceil(2);
+            match beside + fit.chunked(middle) <= limit {
+                true => low = middle,
+                false => high = middle - 1,
+            }
+        }
+        Some(low)
     }
 
     /// The whole bake's need but for its fit's.

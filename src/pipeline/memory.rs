@@ -56,7 +56,7 @@ pub fn plan_memory(
     let points_chunk =
         options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
     if spec.receivers.lightmap.is_some() && chunkable {
-        return over.lightmap_held();
+        return over.lightmap_held(true);
     }
     if points_chunk {
         let points = need.fit.map_or(0, |fit| fit.points);
@@ -154,7 +154,7 @@ pub fn plan_merge_memory(
         return Ok(MemoryPlan::default());
     };
     if spec.receivers.lightmap.is_some() && !over.scatters {
-        return over.lightmap_held();
+        return over.lightmap_held(false);
     }
     if bake::stream::streams(&spec.options()) && !over.scatters {
         return over.streamed("the merge");
@@ -232,10 +232,26 @@ impl OverBudget {
     }
 
     /// The plan of a lightmap bake over its budget: its texels held in a scratch file, cleaned
-    /// up as many coefficients at a time as fit. Over an explicit limit even one at a time, an
-    /// error; over the machine's memory, one at a time and a warning.
-    fn lightmap_held(&self) -> Result<MemoryPlan> {
-        let (need, budget) = (&self.need, self.budget);
+    /// up as many coefficients at a time as fit, and where `fit_runs` allows (a bake, not a
+    /// merge) a least-squares fit's points at the vertices baked in runs where, whole, they
+    /// would not fit beside it. Over an explicit limit even one at a time, an error; over the
+    /// machine's memory, one at a time and a warning.
+    fn lightmap_held(&self, fit_runs: bool) -> Result<MemoryPlan> {
+        let budget = self.budget;
+        // A least-squares fit at the vertices bakes before the lightmap, whole; where that
+        // alone breaks the budget, its points bake in runs, as they do without a lightmap (a
+        // merge joins them from its parts, whole).
+        let fit_run = match fit_runs && self.need.lightmap_held(1) > budget {
+            true => self
+                .need
+                .fit_run_within(self.need.beside_lightmap(), budget),
+            false => None,
+        };
+        let need = &match fit_run {
+            Some(run) => self.need.with_fit_run(run),
+            None => self.need,
+        };
+        let point_chunk = fit_run.map(|run| run as usize);
         let groups = match (need.texel_groups_within(budget), self.explicit) {
             (Ok(groups), _) => groups,
             (Err(error), true) => return Err(error),
@@ -247,6 +263,7 @@ impl OverBudget {
                     columns: 1,
                 };
                 return Ok(MemoryPlan {
+                    point_chunk,
                     texel_groups: Some(groups),
                     message: Some(format!(
                         "warning: this bake needs at least {} with its lightmap held in a \
@@ -258,11 +275,15 @@ impl OverBudget {
                 });
             }
         };
+        let runs = point_chunk.map_or(String::new(), |run| {
+            format!(", and baking the vertices' least-squares points in runs of {run}")
+        });
         Ok(MemoryPlan {
+            point_chunk,
             texel_groups: Some(groups),
             message: Some(format!(
                 "note: holding the lightmap's texels in a scratch file, cleaned up {} \
-                 coefficients at a time, to stay within {} (about {} whole, {} so)",
+                 coefficients at a time{runs}, to stay within {} (about {} whole, {} so)",
                 groups.columns,
                 format_bytes(budget),
                 format_bytes(need.whole()),
@@ -357,13 +378,47 @@ mod tests {
         assert!(groups.columns >= 4, "{groups:?}");
         let merged = plan_merge_memory(&spec, at, 1 << 10, Some(limit), None).unwrap();
         assert!(merged.texel_groups.is_some(), "{:?}", merged.message);
-        // Below one coefficient at a time, the refusal names the fit.
-        let refused = plan_memory(&spec, at, Some(fitted.lightmap_held(1) - 1), None).unwrap_err();
+        // Below one coefficient at a time (the vertices' fit in its smallest runs), the refusal
+        // names the fit.
+        let smallest = fitted.with_fit_run(bake::stream::MIN_CHUNK as u64);
+        let refused =
+            plan_memory(&spec, at, Some(smallest.lightmap_held(1) - 1), None).unwrap_err();
         assert!(
             refused
                 .to_string()
                 .contains("the least-squares fit's points"),
             "{refused}"
         );
+    }
+
+    /// Beside a held lightmap, a least-squares fit at the vertices that alone would break the
+    /// limit bakes its points in runs, as it does without a lightmap; a merge, which joins the
+    /// points whole from its parts, is refused at the same limit.
+    #[test]
+    fn a_fit_too_large_beside_a_held_lightmap_bakes_its_points_in_runs() {
+        let scene = prepare(builtin::default_scene()).unwrap().0;
+        let mut spec = BakeSpec::default();
+        spec.receivers.lightmap = Some(64);
+        spec.receivers.fit = bake::Fit::LeastSquares;
+        spec.transfer.mode = bake::Mode::Interreflected;
+        let at = (&scene, None);
+        let need = memory_need(&spec, at);
+        let limit = need.with_fit_run(1024).lightmap_held(4);
+        assert!(limit < need.lightmap_held(1), "the fit whole fits");
+        let plan = plan_memory(&spec, at, Some(limit), None).unwrap();
+        let run = plan.point_chunk.expect("the fit's points in runs") as u64;
+        assert!(run >= 1024, "{run}");
+        assert!(need.with_fit_run(run).lightmap_held(4) <= limit);
+        assert!(plan.texel_groups.expect("held").columns >= 4);
+        assert!(plan.message.unwrap().contains(&format!("in runs of {run}")));
+        // Without room for the smallest run, the refusal names the runs.
+        let smallest = need.with_fit_run(bake::stream::MIN_CHUNK as u64);
+        let below = smallest.lightmap_held(1) - 1;
+        let refused = plan_memory(&spec, at, Some(below), None).unwrap_err();
+        assert!(
+            refused.to_string().contains("in runs of 256 points"),
+            "{refused}"
+        );
+        assert!(plan_merge_memory(&spec, at, 1 << 10, Some(limit), None).is_err());
     }
 }

@@ -582,8 +582,9 @@ impl MemoryNeed {
     }
 
     /// The need of a bake whose lightmap is held, cleaned up `columns` coefficients at a time.
-    /// A least-squares fit at the vertices (its points, their values, its solve) is let go
-    /// before the texels bake, so the larger of the two counts.
+    /// A least-squares fit at the vertices (its points, their values, its solve; whole, or a
+    /// run of points at a time where [`MemoryNeed::fit_run`] says) is let go before the texels
+    /// bake, so the larger of the two counts.
     pub fn lightmap_held(&self, columns: u64) -> u64 {
         let Some(lightmap) = self.lightmap else {
             return self.whole();
@@ -592,13 +593,16 @@ impl MemoryNeed {
     }
 
     /// What a bake holds through its lightmap's: all but the lightmap and the vertices' fit.
-    fn beside_lightmap(&self) -> u64 {
-        self.whole() - self.beside_vertices - self.vertex_fit()
+    pub fn beside_lightmap(&self) -> u64 {
+        self.whole() - self.beside_vertices - self.fit.map_or(0, |fit| fit.whole())
     }
 
-    /// A least-squares fit's at the vertices, whole (0 without one).
+    /// A least-squares fit's at the vertices, whole or in runs (0 without one).
     fn vertex_fit(&self) -> u64 {
-        self.fit.map_or(0, |fit| fit.whole())
+        self.fit.map_or(0, |fit| match self.fit_run {
+            Some(run) => fit.chunked(run),
+            None => fit.whole(),
+        })
     }
 
     /// The most coefficients a held lightmap may clean up at once within `limit` bytes, and
@@ -622,9 +626,11 @@ impl MemoryNeed {
             let beside = match self.vertex_fit() {
                 0 => held,
                 fit => format!(
-                    "and the larger of the vertices' least-squares fit {}, let go before the \
+                    "and the larger of the vertices' least-squares fit {}{}, let go before the \
                      lightmap, and the lightmap's: {held}",
-                    format_bytes(fit)
+                    format_bytes(fit),
+                    self.fit_run
+                        .map_or(String::new(), |run| format!(" in runs of {run} points"))
                 ),
             };
             return Err(Error::Options(format!(

@@ -192,8 +192,8 @@ fn a_merge_under_a_memory_limit_holds_its_lightmap() {
 /// A merge at the vertices under a limit below its whole need streams: its parts are read one
 /// at a time and the file is written in chunks, byte for byte the whole bake's (shadowed,
 /// interreflected to an error target, lean with the bands chosen, compressed). A least-squares
-/// fit's merge, whose solve needs every point's direct pass at once, refuses such a limit in
-/// one line and writes nothing.
+/// fit's merge reads its points from the parts in runs, byte for byte the whole bake's, and
+/// below its smallest run refuses the limit in one line and writes nothing.
 #[test]
 fn a_merge_under_a_memory_limit_streams_its_parts() {
     let cases: [&[&str]; 4] = [
@@ -238,6 +238,8 @@ fn a_merge_under_a_memory_limit_streams_its_parts() {
         );
     }
 
+    // A least-squares fit's merge reads its points' direct pass from the parts in runs, as a
+    // bake bakes them (interreflected: each run's gather rows wait in a scratch file).
     let fitted = tempfile::tempdir().unwrap();
     let p = fitted.path();
     let extra = [
@@ -247,14 +249,37 @@ fn a_merge_under_a_memory_limit_streams_its_parts() {
         "16",
         "--fit",
         "least-squares",
+        "--mode",
+        "interreflected",
     ];
-    whole_and_merged(Some(BUNNY), &extra, 2, p);
-    let out = merge_within(&["shard0.part", "shard1.part"], "small.glb", "1M", p);
+    let (whole, _) = whole_and_merged(Some(BUNNY), &extra, 2, p);
+    let parts = part_set(p, 2);
+    let need = prt_gpu::pipeline::memory_need(&parts.header().spec, (&scene, None))
+        .with_merge_part(parts.largest_part_bytes());
+    let limit = need.points_chunked(2000);
+    assert!(
+        limit < need.whole(),
+        "the limit must be below the whole need"
+    );
+    let names = ["shard0.part", "shard1.part"];
+    let out = merge_within(&names, "runs.glb", &limit.to_string(), p);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("reading the least-squares fit's"),
+        "{stderr}"
+    );
+    assert!(
+        std::fs::read(p.join("runs.glb")).unwrap() == whole,
+        "the merge in runs differs from the whole bake"
+    );
+    // Below the smallest run beside the solve over every vertex: refused in one line.
+    let out = merge_within(&names, "small.glb", "1M", p);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
     assert!(
-        stderr.contains("a least-squares fit's solve needs every point's direct pass"),
+        stderr.contains("and the larger of its solve over every vertex"),
         "{stderr}"
     );
     assert!(!p.join("small.glb").exists());

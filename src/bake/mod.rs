@@ -288,8 +288,8 @@ fn reflecting_albedo<'a>(receivers: &'a Receivers, options: &BakeOptions) -> Cow
 }
 
 /// The values at `planned`'s receivers: a fit's points baked in runs where the options ask
-/// (and the direct pass is computed here), else the whole direct pass, computed or given;
-/// and what it ran on.
+/// (or, given, read in runs), else the whole direct pass, computed or given; and what it ran
+/// on.
 fn values_at_receivers(
     planned: &Planned,
     (fitting, albedo): (Option<&Fitting>, &[Vec3]),
@@ -299,10 +299,14 @@ fn values_at_receivers(
     progress: &dyn Progress,
 ) -> Result<(AtReceivers, String)> {
     match (fitting, options.point_chunk, source) {
-        (Some(fitting), Some(chunk), DirectSource::Compute) => {
-            let at = (fitting, albedo);
-            let chunks = PointChunks::bake(planned, at, chunk, options, backend, progress)?;
-            Ok((AtReceivers::Chunked(chunks), backend.describe()))
+        (Some(fitting), Some(chunk), source) => {
+            let ran_on = match &source {
+                DirectSource::Compute => backend.describe(),
+                DirectSource::Given(given) => given.ran_on(),
+            };
+            let (at, runs) = ((fitting, albedo), (chunk, &source));
+            let chunks = PointChunks::bake(planned, at, runs, options, backend, progress)?;
+            Ok((AtReceivers::Chunked(chunks), ran_on))
         }
         (_, _, source) => {
             let (direct, ran_on) = direct_pass(source, planned, options, backend, progress)?;
@@ -336,6 +340,16 @@ fn direct_pass(
 
 /// Refuses a given direct pass that is not one of `receivers` receivers' (wrong count, or no
 /// gather matrix for interreflection).
+/// Refuses a given direct pass of `given` receivers where the bake has `receivers`.
+pub(super) fn check_given_count(given: usize, receivers: usize) -> Result<()> {
+    match given == receivers {
+        true => Ok(()),
+        false => Err(Error::Options(format!(
+            "the given direct pass covers {given} receivers, and this bake has {receivers}"
+        ))),
+    }
+}
+
 pub(super) fn check_given(
     direct: &DirectPass,
     receivers: usize,

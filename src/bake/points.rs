@@ -16,6 +16,7 @@ use super::adaptive::ReceiverErrors;
 use super::spill::Spill;
 use super::stream::SpilledRows;
 use super::StagePosition;
+use super::{check_given, check_given_count, DirectSource};
 use super::{direct_or_adaptive, tint_by_albedo, Advancing, Backend, BakeOptions, Progress};
 use super::{Mode, Planned};
 use crate::error::Result;
@@ -170,12 +171,13 @@ pub(super) struct PointChunks {
 }
 
 impl PointChunks {
-    /// Bakes the direct pass of `planned`'s points about `chunk` at a time (`albedo` each
-    /// point's, white in a translucent medium) and sums their values for `fitting`.
+    /// Bakes the direct pass of `planned`'s points about `chunk` at a time, or reads it so from
+    /// `source` where it is given (a merge's parts), (`albedo` each point's, white in a
+    /// translucent medium) and sums their values for `fitting`.
     pub(super) fn bake(
         planned: &Planned,
         (fitting, albedo): (&Fitting, &[Vec3]),
-        chunk: usize,
+        (chunk, source): (usize, &DirectSource),
         options: &BakeOptions,
         backend: &dyn Backend,
         progress: &dyn Progress,
@@ -194,14 +196,25 @@ impl PointChunks {
         let (mut rays_cast, mut gather_entries) = (0, 0);
         let mut adaptive: Option<ReceiverErrors> = None;
         progress.stage("transfer", planned.points.len() as u64);
+        if let DirectSource::Given(given) = source {
+            check_given_count(given.receivers(), planned.points.len())?;
+        }
         for run in &runs {
-            let pass = direct_or_adaptive(
-                &planned.inputs,
-                run.clone(),
-                options,
-                backend,
-                &Advancing(progress),
-            )?;
+            let pass = match source {
+                DirectSource::Compute => direct_or_adaptive(
+                    &planned.inputs,
+                    run.clone(),
+                    options,
+                    backend,
+                    &Advancing(progress),
+                )?,
+                DirectSource::Given(given) => {
+                    let pass = given.direct(run.clone())?;
+                    check_given(&pass, run.len(), options)?;
+                    progress.advance(run.len() as u64);
+                    pass
+                }
+            };
             let tinted = tint_by_albedo(&pass.scalar, &albedo[run.clone()], bands);
             fitting.add(&mut direct, run.clone(), tinted.coeffs())?;
             if let Some(rhs) = &mut albedo_free {

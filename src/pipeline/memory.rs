@@ -49,42 +49,16 @@ pub fn plan_memory(
     let Some(over) = over_budget(need, spec, (scene, gltf), limit, available) else {
         return Ok(MemoryPlan::default());
     };
-    let (need, budget) = (&over.need, over.budget);
     let options = spec.options();
     let chunkable = !over.scatters;
     let streamable = bake::stream::streams(&options) && chunkable;
     let points_chunk =
         options.fit == bake::Fit::LeastSquares && options.lightmap.is_none() && chunkable;
     if spec.receivers.lightmap.is_some() && chunkable {
-        return over.lightmap_held(true);
+        return over.lightmap_held("baking");
     }
     if points_chunk {
-        let points = need.fit.map_or(0, |fit| fit.points);
-        return match (need.point_chunk_within(budget), limit) {
-            (Ok(chunk), _) => Ok(MemoryPlan {
-                point_chunk: Some(chunk),
-                message: Some(format!(
-                    "note: baking the least-squares fit's {points} points in runs of about \
-                     {chunk} to stay within {} (about {} whole, {} so)",
-                    format_bytes(budget),
-                    format_bytes(need.whole()),
-                    format_bytes(need.points_chunked(chunk))
-                )),
-                ..MemoryPlan::default()
-            }),
-            (Err(error), Some(_)) => Err(error),
-            // Over the machine's memory even in the smallest runs: those, and a warning.
-            (Err(_), None) => Ok(MemoryPlan {
-                point_chunk: Some(bake::stream::MIN_CHUNK),
-                message: Some(format!(
-                    "warning: this bake needs at least {} with its fit's points baked in runs, \
-                     more than the {} this machine has available",
-                    format_bytes(need.points_chunked(bake::stream::MIN_CHUNK)),
-                    format_bytes(budget)
-                )),
-                ..MemoryPlan::default()
-            }),
-        };
+        return over.points_in_runs("bake", "baking");
     }
     if !streamable {
         return over.refuse_or_warn("bake", why_whole(over.scatters));
@@ -139,9 +113,9 @@ pub fn local_memory_need(options: &LocalOptions, scene: &Scene) -> u64 {
 
 /// How a merge of a sharded bake (`prt-gpu merge`) fits `limit` or the machine's `available`
 /// memory, its parts read one at a time (the largest taking `largest_part` bytes): a bake at
-/// the vertices streams in chunks, and a lightmap's texels are held in a scratch file; a
-/// least-squares fit's points and subsurface scattering are joined whole, so a limit below
-/// them is refused.
+/// the vertices streams in chunks, a least-squares fit's points are read in runs, and a
+/// lightmap's texels are held in a scratch file; subsurface scattering is joined whole, so a
+/// limit below it is refused.
 pub fn plan_merge_memory(
     spec: &BakeSpec,
     (scene, gltf): (&Scene, Option<&GltfScene>),
@@ -153,20 +127,16 @@ pub fn plan_merge_memory(
     let Some(over) = over_budget(need, spec, (scene, gltf), limit, available) else {
         return Ok(MemoryPlan::default());
     };
-    if spec.receivers.lightmap.is_some() && !over.scatters {
-        return over.lightmap_held(false);
+    if over.scatters {
+        return over.refuse_or_warn("merge", why_whole(true));
     }
-    if bake::stream::streams(&spec.options()) && !over.scatters {
-        return over.streamed("the merge");
+    if spec.receivers.lightmap.is_some() {
+        return over.lightmap_held("reading");
     }
-    let why = match over.scatters {
-        true => why_whole(true),
-        false => {
-            "a least-squares fit's solve needs every point's direct pass, so a merge joins them \
-             whole from its parts"
-        }
-    };
-    over.refuse_or_warn("merge", why)
+    if spec.options().fit == bake::Fit::LeastSquares {
+        return over.points_in_runs("merge", "reading");
+    }
+    over.streamed("the merge")
 }
 
 /// A bake whose need is over its budget: the user's limit or, without one, the machine's
@@ -231,17 +201,51 @@ impl OverBudget {
         refuse_or_warn(what, self.need.whole(), budget, why)
     }
 
+    /// The plan of a least-squares `what` (a bake, a merge) over its budget: the fit's points
+    /// `doing` (baked, read from the parts) in the largest runs that fit. Over an explicit
+    /// limit even in the smallest runs, an error; over the machine's memory, those and a
+    /// warning.
+    fn points_in_runs(&self, what: &str, doing: &str) -> Result<MemoryPlan> {
+        let (need, budget) = (&self.need, self.budget);
+        let points = need.fit.map_or(0, |fit| fit.points);
+        match (need.point_chunk_within(budget), self.explicit) {
+            (Ok(chunk), _) => Ok(MemoryPlan {
+                point_chunk: Some(chunk),
+                message: Some(format!(
+                    "note: {doing} the least-squares fit's {points} points in runs of about \
+                     {chunk} to stay within {} (about {} whole, {} so)",
+                    format_bytes(budget),
+                    format_bytes(need.whole()),
+                    format_bytes(need.points_chunked(chunk))
+                )),
+                ..MemoryPlan::default()
+            }),
+            (Err(error), true) => Err(error),
+            // Over the machine's memory even in the smallest runs: those, and a warning.
+            (Err(_), false) => Ok(MemoryPlan {
+                point_chunk: Some(bake::stream::MIN_CHUNK),
+                message: Some(format!(
+                    "warning: this {what} needs at least {} with its fit's points in runs, \
+                     more than the {} this machine has available",
+                    format_bytes(need.points_chunked(bake::stream::MIN_CHUNK)),
+                    format_bytes(budget)
+                )),
+                ..MemoryPlan::default()
+            }),
+        }
+    }
+
     /// The plan of a lightmap bake over its budget: its texels held in a scratch file, cleaned
-    /// up as many coefficients at a time as fit, and where `fit_runs` allows (a bake, not a
-    /// merge) a least-squares fit's points at the vertices baked in runs where, whole, they
-    /// would not fit beside it. Over an explicit limit even one at a time, an error; over the
-    /// machine's memory, one at a time and a warning.
-    fn lightmap_held(&self, fit_runs: bool) -> Result<MemoryPlan> {
+    /// up as many coefficients at a time as fit, and a least-squares fit's points at the
+    /// vertices `doing` (baked, read from a merge's parts) in runs where, whole, they would not
+    /// fit beside it. Over an explicit limit even
+    /// one at a time, an error; over the machine's memory, one at a time and a warning.
+    fn lightmap_held(&self, doing: &str) -> Result<MemoryPlan> {
         let budget = self.budget;
-        // A least-squares fit at the vertices bakes before the lightmap, whole; where that
-        // alone breaks the budget, its points bake in runs, as they do without a lightmap (a
-        // merge joins them from its parts, whole).
-        let fit_run = match fit_runs && self.need.lightmap_held(1) > budget {
+        // A least-squares fit at the vertices bakes (or a merge reads it) before the lightmap,
+        // whole; where that alone breaks the budget, its points go in runs, as they do without
+        // a lightmap.
+        let fit_run = match self.need.lightmap_held(1) > budget {
             true => self
                 .need
                 .fit_run_within(self.need.beside_lightmap(), budget),
@@ -276,7 +280,7 @@ impl OverBudget {
             }
         };
         let runs = point_chunk.map_or(String::new(), |run| {
-            format!(", and baking the vertices' least-squares points in runs of {run}")
+            format!(", and {doing} the vertices' least-squares points in runs of {run}")
         });
         Ok(MemoryPlan {
             point_chunk,
@@ -392,8 +396,7 @@ mod tests {
     }
 
     /// Beside a held lightmap, a least-squares fit at the vertices that alone would break the
-    /// limit bakes its points in runs, as it does without a lightmap; a merge, which joins the
-    /// points whole from its parts, is refused at the same limit.
+    /// limit bakes its points in runs, as it does without a lightmap (a merge reads them so).
     #[test]
     fn a_fit_too_large_beside_a_held_lightmap_bakes_its_points_in_runs() {
         let scene = prepare(builtin::default_scene()).unwrap().0;
@@ -419,6 +422,8 @@ mod tests {
             refused.to_string().contains("in runs of 256 points"),
             "{refused}"
         );
-        assert!(plan_merge_memory(&spec, at, 1 << 10, Some(limit), None).is_err());
+        // A merge reads the points from its parts in runs the same way.
+        let merged = plan_merge_memory(&spec, at, 1 << 10, Some(limit), None).unwrap();
+        assert!(merged.point_chunk.is_some() && merged.texel_groups.is_some());
     }
 }

@@ -34,10 +34,9 @@ enum Run {
     Whole,
     PointsInRuns(usize),
     Streamed(usize),
-    TexelsHeld(u64),
-    /// Its lightmap held, cleaned up this many coefficients at a time, and its least-squares
-    /// fit's points at the vertices baked in runs of this many.
-    TexelsHeldPointsInRuns(u64, usize),
+    /// The lightmap held (and, where given, the least-squares fit's points at the vertices
+    /// baked in runs of this many).
+    TexelsHeld(u64, Option<usize>),
     /// A local-lights spec: depth maps and an operator, held whole.
     Local,
     /// A merge of this many shards (their parts written before the measurement starts),
@@ -98,11 +97,15 @@ fn measured((spec, run): &(BakeSpec, Run), mesh: &str, dir: &Path) -> (u64, u64)
             pipeline::write(spec, &baked, None, &path).unwrap();
             need.points_chunked(chunk)
         }
-        Run::TexelsHeld(columns) => {
+        Run::TexelsHeld(columns, fit_run) => {
             let lightmap = need.lightmap.expect("a lightmap's need");
             let groups = prt_gpu::bake::texels::TexelGroups {
                 chunk: lightmap.chunk(columns),
                 columns: columns as usize,
+            };
+            let (planned, need) = match fit_run {
+                Some(run) => (planned.with_point_chunk(run), need.with_fit_run(run as u64)),
+                None => (planned, need),
             };
             let baked = planned
                 .with_texel_groups(groups)
@@ -110,20 +113,6 @@ fn measured((spec, run): &(BakeSpec, Run), mesh: &str, dir: &Path) -> (u64, u64)
                 .unwrap();
             pipeline::write(spec, &baked, None, &path).unwrap();
             need.lightmap_held(columns)
-        }
-        Run::TexelsHeldPointsInRuns(columns, run) => {
-            let lightmap = need.lightmap.expect("a lightmap's need");
-            let groups = prt_gpu::bake::texels::TexelGroups {
-                chunk: lightmap.chunk(columns),
-                columns: columns as usize,
-            };
-            let baked = planned
-                .with_point_chunk(run)
-                .with_texel_groups(groups)
-                .run(&CpuBackend, DirectSource::Compute, &NoProgress)
-                .unwrap();
-            pipeline::write(spec, &baked, None, &path).unwrap();
-            need.with_fit_run(run as u64).lightmap_held(columns)
         }
         Run::Local => {
             let options = spec.local.as_ref().expect("a local-lights spec");
@@ -239,7 +228,7 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
             "lightmap 512, held, 4 coefficients at a time",
             (
                 spec(&|s| s.receivers.lightmap = Some(512)),
-                Run::TexelsHeld(4),
+                Run::TexelsHeld(4, None),
             ),
         ),
         (
@@ -249,7 +238,7 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
                     s.receivers.lightmap = Some(512);
                     s.receivers.fit = Fit::LeastSquares;
                 }),
-                Run::TexelsHeld(4),
+                Run::TexelsHeld(4, None),
             ),
         ),
         (
@@ -259,7 +248,7 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
                     s.receivers.lightmap = Some(512);
                     least_squares_interreflected(s);
                 }),
-                Run::TexelsHeldPointsInRuns(4, 20_000),
+                Run::TexelsHeld(4, Some(20_000)),
             ),
         ),
         (
@@ -270,7 +259,7 @@ fn a_bakes_estimated_need_bounds_what_it_allocates() {
                     s.receivers.denoise = true;
                     interreflected(s);
                 }),
-                Run::TexelsHeld(12),
+                Run::TexelsHeld(12, None),
             ),
         ),
     ];

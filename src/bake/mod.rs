@@ -338,8 +338,6 @@ fn direct_pass(
     }
 }
 
-/// Refuses a given direct pass that is not one of `receivers` receivers' (wrong count, or no
-/// gather matrix for interreflection).
 /// Refuses a given direct pass of `given` receivers where the bake has `receivers`.
 pub(super) fn check_given_count(given: usize, receivers: usize) -> Result<()> {
     match given == receivers {
@@ -350,6 +348,8 @@ pub(super) fn check_given_count(given: usize, receivers: usize) -> Result<()> {
     }
 }
 
+/// Refuses a given direct pass that is not one of `receivers` receivers' (wrong count, or no
+/// gather matrix for interreflection).
 pub(super) fn check_given(
     direct: &DirectPass,
     receivers: usize,

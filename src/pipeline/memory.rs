@@ -238,8 +238,8 @@ impl OverBudget {
     /// The plan of a lightmap bake over its budget: its texels held in a scratch file, cleaned
     /// up as many coefficients at a time as fit, and a least-squares fit's points at the
     /// vertices `doing` (baked, read from a merge's parts) in runs where, whole, they would not
-    /// fit beside it. Over an explicit limit even
-    /// one at a time, an error; over the machine's memory, one at a time and a warning.
+    /// fit beside it. Over an explicit limit even one at a time, an error; over the machine's
+    /// memory, one at a time and a warning.
     fn lightmap_held(&self, doing: &str) -> Result<MemoryPlan> {
         let budget = self.budget;
         // A least-squares fit at the vertices bakes (or a merge reads it) before the lightmap,

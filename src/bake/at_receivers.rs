@@ -31,25 +31,15 @@ pub fn bake_at_in(
     vertex_transfer: Option<&Transfer>,
     progress: &dyn Progress,
 ) -> Result<(Transfer, u64)> {
-    let vertices = vertex_transfer;
-    bake_at_gathering(
-        scene,
-        at,
-        options,
-        backend,
-        vertices,
-        progress,
-        GATHER_CHUNK,
-    )
+    let with = (options, backend, vertex_transfer);
+    bake_at_gathering(scene, at, with, progress, GATHER_CHUNK)
 }
 
 /// [`bake_at_in`], gathering `chunk` receivers at a time.
 pub(super) fn bake_at_gathering(
     scene: &Scene,
     (receivers, bvh): (&Receivers, Bvh),
-    options: &BakeOptions,
-    backend: &dyn Backend,
-    vertex_transfer: Option<&Transfer>,
+    (options, backend, vertex_transfer): (&BakeOptions, &dyn Backend, Option<&Transfer>),
     progress: &dyn Progress,
     chunk: usize,
 ) -> Result<(Transfer, u64)> {

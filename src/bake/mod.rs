@@ -119,6 +119,16 @@ pub enum DirectSource {
     Given(Box<dyn GivenDirect>),
 }
 
+impl DirectSource {
+    /// What the direct pass runs (or ran) on: `backend`, or what the given pass records.
+    fn ran_on(&self, backend: &dyn Backend) -> String {
+        match self {
+            DirectSource::Compute => backend.describe(),
+            DirectSource::Given(given) => given.ran_on(),
+        }
+    }
+}
+
 /// What every bake does before its direct pass: the prepared scene, its receivers, and what
 /// the backends read.
 struct Planned {
@@ -300,10 +310,7 @@ fn values_at_receivers(
 ) -> Result<(AtReceivers, String)> {
     match (fitting, options.point_chunk, source) {
         (Some(fitting), Some(chunk), source) => {
-            let ran_on = match &source {
-                DirectSource::Compute => backend.describe(),
-                DirectSource::Given(given) => given.ran_on(),
-            };
+            let ran_on = source.ran_on(backend);
             let (at, runs) = ((fitting, albedo), (chunk, &source));
             let chunks = PointChunks::bake(planned, at, runs, options, backend, progress)?;
             Ok((AtReceivers::Chunked(chunks), ran_on))
@@ -324,18 +331,19 @@ fn direct_pass(
     backend: &dyn Backend,
     progress: &dyn Progress,
 ) -> Result<(DirectPass, String)> {
-    match source {
+    let ran_on = source.ran_on(backend);
+    let direct = match source {
         DirectSource::Compute => {
             let all = 0..planned.receivers.len();
-            let direct = direct_or_adaptive(&planned.inputs, all, options, backend, progress)?;
-            Ok((direct, backend.describe()))
+            direct_or_adaptive(&planned.inputs, all, options, backend, progress)?
         }
         DirectSource::Given(given) => {
             let direct = given.direct(0..given.receivers())?;
             check_given(&direct, planned.receivers.len(), options)?;
-            Ok((direct, given.ran_on()))
+            direct
         }
-    }
+    };
+    Ok((direct, ran_on))
 }
 
 /// Refuses a given direct pass of `given` receivers where the bake has `receivers`.
@@ -615,16 +623,8 @@ mod tests {
             let bvh = Bvh::build(&scene.positions, &scene.triangles);
             let vertices = Some(&baked.transfer);
             let at = (&receivers, bvh);
-            bake_at_gathering(
-                scene,
-                at,
-                &options,
-                &CpuBackend,
-                vertices,
-                &NoProgress,
-                chunk,
-            )
-            .unwrap()
+            let with = (&options, &CpuBackend as &dyn Backend, vertices);
+            bake_at_gathering(scene, at, with, &NoProgress, chunk).unwrap()
         };
         let whole = at(receivers.len());
         assert!(receivers.len() > 3 * 1000, "{} points", receivers.len());

@@ -201,32 +201,48 @@ impl SeamSystem<'_> {
         if self.rows.is_empty() || stride == 0 || image.len() != count * stride {
             return;
         }
-        // The same matrix for every coefficient: each solved on its own, up to [`COLUMNS`]
-        // side by side (one pass over the rows serves them all). Groups are solved in
-        // parallel, a wave of at most [`GROUPS_IN_FLIGHT`] at a time, each wave written back
-        // before the next: what the solve holds is a few groups' vectors, not every
-        // coefficient's solution. A column's arithmetic is the same whatever columns stand
-        // beside it, so an image of few coefficients (a held lightmap's group) is split into
-        // narrower groups, one a thread, and gives the same bits.
-        let threads = rayon::current_num_threads().max(1);
-        let width = stride.div_ceil(threads).clamp(1, COLUMNS);
-        let groups: Vec<usize> = (0..stride).step_by(width).collect();
-        let wave = threads.min(GROUPS_IN_FLIGHT);
-        for firsts in groups.chunks(wave) {
-            let done: Vec<(usize, Vec<f64>)> = firsts
-                .par_iter()
-                .map(|&first| {
-                    let columns = first..stride.min(first + width);
-                    (first, self.solve_columns(image, stride, columns))
-                })
-                .collect();
-            for (first, x) in done {
-                let columns = first..stride.min(first + width);
-                solved(columns.len() as u64);
-                for (&t, values) in self.texels.iter().zip(x.chunks_exact(columns.len())) {
-                    for (at, &v) in image[t * stride..][columns.clone()].iter_mut().zip(values) {
-                        *at = v as f32;
-                    }
+        let solve = |image: &[f32], columns| self.solve_columns(image, stride, columns);
+        solve_in_waves((image, stride), &self.texels, solve, solved);
+    }
+}
+
+/// Solves every coefficient of `image` (`stride` values a texel) at `texels` with
+/// `solve_columns` (the solution of a range of coefficients from the image as it stands,
+/// texel-major) and writes it back.
+/// The same matrix serves every coefficient: each solved on its own, up to [`COLUMNS`] side by
+/// side (one pass over the matrix serves them all). Groups are solved in parallel, a wave of at
+/// most [`GROUPS_IN_FLIGHT`] at a time, each wave written back before the next: what the solve
+/// holds is a few groups' vectors, not every coefficient's solution. A column's arithmetic is
+/// the same whatever columns stand beside it, so an image of few coefficients (a held
+/// lightmap's group) is split into narrower groups, one a thread (a solve's vector steps run on
+/// one thread), and gives the same bits. `solved` is told of every coefficient solved.
+pub fn solve_in_waves(
+    (image, stride): (&mut [f32], usize),
+    texels: &[usize],
+    solve_columns: impl Fn(&[f32], Range<usize>) -> Vec<f64> + Sync,
+    solved: &mut dyn FnMut(u64),
+) {
+    let threads = rayon::current_num_threads().max(1);
+    let width = stride.div_ceil(threads).clamp(1, COLUMNS);
+    let groups: Vec<usize> = (0..stride).step_by(width).collect();
+    let wave = threads.min(GROUPS_IN_FLIGHT);
+    for firsts in groups.chunks(wave) {
+        let image_now: &[f32] = image;
+        let done: Vec<(usize, Vec<f64>)> = firsts
+            .par_iter()
+            .map(|&first| {
+                (
+                    first,
+                    solve_columns(image_now, first..stride.min(first + width)),
+                )
+            })
+            .collect();
+        for (first, x) in done {
+            let columns = first..stride.min(first + width);
+            solved(columns.len() as u64);
+            for (&t, values) in texels.iter().zip(x.chunks_exact(columns.len())) {
+                for (at, &v) in image[t * stride..][columns.clone()].iter_mut().zip(values) {
+                    *at = v as f32;
                 }
             }
         }

@@ -257,13 +257,10 @@ pub struct TexelSystem {
 
 impl TexelSystem {
     /// Fits every coefficient of `image` (`stride` values a texel) to the points' `sums`
-    /// ([`PointTaps::add`], `stride` a texel read), up to [`seams::COLUMNS`] at a time;
-    /// `solved` is told of every coefficient solved. A coefficient's solve is the same
-    /// arithmetic whatever coefficients stand beside it, so a map fitted a group of
-    /// coefficients at a time gets the bits of one fitted whole; and an image of few
-    /// coefficients (a held lightmap's group) is split into narrower solves, one a thread, as
-    /// the stitching's is (`seams::solve`): a solve's vector steps run on one thread, and a
-    /// group of four solved alone left the second core idle through them.
+    /// ([`PointTaps::add`], `stride` a texel read), in waves of narrow solves
+    /// ([`seams::solve_in_waves`]); `solved` is told of every coefficient solved. A
+    /// coefficient's solve is the same arithmetic whatever coefficients stand beside it, so a
+    /// map fitted a group of coefficients at a time gets the bits of one fitted whole.
     pub fn solve(
         &self,
         (image, stride): (&mut [f32], usize),
@@ -271,29 +268,9 @@ impl TexelSystem {
         solved: &mut dyn FnMut(u64),
     ) {
         let texels = &self.texels;
-        let threads = rayon::current_num_threads().max(1);
-        let width = stride.div_ceil(threads).clamp(1, seams::COLUMNS);
-        let groups: Vec<usize> = (0..stride).step_by(width).collect();
-        let wave = threads.min(seams::GROUPS_IN_FLIGHT);
-        for firsts in groups.chunks(wave) {
-            let done: Vec<(usize, Vec<f64>)> = firsts
-                .par_iter()
-                .map(|&first| {
-                    let columns = first..stride.min(first + width);
-                    let x = self.system.solve((image, stride), (texels, sums), columns);
-                    (first, x)
-                })
-                .collect();
-            for (first, x) in done {
-                let columns = first..stride.min(first + width);
-                solved(columns.len() as u64);
-                for (&t, values) in texels.iter().zip(x.chunks_exact(columns.len())) {
-                    for (at, &v) in image[t * stride..][columns.clone()].iter_mut().zip(values) {
-                        *at = v as f32;
-                    }
-                }
-            }
-        }
+        let solve =
+            |image: &[f32], columns| self.system.solve((image, stride), (texels, sums), columns);
+        seams::solve_in_waves((image, stride), texels, solve, solved);
     }
 }
 

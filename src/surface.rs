@@ -150,8 +150,8 @@ pub fn seen_fractions(bvh: &Bvh, receivers: &Receivers) -> Vec<f32> {
         .into_par_iter()
         .map(|r| {
             let mut open = 0;
-            fans_from(receivers, r, &directions, extent, |fan, world| {
-                let blocked = packet::occluded_fan(bvh, fan, reach);
+            fans_from(bvh, receivers, r, &directions, |fan, path, world| {
+                let blocked = packet::occluded_fan(bvh, fan, path, reach);
                 open += world.len() - blocked.count_ones() as usize;
             });
             open as f32 / directions.directions.len() as f32

@@ -130,6 +130,7 @@ impl packet::Kernel for VertexFans<'_, '_, '_> {
         let normal = inputs.normals[vertex];
         let origin = inputs.origins[vertex];
         let to_world = inputs.directions_of(vertex);
+        let path = inputs.bvh.path_to(origin);
         let mut rays = 0;
         bits.fill(0);
         let mut world = [glam::Vec3::ZERO; LANES];
@@ -144,7 +145,7 @@ impl packet::Kernel for VertexFans<'_, '_, '_> {
             } else {
                 rays += above.count_ones() as u64;
                 let packet = FanPacket::new(origin, world, above);
-                above & !packet::occluded_fan(inputs.bvh, &packet, RAY_T_MAX)
+                above & !packet::occluded_fan(inputs.bvh, &packet, &path, RAY_T_MAX)
             };
             let first_sample = packet_index * LANES;
             bits[first_sample / 32] |= visible << (first_sample % 32);
@@ -458,6 +459,7 @@ pub fn visit_closest_hits(
         }
         return;
     }
+    let path = inputs.bvh.path_to(origin);
     let mut world = [glam::Vec3::ZERO; LANES];
     for group in samples.chunks(LANES) {
         for (w, &s) in world.iter_mut().zip(group) {
@@ -465,7 +467,7 @@ pub fn visit_closest_hits(
         }
         let world = &world[..group.len()];
         let packet = FanPacket::new(origin, world, crate::packet::ALL_LANES);
-        let closest = packet::closest_fan(inputs.bvh, &packet, RAY_T_MAX);
+        let closest = packet::closest_fan(inputs.bvh, &packet, &path, RAY_T_MAX);
         for (lane, &s) in group.iter().enumerate() {
             if let Some((u, v)) = closest.barycentrics(lane) {
                 let tri = &inputs.bvh.triangles[closest.triangle[lane] as usize];

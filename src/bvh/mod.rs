@@ -235,6 +235,38 @@ impl Bvh {
             .unwrap_or(0.0)
     }
 
+    /// The nodes whose boxes hold `point`, from the root down ([`PointPath`]). Where both
+    /// children hold it, the path takes the one whose centre is nearer, as fan walks do.
+    pub fn path_to(&self, point: Vec3) -> PointPath {
+        let p = point.to_array();
+        let mut path = PointPath::NONE;
+        match self.nodes.first() {
+            Some(root) if holds(root, p) => {}
+            _ => return path,
+        }
+        let mut node = 0;
+        loop {
+            let n = &self.nodes[node as usize];
+            if n.is_leaf() {
+                break;
+            }
+            let (left, right) = (n.left_or_first, n.left_or_first + 1);
+            let (l, r) = (&self.nodes[left as usize], &self.nodes[right as usize]);
+            let centre_distance = |n: &BvhNode| (n.min() + n.max() - 2.0 * point).length_squared();
+            let (next, sibling) = match (holds(l, p), holds(r, p)) {
+                (true, true) if centre_distance(r) < centre_distance(l) => (right, left),
+                (true, _) => (left, right),
+                (false, true) => (right, left),
+                (false, false) => break,
+            };
+            path.siblings[path.sibling_count] = sibling;
+            path.sibling_count += 1;
+            node = next;
+        }
+        path.deepest = Some(node);
+        path
+    }
+
     /// Any-hit query: does anything block the ray on `(0, t_max)`?
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         let mut hit = false;
@@ -330,6 +362,45 @@ impl Bvh {
             node = &self.nodes[stack[stack_len] as usize];
         }
     }
+}
+
+/// The nodes whose boxes hold one point, from the root down: where every ray from that point
+/// enters the tree. A ray that starts inside a box meets it (`ray::intersect_box` gives it
+/// entry 0 and a non-negative exit, whatever its direction), so a walk of rays from the point
+/// can start at the deepest of these nodes with the other children along the way waiting on its
+/// stack, instead of testing its way down from the root one dependent step at a time.
+#[derive(Clone, Debug)]
+pub struct PointPath {
+    /// The deepest node holding the point; `None` where the root does not hold it.
+    deepest: Option<u32>,
+    /// The other child at each step down, the shallowest first.
+    siblings: [u32; STACK_SIZE],
+    sibling_count: usize,
+}
+
+impl PointPath {
+    /// No path: a walk starts at the root and tests it.
+    pub const NONE: PointPath = PointPath {
+        deepest: None,
+        siblings: [0; STACK_SIZE],
+        sibling_count: 0,
+    };
+
+    pub fn deepest(&self) -> Option<u32> {
+        self.deepest
+    }
+
+    /// The other child at each step down to [`PointPath::deepest`], the shallowest first.
+    pub fn siblings(&self) -> &[u32] {
+        &self.siblings[..self.sibling_count]
+    }
+}
+
+/// Whether `point` lies in the node's box, boundary included. Where it does, `bound - point` is
+/// `<= 0` on the low side and `>= 0` on the high side exactly, which is what makes every ray
+/// from the point meet the box.
+fn holds(node: &BvhNode, point: [f32; 3]) -> bool {
+    (0..3).all(|axis| node.min[axis] <= point[axis] && point[axis] <= node.max[axis])
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -439,6 +510,56 @@ mod tests {
             }
         }
         best
+    }
+
+    /// The path to a point: each node on it holds the point, each sibling is the other child
+    /// of the node above, and the walk stops at a leaf or where no child holds the point.
+    #[test]
+    fn a_point_path_holds_the_point_down_to_where_no_child_does() {
+        let (positions, triangles) = random_soup(3000, 2);
+        let bvh = Bvh::build(&positions, &triangles);
+        let mut rng = Pcg32::new(5);
+        let mut lengths = Vec::new();
+        for i in 0..500 {
+            // Half the points on triangles' corners (inside several boxes), half anywhere.
+            let point = match i % 2 {
+                0 => positions[rng.next_u32() as usize % positions.len()],
+                _ => Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 24.0 - 12.0,
+            };
+            let path = bvh.path_to(point);
+            let p = point.to_array();
+            let Some(deepest) = path.deepest() else {
+                assert!(!holds(&bvh.nodes[0], p), "the root holds {point}");
+                continue;
+            };
+            // Climb back up from the deepest node through the siblings.
+            let mut node = deepest;
+            for &sibling in path.siblings().iter().rev() {
+                assert!(holds(&bvh.nodes[node as usize], p));
+                let pair = node.min(sibling);
+                assert_eq!(
+                    node.max(sibling),
+                    pair + 1,
+                    "siblings are a node's two children"
+                );
+                let parent = bvh
+                    .nodes
+                    .iter()
+                    .position(|n| !n.is_leaf() && n.left_or_first == pair);
+                node = parent.expect("a parent") as u32;
+            }
+            assert_eq!(node, 0, "the path starts at the root");
+            let bottom = &bvh.nodes[deepest as usize];
+            if !bottom.is_leaf() {
+                let first = bottom.left_or_first as usize;
+                assert!(!holds(&bvh.nodes[first], p) && !holds(&bvh.nodes[first + 1], p));
+            }
+            lengths.push(path.siblings().len());
+        }
+        assert!(
+            lengths.iter().filter(|&&n| n > 5).count() > 100,
+            "{lengths:?}"
+        );
     }
 
     #[test]

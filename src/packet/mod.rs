@@ -22,7 +22,7 @@ pub use dispatch::{on_widest_unit, Kernel};
 pub use fan::FanPacket;
 pub use parallel::{PacketOrigins, RayPacket};
 
-use crate::bvh::{Bvh, BvhNode, BvhTriangle, STACK_SIZE};
+use crate::bvh::{Bvh, BvhNode, BvhTriangle, PointPath, STACK_SIZE};
 use crate::ray::{past, reach, replaces, NO_HIT};
 
 /// Rays per packet: one AVX-512 register of f32.
@@ -277,23 +277,24 @@ impl Query for ClosestHits {
 /// [`Bvh::occluded`] for that lane's ray. Inactive lanes are never reported.
 pub fn occluded(bvh: &Bvh, packet: &RayPacket, t_max: f32) -> LaneMask {
     let mut query = Blocked { t_max, blocked: 0 };
-    dispatch::traverse(bvh, packet, &mut query);
+    dispatch::traverse(bvh, packet, &PointPath::NONE, &mut query);
     query.blocked
 }
 
-/// [`occluded`] for a packet of rays from one origin.
-pub fn occluded_fan(bvh: &Bvh, packet: &FanPacket, t_max: f32) -> LaneMask {
+/// [`occluded`] for a packet of rays from one origin, whose walk starts down `path`
+/// (`bvh.path_to(origin)`, or [`PointPath::NONE`] to start at the root).
+pub fn occluded_fan(bvh: &Bvh, packet: &FanPacket, path: &PointPath, t_max: f32) -> LaneMask {
     let mut query = Blocked { t_max, blocked: 0 };
-    dispatch::traverse(bvh, packet, &mut query);
+    dispatch::traverse(bvh, packet, path, &mut query);
     query.blocked
 }
 
 /// The nearest hit on `(0, t_max)` of each active lane of a packet of rays from one origin:
 /// what [`Bvh::closest_hit`] finds for that lane's ray, its distance bit for bit, and of
 /// triangles at that distance the same one (`ray::replaces`).
-pub fn closest_fan(bvh: &Bvh, packet: &FanPacket, t_max: f32) -> ClosestHits {
+pub fn closest_fan(bvh: &Bvh, packet: &FanPacket, path: &PointPath, t_max: f32) -> ClosestHits {
     let mut query = ClosestHits::new(t_max);
-    dispatch::traverse(bvh, packet, &mut query);
+    dispatch::traverse(bvh, packet, path, &mut query);
     query
 }
 
@@ -310,19 +311,35 @@ pub fn closest_fan(bvh: &Bvh, packet: &FanPacket, t_max: f32) -> ClosestHits {
 /// centre is nearer their origin first: 9% faster on the dragon, where a vertex's blockers are
 /// mostly its neighbours, and 7% slower on the open built-in scene (docs/performance.md).
 #[inline(always)]
-fn traverse<P: Packet, I: Isa, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
+fn traverse<P: Packet, I: Isa, Q: Query>(bvh: &Bvh, packet: &P, path: &PointPath, query: &mut Q) {
     let Some(root) = bvh.nodes.first() else {
         return;
     };
+    let mut stack = [(0u32, 0 as LaneMask); STACK_SIZE];
+    let mut stack_len = 0;
     // Lanes still walking.
-    let mut open = packet.active() & packet.box_lanes::<I>(root, query.box_limit());
+    let mut open = packet.active();
+    let mut node = match path.deepest() {
+        // Every lane meets the boxes that hold its origin. The other children on the way down
+        // are tested here, none waiting on another's answer, and stacked the deepest on top.
+        Some(deepest) => {
+            for &sibling in path.siblings() {
+                let sibling_box = &bvh.nodes[sibling as usize];
+                let met = open & packet.box_lanes::<I>(sibling_box, query.box_limit());
+                stack[stack_len] = (sibling, met);
+                stack_len += (met != 0) as usize;
+            }
+            &bvh.nodes[deepest as usize]
+        }
+        None => {
+            open &= packet.box_lanes::<I>(root, query.box_limit());
+            root
+        }
+    };
     if open == 0 {
         return;
     }
     let mut hits_at = LaneHits::default();
-    let mut stack = [(0u32, 0 as LaneMask); STACK_SIZE];
-    let mut stack_len = 0;
-    let mut node = root;
     // Lanes that met the current node's box and are still open.
     let mut lanes = open;
     loop {
@@ -435,7 +452,7 @@ mod dispatch {
 
     /// The signature every copy shares.
     #[cfg(test)]
-    pub type Copy<P, Q> = fn(&Bvh, &P, &mut Q);
+    pub type Copy<P, Q> = fn(&Bvh, &P, &PointPath, &mut Q);
 
     /// The widest vector unit of this machine, found once.
     #[cfg(target_arch = "x86_64")]
@@ -463,31 +480,31 @@ mod dispatch {
     }
 
     #[cfg(target_arch = "x86_64")]
-    pub fn traverse<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
+    pub fn traverse<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, path: &PointPath, query: &mut Q) {
         match level() {
             // SAFETY: the CPU has the features the function is compiled for.
-            Level::Avx512 => unsafe { avx512(bvh, packet, query) },
+            Level::Avx512 => unsafe { avx512(bvh, packet, path, query) },
             // SAFETY: as above.
-            Level::Avx2 => unsafe { avx2(bvh, packet, query) },
-            Level::Sse2 => super::traverse::<P, x86::Sse2, Q>(bvh, packet, query),
+            Level::Avx2 => unsafe { avx2(bvh, packet, path, query) },
+            Level::Sse2 => super::traverse::<P, x86::Sse2, Q>(bvh, packet, path, query),
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma,bmi1,bmi2,popcnt")]
-    unsafe fn avx512<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
-        super::traverse::<P, x86::Avx512, Q>(bvh, packet, query)
+    unsafe fn avx512<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, path: &PointPath, query: &mut Q) {
+        super::traverse::<P, x86::Avx512, Q>(bvh, packet, path, query)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,popcnt")]
-    unsafe fn avx2<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
-        super::traverse::<P, x86::Avx2, Q>(bvh, packet, query)
+    unsafe fn avx2<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, path: &PointPath, query: &mut Q) {
+        super::traverse::<P, x86::Avx2, Q>(bvh, packet, path, query)
     }
 
     #[cfg(target_arch = "aarch64")]
-    pub fn traverse<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
-        super::traverse::<P, arm::Neon, Q>(bvh, packet, query)
+    pub fn traverse<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, path: &PointPath, query: &mut Q) {
+        super::traverse::<P, arm::Neon, Q>(bvh, packet, path, query)
     }
 
     /// Work around the traversal (a vertex's packets built, its hits projected) that LLVM
@@ -531,8 +548,8 @@ mod dispatch {
     }
 
     #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
-    pub fn traverse<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, query: &mut Q) {
-        super::traverse::<P, Portable, Q>(bvh, packet, query)
+    pub fn traverse<P: Packet, Q: Query>(bvh: &Bvh, packet: &P, path: &PointPath, query: &mut Q) {
+        super::traverse::<P, Portable, Q>(bvh, packet, path, query)
     }
 
     /// Every copy of the traversal this machine can run, for tests that compare them.
@@ -545,11 +562,11 @@ mod dispatch {
             copies.push(("sse2", super::traverse::<P, x86::Sse2, Q>));
             if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
                 // SAFETY: detected.
-                copies.push(("avx2", |b, p, q| unsafe { avx2(b, p, q) }));
+                copies.push(("avx2", |b, p, s, q| unsafe { avx2(b, p, s, q) }));
             }
             if std::is_x86_feature_detected!("avx512f") {
                 // SAFETY: detected.
-                copies.push(("avx512", |b, p, q| unsafe { avx512(b, p, q) }));
+                copies.push(("avx512", |b, p, s, q| unsafe { avx512(b, p, s, q) }));
             }
         }
         #[cfg(target_arch = "aarch64")]

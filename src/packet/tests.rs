@@ -55,10 +55,11 @@ fn any_hit<P: Packet>(
     copy: dispatch::Copy<P, Blocked>,
     bvh: &Bvh,
     packet: &P,
+    path: &PointPath,
     t_max: f32,
 ) -> LaneMask {
     let mut query = Blocked { t_max, blocked: 0 };
-    copy(bvh, packet, &mut query);
+    copy(bvh, packet, path, &mut query);
     query.blocked
 }
 
@@ -66,12 +67,13 @@ fn check_copies<P: Packet>(
     copies: &[(&'static str, dispatch::Copy<P, Blocked>)],
     bvh: &Bvh,
     packet: &P,
+    path: &PointPath,
     above: LaneMask,
     expected: LaneMask,
 ) -> [usize; 3] {
     let answers: Vec<LaneMask> = copies
         .iter()
-        .map(|&(_, f)| any_hit(f, bvh, packet, RAY_T_MAX))
+        .map(|&(_, f)| any_hit(f, bvh, packet, path, RAY_T_MAX))
         .collect();
     for ((name, _), &got) in copies.iter().zip(&answers) {
         assert_eq!(got, answers[0], "{name} differs from the portable copy");
@@ -99,7 +101,14 @@ fn compare_with_single_rays(inputs: &Surface, width: usize, packets: usize) -> [
         let expected = lane_mask(|l| {
             above & (1 << l) != 0 && inputs.bvh.occluded(&packet.lane_ray(l), RAY_T_MAX)
         });
-        let checked = check_copies(&copies, &inputs.bvh, &packet, above, expected);
+        let checked = check_copies(
+            &copies,
+            &inputs.bvh,
+            &packet,
+            &PointPath::NONE,
+            above,
+            expected,
+        );
         counts.iter_mut().zip(checked).for_each(|(c, n)| *c += n);
     }
     counts
@@ -152,7 +161,8 @@ fn random_fan(
 
 /// Every copy of the fan traversal against single rays: packets of `width` consecutive
 /// samples of a cosine set, turned into the tangent frame of a random vertex, lanes above
-/// the horizon active. Returns (lanes compared, lanes that differ, lanes blocked).
+/// the horizon active, each walked from the root and down the tree's path to its origin.
+/// Returns (lanes compared, lanes that differ on either walk, lanes blocked).
 fn compare_fans_with_single_rays(inputs: &Surface, width: usize, packets: usize) -> [usize; 3] {
     let mut rng = Pcg32::new(11);
     let set = crate::sampling::cosine_hemisphere(1024, 3);
@@ -169,8 +179,18 @@ fn compare_fans_with_single_rays(inputs: &Surface, width: usize, packets: usize)
                     .bvh
                     .occluded(&Ray::new(inputs.origins[vertex], directions[l]), RAY_T_MAX)
         });
-        let checked = check_copies(&copies, &inputs.bvh, &packet, above, expected);
+        let path = inputs.bvh.path_to(inputs.origins[vertex]);
+        let [_, differ_from_root, _] = check_copies(
+            &copies,
+            &inputs.bvh,
+            &packet,
+            &PointPath::NONE,
+            above,
+            expected,
+        );
+        let checked = check_copies(&copies, &inputs.bvh, &packet, &path, above, expected);
         counts.iter_mut().zip(checked).for_each(|(c, n)| *c += n);
+        counts[1] += differ_from_root;
     }
     counts
 }
@@ -210,16 +230,21 @@ fn fans_find_the_single_rays_closest_hits() {
         let bvh = &inputs.bvh;
         let mut rng = Pcg32::new(13);
         let (mut hits, mut lanes) = (0, 0);
-        for _ in 0..3_000 {
+        for fan in 0..3_000 {
             let width = 1 + (rng.next_u32() as usize) % LANES;
             let (vertex, directions) = random_fan(&inputs, &set, width, &mut rng);
             let origin = inputs.origins[vertex];
             let skipped = rng.next_u32();
             let active = lane_mask(|l| l < width && (skipped >> l) & 7 != 0);
             let packet = FanPacket::new(origin, &directions, active);
+            // Every other fan walks from the root, the rest down the path to their origin.
+            let path = match fan % 2 {
+                0 => bvh.path_to(origin),
+                _ => PointPath::NONE,
+            };
             for (copy_name, copy) in dispatch::all_available::<FanPacket, ClosestHits>() {
                 let mut query = ClosestHits::new(RAY_T_MAX);
-                copy(bvh, &packet, &mut query);
+                copy(bvh, &packet, &path, &mut query);
                 for (lane, &direction) in directions.iter().enumerate() {
                     let found = query.barycentrics(lane).map(|(u, v)| {
                         let tri = &bvh.triangles[query.triangle[lane] as usize];
@@ -262,7 +287,8 @@ fn inactive_and_empty_lanes_never_report() {
                 let expected = active & origins.filled;
                 assert_eq!(packet.active, expected);
                 for (name, f) in dispatch::all_available() {
-                    assert_eq!(any_hit(f, &bvh, &packet, RAY_T_MAX), expected, "{name}");
+                    let blocked = any_hit(f, &bvh, &packet, &PointPath::NONE, RAY_T_MAX);
+                    assert_eq!(blocked, expected, "{name}");
                 }
             }
         }
@@ -274,8 +300,13 @@ fn inactive_and_empty_lanes_never_report() {
             let packet = FanPacket::new(points[3], &directions, active);
             let expected = active & (ALL_LANES >> (LANES - width));
             assert_eq!(packet.active, expected);
+            let path = bvh.path_to(points[3]);
+            assert!(path.deepest().is_some(), "the box holds the point");
             for (name, f) in dispatch::all_available() {
-                assert_eq!(any_hit(f, &bvh, &packet, RAY_T_MAX), expected, "{name} fan");
+                for path in [&path, &PointPath::NONE] {
+                    let blocked = any_hit(f, &bvh, &packet, path, RAY_T_MAX);
+                    assert_eq!(blocked, expected, "{name} fan");
+                }
             }
         }
     }
@@ -288,5 +319,7 @@ fn empty_scene_blocks_nothing() {
     let packet = RayPacket::new(&origins, Vec3::X, ALL_LANES);
     assert_eq!(occluded(&bvh, &packet, RAY_T_MAX), 0);
     let fan = FanPacket::new(Vec3::ZERO, &[Vec3::X, Vec3::Y], ALL_LANES);
-    assert_eq!(occluded_fan(&bvh, &fan, RAY_T_MAX), 0);
+    let path = bvh.path_to(Vec3::ZERO);
+    assert_eq!(path.deepest(), None);
+    assert_eq!(occluded_fan(&bvh, &fan, &path, RAY_T_MAX), 0);
 }

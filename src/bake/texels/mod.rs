@@ -15,7 +15,7 @@ use glam::{DVec2, Vec3};
 use rayon::prelude::*;
 
 use super::{bake_at_in, subsurface, Backend, BakeOptions, Progress, TexelBake, Transfer};
-use crate::bvh::Bvh;
+use crate::bvh::{Bvh, PointPath};
 use crate::error::Result;
 use crate::packet::{self, FanPacket, ALL_LANES, LANES};
 use crate::ray::{offset_ray_origin, RAY_T_MAX};
@@ -581,15 +581,14 @@ pub fn leaking_or_covered_in(
     receivers: &Receivers,
     cover: f32,
 ) -> Vec<bool> {
-    let extent = bvh.extent();
     let directions = cosine_hemisphere(LEAK_RAYS, 0x1eaf);
     let limit = (LEAK_FRACTION * LEAK_RAYS as f32) as usize;
     (0..receivers.len())
         .into_par_iter()
         .map(|r| {
             let mut back_hits = 0;
-            fans_from(receivers, r, &directions, extent, |fan, world| {
-                let closest = packet::closest_fan(bvh, fan, RAY_T_MAX);
+            fans_from(bvh, receivers, r, &directions, |fan, path, world| {
+                let closest = packet::closest_fan(bvh, fan, path, RAY_T_MAX);
                 for (lane, &direction) in world.iter().enumerate() {
                     let Some(hit) = bvh.triangles.get(closest.triangle[lane] as usize) else {
                         continue;
@@ -608,18 +607,19 @@ pub fn leaking_or_covered_in(
 }
 
 /// Casts the tangent-frame set `directions` about receiver `r`'s normal from its ray origin
-/// (`extent` the scene's), [`LANES`] at a time: `cast` gets each fan packet and its world
-/// directions. The rays share their origin, so fan packets, whose hits are those of single
-/// rays bit for bit, at three to four times their speed.
+/// in `bvh`'s scene, [`LANES`] at a time: `cast` gets each fan packet, the tree's path to its
+/// origin and its world directions. The rays share their origin, so fan packets, whose hits
+/// are those of single rays bit for bit, at three to four times their speed.
 pub fn fans_from(
+    bvh: &Bvh,
     receivers: &Receivers,
     r: usize,
     directions: &SampleSet,
-    extent: f32,
-    mut cast: impl FnMut(&FanPacket, &[Vec3]),
+    mut cast: impl FnMut(&FanPacket, &PointPath, &[Vec3]),
 ) {
     let normal = receivers.normals[r];
-    let origin = offset_ray_origin(receivers.positions[r], normal, extent);
+    let origin = offset_ray_origin(receivers.positions[r], normal, bvh.extent());
+    let path = bvh.path_to(origin);
     let to_world = VertexDirections::new(directions.frame, normal);
     let mut world = [Vec3::ZERO; LANES];
     for group in directions.directions.chunks(LANES) {
@@ -627,7 +627,7 @@ pub fn fans_from(
             *w = to_world.world(d);
         }
         let world = &world[..group.len()];
-        cast(&FanPacket::new(origin, world, ALL_LANES), world);
+        cast(&FanPacket::new(origin, world, ALL_LANES), &path, world);
     }
 }
 

@@ -93,9 +93,11 @@ impl LaneLimit for &Lanes {
 /// packet kinds, which differ only in how a vertex reaches a lane's sheared frame:
 /// `shear(v, lane)` is vertex `v` translated to the lane's origin, permuted and sheared, as
 /// `(x, y, z)` with `z` not yet scaled; `z_scale(lane)` is the lane's `1 / d_z`. Edge
-/// functions are computed for all lanes at once; the few lanes inside (most triangles are
-/// missed by every lane) finish one by one. Returns the lanes of `lanes` that hit on
-/// `(0, t_max)`, their hits written to `hits_out`.
+/// functions are computed for all lanes at once, and where any lane of `lanes` is inside (most
+/// triangles are missed by every lane), every lane's distance too: one vector division costs
+/// less than finishing the lanes inside one by one, whose count no branch predicts. Returns
+/// the lanes of `lanes` that hit on `(0, t_max)`, their hits written to `hits_out` (the other
+/// lanes' entries there are meaningless).
 #[inline(always)]
 fn sheared_triangle_lanes<I: Isa>(
     [a, b, c]: [&[f32; 3]; 3],
@@ -105,42 +107,38 @@ fn sheared_triangle_lanes<I: Isa>(
     t_max: impl LaneLimit,
     hits_out: &mut LaneHits,
 ) -> LaneMask {
-    let edge_functions = |lane: usize| {
-        let (ax, ay, _) = shear(a, lane);
-        let (bx, by, _) = shear(b, lane);
-        let (cx, cy, _) = shear(c, lane);
-        (cx * by - cy * bx, ax * cy - ay * cx, bx * ay - by * ax)
-    };
+    let LaneHits { t, v, w, det } = hits_out;
+    let mut u = [0.0f32; LANES];
     // A lane is outside when its edge functions have mixed signs.
     let mut lowest = [0.0f32; LANES];
     let mut highest = [0.0f32; LANES];
     for lane in 0..LANES {
-        let (u, v, w) = edge_functions(lane);
-        lowest[lane] = min(min(u, v), w);
-        highest[lane] = max(max(u, v), w);
+        let (ax, ay, _) = shear(a, lane);
+        let (bx, by, _) = shear(b, lane);
+        let (cx, cy, _) = shear(c, lane);
+        u[lane] = cx * by - cy * bx;
+        v[lane] = ax * cy - ay * cx;
+        w[lane] = bx * ay - by * ax;
+        lowest[lane] = min(min(u[lane], v[lane]), w[lane]);
+        highest[lane] = max(max(u[lane], v[lane]), w[lane]);
     }
     const ZERO: Lanes = [0.0; LANES];
     let outside = I::lt_mask(&lowest, &ZERO) & I::lt_mask(&ZERO, &highest);
-    let mut inside = lanes & !outside;
-    let mut hits = 0;
-    while inside != 0 {
-        let lane = inside.trailing_zeros() as usize;
-        inside &= inside - 1;
-        let (u, v, w) = edge_functions(lane);
-        let det = u + v + w;
-        if det == 0.0 {
-            continue;
-        }
+    let inside = lanes & !outside;
+    if inside == 0 {
+        return 0;
+    }
+    let mut limit = [0.0f32; LANES];
+    for lane in 0..LANES {
+        det[lane] = u[lane] + v[lane] + w[lane];
         let s = z_scale(lane);
         let (az, bz, cz) = (shear(a, lane).2, shear(b, lane).2, shear(c, lane).2);
-        let t = (u * (s * az) + v * (s * bz) + w * (s * cz)) / det;
-        if t > 0.0 && t < t_max.at(lane) {
-            hits |= 1 << lane;
-            hits_out.t[lane] = t;
-            hits_out.edges[lane] = [v, w, det];
-        }
+        t[lane] = (u[lane] * (s * az) + v[lane] * (s * bz) + w[lane] * (s * cz)) / det[lane];
+        limit[lane] = t_max.at(lane);
     }
-    hits
+    // A zero determinant (edge-on) is no hit; its distance is not a number or infinite.
+    let nonzero = I::lt_mask(det, &ZERO) | I::lt_mask(&ZERO, det);
+    inside & nonzero & I::lt_mask(&ZERO, t) & I::lt_mask(t, &limit)
 }
 
 /// What the traversal needs of a packet kind: its active lanes, and its box and triangle tests.
@@ -209,7 +207,7 @@ pub struct ClosestHits {
     pub t: Lanes,
     /// Index in `Bvh::triangles` (leaf order) of the triangle hit, or `NO_HIT`.
     pub triangle: [u32; LANES],
-    /// The nearest hit's edge functions of corners 1 and 2 and their sum (`LaneHits::edges`).
+    /// The nearest hit's edge functions of corners 1 and 2 and their sum (`LaneHits`).
     edges: [[f32; 3]; LANES],
     /// Where each lane's ray ends: `ray::past` its nearest hit, `t_max` before one.
     limit: Lanes,
@@ -223,7 +221,9 @@ pub struct ClosestHits {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct LaneHits {
     t: Lanes,
-    edges: [[f32; 3]; LANES],
+    v: Lanes,
+    w: Lanes,
+    det: Lanes,
 }
 
 impl ClosestHits {
@@ -264,7 +264,7 @@ impl Query for ClosestHits {
             if replaces(t, index, self.t[lane], self.triangle[lane]) {
                 self.t[lane] = t;
                 self.triangle[lane] = index;
-                self.edges[lane] = hits.edges[lane];
+                self.edges[lane] = [hits.v[lane], hits.w[lane], hits.det[lane]];
                 self.limit[lane] = past(t);
                 self.box_limit[lane] = reach(t);
             }

@@ -239,7 +239,10 @@ impl Bvh {
     /// children hold it, the path takes the one whose centre is nearer, as fan walks do.
     pub fn path_to(&self, point: Vec3) -> PointPath {
         let p = point.to_array();
-        let mut path = PointPath::NONE;
+        let mut path = PointPath {
+            point,
+            ..PointPath::NONE
+        };
         match self.nodes.first() {
             Some(root) if holds(root, p) => {}
             _ => return path,
@@ -371,6 +374,7 @@ impl Bvh {
 /// stack, instead of testing its way down from the root one dependent step at a time.
 #[derive(Clone, Debug)]
 pub struct PointPath {
+    point: Vec3,
     /// The deepest node holding the point; `None` where the root does not hold it.
     deepest: Option<u32>,
     /// The other child at each step down, the shallowest first.
@@ -381,6 +385,7 @@ pub struct PointPath {
 impl PointPath {
     /// No path: a walk starts at the root and tests it.
     pub const NONE: PointPath = PointPath {
+        point: Vec3::ZERO,
         deepest: None,
         siblings: [0; STACK_SIZE],
         sibling_count: 0,
@@ -388,6 +393,12 @@ impl PointPath {
 
     pub fn deepest(&self) -> Option<u32> {
         self.deepest
+    }
+
+    /// Whether a walk from `point` may start down this path: it leads to `point`, or it is
+    /// no path at all.
+    pub fn leads_to(&self, point: Vec3) -> bool {
+        self.deepest.is_none() || self.point == point
     }
 
     /// The other child at each step down to [`PointPath::deepest`], the shallowest first.
@@ -532,6 +543,7 @@ mod tests {
                 assert!(!holds(&bvh.nodes[0], p), "the root holds {point}");
                 continue;
             };
+            assert!(path.leads_to(point) && !path.leads_to(point + Vec3::X));
             // Climb back up from the deepest node through the siblings.
             let mut node = deepest;
             for &sibling in path.siblings().iter().rev() {

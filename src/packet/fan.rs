@@ -96,6 +96,11 @@ impl FanPacket {
         packet
     }
 
+    /// The point every lane starts from.
+    pub(super) fn origin(&self) -> Vec3 {
+        Vec3::from_array(self.origin)
+    }
+
     /// `v - origin`, the first step of both tests, shared by every lane.
     #[inline(always)]
     fn translated(&self, v: [f32; 3]) -> [f32; 3] {

@@ -459,20 +459,51 @@ pub fn visit_closest_hits(
         }
         return;
     }
-    let path = inputs.bvh.path_to(origin);
-    let mut world = [glam::Vec3::ZERO; LANES];
-    for group in samples.chunks(LANES) {
-        for (w, &s) in world.iter_mut().zip(group) {
-            *w = direction(s);
-        }
-        let world = &world[..group.len()];
-        let packet = FanPacket::new(origin, world, crate::packet::ALL_LANES);
-        let closest = packet::closest_fan(inputs.bvh, &packet, &path, RAY_T_MAX);
-        for (lane, &s) in group.iter().enumerate() {
-            if let Some((u, v)) = closest.barycentrics(lane) {
-                let tri = &inputs.bvh.triangles[closest.triangle[lane] as usize];
-                let t = closest.t[lane];
-                visit(s, tri.source_index, TriangleHit { t, u, v });
+    packet::on_widest_unit(ClosestFans {
+        inputs,
+        vertex,
+        samples,
+        visit,
+    });
+}
+
+/// [`visit_closest_hits`]' fans, compiled for each vector unit: building the packets and
+/// taking their hits apart ran as SSE2 code, 7.5% of an interreflected bake of the dragon.
+struct ClosestFans<'i, 'a, 's, F> {
+    inputs: &'i DirectInputs<'a>,
+    vertex: usize,
+    samples: &'s [u32],
+    visit: F,
+}
+
+impl<F: FnMut(u32, u32, TriangleHit)> packet::Kernel for ClosestFans<'_, '_, '_, F> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let ClosestFans {
+            inputs,
+            vertex,
+            samples,
+            mut visit,
+        } = self;
+        let origin = inputs.origins[vertex];
+        let to_world = inputs.directions_of(vertex);
+        let path = inputs.bvh.path_to(origin);
+        let mut world = [glam::Vec3::ZERO; LANES];
+        for group in samples.chunks(LANES) {
+            for (w, &s) in world.iter_mut().zip(group) {
+                *w = to_world.world(inputs.samples.directions[s as usize]);
+            }
+            let world = &world[..group.len()];
+            let packet = FanPacket::new(origin, world, crate::packet::ALL_LANES);
+            let closest = packet::closest_fan(inputs.bvh, &packet, &path, RAY_T_MAX);
+            for (lane, &s) in group.iter().enumerate() {
+                if let Some((u, v)) = closest.barycentrics(lane) {
+                    let tri = &inputs.bvh.triangles[closest.triangle[lane] as usize];
+                    let t = closest.t[lane];
+                    visit(s, tri.source_index, TriangleHit { t, u, v });
+                }
             }
         }
     }

@@ -120,6 +120,14 @@ pub enum DirectSource {
 }
 
 impl DirectSource {
+    /// The given pass, if any.
+    fn given(&self) -> Option<&dyn GivenDirect> {
+        match self {
+            DirectSource::Compute => None,
+            DirectSource::Given(given) => Some(given.as_ref()),
+        }
+    }
+
     /// What the direct pass runs (or ran) on: `backend`, or what the given pass records.
     fn ran_on(&self, backend: &dyn Backend) -> String {
         match self {
@@ -344,6 +352,25 @@ fn direct_pass(
         }
     };
     Ok((direct, ran_on))
+}
+
+/// The direct pass of the receivers `range`, a run of a bake streamed or fitted in runs: cast
+/// on `backend` (from `inputs`), or read from `given` and checked. Progress advances per
+/// receiver either way.
+pub(super) fn direct_run(
+    given: Option<&dyn GivenDirect>,
+    (inputs, range): (&BakeInputs, std::ops::Range<usize>),
+    options: &BakeOptions,
+    backend: &dyn Backend,
+    progress: &dyn Progress,
+) -> Result<DirectPass> {
+    let Some(given) = given else {
+        return direct_or_adaptive(inputs, range, options, backend, &Advancing(progress));
+    };
+    let direct = given.direct(range.clone())?;
+    check_given(&direct, range.len(), options)?;
+    progress.advance(range.len() as u64);
+    Ok(direct)
 }
 
 /// Refuses a given direct pass of `given` receivers where the bake has `receivers`.

@@ -296,7 +296,7 @@ impl MemoryNeed {
     }
 
     /// The whole bake's need but for its fit's.
-    fn beside_fit(&self) -> u64 {
+    pub(crate) fn beside_fit(&self) -> u64 {
         self.whole() - self.fit.map_or(0, |fit| fit.whole())
     }
 

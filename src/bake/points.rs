@@ -16,8 +16,8 @@ use super::adaptive::ReceiverErrors;
 use super::spill::Spill;
 use super::stream::SpilledRows;
 use super::StagePosition;
-use super::{check_given, check_given_count, DirectSource};
-use super::{direct_or_adaptive, tint_by_albedo, Advancing, Backend, BakeOptions, Progress};
+use super::{check_given_count, direct_run, DirectSource};
+use super::{tint_by_albedo, Backend, BakeOptions, Progress};
 use super::{Mode, Planned};
 use crate::error::Result;
 use crate::receivers::fit::{solved_fraction, FitOptions, FitReport, FitSystem, RightHandSide};
@@ -196,25 +196,12 @@ impl PointChunks {
         let (mut rays_cast, mut gather_entries) = (0, 0);
         let mut adaptive: Option<ReceiverErrors> = None;
         progress.stage("transfer", planned.points.len() as u64);
-        if let DirectSource::Given(given) = source {
+        if let Some(given) = source.given() {
             check_given_count(given.receivers(), planned.points.len())?;
         }
         for run in &runs {
-            let pass = match source {
-                DirectSource::Compute => direct_or_adaptive(
-                    &planned.inputs,
-                    run.clone(),
-                    options,
-                    backend,
-                    &Advancing(progress),
-                )?,
-                DirectSource::Given(given) => {
-                    let pass = given.direct(run.clone())?;
-                    check_given(&pass, run.len(), options)?;
-                    progress.advance(run.len() as u64);
-                    pass
-                }
-            };
+            let at = (&planned.inputs, run.clone());
+            let pass = direct_run(source.given(), at, options, backend, progress)?;
             let tinted = tint_by_albedo(&pass.scalar, &albedo[run.clone()], bands);
             fitting.add(&mut direct, run.clone(), tinted.coeffs())?;
             if let Some(rhs) = &mut albedo_free {

@@ -20,9 +20,8 @@ use super::adaptive::ReceiverErrors;
 use super::bounce::{self, GatherMatrix};
 use super::spill::Spill;
 use super::{
-    check_given, direct_or_adaptive, metadata_for, plan, tint_by_albedo, Advancing, Backend,
-    BakeMetadata, BakeOptions, BounceStat, DirectPass, Fit, GivenDirect, Mode, Progress, Storage,
-    Transfer,
+    direct_run, metadata_for, plan, tint_by_albedo, Backend, BakeMetadata, BakeOptions, BounceStat,
+    DirectPass, Fit, GivenDirect, Mode, Progress, Storage, Transfer,
 };
 use crate::error::{Error, Result};
 use crate::scene::Scene;
@@ -88,14 +87,8 @@ impl StreamedBake {
         backend: &dyn Backend,
         progress: &dyn Progress,
     ) -> Result<DirectPass> {
-        let Some(given) = &self.given else {
-            let inputs = &self.planned.inputs;
-            return direct_or_adaptive(inputs, range, &self.options, backend, &Advancing(progress));
-        };
-        let direct = given.direct(range.clone())?;
-        check_given(&direct, range.len(), &self.options)?;
-        progress.advance(range.len() as u64);
-        Ok(direct)
+        let at = (&self.planned.inputs, range);
+        direct_run(self.given.as_deref(), at, &self.options, backend, progress)
     }
 
     pub fn scene(&self) -> &Scene {

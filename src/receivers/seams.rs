@@ -209,6 +209,7 @@ impl SeamSystem<'_> {
 /// Solves every coefficient of `image` (`stride` values a texel) at `texels` with
 /// `solve_columns` (the solution of a range of coefficients from the image as it stands,
 /// texel-major) and writes it back.
+///
 /// The same matrix serves every coefficient: each solved on its own, up to [`COLUMNS`] side by
 /// side (one pass over the matrix serves them all). Groups are solved in parallel, a wave of at
 /// most [`GROUPS_IN_FLIGHT`] at a time, each wave written back before the next: what the solve
@@ -228,17 +229,14 @@ pub fn solve_in_waves(
     let wave = threads.min(GROUPS_IN_FLIGHT);
     for firsts in groups.chunks(wave) {
         let image_now: &[f32] = image;
-        let done: Vec<(usize, Vec<f64>)> = firsts
+        let done: Vec<(Range<usize>, Vec<f64>)> = firsts
             .par_iter()
             .map(|&first| {
-                (
-                    first,
-                    solve_columns(image_now, first..stride.min(first + width)),
-                )
+                let columns = first..stride.min(first + width);
+                (columns.clone(), solve_columns(image_now, columns))
             })
             .collect();
-        for (first, x) in done {
-            let columns = first..stride.min(first + width);
+        for (columns, x) in done {
             solved(columns.len() as u64);
             for (&t, values) in texels.iter().zip(x.chunks_exact(columns.len())) {
                 for (at, &v) in image[t * stride..][columns.clone()].iter_mut().zip(values) {

@@ -594,7 +594,7 @@ impl MemoryNeed {
 
     /// What a bake holds through its lightmap's: all but the lightmap and the vertices' fit.
     pub fn beside_lightmap(&self) -> u64 {
-        self.whole() - self.beside_vertices - self.fit.map_or(0, |fit| fit.whole())
+        self.beside_fit() - self.beside_vertices
     }
 
     /// A least-squares fit's at the vertices, whole or in runs (0 without one).

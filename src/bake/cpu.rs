@@ -7,8 +7,10 @@
 //! The bake traces in ray packets (`crate::packet`), which set the same bits as
 //! `trace_visibility`, the readable one-ray-at-a-time reference kept beside it: for a set
 //! shared by all vertices, each direction is cast from 16 Morton-adjacent vertices at once
-//! (`trace_visibility_packets`); for a tangent-frame set, each vertex casts 16 consecutive
-//! samples at once from its origin (`trace_visibility_fans`).
+//! (`trace_visibility_packets`); for a tangent-frame set, each vertex casts a run of 16
+//! samples that form a small cone at once from its origin (`trace_visibility_fans`,
+//! `SampleSet::fan_runs`). Bits are set by sample index, so the order of the runs cannot change
+//! a sum.
 
 use rayon::prelude::*;
 
@@ -88,8 +90,8 @@ pub fn trace_visibility_packets(
     rays
 }
 
-/// [`trace_visibility`] of one vertex, its samples cast [`LANES`] consecutive ones at a time
-/// as one fan packet from the vertex. For tangent-frame sets, whose directions no two vertices
+/// [`trace_visibility`] of one vertex, its samples cast a run at a time
+/// ([`crate::sampling::SampleSet::fan_runs`]) as one fan packet from the vertex. For tangent-frame sets, whose directions no two vertices
 /// share. Returns the number of rays cast, the same count as [`trace_visibility`].
 pub fn trace_visibility_fans(
     inputs: &DirectInputs,
@@ -119,8 +121,6 @@ impl packet::Kernel for VertexFans<'_, '_, '_> {
 
     #[inline(always)]
     fn run(self) -> u64 {
-        // A packet's bits must lie in one word.
-        const _: () = assert!(32 % LANES == 0);
         let VertexFans {
             inputs,
             mode,
@@ -134,11 +134,11 @@ impl packet::Kernel for VertexFans<'_, '_, '_> {
         let mut rays = 0;
         bits.fill(0);
         let mut world = [glam::Vec3::ZERO; LANES];
-        for (packet_index, samples) in inputs.samples.directions.chunks(LANES).enumerate() {
-            for (w, &sample) in world.iter_mut().zip(samples) {
-                *w = to_world.world(sample);
+        for run in inputs.samples.fan_runs() {
+            for (w, &s) in world.iter_mut().zip(run) {
+                *w = to_world.world(inputs.samples.directions[s as usize]);
             }
-            let world = &world[..samples.len()];
+            let world = &world[..run.len()];
             let above = lane_mask(|l| l < world.len() && normal.dot(world[l]) > 0.0);
             let visible = if mode == Mode::Unshadowed || above == 0 {
                 above
@@ -147,8 +147,7 @@ impl packet::Kernel for VertexFans<'_, '_, '_> {
                 let packet = FanPacket::new(origin, world, above);
                 above & !packet::occluded_fan(inputs.bvh, &packet, &path, RAY_T_MAX)
             };
-            let first_sample = packet_index * LANES;
-            bits[first_sample / 32] |= visible << (first_sample % 32);
+            set_run_bits(bits, run, visible);
         }
         rays
     }
@@ -190,6 +189,15 @@ fn normal_lanes(normals: &[glam::Vec3]) -> [[f32; LANES]; 3] {
 /// `x*x' + y*y' + z*z'`, left to right) so that the horizon is the same bit for bit.
 fn above_horizon(normals: &[[f32; LANES]; 3], w: glam::Vec3) -> LaneMask {
     lane_mask(|l| normals[0][l] * w.x + normals[1][l] * w.y + normals[2][l] * w.z > 0.0)
+}
+
+/// Sets the bit of sample `run[lane]` in `bits` for every lane in `lanes`.
+fn set_run_bits(bits: &mut [u32], run: &[u32], mut lanes: LaneMask) {
+    while lanes != 0 {
+        let s = run[lanes.trailing_zeros() as usize] as usize;
+        bits[s / 32] |= 1 << (s % 32);
+        lanes &= lanes - 1;
+    }
 }
 
 /// Sets bit `sample` in the row of every lane in `lanes` (`rows`: one row of `words` per lane).
@@ -490,20 +498,42 @@ impl<F: FnMut(u32, u32, TriangleHit)> packet::Kernel for ClosestFans<'_, '_, '_,
         let origin = inputs.origins[vertex];
         let to_world = inputs.directions_of(vertex);
         let path = inputs.bvh.path_to(origin);
+        // Cast run by run (`SampleSet::fan_runs`), the members of `samples` in each; visited
+        // in the order of `samples`.
+        let set = inputs.samples;
+        let mut wanted = vec![false; set.len()];
+        for &s in samples {
+            wanted[s as usize] = true;
+        }
+        let mut hits: Vec<Option<(u32, TriangleHit)>> = vec![None; set.len()];
         let mut world = [glam::Vec3::ZERO; LANES];
-        for group in samples.chunks(LANES) {
-            for (w, &s) in world.iter_mut().zip(group) {
-                *w = to_world.world(inputs.samples.directions[s as usize]);
+        let mut group = [0u32; LANES];
+        for run in set.fan_runs() {
+            let mut members = 0;
+            for &s in run {
+                group[members] = s;
+                members += wanted[s as usize] as usize;
             }
-            let world = &world[..group.len()];
-            let packet = FanPacket::new(origin, world, crate::packet::ALL_LANES);
+            if members == 0 {
+                continue;
+            }
+            let group = &group[..members];
+            for (w, &s) in world.iter_mut().zip(group) {
+                *w = to_world.world(set.directions[s as usize]);
+            }
+            let packet = FanPacket::new(origin, &world[..members], crate::packet::ALL_LANES);
             let closest = packet::closest_fan(inputs.bvh, &packet, &path, RAY_T_MAX);
             for (lane, &s) in group.iter().enumerate() {
                 if let Some((u, v)) = closest.barycentrics(lane) {
                     let tri = &inputs.bvh.triangles[closest.triangle[lane] as usize];
                     let t = closest.t[lane];
-                    visit(s, tri.source_index, TriangleHit { t, u, v });
+                    hits[s as usize] = Some((tri.source_index, TriangleHit { t, u, v }));
                 }
+            }
+        }
+        for &s in samples {
+            if let Some((triangle, hit)) = hits[s as usize] {
+                visit(s, triangle, hit);
             }
         }
     }

@@ -257,11 +257,7 @@ pub fn depth_maps(
     let owned = &mut inputs.bake;
     let open_depth = depth::open_depth(&owned.bvh);
     // The gather bake's inputs with the grid's directions as a tangent-frame set.
-    let grid_set = SampleSet {
-        directions: grid.directions(),
-        weight: 1.0,
-        frame: DirectionFrame::Tangent,
-    };
+    let grid_set = SampleSet::new(grid.directions(), 1.0, DirectionFrame::Tangent);
     let table = ShTable::new(1, &grid_set.directions);
     let samples = std::mem::replace(&mut owned.samples, grid_set);
     let table = std::mem::replace(&mut owned.table, table);

@@ -1,9 +1,9 @@
 //! Fan packets: rays that share one origin and fan out in up to 16 directions. The CPU bake
 //! casts a tangent-frame set (`DirectionFrame::Tangent`, the cosine set) this way: every vertex
 //! turns the set into its own directions, so no two vertices share a ray direction, but the
-//! rays of one vertex share their origin, and neighbouring samples of the set (which
-//! `sampling::cosine_hemisphere` stores next to each other) leave it through nearly the same
-//! boxes. Worked out once per packet rather than per lane:
+//! rays of one vertex share their origin, and the samples of one run of the set
+//! (`SampleSet::fan_runs`, a small cone) leave it through nearly the same boxes. Worked out
+//! once per packet rather than per lane:
 //!
 //! - the translation of every box plane to the origin, `bound - origin`;
 //! - the translation of every triangle vertex to the origin, `v - origin`.

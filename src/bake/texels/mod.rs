@@ -622,11 +622,11 @@ pub fn fans_from(
     let path = bvh.path_to(origin);
     let to_world = VertexDirections::new(directions.frame, normal);
     let mut world = [Vec3::ZERO; LANES];
-    for group in directions.directions.chunks(LANES) {
-        for (w, &d) in world.iter_mut().zip(group) {
-            *w = to_world.world(d);
+    for run in directions.fan_runs() {
+        for (w, &s) in world.iter_mut().zip(run) {
+            *w = to_world.world(directions.directions[s as usize]);
         }
-        let world = &world[..group.len()];
+        let world = &world[..run.len()];
         cast(&FanPacket::new(origin, world, ALL_LANES), &path, world);
     }
 }

@@ -7,7 +7,9 @@
 //! - `morton disk`: Morton order on the unit disk of Malley's lift, the order the bake uses.
 //!
 //! Every order gives the same transfer up to summation order. Reports rays per wall-second and,
-//! for the GPU (lavapipe runs its threads in this process), per CPU-second.
+//! for the GPU (lavapipe runs its threads in this process), per CPU-second. The CPU casts
+//! runs of samples that `SampleSet::fan_runs` forms by direction, whatever the stored order,
+//! so its figures are the control.
 //!
 //! ```sh
 //! XDG_RUNTIME_DIR=/tmp cargo run --release --example sample_order -- [rounds]
@@ -36,13 +38,14 @@ fn main() {
     let (mesh, _) = prepare(scene::load(&path).expect("dragon")).expect("prepare");
 
     let lattice = cosine_hemisphere_lattice_order(samples, seed);
-    let morton_3d = SampleSet {
-        directions: morton_order(&lattice.directions)
+    let morton_3d = SampleSet::new(
+        morton_order(&lattice.directions)
             .into_iter()
             .map(|i| lattice.directions[i as usize])
             .collect(),
-        ..lattice.clone()
-    };
+        lattice.weight,
+        lattice.frame,
+    );
     let orders = [
         ("lattice", lattice),
         ("morton 3d", morton_3d),

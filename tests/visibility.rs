@@ -203,11 +203,8 @@ fn gpu_escapes(baker: &GpuBaker, bvh: &Bvh, origins: &[Vec3], directions: Vec<Ve
         .flat_map(|_| [Vec3::X, Vec3::NEG_X])
         .collect();
     let cast = directions.iter().filter(|d| d.x != 0.0).count() as u64 * origins.len() as u64;
-    let samples = SampleSet {
-        weight: 4.0 * std::f64::consts::PI / directions.len() as f64,
-        directions,
-        frame: DirectionFrame::World,
-    };
+    let weight = 4.0 * std::f64::consts::PI / directions.len() as f64;
+    let samples = SampleSet::new(directions, weight, DirectionFrame::World);
     let table = ShTable::new(1, &samples.directions);
     let inputs = DirectInputs {
         origins: &doubled,

@@ -164,8 +164,9 @@ pub struct SampleSet {
     fans: Vec<u32>,
 }
 
-/// Samples a CPU fan packet casts together: one per lane.
-pub const FAN_RUN: usize = crate::packet::LANES;
+/// Samples a CPU fan packet casts together: one per lane (`packet::LANES`, held equal where the
+/// two meet, in `bake::cpu`).
+pub const FAN_RUN: usize = 16;
 
 impl SampleSet {
     pub fn new(directions: Vec<Vec3>, weight: f64, frame: DirectionFrame) -> Self {

@@ -18,7 +18,7 @@ use super::bounce::Hit;
 use super::{DirectInputs, Mode, Progress};
 use crate::packet::{self, lane_mask, FanPacket, LaneMask, PacketOrigins, RayPacket, LANES};
 use crate::ray::{Ray, TriangleHit, RAY_T_MAX};
-use crate::sampling::{DirectionFrame, Estimator};
+use crate::sampling::{DirectionFrame, Estimator, FAN_RUN};
 use crate::sh::{coeff_count, unshadowed_transfer};
 
 /// Vertices handed to one rayon task: large enough to amortise scheduling, small enough for
@@ -91,8 +91,9 @@ pub fn trace_visibility_packets(
 }
 
 /// [`trace_visibility`] of one vertex, its samples cast a run at a time
-/// ([`crate::sampling::SampleSet::fan_runs`]) as one fan packet from the vertex. For tangent-frame sets, whose directions no two vertices
-/// share. Returns the number of rays cast, the same count as [`trace_visibility`].
+/// ([`crate::sampling::SampleSet::fan_runs`]) as one fan packet from the vertex. For
+/// tangent-frame sets, whose directions no two vertices share. Returns the number of rays
+/// cast, the same count as [`trace_visibility`].
 pub fn trace_visibility_fans(
     inputs: &DirectInputs,
     mode: Mode,
@@ -133,6 +134,8 @@ impl packet::Kernel for VertexFans<'_, '_, '_> {
         let path = inputs.bvh.path_to(origin);
         let mut rays = 0;
         bits.fill(0);
+        // A run fills one packet.
+        const _: () = assert!(FAN_RUN == LANES);
         let mut world = [glam::Vec3::ZERO; LANES];
         for run in inputs.samples.fan_runs() {
             for (w, &s) in world.iter_mut().zip(run) {

@@ -1,6 +1,7 @@
 // Horizon pass: for each vertex of a chunk, lists the chunk's samples above its horizon
-// (chunk-local indices, ascending), then NO_SAMPLE to the end of its row: the list the
-// visibility pass walks, so that its SIMD groups trace rays rather than idle below the horizon.
+// (chunk-local indices, in the order of the set's fan runs), then NO_SAMPLE to the end of its
+// row: the list the visibility pass walks, so that its SIMD groups trace rays rather than idle
+// below the horizon, and trace neighbouring directions side by side.
 // It also counts the listed samples (the rays a shadowed pass casts), sizes the visibility
 // pass's indirect dispatch to the longest list, and, for a closest-hit pass, writes NO_HIT to
 // the hits of the samples it leaves out, so that the host reads a row's hits without its list.
@@ -37,8 +38,12 @@ struct HorizonParams {
 @group(0) @binding(6) var<storage, read_write> visibility_groups: array<atomic<u32>, 3>;
 // As the visibility pass's `hits`.
 @group(0) @binding(7) var<storage, read_write> hits: array<Hit>;
+// Per sample chunk, its samples (chunk-local indices) in the order of the set's fan runs
+// (`SampleSet::fan_runs`), at [sample_offset + position]; built by
+// bake::gpu::horizon::listing_order.
+@group(0) @binding(8) var<storage, read> listing_order: array<u32>;
 // Declared for wgsl/bvh.wgsl's traversal, which this pass does not call (so it is not bound).
-@group(0) @binding(8) var<storage, read> nodes: array<vec4<u32>>;
+@group(0) @binding(9) var<storage, read> nodes: array<vec4<u32>>;
 
 // Inclusive prefix sums of the workgroup's flags, one per invocation.
 var<workgroup> prefix: array<u32, WORKGROUP_SIZE>;
@@ -57,9 +62,11 @@ fn main(@builtin(local_invocation_index) lane: u32, @builtin(workgroup_id) group
     let row = local_vertex * params.sample_count;
     var count = 0u;
     for (var first = 0u; first < params.sample_count; first += WORKGROUP_SIZE) {
-        let sample = first + lane;
+        let position = first + lane;
+        var sample = 0u;
         var above = false;
-        if (sample < params.sample_count) {
+        if (position < params.sample_count) {
+            sample = listing_order[params.sample_offset + position];
             var direction = directions[params.sample_offset + sample].xyz;
             if (params.frames != 0u) {
                 direction = to_world(frame, direction);

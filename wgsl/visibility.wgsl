@@ -42,7 +42,7 @@ struct VisibilityParams {
 // the listed samples, by the horizon pass (NO_HIT) for the others.
 @group(0) @binding(8) var<storage, read_write> hits: array<Hit>;
 // [local_vertex * sample_count + slot]: the vertex's samples above its horizon (chunk-local
-// indices, ascending), then NO_SAMPLE.
+// indices, in the order of the set's fan runs), then NO_SAMPLE.
 @group(0) @binding(9) var<storage, read> sample_lists: array<u32>;
 
 

@@ -391,6 +391,10 @@ impl RunBuffers {
         let origins = ctx.storage("origins", &as_vec4(inputs.origins));
         let normals = ctx.storage("normals", &as_vec4(inputs.normals));
         let directions = ctx.storage("directions", &as_vec4(&inputs.samples.directions));
+        let listing_order = ctx.storage(
+            "listing order",
+            &horizon::listing_order(inputs.samples, sample_chunk),
+        );
         let sh_table = ctx.storage("sh table", &inputs.table.values);
         let bits = ctx.output(
             "visibility bits",
@@ -422,6 +426,7 @@ impl RunBuffers {
                             &listed,
                             &visibility_groups,
                             &hits,
+                            &listing_order,
                         ],
                     ),
                     baker.bind(

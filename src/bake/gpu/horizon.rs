@@ -5,6 +5,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::sampling::SampleSet;
+
 /// Uniforms of the horizon kernel, 32 bytes; WGSL twin in wgsl/horizon.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -22,6 +24,23 @@ pub struct HorizonParams {
     pub turn_first: u32,
 }
 
+/// The order the horizon pass lists samples in, per chunk of `sample_chunk` samples: at
+/// `sample_offset + position`, the chunk's samples (indices from `sample_offset`) in the order
+/// of the set's fan runs ([`SampleSet::fan_runs`]). A SIMD group of the visibility pass then
+/// traces directions of one small cone, as a CPU fan packet does; the bits and hits it writes
+/// go by sample index, so the order changes no result.
+pub fn listing_order(samples: &SampleSet, sample_chunk: u32) -> Vec<u32> {
+    let chunk = sample_chunk as usize;
+    let mut order = vec![0; samples.len()];
+    let mut listed = vec![0; samples.len().div_ceil(chunk)];
+    for &sample in samples.fan_runs().flatten() {
+        let index = sample as usize / chunk;
+        order[index * chunk + listed[index]] = sample - (index * chunk) as u32;
+        listed[index] += 1;
+    }
+    order
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::*;
@@ -33,26 +52,51 @@ mod tests {
 
     /// The lists as the host built them before the horizon pass: for each vertex of
     /// `vertices`, the samples of `samples` above its horizon by the CPU backend's test, as
-    /// indices from `samples.start`, ascending, padded with NO_SAMPLE to rows of
-    /// `samples.len()`.
+    /// indices from `samples.start`, in the order of the set's fan runs, padded with NO_SAMPLE
+    /// to rows of `samples.len()`.
     fn host_lists(
         inputs: &DirectInputs,
         vertices: Range<usize>,
         samples: Range<usize>,
     ) -> Vec<u32> {
         let width = samples.len();
+        let in_run_order: Vec<usize> = inputs
+            .samples
+            .fan_runs()
+            .flatten()
+            .map(|&s| s as usize)
+            .filter(|s| samples.contains(s))
+            .collect();
         let mut lists = vec![NO_SAMPLE; vertices.len() * width];
         for (row, &normal) in lists.chunks_mut(width).zip(&inputs.normals[vertices]) {
             let to_world = VertexDirections::new(inputs.samples.frame, normal);
-            let above = inputs.samples.directions[samples.clone()]
+            let above = in_run_order
                 .iter()
-                .enumerate()
-                .filter(|(_, &sample)| normal.dot(to_world.world(sample)) > 0.0);
-            for (slot, (s, _)) in row.iter_mut().zip(above) {
-                *slot = s as u32;
+                .filter(|&&s| normal.dot(to_world.world(inputs.samples.directions[s])) > 0.0);
+            for (slot, &s) in row.iter_mut().zip(above) {
+                *slot = (s - samples.start) as u32;
             }
         }
         lists
+    }
+
+    #[test]
+    fn the_listing_order_is_each_chunks_samples_in_run_order() {
+        let set = crate::sampling::cosine_hemisphere(200, 3);
+        let order = super::super::horizon::listing_order(&set, 96);
+        let runs: Vec<u32> = set.fan_runs().flatten().copied().collect();
+        for (index, chunk) in order.chunks(96).enumerate() {
+            let first = index as u32 * 96;
+            let global: Vec<u32> = chunk.iter().map(|&s| first + s).collect();
+            let expected: Vec<u32> = runs
+                .iter()
+                .copied()
+                .filter(|s| (first..first + 96).contains(s))
+                .collect();
+            assert_eq!(global, expected, "chunk {index}");
+        }
+        // Runs cross chunks here, so a chunk's order is not its ascending indices.
+        assert_ne!(order[..96], (0..96).collect::<Vec<u32>>()[..]);
     }
 
     /// The device's lists, counts and indirect workgroup counts against the host's, chunk by

@@ -169,6 +169,8 @@ pub struct SampleSet {
 pub const FAN_RUN: usize = 16;
 
 impl SampleSet {
+    /// `directions` with one quadrature `weight` each, in `frame`; their fan runs are worked
+    /// out here, once for every bake that casts the set.
     pub fn new(directions: Vec<Vec3>, weight: f64, frame: DirectionFrame) -> Self {
         let fans = cone_runs(&directions, FAN_RUN);
         SampleSet {
@@ -180,8 +182,9 @@ impl SampleSet {
     }
 
     /// The samples in runs of up to [`FAN_RUN`] indices, each run a small cone of directions:
-    /// the CPU casts a tangent set one run at a time as a fan packet from each vertex. Every
-    /// sample is in exactly one run; only the last run may be shorter.
+    /// the CPU casts a tangent set one run at a time as a fan packet from each vertex, and the
+    /// GPU's horizon pass lists samples in this order so that a SIMD group traces one cone.
+    /// Every sample is in exactly one run; only the last run may be shorter.
     pub fn fan_runs(&self) -> std::slice::Chunks<'_, u32> {
         debug_assert_eq!(
             self.fans.len(),

@@ -448,10 +448,10 @@ pub fn visibility_bits(inputs: &DirectInputs, mode: Mode) -> Vec<u32> {
 
 /// The closest hits of one vertex's rays along `samples` (indices into the sample set, each
 /// above the horizon), handed to `visit(sample, triangle, hit)` for those that hit something.
-/// Tangent-frame sets are cast [`LANES`] samples at a time as fan packets
-/// ([`packet::closest_fan`]), world sets one ray at a time. Either way a hit is bit for bit the
-/// one of `Bvh::closest_hit`, ties between triangles at one distance included
-/// (`ray::replaces`).
+/// Tangent-frame sets are cast as fan packets ([`packet::closest_fan`]), each the members of
+/// `samples` in one of the set's runs (`SampleSet::fan_runs`), and visited in the order of
+/// `samples`; world sets one ray at a time. Either way a hit is bit for bit the one of
+/// `Bvh::closest_hit`, ties between triangles at one distance included (`ray::replaces`).
 pub fn visit_closest_hits(
     inputs: &DirectInputs,
     vertex: usize,

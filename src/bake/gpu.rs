@@ -351,28 +351,6 @@ struct RunBuffers {
     timer: Option<PassTimer>,
 }
 
-/// The horizon pass's own buffers: the sample lists of `pairs` vertex–sample pairs, its count
-/// of listed samples, the visibility pass's workgroup counts it writes (read by an indirect
-/// dispatch), and its parameters.
-fn horizon_buffers(
-    ctx: &GpuContext,
-    pairs: u64,
-) -> (wgpu::Buffer, wgpu::Buffer, wgpu::Buffer, wgpu::Buffer) {
-    let sample_lists = ctx.output("sample lists", pairs * 4);
-    let listed = ctx.output("samples listed", 8);
-    let visibility_groups = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("visibility workgroups"),
-        size: 12,
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::INDIRECT
-            | wgpu::BufferUsages::COPY_DST
-            | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let horizon_params = ctx.uniform("horizon params", &HorizonParams::default());
-    (sample_lists, listed, visibility_groups, horizon_params)
-}
-
 impl RunBuffers {
     fn new(
         baker: &GpuBaker,
@@ -384,30 +362,24 @@ impl RunBuffers {
         let ctx = &baker.context;
         let inputs = spec.inputs;
         let chunk_words = sample_chunk / 32;
-        let pairs = vertex_chunk as u64 * sample_chunk as u64;
-        let hit_size = std::mem::size_of::<Hit>() as u64;
+        let rows = vertex_chunk as u64;
+        let pairs = rows * sample_chunk as u64;
         let nodes = ctx.storage("bvh nodes", &gpu_bvh.nodes);
         let triangles = ctx.storage("bvh triangles", &gpu_bvh.triangles);
         let origins = ctx.storage("origins", &as_vec4(inputs.origins));
         let normals = ctx.storage("normals", &as_vec4(inputs.normals));
         let directions = ctx.storage("directions", &as_vec4(&inputs.samples.directions));
-        let listing_order = ctx.storage(
-            "listing order",
-            &horizon::listing_order(inputs.samples, sample_chunk),
-        );
         let sh_table = ctx.storage("sh table", &inputs.table.values);
-        let bits = ctx.output(
-            "visibility bits",
-            vertex_chunk as u64 * chunk_words as u64 * 4,
-        );
-        let transfer = ctx.output("transfer", vertex_chunk as u64 * spec.coeffs as u64 * 4);
+        let bits = ctx.output("visibility bits", rows * chunk_words as u64 * 4);
+        let transfer = ctx.output("transfer", rows * spec.coeffs as u64 * 4);
         let exhausted = ctx.output("exhausted rays", 4);
         // Every pair's closest hit; one placeholder where no hit is recorded.
         let hits = ctx.output(
             "hits",
-            hit_size * if spec.record_hits() { pairs } else { 1 },
+            std::mem::size_of::<Hit>() as u64 * if spec.record_hits() { pairs } else { 1 },
         );
-        let (sample_lists, listed, visibility_groups, horizon_params) = horizon_buffers(ctx, pairs);
+        let [sample_lists, listed, visibility_groups, horizon_params, listing_order] =
+            horizon::buffers(ctx, pairs, inputs.samples, sample_chunk);
         let visibility_params = ctx.uniform("visibility params", &VisibilityParams::default());
         let project_params = ctx.uniform("project params", &ProjectParams::default());
 

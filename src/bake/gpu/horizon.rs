@@ -5,6 +5,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::device::GpuContext;
 use crate::sampling::SampleSet;
 
 /// Uniforms of the horizon kernel, 32 bytes; WGSL twin in wgsl/horizon.wgsl.
@@ -39,6 +40,38 @@ pub fn listing_order(samples: &SampleSet, sample_chunk: u32) -> Vec<u32> {
         listed[index] += 1;
     }
     order
+}
+
+/// The horizon pass's own buffers: the sample lists of `pairs` vertex–sample pairs, its count
+/// of listed samples, the visibility pass's workgroup counts it writes (read by an indirect
+/// dispatch), its parameters, and the order it lists the samples of `samples` in, chunks of
+/// `sample_chunk` ([`listing_order`]).
+pub(super) fn buffers(
+    ctx: &GpuContext,
+    pairs: u64,
+    samples: &SampleSet,
+    sample_chunk: u32,
+) -> [wgpu::Buffer; 5] {
+    let sample_lists = ctx.output("sample lists", pairs * 4);
+    let listed = ctx.output("samples listed", 8);
+    let visibility_groups = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("visibility workgroups"),
+        size: 12,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::INDIRECT
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let horizon_params = ctx.uniform("horizon params", &HorizonParams::default());
+    let order = ctx.storage("listing order", &listing_order(samples, sample_chunk));
+    [
+        sample_lists,
+        listed,
+        visibility_groups,
+        horizon_params,
+        order,
+    ]
 }
 
 #[cfg(test)]

@@ -343,7 +343,7 @@ pub fn cosine_hemisphere_lattice_order(count: u32, seed: u64) -> SampleSet {
 /// samples, are cells of a Z-curve on the disk that often join two distant patches; halving
 /// keeps every run together, and a fan packet's walk of the dragon takes 11% fewer steps
 /// (docs/performance.md).
-pub fn cone_runs(directions: &[Vec3], run: usize) -> Vec<u32> {
+fn cone_runs(directions: &[Vec3], run: usize) -> Vec<u32> {
     let mut order: Vec<u32> = (0..directions.len() as u32).collect();
     halve_into_cones(&mut order, directions, run.max(1));
     order
@@ -491,6 +491,16 @@ impl VertexDirections {
             None => d,
             Some([t, b, n]) => t * d.x + b * d.y + n * d.z,
         }
+    }
+
+    /// World directions of the samples `run` of `set` (a fan run), written to the front of
+    /// `out`, which is returned cut to them.
+    #[inline]
+    pub fn world_run<'w>(&self, set: &SampleSet, run: &[u32], out: &'w mut [Vec3]) -> &'w [Vec3] {
+        for (w, &s) in out.iter_mut().zip(run) {
+            *w = self.world(set.directions[s as usize]);
+        }
+        &out[..run.len()]
     }
 }
 

@@ -138,10 +138,7 @@ impl packet::Kernel for VertexFans<'_, '_, '_> {
         const _: () = assert!(FAN_RUN == LANES);
         let mut world = [glam::Vec3::ZERO; LANES];
         for run in inputs.samples.fan_runs() {
-            for (w, &s) in world.iter_mut().zip(run) {
-                *w = to_world.world(inputs.samples.directions[s as usize]);
-            }
-            let world = &world[..run.len()];
+            let world = to_world.world_run(inputs.samples, run, &mut world);
             let above = lane_mask(|l| l < world.len() && normal.dot(world[l]) > 0.0);
             let visible = if mode == Mode::Unshadowed || above == 0 {
                 above
@@ -521,10 +518,8 @@ impl<F: FnMut(u32, u32, TriangleHit)> packet::Kernel for ClosestFans<'_, '_, '_,
                 continue;
             }
             let group = &group[..members];
-            for (w, &s) in world.iter_mut().zip(group) {
-                *w = to_world.world(set.directions[s as usize]);
-            }
-            let packet = FanPacket::new(origin, &world[..members], crate::packet::ALL_LANES);
+            let world = to_world.world_run(set, group, &mut world);
+            let packet = FanPacket::new(origin, world, crate::packet::ALL_LANES);
             let closest = packet::closest_fan(inputs.bvh, &packet, &path, RAY_T_MAX);
             for (lane, &s) in group.iter().enumerate() {
                 if let Some((u, v)) = closest.barycentrics(lane) {

@@ -623,10 +623,7 @@ pub fn fans_from(
     let to_world = VertexDirections::new(directions.frame, normal);
     let mut world = [Vec3::ZERO; LANES];
     for run in directions.fan_runs() {
-        for (w, &s) in world.iter_mut().zip(run) {
-            *w = to_world.world(directions.directions[s as usize]);
-        }
-        let world = &world[..run.len()];
+        let world = to_world.world_run(directions, run, &mut world);
         cast(&FanPacket::new(origin, world, ALL_LANES), &path, world);
     }
 }

@@ -130,11 +130,13 @@ pub fn reach(t: f32) -> f32 {
     t * TIE_REACH
 }
 
-/// Whether a hit at `t` on the triangle at `index` in the BVH's leaf order (`Bvh::triangles`)
-/// replaces the closest hit so far, at `best_t` on `best_index`: it is nearer, or as near and
-/// first in leaf order. Where a ray meets two triangles at one distance (on an edge they share,
-/// or on coincident faces, common in CAD models) every traversal, the CPU's single rays and
-/// packets and the GPU's, then keeps the same one. WGSL twin `replaces` in wgsl/bvh.wgsl.
+/// Whether a hit at `t` on the triangle at `index` in the scene's triangle list replaces the
+/// closest hit so far, at `best_t` on `best_index`: it is nearer, or as near and first in the
+/// scene's list. Where a ray meets two triangles at one distance (on an edge they share, or on
+/// coincident faces, common in CAD models) every traversal, the CPU's single rays and packets
+/// and the GPU's, then keeps the same one, whatever tree they walk: the scene's order, not the
+/// tree's leaf order, settles the tie, so a better tree changes no answer. WGSL twin
+/// `replaces` in wgsl/bvh.wgsl.
 pub fn replaces(t: f32, index: u32, best_t: f32, best_index: u32) -> bool {
     t < best_t || (t == best_t && index < best_index)
 }

@@ -240,7 +240,7 @@ fn box_max(q: vec3<u32>, grid: BoxGrid) -> vec3<f32> {
 // lie on `grid` (declared by the kernel that includes this file). Rust twin: Bvh::traverse,
 // whose answers it gives on the binary tree this one was collapsed from (with exact instead of
 // grid-rounded boxes): every triangle the CPU tests is tested here, and of triangles at one
-// distance the closest-hit query keeps the first in leaf order (`replaces`), as every CPU
+// distance the closest-hit query keeps the first in the scene (`replaces`), as every CPU
 // traversal does, whatever order the four-wide steps make it meet them in.
 // Every loop iteration counts against `max_steps`: llvmpipe silently ends any invocation's loops
 // after 65,535 iterations in total, so a traversal that could come near that reports itself
@@ -254,7 +254,7 @@ fn box_max(q: vec3<u32>, grid: BoxGrid) -> vec3<f32> {
 fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) -> Trace {
     var result = Trace(false, false, NO_HIT, 0.0, 0.0);
     // The closest hit so far, its barycentrics divided out when the traversal ends, and its
-    // triangle's position in leaf order (for ties, `replaces`).
+    // triangle's index in the scene (for ties, `replaces`).
     var closest = TriangleHit(t_max_in, 0.0, 0.0, 1.0);
     var closest_index = NO_HIT;
     // Where the ray ends for the triangle tests, just past the closest hit once there is one,
@@ -286,11 +286,11 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) 
                 let w1 = triangles[3u * i + 1u];
                 let w2 = triangles[3u * i + 2u];
                 let hit = intersect_triangle(ray, bitcast<vec3<f32>>(w0.xyz), bitcast<vec3<f32>>(w1.xyz), bitcast<vec3<f32>>(w2.xyz), 0.0, t_max, !any_hit);
-                if (hit.t >= 0.0 && (any_hit || replaces(hit.t, i, closest.t, closest_index))) {
+                if (hit.t >= 0.0 && (any_hit || replaces(hit.t, w0.w, closest.t, closest_index))) {
                     result.hit = true;
                     result.triangle = w0.w;
                     closest = hit;
-                    closest_index = i;
+                    closest_index = w0.w;
                     if (any_hit) {
                         return result;
                     }
@@ -360,8 +360,8 @@ fn reach(t: f32) -> f32 {
     return t * TIE_REACH;
 }
 
-// Whether a hit at t on the triangle at `index` in leaf order replaces the closest so far:
-// nearer, or as near and first in leaf order; Rust twin: ray::replaces.
+// Whether a hit at t on the triangle at `index` in the scene replaces the closest so far:
+// nearer, or as near and first in the scene; Rust twin: ray::replaces.
 fn replaces(t: f32, index: u32, best_t: f32, best_index: u32) -> bool {
     return t < best_t || (t == best_t && index < best_index);
 }

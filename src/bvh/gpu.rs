@@ -50,7 +50,7 @@ const _: () = assert!(std::mem::size_of::<GpuNode>() == 64);
 /// on a grid whose step is a power of two and whose points `grid_origin + q * grid_step` are
 /// all exact f32 values, rounded outwards: every box holds its exact box, so the kernel tests
 /// every triangle the CPU tests (and perhaps a few more, which cannot change an answer). Of
-/// triangles at one distance both keep the first in leaf order (`ray::replaces`), so the
+/// triangles at one distance both keep the first in the scene (`ray::replaces`), so the
 /// order a traversal meets them in cannot change a closest hit either.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GpuBvh {
@@ -253,9 +253,9 @@ mod tests {
                     let [v0, v1, v2] = t.vertices();
                     if let Some(hit) = intersect_triangle(ray, v0, v1, v2, 0.0, t_max) {
                         let best_t = best.map_or(RAY_T_MAX, |b: (u32, f32)| b.1);
-                        if any_hit || replaces(hit.t, i as u32, best_t, best_index) {
+                        if any_hit || replaces(hit.t, t.source_index, best_t, best_index) {
                             best = Some((t.source_index, hit.t));
-                            best_index = i as u32;
+                            best_index = t.source_index;
                             if any_hit {
                                 return best;
                             }

@@ -273,7 +273,7 @@ impl Bvh {
     /// Any-hit query: does anything block the ray on `(0, t_max)`?
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         let mut hit = false;
-        self.traverse(ray, t_max, |_, _, _| {
+        self.traverse(ray, t_max, |_, _| {
             hit = true;
             (true, 0.0, 0.0)
         });
@@ -281,30 +281,29 @@ impl Bvh {
     }
 
     /// Closest-hit query: the nearest triangle (scene index) on `(0, t_max)` and where it is hit;
-    /// of triangles at the same distance, the first in leaf order ([`crate::ray::replaces`]).
+    /// of triangles at the same distance, the first in the scene ([`crate::ray::replaces`]).
     pub fn closest_hit(&self, ray: &Ray, t_max: f32) -> Option<(u32, TriangleHit)> {
-        // (leaf-order index, scene index, hit)
-        let mut best: Option<(u32, u32, TriangleHit)> = None;
-        self.traverse(ray, t_max, |index, triangle, hit| {
+        let mut best: Option<(u32, TriangleHit)> = None;
+        self.traverse(ray, t_max, |triangle, hit| {
             let closest = match best {
-                Some((i, _, b)) if !replaces(hit.t, index, b.t, i) => b.t,
+                Some((i, b)) if !replaces(hit.t, triangle, b.t, i) => b.t,
                 _ => {
-                    best = Some((index, triangle, hit));
+                    best = Some((triangle, hit));
                     hit.t
                 }
             };
             (false, past(closest), reach(closest))
         });
-        best.map(|(_, triangle, hit)| (triangle, hit))
+        best
     }
 
-    /// Stack traversal shared by both queries. `on_hit(leaf-order index, scene index, hit)`
+    /// Stack traversal shared by both queries. `on_hit(scene index, hit)`
     /// returns (stop, new t_max of the triangle tests, new t_max of the box tests).
     fn traverse(
         &self,
         ray: &Ray,
         mut t_max: f32,
-        mut on_hit: impl FnMut(u32, u32, TriangleHit) -> (bool, f32, f32),
+        mut on_hit: impl FnMut(u32, TriangleHit) -> (bool, f32, f32),
     ) {
         let mut box_t_max = t_max;
         let Some(root) = self.nodes.first() else {
@@ -318,13 +317,12 @@ impl Bvh {
         let mut node = root;
         loop {
             if node.is_leaf() {
-                let first = node.left_or_first;
-                let leaf = &self.triangles[first as usize..][..node.triangle_count as usize];
-                for (index, tri) in (first..).zip(leaf) {
+                let first = node.left_or_first as usize;
+                for tri in &self.triangles[first..][..node.triangle_count as usize] {
                     let [v0, v1, v2] = tri.vertices();
                     if let Some(hit) = intersect_triangle(ray, v0, v1, v2, 0.0, t_max) {
                         let stop;
-                        (stop, t_max, box_t_max) = on_hit(index, tri.source_index, hit);
+                        (stop, t_max, box_t_max) = on_hit(tri.source_index, hit);
                         if stop {
                             return;
                         }
@@ -642,9 +640,52 @@ mod tests {
             .all(|n| n.triangle_count <= MAX_LEAF_TRIANGLES));
         let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z);
         assert!(bvh.occluded(&ray, f32::INFINITY));
-        // All 100 at one distance: the closest is the first in leaf order.
+        // All 100 at one distance: the closest is the first in the scene.
         let (triangle, _) = bvh.closest_hit(&ray, f32::INFINITY).unwrap();
-        assert_eq!(triangle, bvh.triangles[0].source_index);
+        assert_eq!(triangle, 0);
+    }
+
+    #[test]
+    fn ties_go_to_the_first_triangle_of_the_scene_whatever_the_leaf_order() {
+        // A strip of 16 unit squares along x in the plane z = 0, listed from +x to -x, so that
+        // the build, which puts lower centroids left, stores them the other way round. A ray
+        // down onto the edge two squares share meets a triangle of each at t = 1 exactly: the
+        // direction's z is -1, so every sheared z is 1 and t is det / det, and the edge's two
+        // corners shear to x = 0, so the edge function is 0 in both triangles. (The direction
+        // leans in x because a zero component is taken as a tiny one by the box test, which
+        // then passes by the boxes whose face the ray runs in.)
+        let squares = 16u32;
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for square in (0..squares).rev() {
+            let x = square as f32;
+            let first = positions.len() as u32;
+            positions.extend(
+                [(x, 0.0), (x + 1.0, 0.0), (x + 1.0, 1.0), (x, 1.0)]
+                    .map(|(x, y)| Vec3::new(x, y, 0.0)),
+            );
+            // The first holds the square's right edge, the second its left edge.
+            triangles.push([first, first + 1, first + 2]);
+            triangles.push([first, first + 2, first + 3]);
+        }
+        let bvh = Bvh::build(&positions, &triangles);
+        let leaf_order: Vec<u32> = bvh.triangles.iter().map(|t| t.source_index).collect();
+        assert!(
+            leaf_order.windows(2).any(|w| w[0] > w[1]),
+            "the test needs a leaf order other than the scene's: {leaf_order:?}"
+        );
+        for edge in 1..squares {
+            let ray = Ray::new(
+                Vec3::new(edge as f32 - 0.5, 0.3, 1.0),
+                Vec3::new(0.5, 0.0, -1.0),
+            );
+            let (triangle, hit) = bvh.closest_hit(&ray, f32::INFINITY).unwrap();
+            assert_eq!(hit.t, 1.0);
+            // The left edge of square `edge` (listed earlier) and the right edge of the square
+            // before it.
+            let left_edge_of_square = 2 * (squares - 1 - edge) + 1;
+            assert_eq!(triangle, left_edge_of_square, "edge {edge}");
+        }
     }
 
     #[test]

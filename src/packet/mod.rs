@@ -172,9 +172,15 @@ trait Query {
     fn limit(&self) -> Self::Limit<'_>;
     /// The far end of each lane's box tests.
     fn box_limit(&self) -> Self::Limit<'_>;
-    /// Keeps the hits of `lanes` on triangle `index` (of `Bvh::triangles`), as `hits` holds
-    /// them; returns the lanes that are done.
-    fn record(&mut self, lanes: LaneMask, index: u32, hits: &LaneHits) -> LaneMask;
+    /// Keeps the hits of `lanes` on triangle `index` of `Bvh::triangles`, `tri`, as `hits`
+    /// holds them; returns the lanes that are done.
+    fn record(
+        &mut self,
+        lanes: LaneMask,
+        index: u32,
+        tri: &BvhTriangle,
+        hits: &LaneHits,
+    ) -> LaneMask;
 }
 
 /// Any hit on `(0, t_max)` blocks a lane, which is then done.
@@ -194,7 +200,13 @@ impl Query for Blocked {
         self.t_max
     }
     #[inline(always)]
-    fn record(&mut self, lanes: LaneMask, _index: u32, _hits: &LaneHits) -> LaneMask {
+    fn record(
+        &mut self,
+        lanes: LaneMask,
+        _index: u32,
+        _tri: &BvhTriangle,
+        _hits: &LaneHits,
+    ) -> LaneMask {
         self.blocked |= lanes;
         lanes
     }
@@ -207,6 +219,8 @@ pub struct ClosestHits {
     pub t: Lanes,
     /// Index in `Bvh::triangles` (leaf order) of the triangle hit, or `NO_HIT`.
     pub triangle: [u32; LANES],
+    /// Index in the scene of the triangle hit, or `NO_HIT`: what settles ties.
+    source: [u32; LANES],
     /// The nearest hit's edge functions of corners 1 and 2 and their sum (`LaneHits`).
     edges: [[f32; 3]; LANES],
     /// Where each lane's ray ends: `ray::past` its nearest hit, `t_max` before one.
@@ -238,6 +252,7 @@ impl ClosestHits {
         ClosestHits {
             t: [t_max; LANES],
             triangle: [NO_HIT; LANES],
+            source: [NO_HIT; LANES],
             edges: [[0.0; 3]; LANES],
             limit: [t_max; LANES],
             box_limit: [t_max; LANES],
@@ -256,14 +271,22 @@ impl Query for ClosestHits {
         &self.box_limit
     }
     #[inline(always)]
-    fn record(&mut self, mut lanes: LaneMask, index: u32, hits: &LaneHits) -> LaneMask {
+    fn record(
+        &mut self,
+        mut lanes: LaneMask,
+        index: u32,
+        tri: &BvhTriangle,
+        hits: &LaneHits,
+    ) -> LaneMask {
+        let source = tri.source_index;
         while lanes != 0 {
             let lane = lanes.trailing_zeros() as usize;
             lanes &= lanes - 1;
             let t = hits.t[lane];
-            if replaces(t, index, self.t[lane], self.triangle[lane]) {
+            if replaces(t, source, self.t[lane], self.source[lane]) {
                 self.t[lane] = t;
                 self.triangle[lane] = index;
+                self.source[lane] = source;
                 self.edges[lane] = [hits.v[lane], hits.w[lane], hits.det[lane]];
                 self.limit[lane] = past(t);
                 self.box_limit[lane] = reach(t);
@@ -355,7 +378,7 @@ fn traverse<P: Packet, I: Isa, Q: Query>(bvh: &Bvh, packet: &P, path: &PointPath
             for (index, tri) in (first..).zip(leaf) {
                 let hits = packet.triangle_lanes::<I>(tri, lanes, query.limit(), &mut hits_at);
                 if hits != 0 {
-                    let done = query.record(hits, index, &hits_at);
+                    let done = query.record(hits, index, tri, &hits_at);
                     open &= !done;
                     lanes &= !done;
                     if open == 0 {

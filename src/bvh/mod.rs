@@ -81,10 +81,11 @@ const BINS: usize = 16;
 const MAX_LEAF_TRIANGLES: u32 = 4;
 /// Cost of one traversal step (two child boxes) in units of one triangle test, for the SAH.
 /// At 0 nearly every node of two triangles split, leaving one-triangle leaves and twice the
-/// interior nodes to walk through; 1 keeps small clusters of triangles whose boxes overlap in
-/// one leaf. Measured on the dragon: the CPU packet traversal 15% faster (CPU time), single
-/// rays 4% faster.
-const TRAVERSAL_COST: f32 = 1.0;
+/// interior nodes to walk through; higher values keep small clusters of triangles whose boxes
+/// overlap in one leaf (never more than `MAX_LEAF_TRIANGLES`). 1 made the CPU packet
+/// traversal 15% faster than 0 on the dragon; 3, once ties between triangles no longer
+/// depended on the tree, about 2–5% faster again (docs/performance.md).
+const TRAVERSAL_COST: f32 = 3.0;
 
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Bvh {

@@ -253,10 +253,9 @@ fn box_max(q: vec3<u32>, grid: BoxGrid) -> vec3<f32> {
 // them without branches, and a leaf's triangles are read as three vec4 each.
 fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) -> Trace {
     var result = Trace(false, false, NO_HIT, 0.0, 0.0);
-    // The closest hit so far, its barycentrics divided out when the traversal ends, and its
-    // triangle's index in the scene (for ties, `replaces`).
+    // The closest hit so far, its barycentrics divided out when the traversal ends; its
+    // triangle's index in the scene, which settles ties (`replaces`), is `result.triangle`.
     var closest = TriangleHit(t_max_in, 0.0, 0.0, 1.0);
-    var closest_index = NO_HIT;
     // Where the ray ends for the triangle tests, just past the closest hit once there is one,
     // and for the box tests, a little farther (`reach`).
     var t_max = t_max_in;
@@ -286,11 +285,10 @@ fn trace(ray: Ray, t_max_in: f32, max_steps: u32, any_hit: bool, grid: BoxGrid) 
                 let w1 = triangles[3u * i + 1u];
                 let w2 = triangles[3u * i + 2u];
                 let hit = intersect_triangle(ray, bitcast<vec3<f32>>(w0.xyz), bitcast<vec3<f32>>(w1.xyz), bitcast<vec3<f32>>(w2.xyz), 0.0, t_max, !any_hit);
-                if (hit.t >= 0.0 && (any_hit || replaces(hit.t, w0.w, closest.t, closest_index))) {
+                if (hit.t >= 0.0 && (any_hit || replaces(hit.t, w0.w, closest.t, result.triangle))) {
                     result.hit = true;
                     result.triangle = w0.w;
                     closest = hit;
-                    closest_index = w0.w;
                     if (any_hit) {
                         return result;
                     }

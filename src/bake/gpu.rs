@@ -331,14 +331,9 @@ struct RunBuffers {
     transfer: wgpu::Buffer,
     exhausted: wgpu::Buffer,
     hits: wgpu::Buffer,
-    /// Held for the tests, which read the lists back (the bind groups hold it for the passes).
-    #[cfg_attr(not(test), allow(dead_code))]
-    sample_lists: wgpu::Buffer,
-    /// (low, high) words of the samples the horizon pass listed in the run.
-    listed: wgpu::Buffer,
-    /// The visibility pass's workgroup counts, written by the horizon pass.
-    visibility_groups: wgpu::Buffer,
-    horizon_params: wgpu::Buffer,
+    /// The horizon pass's buffers; the visibility pass reads its sample lists and is sized
+    /// by its workgroup counts.
+    horizon: horizon::HorizonBuffers,
     visibility_params: wgpu::Buffer,
     project_params: wgpu::Buffer,
     horizon_group: wgpu::BindGroup,
@@ -378,8 +373,7 @@ impl RunBuffers {
             "hits",
             std::mem::size_of::<Hit>() as u64 * if spec.record_hits() { pairs } else { 1 },
         );
-        let [sample_lists, listed, visibility_groups, horizon_params, listing_order] =
-            horizon::buffers(ctx, pairs, inputs.samples, sample_chunk);
+        let horizon = horizon::buffers(ctx, pairs, inputs.samples, sample_chunk);
         let visibility_params = ctx.uniform("visibility params", &VisibilityParams::default());
         let project_params = ctx.uniform("project params", &ProjectParams::default());
 
@@ -390,15 +384,15 @@ impl RunBuffers {
                         "horizon",
                         &baker.horizon,
                         &[
-                            &horizon_params,
+                            &horizon.params,
                             &triangles,
                             &normals,
                             &directions,
-                            &sample_lists,
-                            &listed,
-                            &visibility_groups,
+                            &horizon.sample_lists,
+                            &horizon.listed,
+                            &horizon.visibility_groups,
                             &hits,
-                            &listing_order,
+                            &horizon.listing_order,
                         ],
                     ),
                     baker.bind(
@@ -414,7 +408,7 @@ impl RunBuffers {
                             &bits,
                             &exhausted,
                             &hits,
-                            &sample_lists,
+                            &horizon.sample_lists,
                         ],
                     ),
                     baker.bind(
@@ -436,10 +430,7 @@ impl RunBuffers {
             transfer,
             exhausted,
             hits,
-            sample_lists,
-            listed,
-            visibility_groups,
-            horizon_params,
+            horizon,
             visibility_params,
             project_params,
             horizon_group,
@@ -475,10 +466,10 @@ impl RunBuffers {
             turn_first: turns.first,
         };
         ctx.queue
-            .write_buffer(&self.horizon_params, 0, bytemuck::bytes_of(&horizon));
+            .write_buffer(&self.horizon.params, 0, bytemuck::bytes_of(&horizon));
         // The horizon pass raises x to the longest list's workgroups.
         ctx.queue.write_buffer(
-            &self.visibility_groups,
+            &self.horizon.visibility_groups,
             0,
             bytemuck::cast_slice(&[0, chunk.vertices, 1]),
         );
@@ -557,7 +548,7 @@ impl RunBuffers {
         encode_timed_pass(
             encoder,
             ("visibility", &baker.visibility, &self.visibility_group),
-            Dispatch::Indirect(&self.visibility_groups),
+            Dispatch::Indirect(&self.horizon.visibility_groups),
             writes(1),
         );
         encode_timed_pass(
@@ -573,7 +564,7 @@ impl RunBuffers {
 
     /// The samples the horizon pass listed over the run: the rays a shadowed run cast.
     fn samples_listed(&self, ctx: &GpuContext) -> Result<u64> {
-        let words: Vec<u32> = ctx.read_back(&self.listed, 8)?;
+        let words: Vec<u32> = ctx.read_back(&self.horizon.listed, 8)?;
         Ok(words[0] as u64 | (words[1] as u64) << 32)
     }
 

@@ -241,7 +241,6 @@ mod tests {
         let mut t_max = RAY_T_MAX;
         let mut box_t_max = RAY_T_MAX;
         let mut best = None;
-        let mut best_index = NO_HIT;
         let mut stack = Vec::new();
         let mut node = 0u32;
         loop {
@@ -252,10 +251,9 @@ mod tests {
                     let t = &g.triangles[i];
                     let [v0, v1, v2] = t.vertices();
                     if let Some(hit) = intersect_triangle(ray, v0, v1, v2, 0.0, t_max) {
-                        let best_t = best.map_or(RAY_T_MAX, |b: (u32, f32)| b.1);
+                        let (best_index, best_t) = best.unwrap_or((NO_HIT, RAY_T_MAX));
                         if any_hit || replaces(hit.t, t.source_index, best_t, best_index) {
                             best = Some((t.source_index, hit.t));
-                            best_index = t.source_index;
                             if any_hit {
                                 return best;
                             }

@@ -172,15 +172,9 @@ trait Query {
     fn limit(&self) -> Self::Limit<'_>;
     /// The far end of each lane's box tests.
     fn box_limit(&self) -> Self::Limit<'_>;
-    /// Keeps the hits of `lanes` on triangle `index` of `Bvh::triangles`, `tri`, as `hits`
-    /// holds them; returns the lanes that are done.
-    fn record(
-        &mut self,
-        lanes: LaneMask,
-        index: u32,
-        tri: &BvhTriangle,
-        hits: &LaneHits,
-    ) -> LaneMask;
+    /// Keeps the hits of `lanes` on triangle `index` of `Bvh::triangles`, `source` in the
+    /// scene, as `hits` holds them; returns the lanes that are done.
+    fn record(&mut self, lanes: LaneMask, index: u32, source: u32, hits: &LaneHits) -> LaneMask;
 }
 
 /// Any hit on `(0, t_max)` blocks a lane, which is then done.
@@ -200,13 +194,7 @@ impl Query for Blocked {
         self.t_max
     }
     #[inline(always)]
-    fn record(
-        &mut self,
-        lanes: LaneMask,
-        _index: u32,
-        _tri: &BvhTriangle,
-        _hits: &LaneHits,
-    ) -> LaneMask {
+    fn record(&mut self, lanes: LaneMask, _index: u32, _source: u32, _hits: &LaneHits) -> LaneMask {
         self.blocked |= lanes;
         lanes
     }
@@ -275,10 +263,9 @@ impl Query for ClosestHits {
         &mut self,
         mut lanes: LaneMask,
         index: u32,
-        tri: &BvhTriangle,
+        source: u32,
         hits: &LaneHits,
     ) -> LaneMask {
-        let source = tri.source_index;
         while lanes != 0 {
             let lane = lanes.trailing_zeros() as usize;
             lanes &= lanes - 1;
@@ -378,7 +365,7 @@ fn traverse<P: Packet, I: Isa, Q: Query>(bvh: &Bvh, packet: &P, path: &PointPath
             for (index, tri) in (first..).zip(leaf) {
                 let hits = packet.triangle_lanes::<I>(tri, lanes, query.limit(), &mut hits_at);
                 if hits != 0 {
-                    let done = query.record(hits, index, tri, &hits_at);
+                    let done = query.record(hits, index, tri.source_index, &hits_at);
                     open &= !done;
                     lanes &= !done;
                     if open == 0 {

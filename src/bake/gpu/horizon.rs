@@ -42,18 +42,29 @@ pub fn listing_order(samples: &SampleSet, sample_chunk: u32) -> Vec<u32> {
     order
 }
 
-/// The horizon pass's own buffers: the sample lists of `pairs` vertex–sample pairs, its count
-/// of listed samples, the visibility pass's workgroup counts it writes (read by an indirect
-/// dispatch), its parameters, and the order it lists the samples of `samples` in, chunks of
-/// `sample_chunk` ([`listing_order`]).
+/// The horizon pass's own buffers.
+pub(super) struct HorizonBuffers {
+    /// The sample lists of every vertex–sample pair of a chunk (read back by the tests; the
+    /// bind groups hold it for the passes).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub sample_lists: wgpu::Buffer,
+    /// (low, high) words of the samples listed in the run.
+    pub listed: wgpu::Buffer,
+    /// The visibility pass's workgroup counts, which the pass writes for an indirect dispatch.
+    pub visibility_groups: wgpu::Buffer,
+    pub params: wgpu::Buffer,
+    /// The order it lists samples in ([`listing_order`]).
+    pub listing_order: wgpu::Buffer,
+}
+
+/// [`HorizonBuffers`] for `pairs` vertex–sample pairs of `samples` in chunks of
+/// `sample_chunk`.
 pub(super) fn buffers(
     ctx: &GpuContext,
     pairs: u64,
     samples: &SampleSet,
     sample_chunk: u32,
-) -> [wgpu::Buffer; 5] {
-    let sample_lists = ctx.output("sample lists", pairs * 4);
-    let listed = ctx.output("samples listed", 8);
+) -> HorizonBuffers {
     let visibility_groups = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("visibility workgroups"),
         size: 12,
@@ -63,15 +74,13 @@ pub(super) fn buffers(
             | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
-    let horizon_params = ctx.uniform("horizon params", &HorizonParams::default());
-    let order = ctx.storage("listing order", &listing_order(samples, sample_chunk));
-    [
-        sample_lists,
-        listed,
+    HorizonBuffers {
+        sample_lists: ctx.output("sample lists", pairs * 4),
+        listed: ctx.output("samples listed", 8),
         visibility_groups,
-        horizon_params,
-        order,
-    ]
+        params: ctx.uniform("horizon params", &HorizonParams::default()),
+        listing_order: ctx.storage("listing order", &listing_order(samples, sample_chunk)),
+    }
 }
 
 #[cfg(test)]
@@ -178,7 +187,7 @@ mod tests {
                         range(chunk.sample_offset, chunk.samples),
                     );
                     let lists: Vec<u32> = ctx
-                        .read_back(&buffers.sample_lists, expected.len() as u64 * 4)
+                        .read_back(&buffers.horizon.sample_lists, expected.len() as u64 * 4)
                         .unwrap();
                     assert_eq!(lists, expected, "{sampling:?}, chunk {chunk:?}");
                     let rows = expected.chunks(chunk.samples as usize);
@@ -187,7 +196,9 @@ mod tests {
                         .map(|row| row.iter().take_while(|&&s| s != NO_SAMPLE).count())
                         .max()
                         .unwrap() as u32;
-                    let groups: Vec<u32> = ctx.read_back(&buffers.visibility_groups, 12).unwrap();
+                    let groups: Vec<u32> = ctx
+                        .read_back(&buffers.horizon.visibility_groups, 12)
+                        .unwrap();
                     assert_eq!(
                         groups,
                         [longest.div_ceil(WORKGROUP_SIZE), chunk.vertices, 1]

@@ -608,8 +608,9 @@ pub fn leaking_or_covered_in(
 
 /// Casts the tangent-frame set `directions` about receiver `r`'s normal from its ray origin
 /// in `bvh`'s scene, a run at a time (`SampleSet::fan_runs`, at most [`LANES`]): `cast` gets
-/// each fan packet, the tree's path to its origin and its world directions. The rays share their origin, so fan packets, whose hits
-/// are those of single rays bit for bit, at three to four times their speed.
+/// each fan packet, the tree's path to its origin and its world directions. The rays share
+/// their origin, so fan packets, whose hits are those of single rays bit for bit, at three to
+/// four times their speed.
 pub fn fans_from(
     bvh: &Bvh,
     receivers: &Receivers,

@@ -1,20 +1,21 @@
 //! The top eigenvectors of a symmetric positive semi-definite matrix (a cluster's covariance).
 //!
-//! Small problems are diagonalised whole by cyclic Jacobi rotations: simple, accurate to
-//! rounding and with orthonormal eigenvectors by construction. Large ones (a 768-dimensional
+//! Small problems are diagonalised whole: Householder reduction to a tridiagonal matrix, then
+//! implicit QR steps with Wilkinson's shift. Large ones (a 768-dimensional
 //! covariance of which only the top 8 directions are wanted) use subspace iteration with
 //! Rayleigh–Ritz: a block a little wider than the directions wanted is multiplied by the
 //! matrix, re-orthonormalised and rotated onto the Ritz vectors of the block's small projected
-//! matrix (diagonalised by Jacobi) until every wanted Ritz pair has a small residual. Its cost
-//! per step is `n^2 p` instead of Jacobi's `n^3` per sweep, and a warm start (the previous
+//! matrix (diagonalised whole) until every wanted Ritz pair has a small residual. Its cost
+//! per step is `n^2 p` instead of the whole diagonalisation's `n^3`, and a warm start (the previous
 //! CPCA round's basis) usually converges in a step or two.
 //!
 //! Everything is sequential f64 in a fixed order, so the result is a function of the input.
 
 use crate::sampling::Pcg32;
 
-/// Jacobi sweeps before giving up; cyclic Jacobi converges quadratically, in well under 20.
-const MAX_SWEEPS: usize = 50;
+/// Implicit QR steps per eigenvalue before giving up; with Wilkinson's shift an eigenvalue
+/// typically deflates in two or three.
+const MAX_STEPS_PER_VALUE: usize = 30;
 /// Subspace-iteration steps before settling for the block reached (still a valid orthonormal
 /// basis, only not the optimal one; the caller keeps the better of it and its previous basis).
 const MAX_STEPS: usize = 300;
@@ -26,29 +27,25 @@ const RESIDUAL_TOLERANCE: f64 = 1e-10;
 const BLOCK_SEED: u64 = 0x5eed_c0de_cafe;
 
 /// Eigenvalues (descending) and eigenvectors (`vectors[i * n..(i + 1) * n]` belongs to
-/// `values[i]`) of the symmetric `n x n` row-major matrix `a`, by cyclic Jacobi rotations.
+/// `values[i]`) of the symmetric `n x n` row-major matrix `a`: Householder reflections reduce it
+/// to a tridiagonal `T = Q^T A Q`, and implicit QR steps with Wilkinson's shift diagonalise `T`,
+/// their rotations gathered into `Q` (Golub & Van Loan, "Matrix Computations", 8.3). About
+/// `7 n^3` operations where cyclic Jacobi took `6 n^3` per sweep and four or five sweeps.
 pub fn symmetric_eigen(a: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
-    let mut a = a.to_vec();
-    // Columns of `v` collect the rotations: A = V diag V^T.
-    let mut v = identity(n);
-    for _ in 0..MAX_SWEEPS {
-        if off_diagonal_is_negligible(&a, n) {
-            break;
-        }
-        for p in 0..n {
-            for q in p + 1..n {
-                rotate(&mut a, &mut v, n, p, q);
-            }
-        }
-    }
+    let Tridiagonal {
+        mut diagonal,
+        mut off_diagonal,
+        mut basis,
+    } = tridiagonalize(a, n);
+    diagonalize_tridiagonal(&mut diagonal, &mut off_diagonal, &mut basis, n);
     let mut order: Vec<usize> = (0..n).collect();
     // Stable sort by descending eigenvalue; total_cmp keeps it a total order even for NaN.
-    order.sort_by(|&i, &j| a[j * n + j].total_cmp(&a[i * n + i]));
-    let values = order.iter().map(|&i| a[i * n + i]).collect();
+    order.sort_by(|&i, &j| diagonal[j].total_cmp(&diagonal[i]));
+    let values = order.iter().map(|&i| diagonal[i]).collect();
     let vectors = order
         .iter()
         .flat_map(|&i| (0..n).map(move |r| (r, i)))
-        .map(|(r, i)| v[r * n + i])
+        .map(|(r, i)| basis[r * n + i])
         .collect();
     (values, vectors)
 }
@@ -59,48 +56,147 @@ fn identity(n: usize) -> Vec<f64> {
     m
 }
 
-/// Converged when the off-diagonal mass is below rounding relative to the diagonal's.
-fn off_diagonal_is_negligible(a: &[f64], n: usize) -> bool {
-    let (mut off, mut diagonal) = (0.0, 0.0);
-    for p in 0..n {
-        diagonal += a[p * n + p] * a[p * n + p];
-        for q in p + 1..n {
-            off += a[p * n + q] * a[p * n + q];
-        }
-    }
-    off <= 1e-30 * diagonal || off == 0.0
+/// `A = Q T Q^T` with `T` tridiagonal.
+struct Tridiagonal {
+    diagonal: Vec<f64>,
+    /// `off_diagonal[i]` is `T[i][i + 1]`; the last entry is unused (0).
+    off_diagonal: Vec<f64>,
+    /// `Q`, row-major: its columns are the basis `T` is expressed in.
+    basis: Vec<f64>,
 }
 
-/// One Jacobi rotation in the (p, q) plane that zeroes `a[p][q]`: `A <- J^T A J`, `V <- V J`.
-fn rotate(a: &mut [f64], v: &mut [f64], n: usize, p: usize, q: usize) {
-    let apq = a[p * n + q];
-    if apq == 0.0 {
-        return;
-    }
-    // theta = cot(2 phi); t = tan(phi), the smaller root of t^2 + 2 t theta - 1 = 0, keeps the
-    // rotation below 45 degrees, which is what makes the sweeps converge.
-    let theta = (a[q * n + q] - a[p * n + p]) / (2.0 * apq);
-    let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-    let c = 1.0 / (t * t + 1.0).sqrt();
-    let s = t * c;
-    for r in 0..n {
-        if r != p && r != q {
-            let (arp, arq) = (a[r * n + p], a[r * n + q]);
-            let (new_p, new_q) = (c * arp - s * arq, s * arp + c * arq);
-            a[r * n + p] = new_p;
-            a[p * n + r] = new_p;
-            a[r * n + q] = new_q;
-            a[q * n + r] = new_q;
+/// Householder reduction: column `k` below the subdiagonal is reflected onto the subdiagonal
+/// by `H = I - beta v v^T` applied from both sides, `k = 0 .. n - 2`; `Q` gathers the `H`s.
+fn tridiagonalize(a: &[f64], n: usize) -> Tridiagonal {
+    let mut a = a.to_vec();
+    let mut q = identity(n);
+    for k in 0..n.saturating_sub(2) {
+        let below = k + 1;
+        let mut v: Vec<f64> = (below..n).map(|i| a[i * n + k]).collect();
+        let length = norm(&v);
+        if v[1..].iter().all(|&x| x == 0.0) {
+            continue;
+        }
+        // The reflection's image has the sign opposite to v[0], so that v[0] - alpha does not
+        // cancel.
+        let alpha = if v[0] >= 0.0 { -length } else { length };
+        v[0] -= alpha;
+        let beta = 2.0 / dot(&v, &v);
+        let m = v.len();
+        // S <- H S H for the trailing block S: with p = beta S v and
+        // w = p - (beta p.v / 2) v, that is S - v w^T - w v^T.
+        let p: Vec<f64> = (0..m)
+            .map(|i| beta * dot(&a[(below + i) * n + below..][..m], &v))
+            .collect();
+        let half = 0.5 * beta * dot(&p, &v);
+        let w: Vec<f64> = p.iter().zip(&v).map(|(p, v)| p - half * v).collect();
+        for i in 0..m {
+            let row = &mut a[(below + i) * n + below..][..m];
+            for j in 0..m {
+                row[j] -= v[i] * w[j] + w[i] * v[j];
+            }
+        }
+        a[below * n + k] = alpha;
+        a[k * n + below] = alpha;
+        for i in below + 1..n {
+            a[i * n + k] = 0.0;
+            a[k * n + i] = 0.0;
+        }
+        // Q <- Q H.
+        for row in q.chunks_exact_mut(n) {
+            let tail = &mut row[below..];
+            let t = beta * dot(tail, &v);
+            tail.iter_mut().zip(&v).for_each(|(x, v)| *x -= t * v);
         }
     }
-    a[p * n + p] -= t * apq;
-    a[q * n + q] += t * apq;
-    a[p * n + q] = 0.0;
-    a[q * n + p] = 0.0;
-    for r in 0..n {
-        let (vrp, vrq) = (v[r * n + p], v[r * n + q]);
-        v[r * n + p] = c * vrp - s * vrq;
-        v[r * n + q] = s * vrp + c * vrq;
+    Tridiagonal {
+        diagonal: (0..n).map(|i| a[i * n + i]).collect(),
+        off_diagonal: (0..n)
+            .map(|i| if i + 1 < n { a[i * n + i + 1] } else { 0.0 })
+            .collect(),
+        basis: q,
+    }
+}
+
+/// Implicit symmetric QR on the tridiagonal `(diagonal, off_diagonal)`, each step's rotations
+/// also applied to the columns of `basis`. The trailing eigenvalue of the unreduced block is
+/// split off once its off-diagonal entry is below rounding of its neighbours.
+fn diagonalize_tridiagonal(
+    diagonal: &mut [f64],
+    off_diagonal: &mut [f64],
+    basis: &mut [f64],
+    n: usize,
+) {
+    let negligible = |e: f64, a: f64, b: f64| e.abs() <= f64::EPSILON * (a.abs() + b.abs());
+    let mut steps_left = MAX_STEPS_PER_VALUE * n;
+    let mut last = n.saturating_sub(1);
+    while last > 0 && steps_left > 0 {
+        if negligible(off_diagonal[last - 1], diagonal[last - 1], diagonal[last]) {
+            off_diagonal[last - 1] = 0.0;
+            last -= 1;
+            continue;
+        }
+        let mut first = last - 1;
+        while first > 0
+            && !negligible(
+                off_diagonal[first - 1],
+                diagonal[first - 1],
+                diagonal[first],
+            )
+        {
+            first -= 1;
+        }
+        let shift = wilkinson_shift(diagonal[last - 1], diagonal[last], off_diagonal[last - 1]);
+        qr_step(diagonal, off_diagonal, basis, n, first..=last, shift);
+        steps_left -= 1;
+    }
+}
+
+/// The eigenvalue of `[[a, b], [b, c]]` nearer `c`.
+fn wilkinson_shift(a: f64, c: f64, b: f64) -> f64 {
+    let delta = 0.5 * (a - c);
+    let sign = if delta >= 0.0 { 1.0 } else { -1.0 };
+    c - b * b / (delta + sign * delta.hypot(b))
+}
+
+/// One implicit QR step with `shift` on the unreduced block `range`: the first rotation is
+/// the one QR of `T - shift I` would start with, and each next one chases the bulge it leaves
+/// below the off-diagonal down and out of the block.
+fn qr_step(
+    diagonal: &mut [f64],
+    off_diagonal: &mut [f64],
+    basis: &mut [f64],
+    n: usize,
+    range: std::ops::RangeInclusive<usize>,
+    shift: f64,
+) {
+    let (first, last) = (*range.start(), *range.end());
+    let mut x = diagonal[first] - shift;
+    let mut z = off_diagonal[first];
+    for k in first..last {
+        // R = [[c, s], [-s, c]] maps (x, z) onto (r, 0).
+        let r = x.hypot(z);
+        let (c, s) = if r == 0.0 { (1.0, 0.0) } else { (x / r, z / r) };
+        if k > first {
+            off_diagonal[k - 1] = r;
+        }
+        // T <- R T R^T on rows and columns k, k + 1.
+        let (a, b, d) = (diagonal[k], off_diagonal[k], diagonal[k + 1]);
+        diagonal[k] = c * c * a + 2.0 * c * s * b + s * s * d;
+        diagonal[k + 1] = s * s * a - 2.0 * c * s * b + c * c * d;
+        off_diagonal[k] = c * s * (d - a) + (c * c - s * s) * b;
+        if k + 1 < last {
+            // The rotation of row k + 1 puts s e[k+1] at (k, k + 2): the bulge.
+            x = off_diagonal[k];
+            z = s * off_diagonal[k + 1];
+            off_diagonal[k + 1] *= c;
+        }
+        // Q <- Q R^T.
+        for row in basis.chunks_exact_mut(n) {
+            let (p, q) = (row[k], row[k + 1]);
+            row[k] = c * p + s * q;
+            row[k + 1] = c * q - s * p;
+        }
     }
 }
 
@@ -122,7 +218,7 @@ pub fn top_eigenvectors(c: &[f64], n: usize, m: usize, warm: &[f64]) -> (Vec<f64
 
 /// Twice the directions wanted plus a few: the convergence rate of the m-th direction is
 /// `lambda_(block+1) / lambda_m`, so slack in the block buys speed; at half the space or more,
-/// a whole Jacobi diagonalisation is as cheap.
+/// a whole diagonalisation is as cheap.
 fn block_size(n: usize, m: usize) -> usize {
     let block = 2 * m + 4;
     if 2 * block >= n {
@@ -189,7 +285,7 @@ fn rayleigh_ritz(c: &[f64], n: usize, basis: &[f64]) -> Ritz {
             projected[i * block + j] = dot(&basis[i * n..(i + 1) * n], &product[j * n..][..n]);
         }
     }
-    // Symmetric up to rounding; make it exactly so for Jacobi.
+    // Symmetric up to rounding; make it exactly so.
     for i in 0..block {
         for j in 0..i {
             let mean = 0.5 * (projected[i * block + j] + projected[j * block + i]);
@@ -320,7 +416,7 @@ mod tests {
     }
 
     #[test]
-    fn jacobi_recovers_a_known_decomposition() {
+    fn whole_diagonalisation_recovers_a_known_decomposition() {
         let values: Vec<f64> = (0..30).map(|i| 10.0 * 0.7f64.powi(i) - 0.5).collect();
         let (q, a) = known_matrix(&values, 7);
         let (got_values, got_vectors) = symmetric_eigen(&a, 30);
@@ -328,6 +424,49 @@ mod tests {
             assert!((got - expected).abs() < 1e-12, "{got} vs {expected}");
         }
         assert_vectors_match(&got_vectors, &q, 30, 30, 1e-9);
+    }
+
+    #[test]
+    fn eigenpairs_rebuild_the_matrix_with_orthonormal_vectors() {
+        let mut rng = Pcg32::new(5);
+        let random = |n: usize, rng: &mut Pcg32| {
+            let mut a = vec![0.0; n * n];
+            for i in 0..n {
+                for j in 0..=i {
+                    let x = symmetric_unit(rng);
+                    a[i * n + j] = x;
+                    a[j * n + i] = x;
+                }
+            }
+            a
+        };
+        let mut cases: Vec<(usize, Vec<f64>)> =
+            [1, 2, 3, 52].map(|n| (n, random(n, &mut rng))).into();
+        // Already diagonal (nothing to reflect or rotate), a repeated eigenvalue, and zero.
+        cases.push((
+            4,
+            vec![
+                3.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 2.0,
+            ],
+        ));
+        cases.push((20, known_matrix(&[[1.0; 10], [-2.0; 10]].concat(), 9).1));
+        cases.push((5, vec![0.0; 25]));
+        for (n, a) in cases {
+            let (values, vectors) = symmetric_eigen(&a, n);
+            assert!(values.windows(2).all(|w| w[0] >= w[1]), "{values:?}");
+            let scale = a.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+            for i in 0..n {
+                for j in 0..n {
+                    let u = |k: usize| &vectors[k * n..(k + 1) * n];
+                    let d = dot(u(i), u(j));
+                    let expected = if i == j { 1.0 } else { 0.0 };
+                    assert!((d - expected).abs() < 1e-12, "n {n}, rows {i}, {j}: {d}");
+                    let rebuilt: f64 = (0..n).map(|k| values[k] * u(k)[i] * u(k)[j]).sum();
+                    let error = (rebuilt - a[i * n + j]).abs();
+                    assert!(error < 1e-12 * scale, "n {n}, ({i}, {j}): off by {error}");
+                }
+            }
+        }
     }
 
     #[test]

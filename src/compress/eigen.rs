@@ -1,13 +1,13 @@
 //! The top eigenvectors of a symmetric positive semi-definite matrix (a cluster's covariance).
 //!
 //! Small problems are diagonalised whole: Householder reduction to a tridiagonal matrix, then
-//! implicit QR steps with Wilkinson's shift. Large ones (a 768-dimensional
-//! covariance of which only the top 8 directions are wanted) use subspace iteration with
-//! Rayleigh–Ritz: a block a little wider than the directions wanted is multiplied by the
-//! matrix, re-orthonormalised and rotated onto the Ritz vectors of the block's small projected
-//! matrix (diagonalised whole) until every wanted Ritz pair has a small residual. Its cost
-//! per step is `n^2 p` instead of the whole diagonalisation's `n^3`, and a warm start (the previous
-//! CPCA round's basis) usually converges in a step or two.
+//! implicit QR steps with Wilkinson's shift. Large ones (a 768-dimensional covariance of which
+//! only the top 8 directions are wanted) use subspace iteration with Rayleigh–Ritz: a block a
+//! little wider than the directions wanted is multiplied by the matrix, re-orthonormalised and
+//! rotated onto the Ritz vectors of the block's small projected matrix (diagonalised whole)
+//! until every wanted Ritz pair has a small residual. Its cost per step is `n^2 p` instead of
+//! the whole diagonalisation's `n^3`, and a warm start (the previous CPCA round's basis)
+//! usually converges in a step or two.
 //!
 //! Everything is sequential f64 in a fixed order, so the result is a function of the input.
 

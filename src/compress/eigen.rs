@@ -73,10 +73,10 @@ fn tridiagonalize(a: &[f64], n: usize) -> Tridiagonal {
     for k in 0..n.saturating_sub(2) {
         let below = k + 1;
         let mut v: Vec<f64> = (below..n).map(|i| a[i * n + k]).collect();
-        let length = norm(&v);
         if v[1..].iter().all(|&x| x == 0.0) {
             continue;
         }
+        let length = norm(&v);
         // The reflection's image has the sign opposite to v[0], so that v[0] - alpha does not
         // cancel.
         let alpha = if v[0] >= 0.0 { -length } else { length };

@@ -44,14 +44,14 @@ pub fn listing_order(samples: &SampleSet, sample_chunk: u32) -> Vec<u32> {
 
 /// The horizon pass's own buffers.
 pub(super) struct HorizonBuffers {
-    /// The sample lists of every vertex–sample pair of a chunk (read back by the tests; the
-    /// bind groups hold it for the passes).
-    #[cfg_attr(not(test), allow(dead_code))]
+    /// The sample lists of every vertex–sample pair of a chunk, which the visibility pass
+    /// reads.
     pub sample_lists: wgpu::Buffer,
     /// (low, high) words of the samples listed in the run.
     pub listed: wgpu::Buffer,
     /// The visibility pass's workgroup counts, which the pass writes for an indirect dispatch.
     pub visibility_groups: wgpu::Buffer,
+    /// The pass's [`HorizonParams`], written before each chunk.
     pub params: wgpu::Buffer,
     /// The order it lists samples in ([`listing_order`]).
     pub listing_order: wgpu::Buffer,

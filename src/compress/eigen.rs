@@ -202,18 +202,39 @@ fn qr_step(
 
 /// The `m` leading eigenvectors (rows, orthonormal) of the symmetric PSD `n x n` matrix `c`,
 /// with their eigenvalues. `warm` (rows of length `n`, any number, ideally near the answer)
-/// starts the subspace iteration; it does not change the answer beyond the tolerance.
+/// starts the subspace iteration; it does not change the answer beyond the tolerance, signs
+/// included: each vector's component of largest magnitude is positive
+/// ([`with_positive_largest_component`]).
 pub fn top_eigenvectors(c: &[f64], n: usize, m: usize, warm: &[f64]) -> (Vec<f64>, Vec<f64>) {
     if m == 0 {
         return (Vec::new(), Vec::new());
     }
     let block = block_size(n, m);
-    if block == n {
+    let (values, mut vectors) = if block == n {
         // Nothing to gain from a block as wide as the space: diagonalise whole.
         let (values, vectors) = symmetric_eigen(c, n);
-        return (values[..m].to_vec(), vectors[..m * n].to_vec());
+        (values[..m].to_vec(), vectors[..m * n].to_vec())
+    } else {
+        subspace_iteration(c, n, m, block, warm)
+    };
+    with_positive_largest_component(&mut vectors, n);
+    (values, vectors)
+}
+
+/// Negates each row of `vectors` (length `n`) whose component of largest magnitude (the first
+/// of equals) is negative. An eigenvector's sign is arbitrary; left to the solver, it follows
+/// the warm start and the order of rounding, and flipped signs change every byte of a
+/// compressed basis and its weights without changing what they reconstruct.
+fn with_positive_largest_component(vectors: &mut [f64], n: usize) {
+    for row in vectors.chunks_exact_mut(n) {
+        let largest = row
+            .iter()
+            .copied()
+            .reduce(|best, x| if x.abs() > best.abs() { x } else { best });
+        if largest.is_some_and(|x| x < 0.0) {
+            row.iter_mut().for_each(|x| *x = -*x);
+        }
     }
-    subspace_iteration(c, n, m, block, warm)
 }
 
 /// Twice the directions wanted plus a few: the convergence rate of the m-th direction is
@@ -481,6 +502,33 @@ mod tests {
                 assert!((got - expected).abs() < 1e-10, "{got} vs {expected}");
             }
             assert_vectors_match(&got_vectors, &q, 80, 6, 1e-8);
+        }
+    }
+
+    #[test]
+    fn leading_directions_have_one_sign_whatever_the_start() {
+        // Both solvers (a small space is diagonalised whole, a large one iterated), started
+        // cold, from the answer and from the answer negated.
+        for (n, m) in [(12, 4), (80, 6)] {
+            let values: Vec<f64> = (0..n).map(|i| 0.8f64.powi(i as i32)).collect();
+            let (q, a) = known_matrix(&values, 13);
+            let negated: Vec<f64> = q[..m * n].iter().map(|x| -x).collect();
+            let starts = [Vec::new(), q[..m * n].to_vec(), negated];
+            let answers: Vec<Vec<f64>> = starts
+                .iter()
+                .map(|warm| top_eigenvectors(&a, n, m, warm).1)
+                .collect();
+            for row in answers[0].chunks_exact(n) {
+                let largest = row
+                    .iter()
+                    .fold(0.0f64, |b, &x| if x.abs() > b.abs() { x } else { b });
+                assert!(largest > 0.0, "n {n}: largest component {largest}");
+            }
+            for other in &answers[1..] {
+                for (x, y) in answers[0].iter().zip(other) {
+                    assert!((x - y).abs() < 1e-8, "n {n}: {x} against {y}");
+                }
+            }
         }
     }
 

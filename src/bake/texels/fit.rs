@@ -6,7 +6,7 @@
 use std::ops::Range;
 use std::time::Instant;
 
-use super::{leaking_or_covered_in, scattered_texels, stitch, TexelsOf};
+use super::{scattered_texels, sites_in, stitch, TexelsOf};
 use crate::bake::spill::Spill;
 use crate::bake::{
     bake_at_in, bake_run_in_chunks, Advancing, Backend, BakeOptions, Fit, Progress, Transfer,
@@ -61,9 +61,10 @@ fn fit_texels(
     // Built again rather than kept from the texels' bake, which owns its tree: one tree is held
     // at a time, and building it is a small share of a bake that casts rays from every point.
     let bvh = Bvh::build(&scene.positions, &scene.triangles);
-    let skip = leaking_or_covered_in(scene, &bvh, &receivers, cover);
+    let size = (atlas.width, atlas.height);
+    let skip = texel_fit::left_out(size, &points, &sites_in(scene, &bvh, &receivers, cover));
     let casting = Instant::now();
-    let mut sums = texel_fit::PointSums::new((atlas.width, atlas.height), stride, &points, &skip);
+    let mut sums = texel_fit::PointSums::new(size, stride, &points, &skip);
     let rays_cast = match scatter {
         // Scattering spreads light between points, so the points bake all at once.
         Some(scatter) => {
@@ -132,7 +133,7 @@ impl HeldPoints {
         let turned = options.clone().with_turns_where_possible();
         let points = texel_fit::fit_points(atlas);
         let count = points.len();
-        let mut taps = texel_fit::PointTaps::none((atlas.width, atlas.height));
+        let mut sites = Vec::with_capacity(count);
         let mut bvh = Bvh::build(&scene.positions, &scene.triangles);
         let stride = groups.last().map_or(0, |g| g.end);
         let mut file = Spill::new()?;
@@ -146,7 +147,7 @@ impl HeldPoints {
             let first = index * run_length;
             let surface: Vec<SurfacePoint> = run.iter().map(|p| p.surface).collect();
             let receivers = Receivers::at_points(scene, &surface);
-            taps.extend(run, &leaking_or_covered_in(scene, &bvh, &receivers, cover));
+            sites.extend(sites_in(scene, &bvh, &receivers, cover));
             let casting = Instant::now();
             let (cast, tree) = bake_run_in_chunks(
                 scene,
@@ -162,6 +163,9 @@ impl HeldPoints {
             rays_cast += cast;
             bvh = tree;
         }
+        let size = (atlas.width, atlas.height);
+        let taps =
+            texel_fit::PointTaps::new(size, &points, &texel_fit::left_out(size, &points, &sites));
         let baked = TexelFit {
             points: count,
             rays_cast,
@@ -230,4 +234,103 @@ pub(super) fn write_by_group(
         file.write_at(at, block)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{Vec2, Vec3};
+
+    use super::super::{bake_atlas, bake_atlas_held, plan_atlas, TexelGroups};
+    use crate::bake::backend::CpuBackend;
+    use crate::bake::{bake, BakeOptions, Fit, NoProgress};
+    use crate::lightmap::TexelRows;
+    use crate::receivers::texel_fit::fit_points;
+    use crate::receivers::texels::bilinear_taps;
+    use crate::scene::{builtin, Scene};
+
+    /// A 4 x 4 floor with a 2 x 2 sheet lying flat `2e-5` above its middle, both of its faces
+    /// listed (as a scan's fins are), the one facing the floor first.
+    fn floor_under_a_sheet() -> Scene {
+        let floor = builtin::grid_plane(Vec3::ZERO, Vec3::X * 2.0, Vec3::NEG_Z * 2.0, 4, Vec3::ONE);
+        let lift = 2e-5;
+        let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
+        let positions: Vec<Vec3> = corners
+            .iter()
+            .chain(&corners)
+            .map(|&(x, z)| Vec3::new(x, lift, z))
+            .collect();
+        let sheet = Scene {
+            normals: Some([[Vec3::NEG_Y; 4], [Vec3::Y; 4]].concat()),
+            albedo: vec![Vec3::ONE; 8],
+            positions,
+            triangles: vec![[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]],
+        };
+        builtin::merge(&[floor, sheet])
+    }
+
+    #[test]
+    fn texels_wholly_under_a_sheet_are_fitted_dark_as_the_points_under_it_are() {
+        let options = BakeOptions {
+            samples: 64,
+            bands: 2,
+            ..BakeOptions::default()
+        };
+        let (baked, _) = bake(floor_under_a_sheet(), &options, &CpuBackend, &NoProgress).unwrap();
+        let size = 64;
+        let atlas = plan_atlas(&baked.scene, size).unwrap();
+        let options = BakeOptions {
+            lightmap: Some(size),
+            fit: Fit::LeastSquares,
+            ..options
+        };
+        let at = (&baked.scene, &baked.transfer, &atlas);
+        let (map, _) = bake_atlas(at.0, at.1, &options, at.2, &CpuBackend, &NoProgress).unwrap();
+        // The first coefficient looked up at the fit points on the floor, under the sheet's
+        // middle and well away from it.
+        let stride = map.transfer.coeffs().len() / (map.width * map.height) as usize;
+        let lookup = |p: Vec2| -> f32 {
+            bilinear_taps(map.width, map.height, p)
+                .iter()
+                .map(|&(t, w)| w * map.transfer.coeffs()[t * stride])
+                .sum()
+        };
+        let (mut under, mut open) = (Vec::new(), Vec::new());
+        for point in fit_points(&atlas) {
+            let corners = baked.scene.triangles[point.surface.triangle as usize];
+            let position: Vec3 = (0..3)
+                .map(|i| baked.scene.positions[corners[i] as usize] * point.surface.barycentrics[i])
+                .sum();
+            let reach = position.x.abs().max(position.z.abs());
+            if position.y > 1e-6 {
+                continue;
+            } else if reach < 0.6 {
+                under.push(lookup(point.atlas));
+            } else if reach > 1.5 {
+                open.push(lookup(point.atlas));
+            }
+        }
+        let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+        assert!(
+            under.len() > 100 && open.len() > 100,
+            "{} {}",
+            under.len(),
+            open.len()
+        );
+        let (under, open) = (mean(&under), mean(&open));
+        assert!(open > 0.1, "open floor {open}");
+        assert!(
+            under.abs() < 0.02 * open,
+            "under the sheet {under}, open floor {open}"
+        );
+        // Held in bounded memory, its points decided in runs, the fit is the same.
+        let groups = TexelGroups {
+            chunk: 97,
+            columns: usize::MAX,
+        };
+        let (held, _) = bake_atlas_held(at, &options, &CpuBackend, &NoProgress, groups).unwrap();
+        let held = held.held.expect("held in the scratch file");
+        let rows = held.read_rows(0..map.height as usize).unwrap();
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert!(bits(&rows) == bits(map.transfer.coeffs()));
+    }
 }

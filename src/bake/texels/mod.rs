@@ -22,6 +22,7 @@ use crate::ray::{offset_ray_origin, RAY_T_MAX};
 use crate::receivers::atlas::{atlas_for_size, Atlas, GUTTER};
 use crate::receivers::denoise::{texel_level, DenoiseGuide, NO_CHART};
 use crate::receivers::face_normal;
+use crate::receivers::texel_fit::Site;
 use crate::receivers::texels::{
     bilinear_taps, dilate_by_owner, nearest_owner, rasterize, TexelPoints,
 };
@@ -581,12 +582,20 @@ pub fn leaking_or_covered_in(
     receivers: &Receivers,
     cover: f32,
 ) -> Vec<bool> {
+    let sites = sites_in(scene, bvh, receivers, cover);
+    sites.into_iter().map(|site| site != Site::Open).collect()
+}
+
+/// What each receiver's leak test finds: inside geometry where more than [`LEAK_FRACTION`] of
+/// its rays hit back faces; else covered where more than that share hit a back face or any
+/// face nearer than `cover`; else open.
+pub fn sites_in(scene: &Scene, bvh: &Bvh, receivers: &Receivers, cover: f32) -> Vec<Site> {
     let directions = cosine_hemisphere(LEAK_RAYS, 0x1eaf);
     let limit = (LEAK_FRACTION * LEAK_RAYS as f32) as usize;
     (0..receivers.len())
         .into_par_iter()
         .map(|r| {
-            let mut back_hits = 0;
+            let (mut back_hits, mut back_or_near_hits) = (0, 0);
             fans_from(bvh, receivers, r, &directions, |fan, path, world| {
                 let closest = packet::closest_fan(bvh, fan, path, RAY_T_MAX);
                 for (lane, &direction) in world.iter().enumerate() {
@@ -594,14 +603,18 @@ pub fn leaking_or_covered_in(
                         continue;
                     };
                     let corners = scene.triangles[hit.source_index as usize];
-                    if closest.t[lane] < cover
-                        || face_normal(&scene.positions, corners).dot(direction) > 0.0
-                    {
-                        back_hits += 1;
-                    }
+                    let back = face_normal(&scene.positions, corners).dot(direction) > 0.0;
+                    back_hits += back as usize;
+                    back_or_near_hits += (back || closest.t[lane] < cover) as usize;
                 }
             });
-            back_hits > limit
+            if back_hits > limit {
+                Site::Inside
+            } else if back_or_near_hits > limit {
+                Site::Covered
+            } else {
+                Site::Open
+            }
         })
         .collect()
 }
@@ -686,6 +699,9 @@ mod tests {
             albedo: vec![Vec3::ONE; 2],
         };
         assert_eq!(leaking_receivers(&scene, &receivers), vec![true, false]);
+        let bvh = Bvh::build(&scene.positions, &scene.triangles);
+        let sites = sites_in(&scene, &bvh, &receivers, 1e-3);
+        assert_eq!(sites, vec![Site::Inside, Site::Open]);
     }
 
     #[test]
@@ -716,5 +732,7 @@ mod tests {
         };
         let covered = leaking_or_covered_in(&scene, &bvh, &receivers, 1e-3);
         assert_eq!(covered, vec![true, false]);
+        let sites = sites_in(&scene, &bvh, &receivers, 1e-3);
+        assert_eq!(sites, vec![Site::Covered, Site::Open]);
     }
 }

@@ -118,10 +118,11 @@ pub enum Site {
 /// [`POINTS_PER_SIDE`]² points lie under one: most of the texel is then the covered surface,
 /// dark as a reference bake at those points is. Elsewhere they are left out, and the texel
 /// stands for the open surface its bilinear lookups also serve. Measured at held-out points on
-/// the dragon at 1024² (docs/performance.md): none fitted, the lightmap's error was 1.45 times
-/// below point-sampled vertices'; with these fitted, 1.86 times, as seen the same. Texels with
-/// fewer (a crease's edge, the rim of a chart) were tried too and raised the teapot's error.
+/// the dragon at 1024² over three seeds (docs/performance.md): with none fitted, the map's error
+/// was 1.46 times below point-sampled vertices' (1.90 as seen); with these, 1.82 (1.95).
+/// Taking texels by fewer (a crease's edge, a chart's rim) raised the teapot's error.
 pub const COVERED_POINTS: u32 = 3;
+const _: () = assert!(COVERED_POINTS <= POINTS_PER_SIDE * POINTS_PER_SIDE);
 
 /// Which of `points` (on a `width` x `height` map) the fit leaves out, by the `sites` their
 /// leak tests found: those inside geometry, and those under a sheet in a texel with fewer than
@@ -255,7 +256,7 @@ pub struct PointSums {
 
 impl PointSums {
     /// Sums for a `width` x `height` map of `stride` values a texel, over `points` less those
-    /// flagged in `skip` (inside geometry or under a sheet, as texels are).
+    /// flagged in `skip` (inside geometry or under a sheet: [`left_out`]).
     pub fn new(size: (u32, u32), stride: usize, points: &[FitPoint], skip: &[bool]) -> PointSums {
         let taps = PointTaps::new(size, points, skip);
         let sums = taps.empty_sums(stride);

@@ -46,7 +46,8 @@ pub(super) fn stitch_or_fit(
 /// Fits the texels of `image` (`stride` values a texel; baked at their centres, filled, each
 /// held as firmly as `anchor` says) to transfer baked at points spread over the charts
 /// ([`texel_fit`]), their seams pulled together by `seam_rows`; the points are baked with
-/// `options` in chunks, those nearer a sheet than `cover` left out, as texels are.
+/// `options` in chunks. Points inside geometry are left out, and so are those nearer a sheet
+/// than `cover` except where most of their texel is ([`texel_fit::left_out`]).
 fn fit_texels(
     (at, scatter): TexelsOf,
     cover: f32,
@@ -120,9 +121,10 @@ pub(super) struct HeldPoints {
 
 impl HeldPoints {
     /// The fit points of `at`'s atlas baked with `options` (turned where the sampling can, as
-    /// [`stitch_or_fit`] turns them), those nearer a sheet than `cover` left out, each chunk's
-    /// values (`chunk` points) written by `groups` of coefficients and let go. The points'
-    /// receivers are made a run at a time: what every point keeps is its place and its taps.
+    /// [`stitch_or_fit`] turns them) and left out as [`fit_texels`] leaves them out, each
+    /// chunk's values (`chunk` points) written by `groups` of coefficients and let go. The
+    /// points' receivers are made a run at a time: what every point keeps is its place, what
+    /// its leak test found and, once every run has said which points its texel keeps, its taps.
     pub(super) fn bake(
         (scene, vertex_transfer, atlas): (&Scene, &Transfer, &Atlas),
         cover: f32,

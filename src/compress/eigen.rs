@@ -203,8 +203,7 @@ fn qr_step(
 /// The `m` leading eigenvectors (rows, orthonormal) of the symmetric PSD `n x n` matrix `c`,
 /// with their eigenvalues. `warm` (rows of length `n`, any number, ideally near the answer)
 /// starts the subspace iteration; it does not change the answer beyond the tolerance, signs
-/// included: each vector's component of largest magnitude is positive
-/// ([`with_positive_largest_component`]).
+/// included: each vector's component of largest magnitude is positive.
 pub fn top_eigenvectors(c: &[f64], n: usize, m: usize, warm: &[f64]) -> (Vec<f64>, Vec<f64>) {
     if m == 0 {
         return (Vec::new(), Vec::new());

@@ -127,7 +127,7 @@ const _: () = assert!(COVERED_POINTS <= POINTS_PER_SIDE * POINTS_PER_SIDE);
 /// Which of `points` (on a `width` x `height` map) the fit leaves out, by the `sites` their
 /// leak tests found: those inside geometry, and those under a sheet in a texel with fewer than
 /// [`COVERED_POINTS`] such points.
-pub fn left_out((width, height): (u32, u32), points: &[FitPoint], sites: &[Site]) -> Vec<bool> {
+fn left_out((width, height): (u32, u32), points: &[FitPoint], sites: &[Site]) -> Vec<bool> {
     let texel_of = |p: &FitPoint| {
         let column = (p.atlas.x.max(0.0) as usize).min(width as usize - 1);
         let row = (p.atlas.y.max(0.0) as usize).min(height as usize - 1);
@@ -172,9 +172,10 @@ pub struct PointTaps {
 }
 
 impl PointTaps {
-    /// The taps on a `width` x `height` map of `points` less those flagged in `skip` (inside
-    /// geometry or under a sheet: [`left_out`]).
-    pub fn new((width, height): (u32, u32), points: &[FitPoint], skip: &[bool]) -> PointTaps {
+    /// The taps on a `width` x `height` map of `points`, less those the fit leaves out by the
+    /// `sites` their leak tests found (`left_out`; one site a point, none given: all open).
+    pub fn new((width, height): (u32, u32), points: &[FitPoint], sites: &[Site]) -> PointTaps {
+        let skip = left_out((width, height), points, sites);
         let mut index = vec![u32::MAX; width as usize * height as usize];
         let (mut kept, mut taps, mut texels) = (Vec::new(), Vec::new(), Vec::new());
         for (p, point) in points.iter().enumerate() {
@@ -256,9 +257,9 @@ pub struct PointSums {
 
 impl PointSums {
     /// Sums for a `width` x `height` map of `stride` values a texel, over `points` less those
-    /// flagged in `skip` (inside geometry or under a sheet: [`left_out`]).
-    pub fn new(size: (u32, u32), stride: usize, points: &[FitPoint], skip: &[bool]) -> PointSums {
-        let taps = PointTaps::new(size, points, skip);
+    /// the fit leaves out by their `sites` (as [`PointTaps::new`]).
+    pub fn new(size: (u32, u32), stride: usize, points: &[FitPoint], sites: &[Site]) -> PointSums {
+        let taps = PointTaps::new(size, points, sites);
         let sums = taps.empty_sums(stride);
         PointSums { taps, stride, sums }
     }
@@ -656,15 +657,15 @@ mod tests {
         let (width, height) = (atlas.width, atlas.height);
         let points = fit_points(&atlas);
         let values = vec![1.0f32; points.len()];
-        let fitted = |skip: &[bool]| {
+        let fitted = |sites: &[Site]| {
             let mut image = vec![0.5f32; (width * height) as usize];
-            let mut sums = PointSums::new((width, height), 1, &points, skip);
+            let mut sums = PointSums::new((width, height), 1, &points, sites);
             sums.add(0, &values);
             sums.fit(&mut image, &[], &[], &mut |_| {});
             image
         };
         let all = fitted(&[]);
-        let none = fitted(&vec![true; points.len()]);
+        let none = fitted(&vec![Site::Inside; points.len()]);
         assert!(none.iter().all(|&v| v == 0.5));
         // Far from every chart (the gutters and the empty atlas) texels keep their values;
         // texels under the points take theirs.

@@ -47,7 +47,7 @@ pub(super) fn stitch_or_fit(
 /// held as firmly as `anchor` says) to transfer baked at points spread over the charts
 /// ([`texel_fit`]), their seams pulled together by `seam_rows`; the points are baked with
 /// `options` in chunks. Points inside geometry are left out, and so are those nearer a sheet
-/// than `cover` except where most of their texel is ([`texel_fit::left_out`]).
+/// than `cover` except where most of their texel is (`texel_fit::PointTaps::new`).
 fn fit_texels(
     (at, scatter): TexelsOf,
     cover: f32,
@@ -62,10 +62,10 @@ fn fit_texels(
     // Built again rather than kept from the texels' bake, which owns its tree: one tree is held
     // at a time, and building it is a small share of a bake that casts rays from every point.
     let bvh = Bvh::build(&scene.positions, &scene.triangles);
-    let size = (atlas.width, atlas.height);
-    let skip = texel_fit::left_out(size, &points, &sites_in(scene, &bvh, &receivers, cover));
+    let sites = sites_in(scene, &bvh, &receivers, cover);
     let casting = Instant::now();
-    let mut sums = texel_fit::PointSums::new(size, stride, &points, &skip);
+    let size = (atlas.width, atlas.height);
+    let mut sums = texel_fit::PointSums::new(size, stride, &points, &sites);
     let rays_cast = match scatter {
         // Scattering spreads light between points, so the points bake all at once.
         Some(scatter) => {
@@ -89,7 +89,7 @@ fn fit_texels(
     };
     let transfer_seconds = casting.elapsed().as_secs_f64();
     let count = points.len();
-    drop((receivers, surface, points, skip));
+    drop((receivers, surface, points, sites));
     progress.stage("fit", stride as u64);
     let solved = &mut |coefficients| progress.advance(coefficients);
     sums.fit(image, anchor, seam_rows, solved);
@@ -165,9 +165,7 @@ impl HeldPoints {
             rays_cast += cast;
             bvh = tree;
         }
-        let size = (atlas.width, atlas.height);
-        let taps =
-            texel_fit::PointTaps::new(size, &points, &texel_fit::left_out(size, &points, &sites));
+        let taps = texel_fit::PointTaps::new((atlas.width, atlas.height), &points, &sites);
         let baked = TexelFit {
             points: count,
             rays_cast,

@@ -8,6 +8,8 @@
 //!   triangles where need be, which always lie flat. Each chart keeps its true area at the texel density and
 //!   is turned to its smallest bounding box; a tiny chart is enlarged until its box's longer
 //!   side spans [`MIN_CHART_EDGE`] texels, so that every chart gets texels of its own.
+//! - Density (`density`): a chart near other geometry, where the light changes within a short
+//!   distance, gets up to [`density::MAX_DENSITY_GAIN`] times the texels per unit length.
 //! - Packing (`pack`): by the texels each chart meets, on a skyline, charts largest first,
 //!   each turned a quarter where that keeps it lower; small charts first into the room the
 //!   large ones leave (under their overhangs, above their slopes). Every chart is kept [`GUTTER`] empty
@@ -17,6 +19,7 @@
 //! Texel `(x, y)` covers `[x, x+1) x [y, y+1)` in the atlas' texel units; its centre is
 //! `(x + 0.5, y + 0.5)`.
 
+pub mod density;
 mod flatten;
 mod pack;
 mod segment;
@@ -124,13 +127,14 @@ struct FlatChart {
 }
 
 /// Cuts `scene` into charts and packs them at `texels_per_unit` texels per scene unit of
-/// length, in an atlas about square. Refuses densities that are not positive and finite,
+/// length (more near other geometry, [`density`]), in an atlas about square. Refuses densities that are not positive and finite,
 /// scenes without triangles or with non-finite positions, and atlases over
 /// [`MAX_ATLAS_SIZE`] a side.
 pub fn generate_atlas(scene: &Scene, texels_per_unit: f32) -> Result<Atlas> {
     check_density(texels_per_unit)?;
     let charts = lay_out_charts(scene)?;
-    let texel_charts = at_density(&charts, texels_per_unit as f64);
+    let gains = chart_gains(scene, &charts, 1.0 / texels_per_unit as f64);
+    let texel_charts = at_density(&charts, texels_per_unit as f64, &gains);
     let cells: f64 = texel_charts
         .iter()
         .map(|c| (c.size.x + 1.0 + GUTTER as f64) * (c.size.y + 1.0 + GUTTER as f64))
@@ -159,7 +163,8 @@ pub fn generate_atlas(scene: &Scene, texels_per_unit: f32) -> Result<Atlas> {
 }
 
 /// Cuts `scene` into charts and packs them at the highest density whose atlas fits `target`
-/// texels a side (its width that, its height at most that). Refuses a target of zero or over
+/// texels a side (its width that, its height at most that), charts near other geometry
+/// denser by their gains ([`density`]) against the uniform atlas of that size. Refuses a target of zero or over
 /// [`MAX_ATLAS_SIZE`], one too small for the charts' minimum size and gutters at any density,
 /// and scenes [`generate_atlas`] refuses.
 pub fn atlas_for_size(scene: &Scene, target: u32) -> Result<Atlas> {
@@ -169,12 +174,50 @@ pub fn atlas_for_size(scene: &Scene, target: u32) -> Result<Atlas> {
         )));
     }
     let charts = lay_out_charts(scene)?;
-    let fits = |density: f64| -> Option<(Vec<TexelChart>, Vec<Placement>, u32)> {
-        let texel_charts = at_density(&charts, density);
+    let too_small = || {
+        Error::Options(format!(
+            "a lightmap of {target} texels a side is too small for the {} charts of {} \
+             triangles with their gutters",
+            charts.len(),
+            scene.triangles.len(),
+        ))
+    };
+    let uniform = vec![1.0; charts.len()];
+    let (uniform_density, fitted) = densest_fit(&charts, &uniform, target).ok_or_else(too_small)?;
+    let gains = chart_gains(scene, &charts, 1.0 / uniform_density);
+    let (texel_charts, placements, height) = if gains == uniform {
+        fitted
+    } else {
+        densest_fit(&charts, &gains, target)
+            .ok_or_else(too_small)?
+            .1
+    };
+    Ok(assemble(
+        scene,
+        &charts,
+        &texel_charts,
+        &placements,
+        target,
+        height,
+    ))
+}
+
+/// Charts scaled to texels and packed: their texel charts, placements and the atlas' height.
+type Fitted = (Vec<TexelChart>, Vec<Placement>, u32);
+
+/// The highest density (within 1%) at which `charts`, each at the density times its gain,
+/// pack into an atlas `target` texels wide and at most that high, and the charts so packed.
+fn densest_fit(charts: &[FlatChart], gains: &[f64], target: u32) -> Option<(f64, Fitted)> {
+    let fits = |density: f64| -> Option<Fitted> {
+        let texel_charts = at_density(charts, density, gains);
         let (placements, _, height) = pack(&texel_charts, target)?;
         (height <= target).then_some((texel_charts, placements, height))
     };
-    let area: f64 = charts.iter().map(|c| c.size.x * c.size.y).sum();
+    let area: f64 = charts
+        .iter()
+        .zip(gains)
+        .map(|(c, g)| c.size.x * c.size.y * g * g)
+        .sum();
     // The charts' boxes filling the square: a first guess to search around.
     let guess = target as f64 / area.sqrt().max(1e-30);
     let (mut low, mut high) = (guess, guess);
@@ -190,7 +233,6 @@ pub fn atlas_for_size(scene: &Scene, target: u32) -> Result<Atlas> {
         }
         high *= 2.0;
     }
-    // Within 1% of the densest that fits.
     while high > low * 1.01 {
         let middle = (low * high).sqrt();
         if fits(middle).is_some() {
@@ -199,22 +241,23 @@ pub fn atlas_for_size(scene: &Scene, target: u32) -> Result<Atlas> {
             high = middle;
         }
     }
-    match fits(low) {
-        Some((texel_charts, placements, height)) => Ok(assemble(
-            scene,
-            &charts,
-            &texel_charts,
-            &placements,
-            target,
-            height,
-        )),
-        None => Err(Error::Options(format!(
-            "a lightmap of {target} texels a side is too small for the {} charts of {} \
-             triangles with their gutters",
-            charts.len(),
-            scene.triangles.len(),
-        ))),
-    }
+    fits(low).map(|fitted| (low, fitted))
+}
+
+/// Per chart, what its density is multiplied by where it lies near other geometry
+/// ([`density`]), against a uniform atlas of texels `texel_length` long.
+fn chart_gains(scene: &Scene, charts: &[FlatChart], texel_length: f64) -> Vec<f64> {
+    let inverse = density::inverse_distances(scene);
+    let areas: Vec<f64> = scene
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| scene.positions[v as usize].as_dvec3());
+            0.5 * (b - a).cross(c - a).length()
+        })
+        .collect();
+    let triangles = charts.iter().map(|c| c.triangles.iter().copied());
+    density::density_gains(triangles, (&inverse, &areas), texel_length)
 }
 
 fn check_density(texels_per_unit: f32) -> Result<()> {
@@ -359,17 +402,19 @@ fn convex_hull(points: &[DVec2]) -> Vec<DVec2> {
     hull
 }
 
-/// Each chart scaled to texels: the density, or more for a chart so small that its box's longer
-/// side would span fewer than [`MIN_CHART_EDGE`] texels.
-fn at_density(charts: &[FlatChart], texels_per_unit: f64) -> Vec<TexelChart> {
+/// Each chart scaled to texels: the density times its gain, or more for a chart so small that
+/// its box's longer side would span fewer than [`MIN_CHART_EDGE`] texels.
+fn at_density(charts: &[FlatChart], texels_per_unit: f64, gains: &[f64]) -> Vec<TexelChart> {
     charts
         .iter()
-        .map(|chart| {
+        .zip(gains)
+        .map(|(chart, gain)| {
+            let density = texels_per_unit * gain;
             let longest = chart.size.max_element();
             let scale = if longest > 0.0 {
-                texels_per_unit.max(MIN_CHART_EDGE as f64 / longest)
+                density.max(MIN_CHART_EDGE as f64 / longest)
             } else {
-                texels_per_unit
+                density
             };
             TexelChart {
                 corners: chart.corners.iter().map(|c| c.map(|p| p * scale)).collect(),

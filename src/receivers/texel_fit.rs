@@ -119,8 +119,10 @@ pub enum Site {
 /// dark as a reference bake at those points is. Elsewhere they are left out, and the texel
 /// stands for the open surface its bilinear lookups also serve. Measured at held-out points on
 /// the dragon at 1024² over three seeds (docs/performance.md): with none fitted, the map's error
-/// was 1.46 times below point-sampled vertices' (1.90 as seen); with these, 1.82 (1.95).
-/// Taking texels by fewer (a crease's edge, a chart's rim) raised the teapot's error.
+/// was 1.46 times below point-sampled vertices' (1.90 as seen); with these, 1.82 (1.95), and
+/// 1.90 (2.17) once charts near geometry got denser (`atlas::density`). Taking texels by two
+/// points reached 2.07 plain but 1.83 as seen; by fewer still (a crease's edge, a chart's rim),
+/// it raised the teapot's error.
 pub const COVERED_POINTS: u32 = 3;
 const _: () = assert!(COVERED_POINTS <= POINTS_PER_SIDE * POINTS_PER_SIDE);
 

@@ -24,14 +24,19 @@ pub const MAX_DENSITY_GAIN: f64 = 4.0;
 /// geometry.
 pub const DISTANCE_RAYS: u32 = 32;
 
+/// How far the rays reach, in texels of the uniform atlas: a hit farther adds less than
+/// `1 / REACH_TEXELS` to a chart's gain, which counts only above 1, and long rays are most of
+/// the cost on a large scan.
+pub const REACH_TEXELS: f64 = 32.0;
+
 /// Where the rays start above the centroid, as a fraction of the scene's extent: clear of the
 /// triangle itself, well below any texel.
 const RAY_LIFT: f32 = 1e-5;
 
 /// Per triangle of `scene`, the mean over [`DISTANCE_RAYS`] cosine-weighted directions about its
-/// face normal of one over the distance to the nearest surface (0 for a ray that escapes, or a
-/// triangle of no area): one over the harmonic mean distance.
-pub fn inverse_distances(scene: &Scene) -> Vec<f64> {
+/// face normal of one over the distance to the nearest surface (0 for a ray that meets none
+/// within `reach`, or a triangle of no area): one over the harmonic mean distance.
+pub fn inverse_distances(scene: &Scene, reach: f32) -> Vec<f64> {
     let bvh = Bvh::build(&scene.positions, &scene.triangles);
     let lift = RAY_LIFT * bvh.extent();
     let nearest = lift as f64;
@@ -51,7 +56,7 @@ pub fn inverse_distances(scene: &Scene) -> Vec<f64> {
                 .iter()
                 .filter_map(|d| {
                     let direction = tangent * d.x + bitangent * d.y + normal * d.z;
-                    let (_, hit) = bvh.closest_hit(&Ray::new(origin, direction), f32::INFINITY)?;
+                    let (_, hit) = bvh.closest_hit(&Ray::new(origin, direction), reach)?;
                     Some(1.0 / (hit.t as f64).max(nearest))
                 })
                 .sum();
@@ -120,7 +125,7 @@ mod tests {
     #[test]
     fn a_surface_facing_another_sees_it_near_and_an_open_one_sees_nothing() {
         let gap = 0.01;
-        let inverse = inverse_distances(&facing_squares(gap as f32));
+        let inverse = inverse_distances(&facing_squares(gap as f32), 1.0);
         // The facing squares' centroids see each other `gap / cos` away (a cosine-weighted
         // mean of `cos / gap`: two thirds of `1 / gap`; a few grazing rays slip out past the
         // edges).
@@ -128,6 +133,9 @@ mod tests {
             assert!(x > 0.5 / gap && x < 1.0 / gap, "triangle {t}: {x}");
         }
         assert_eq!(&inverse[4..], &[0.0, 0.0], "the far square sees nothing");
+        // Within a reach shorter than the gap, nothing is seen.
+        let short = inverse_distances(&facing_squares(gap as f32), 0.5 * gap as f32);
+        assert!(short.iter().all(|&x| x == 0.0), "{short:?}");
     }
 
     #[test]

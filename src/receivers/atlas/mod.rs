@@ -133,8 +133,8 @@ struct FlatChart {
 /// positions, and atlases over [`MAX_ATLAS_SIZE`] a side.
 pub fn generate_atlas(scene: &Scene, texels_per_unit: f32) -> Result<Atlas> {
     check_density(texels_per_unit)?;
-    let charts = lay_out_charts(scene)?;
-    let gains = chart_gains(scene, &charts, 1.0 / texels_per_unit as f64);
+    let (charts, areas) = lay_out_charts(scene)?;
+    let gains = chart_gains(scene, (&charts, &areas), 1.0 / texels_per_unit as f64);
     let texel_charts = at_density(&charts, texels_per_unit as f64, &gains);
     let cells: f64 = texel_charts
         .iter()
@@ -174,7 +174,7 @@ pub fn atlas_for_size(scene: &Scene, target: u32) -> Result<Atlas> {
             "lightmap size must be between 1 and {MAX_ATLAS_SIZE} texels, not {target}"
         )));
     }
-    let charts = lay_out_charts(scene)?;
+    let (charts, areas) = lay_out_charts(scene)?;
     let too_small = || {
         Error::Options(format!(
             "a lightmap of {target} texels a side is too small for the {} charts of {} \
@@ -187,7 +187,7 @@ pub fn atlas_for_size(scene: &Scene, target: u32) -> Result<Atlas> {
     let guess = filling_density(&charts, &uniform, target);
     let (uniform_density, fitted) =
         densest_fit(&charts, &uniform, target, (guess, 2.0)).ok_or_else(too_small)?;
-    let gains = chart_gains(scene, &charts, 1.0 / uniform_density);
+    let gains = chart_gains(scene, (&charts, &areas), 1.0 / uniform_density);
     let (texel_charts, placements, height) = if gains == uniform {
         fitted
     } else {
@@ -263,20 +263,17 @@ fn filling_density(charts: &[FlatChart], gains: &[f64], target: u32) -> f64 {
 }
 
 /// Per chart, what its density is multiplied by where it lies near other geometry
-/// ([`density`]), against a uniform atlas of texels `texel_length` long.
-fn chart_gains(scene: &Scene, charts: &[FlatChart], texel_length: f64) -> Vec<f64> {
+/// ([`density`]), against a uniform atlas of texels `texel_length` long; `areas` are the
+/// triangles'.
+fn chart_gains(
+    scene: &Scene,
+    (charts, areas): (&[FlatChart], &[f64]),
+    texel_length: f64,
+) -> Vec<f64> {
     let reach = density::REACH_TEXELS * texel_length;
     let inverse = density::inverse_distances(scene, reach as f32);
-    let areas: Vec<f64> = scene
-        .triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|v| scene.positions[v as usize].as_dvec3());
-            0.5 * (b - a).cross(c - a).length()
-        })
-        .collect();
     let triangles = charts.iter().map(|c| c.triangles.iter().copied());
-    density::density_gains(triangles, (&inverse, &areas), texel_length)
+    density::density_gains(triangles, (&inverse, areas), texel_length)
 }
 
 fn check_density(texels_per_unit: f32) -> Result<()> {
@@ -316,8 +313,9 @@ fn check_scene(scene: &Scene) -> Result<()> {
     Ok(())
 }
 
-/// The scene's charts laid flat, in the order of their first triangles.
-fn lay_out_charts(scene: &Scene) -> Result<Vec<FlatChart>> {
+/// The scene's charts laid flat, in the order of their first triangles, and every triangle's
+/// area (the surface they were grown on already has them; the density gains weigh by them).
+fn lay_out_charts(scene: &Scene) -> Result<(Vec<FlatChart>, Vec<f64>)> {
     check_scene(scene)?;
     let surface = Surface::of(scene);
     let all: Vec<u32> = (0..scene.triangles.len() as u32).collect();
@@ -328,7 +326,7 @@ fn lay_out_charts(scene: &Scene) -> Result<Vec<FlatChart>> {
         .collect();
     let mut charts: Vec<FlatChart> = laid.into_iter().flatten().collect();
     charts.sort_by_key(|c| c.triangles.iter().min().copied());
-    Ok(charts)
+    Ok((charts, surface.areas))
 }
 
 /// `chart` laid flat, or, where it will not lie flat, cut in two and each part laid flat or
